@@ -1,0 +1,26 @@
+"""scene3D: two-view structure from motion and camera calibration.
+
+After Chapter 4 of *OpenCV with Python Blueprints*, on OpenCV 5. The frames and
+array conventions are stated once in :mod:`scene3D.geometry`.
+"""
+
+from .errors import CalibrationError, DatasetError, ReconstructionError
+from .features import FEATURE_MODES, Matches, find_matches
+from .scene import SceneReconstruction3D
+from .twoview import TwoViewReconstruction, TwoViewSettings, reconstruct_from_matches
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "FEATURE_MODES",
+    "CalibrationError",
+    "DatasetError",
+    "Matches",
+    "ReconstructionError",
+    "SceneReconstruction3D",
+    "TwoViewReconstruction",
+    "TwoViewSettings",
+    "__version__",
+    "find_matches",
+    "reconstruct_from_matches",
+]

@@ -1,0 +1,330 @@
+"""Camera calibration from views of a chessboard or ChArUco board (pure functions).
+
+The steps, usable one by one from a notebook:
+
+1. :func:`detect_board` finds the board's corners in a grey image
+   (:class:`Detection`, with matching object points on the board plane ``z = 0``);
+2. :func:`calibrate` solves for ``K`` and the distortion (Zhang's method through
+   ``cv2.calibrateCameraExtended``), reports per-view RMS errors and parameter
+   uncertainties, and can drop outlier views and solve again;
+3. :func:`corner_coverage` tells which parts of the image the corners cover;
+4. :func:`save_calibration` / :func:`load_calibration` (in
+   :mod:`scene3D.calibration_io`) read and write OpenCV FileStorage YAML.
+
+Sizes are (width, height) everywhere. Pixel conventions as in :mod:`scene3D.geometry`.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from .calibration_io import CameraCalibration, load_calibration, save_calibration
+from .errors import CalibrationError
+from .geometry import FloatArray
+
+logger = logging.getLogger(__name__)
+
+__all__ = [
+    "BoardSpec", "CalibrationResult", "CameraCalibration", "Detection", "calibrate",
+    "corner_coverage", "coverage_warnings", "detect_board", "load_calibration",
+    "save_calibration", "subpixel_window",
+]
+
+_SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01)
+DISTORTION_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4",
+                    "tx", "ty")
+
+
+@dataclass(frozen=True)
+class BoardSpec:
+    """A calibration target.
+
+    Attributes
+    ----------
+    pattern : str
+        ``"chessboard"`` or ``"charuco"``.
+    size : tuple[int, int]
+        Chessboard: inner corners (columns, rows), e.g. the book's (9, 6).
+        ChArUco: squares (columns, rows), e.g. (5, 7).
+    square_size_m : float
+        Side of one square. The default 1.0 gives results in units of squares;
+        only the extrinsics depend on it, never ``K`` or the distortion.
+    marker_size_m : float
+        ChArUco only: side of the ArUco markers.
+    dictionary : str
+        ChArUco only: an ``cv2.aruco`` dictionary name such as ``"DICT_6X6_250"``.
+    """
+
+    pattern: str = "chessboard"
+    size: tuple[int, int] = (9, 6)
+    square_size_m: float = 1.0
+    marker_size_m: float = 0.5
+    dictionary: str = "DICT_6X6_250"
+
+    def __post_init__(self) -> None:
+        if self.pattern not in ("chessboard", "charuco"):
+            raise ValueError(f"`pattern` must be 'chessboard' or 'charuco', got {self.pattern!r}")
+        if len(self.size) != 2 or min(self.size) < 2:
+            raise ValueError(f"board size must be two integers >= 2, got {self.size}")
+        if self.square_size_m <= 0:
+            raise ValueError(f"`square_size_m` must be positive, got {self.square_size_m}")
+        if self.pattern == "charuco":
+            if not 0 < self.marker_size_m < self.square_size_m:
+                raise ValueError(
+                    "`marker_size_m` must be positive and smaller than the square, got "
+                    f"{self.marker_size_m} for squares of {self.square_size_m}"
+                )
+            if not hasattr(cv2.aruco, self.dictionary):
+                raise ValueError(f"unknown ArUco dictionary {self.dictionary!r}")
+
+    def describe(self) -> str:
+        if self.pattern == "chessboard":
+            return (f"chessboard {self.size[0]}x{self.size[1]} inner corners, "
+                    f"square {self.square_size_m:g} m")
+        return (f"ChArUco {self.size[0]}x{self.size[1]} squares, square {self.square_size_m:g} m, "
+                f"marker {self.marker_size_m:g} m, {self.dictionary}")
+
+    def chessboard_object_points(self) -> FloatArray:
+        """``(cols * rows, 3)`` inner-corner positions on the plane ``z = 0``, row by row."""
+        cols, rows = self.size
+        grid = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2) * self.square_size_m
+        return np.column_stack([grid, np.zeros(len(grid))])
+
+    def charuco_board(self) -> cv2.aruco.CharucoBoard:
+        dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
+        return cv2.aruco.CharucoBoard(self.size, self.square_size_m, self.marker_size_m,
+                                      dictionary)
+
+
+@dataclass(frozen=True)
+class Detection:
+    """Corners of the board found in one view.
+
+    Attributes
+    ----------
+    name : str
+        Where the view came from (file name, frame number).
+    image_points : (N, 2) float64
+        Corner pixels.
+    object_points : (N, 3) float64
+        The same corners on the board (plane ``z = 0``, in metres).
+    method : str
+        The detector that found them.
+    """
+
+    name: str
+    image_points: FloatArray
+    object_points: FloatArray
+    method: str
+
+
+def subpixel_window(corners: FloatArray, size: tuple[int, int]) -> int:
+    """Half-size of the ``cornerSubPix`` window for a chessboard grid of ``size`` corners.
+
+    A quarter of the smallest corner spacing (clamped to 2..15 px): a window
+    larger than a square lets the neighbouring corners pull the estimate away.
+    """
+    cols, rows = size
+    grid = corners.reshape(rows, cols, 2)
+    spacing = min(np.linalg.norm(np.diff(grid, axis=1), axis=2).min(),
+                  np.linalg.norm(np.diff(grid, axis=0), axis=2).min())
+    return int(np.clip(round(0.25 * spacing), 2, 15))
+
+
+def _refine(gray: np.ndarray, corners: FloatArray, half_window: int) -> FloatArray:
+    refined = cv2.cornerSubPix(gray, corners.astype(np.float32).reshape(-1, 1, 2),
+                               (half_window, half_window), (-1, -1), _SUBPIX_CRITERIA)
+    return refined.reshape(-1, 2).astype(np.float64)
+
+
+def detect_chessboard(gray: np.ndarray, board: BoardSpec) -> tuple[FloatArray, str] | None:
+    """Inner corners of a chessboard, ``(cols * rows, 2)``, or None when not found.
+
+    The classic detector runs first, with sub-pixel refinement in a window that
+    scales with the corner spacing; when it fails, the sector-based detector
+    (``findChessboardCornersSB``) runs, refined the same way.
+    """
+    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+    found, corners = cv2.findChessboardCorners(gray, board.size, flags=flags)
+    method = "classic"
+    if not found:
+        sb_flags = cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
+        found, corners = cv2.findChessboardCornersSB(gray, board.size, flags=sb_flags)
+        method = "sector"
+    if not found or corners is None:
+        return None
+    corners = corners.reshape(-1, 2).astype(np.float64)
+    return _refine(gray, corners, subpixel_window(corners, board.size)), method
+
+
+def detect_charuco(gray: np.ndarray, board: BoardSpec,
+                   min_corners: int = 6) -> tuple[FloatArray, FloatArray] | None:
+    """ChArUco corners ``(N, 2)`` and their board points ``(N, 3)``, or None."""
+    charuco = board.charuco_board()
+    detector = cv2.aruco.CharucoDetector(charuco)
+    corners, ids, _, _ = detector.detectBoard(gray)
+    if corners is None or ids is None or len(ids) < min_corners:
+        return None
+    all_points = np.asarray(charuco.getChessboardCorners(), dtype=np.float64).reshape(-1, 3)
+    return corners.reshape(-1, 2).astype(np.float64), all_points[ids.ravel()]
+
+
+def detect_board(gray: np.ndarray, board: BoardSpec, name: str = "") -> Detection | None:
+    """Find ``board`` in a grey ``uint8`` image; None when it is not (fully) visible."""
+    if gray.ndim == 3:
+        gray = cv2.cvtColor(gray, cv2.COLOR_BGR2GRAY)
+    if board.pattern == "chessboard":
+        found = detect_chessboard(gray, board)
+        if found is None:
+            return None
+        corners, method = found
+        return Detection(name, corners, board.chessboard_object_points(), method)
+    found = detect_charuco(gray, board)
+    if found is None:
+        return None
+    return Detection(name, found[0], found[1], "charuco")
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """Intrinsics estimated from several views, with their quality.
+
+    Attributes
+    ----------
+    K : (3, 3) float64
+    dist : (n,) float64
+        OpenCV distortion coefficients (k1, k2, p1, p2, k3 by default).
+    image_size : tuple[int, int]
+        (width, height) the calibration holds for.
+    rms_px : float
+        Root-mean-square reprojection error over all corners of the kept views.
+    per_view_errors_px : dict[str, float]
+        RMS reprojection error of each kept view.
+    std_intrinsics : dict[str, float]
+        Standard deviations of fx, fy, cx, cy and the distortion coefficients.
+    rejected_views : dict[str, float]
+        Views dropped as outliers, with their error in the first solve.
+    board : BoardSpec
+    rvecs, tvecs : tuple of (3,) float64
+        Board pose in each kept view (board-to-camera).
+    """
+
+    K: FloatArray
+    dist: FloatArray
+    image_size: tuple[int, int]
+    rms_px: float
+    per_view_errors_px: dict[str, float]
+    std_intrinsics: dict[str, float]
+    rejected_views: dict[str, float]
+    board: BoardSpec
+    rvecs: tuple[FloatArray, ...] = field(default=(), repr=False)
+    tvecs: tuple[FloatArray, ...] = field(default=(), repr=False)
+
+    def as_camera(self) -> CameraCalibration:
+        return CameraCalibration(self.K, self.dist, self.image_size)
+
+
+def _solve(detections: list[Detection], image_size: tuple[int, int], flags: int):
+    object_points = [d.object_points.astype(np.float32) for d in detections]
+    image_points = [d.image_points.astype(np.float32).reshape(-1, 1, 2) for d in detections]
+    try:
+        return cv2.calibrateCameraExtended(object_points, image_points, image_size, None, None,
+                                           flags=flags)
+    except cv2.error as exc:
+        raise CalibrationError(f"OpenCV could not calibrate: {exc.err}") from exc
+
+
+def calibrate(
+    detections: list[Detection],
+    image_size: tuple[int, int],
+    board: BoardSpec,
+    flags: int = 0,
+    reject_outliers: bool = True,
+    outlier_factor: float = 3.0,
+    min_views: int = 3,
+) -> CalibrationResult:
+    """Calibrate a camera from board detections.
+
+    Parameters
+    ----------
+    detections : list of Detection
+        At least ``min_views`` views with at least 6 corners each.
+    image_size : tuple[int, int]
+        (width, height) of every view.
+    flags : int
+        ``cv2.CALIB_*`` flags for ``calibrateCameraExtended``.
+    reject_outliers : bool
+        Drop views whose RMS error exceeds ``outlier_factor`` x the median, then
+        solve again (once), keeping at least ``min_views``.
+
+    Raises
+    ------
+    CalibrationError
+        Too few views, or the solver fails or diverges.
+    """
+    views = [d for d in detections if len(d.image_points) >= 6]
+    if len(views) < min_views:
+        raise CalibrationError(
+            f"need at least {min_views} usable views of the board, got {len(views)}"
+        )
+    names = [d.name for d in views]
+    rms, K, dist, rvecs, tvecs, std_int, _, per_view = _solve(views, image_size, flags)
+    errors = per_view.ravel()
+    rejected: dict[str, float] = {}
+    if reject_outliers and len(views) > min_views:
+        limit = outlier_factor * float(np.median(errors))
+        bad = errors > limit
+        if bad.any() and (~bad).sum() >= min_views:
+            rejected = {n: float(e) for n, e, b in zip(names, errors, bad) if b}
+            logger.info("dropping %d outlier view(s): %s", len(rejected), ", ".join(rejected))
+            views = [d for d, b in zip(views, bad) if not b]
+            names = [d.name for d in views]
+            rms, K, dist, rvecs, tvecs, std_int, _, per_view = _solve(views, image_size, flags)
+            errors = per_view.ravel()
+    if not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0 or not np.isfinite(rms):
+        raise CalibrationError(f"the calibration diverged (rms={rms})")
+    dist = dist.ravel().astype(np.float64)
+    std = std_int.ravel()
+    std_names = ("fx", "fy", "cx", "cy") + DISTORTION_NAMES
+    std_intrinsics = {n: float(s) for n, s in zip(std_names, std[: 4 + len(dist)])}
+    return CalibrationResult(
+        K=K.astype(np.float64), dist=dist, image_size=tuple(image_size), rms_px=float(rms),
+        per_view_errors_px={n: float(e) for n, e in zip(names, errors)},
+        std_intrinsics=std_intrinsics, rejected_views=rejected, board=board,
+        rvecs=tuple(np.ravel(r).astype(np.float64) for r in rvecs),
+        tvecs=tuple(np.ravel(t).astype(np.float64) for t in tvecs),
+    )
+
+
+def corner_coverage(
+    image_points: list[FloatArray], image_size: tuple[int, int], grid: tuple[int, int] = (8, 6)
+) -> np.ndarray:
+    """Corners per cell of a ``grid`` (columns, rows) laid over the image: ``(rows, cols) int``."""
+    cols, rows = grid
+    counts = np.zeros((rows, cols), dtype=int)
+    w, h = image_size
+    for pts in image_points:
+        cx = np.clip((pts[:, 0] / w * cols).astype(int), 0, cols - 1)
+        cy = np.clip((pts[:, 1] / h * rows).astype(int), 0, rows - 1)
+        np.add.at(counts, (cy, cx), 1)
+    return counts
+
+
+def coverage_warnings(counts: np.ndarray) -> list[str]:
+    """Warnings about empty parts of the image, from :func:`corner_coverage` counts."""
+    warnings = []
+    border = np.concatenate([counts[0], counts[-1], counts[1:-1, 0], counts[1:-1, -1]])
+    empty_border = float(np.mean(border == 0))
+    if empty_border > 0.25:
+        warnings.append(
+            f"{empty_border:.0%} of the image border has no corners: distortion is decided "
+            "there, so add views with the board near the edges and corners"
+        )
+    empty_total = float(np.mean(counts == 0))
+    if empty_total > 0.5:
+        warnings.append(f"{empty_total:.0%} of the image has no corners at all")
+    return warnings

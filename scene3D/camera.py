@@ -1,0 +1,126 @@
+"""Camera intrinsics: validation, rescaling to another image size, undistortion.
+
+See :mod:`scene3D.geometry` for the pixel convention (integer coordinates at
+pixel centres).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .geometry import FloatArray
+
+VALID_DIST_LENGTHS = (0, 4, 5, 8, 12, 14)
+
+
+def validate_intrinsics(K: ArrayLike) -> FloatArray:
+    """Return ``K`` as a ``(3, 3) float64`` camera matrix after checking it.
+
+    Raises
+    ------
+    ValueError
+        If ``K`` is not 3x3 and finite, its focal lengths are not positive or its
+        last row is not ``[0, 0, 1]``.
+    """
+    arr = np.asarray(K, dtype=np.float64)
+    if arr.shape != (3, 3):
+        raise ValueError(f"`K` must have shape (3, 3), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError("`K` contains non-finite values")
+    if arr[0, 0] <= 0 or arr[1, 1] <= 0:
+        raise ValueError(
+            f"`K` must have positive focal lengths, got fx={arr[0, 0]:g}, fy={arr[1, 1]:g}"
+        )
+    if not np.allclose(arr[2], [0.0, 0.0, 1.0]) or arr[1, 0] != 0:
+        raise ValueError(f"`K` must be upper triangular with last row [0, 0, 1], got {arr.tolist()}")
+    return arr
+
+
+def validate_distortion(dist: ArrayLike | None) -> FloatArray:
+    """Return OpenCV distortion coefficients as a flat ``(n,) float64`` array.
+
+    ``None`` means no distortion. Valid lengths are 0, 4, 5, 8, 12 and 14.
+    """
+    if dist is None:
+        return np.zeros(0)
+    arr = np.asarray(dist, dtype=np.float64).ravel()
+    if arr.size not in VALID_DIST_LENGTHS:
+        raise ValueError(
+            f"`dist` must have 0, 4, 5, 8, 12 or 14 coefficients, got {arr.size}"
+        )
+    if not np.all(np.isfinite(arr)):
+        raise ValueError("`dist` contains non-finite values")
+    return arr
+
+
+def has_distortion(dist: FloatArray) -> bool:
+    """True when any distortion coefficient is non-zero."""
+    return bool(np.any(dist != 0))
+
+
+def scale_intrinsics_pyr_down(K: FloatArray, levels: int = 1) -> FloatArray:
+    """Intrinsics after ``levels`` calls of ``cv2.pyrDown``.
+
+    ``pyrDown`` centres output pixel ``j`` on input pixel ``2 j``, so pixel
+    coordinates simply halve: ``x' = x / 2`` for ``fx, fy, cx, cy`` alike.
+    """
+    S = np.diag([0.5**levels, 0.5**levels, 1.0])
+    return S @ K
+
+
+def scale_intrinsics_resize(
+    K: FloatArray, from_size: tuple[int, int], to_size: tuple[int, int]
+) -> FloatArray:
+    """Intrinsics of an image resized from ``from_size`` to ``to_size`` (width, height).
+
+    A resize maps pixel edges to pixel edges, so with pixel centres at integer
+    coordinates ``x' = s (x + 0.5) - 0.5``.
+    """
+    sx = to_size[0] / from_size[0]
+    sy = to_size[1] / from_size[1]
+    K2 = K.copy()
+    K2[0, 0] *= sx
+    K2[0, 1] *= sx
+    K2[1, 1] *= sy
+    K2[0, 2] = sx * (K[0, 2] + 0.5) - 0.5
+    K2[1, 2] = sy * (K[1, 2] + 0.5) - 0.5
+    return K2
+
+
+def adapt_intrinsics_to_size(
+    K: FloatArray,
+    calib_size: tuple[int, int],
+    image_size: tuple[int, int],
+    aspect_tolerance: float = 0.01,
+) -> FloatArray:
+    """Return ``K`` for images of ``image_size`` when it was calibrated at ``calib_size``.
+
+    Sizes are (width, height). Same size: ``K`` unchanged. Same aspect ratio
+    (within ``aspect_tolerance``, relative): ``K`` scaled. Otherwise the
+    calibration does not describe these images.
+
+    Raises
+    ------
+    ValueError
+        If the aspect ratios differ.
+    """
+    if tuple(calib_size) == tuple(image_size):
+        return K.copy()
+    calib_aspect = calib_size[0] / calib_size[1]
+    image_aspect = image_size[0] / image_size[1]
+    if abs(calib_aspect / image_aspect - 1.0) > aspect_tolerance:
+        raise ValueError(
+            f"images are {image_size[0]}x{image_size[1]} but the calibration is for "
+            f"{calib_size[0]}x{calib_size[1]} with another aspect ratio; "
+            "calibrate at this size or crop the images"
+        )
+    return scale_intrinsics_resize(K, calib_size, image_size)
+
+
+def undistort_image(img: np.ndarray, K: FloatArray, dist: FloatArray) -> np.ndarray:
+    """Remove lens distortion, keeping ``K`` as the camera matrix of the result."""
+    if not has_distortion(dist):
+        return img
+    return cv2.undistort(img, K, dist, None, K)

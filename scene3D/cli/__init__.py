@@ -1,0 +1,38 @@
+"""The ``scene3d`` command: ``scene3d reconstruct ...`` and ``scene3d calibrate ...``."""
+
+from __future__ import annotations
+
+import sys
+
+from .. import __version__
+
+COMMANDS = {
+    "reconstruct": "reconstruct a scene from two photos (chapter4.py)",
+    "calibrate": "calibrate a camera from chessboard views (calibrate.py)",
+}
+
+USAGE = "usage: scene3d {" + ",".join(COMMANDS) + "} [options]   (scene3d COMMAND --help)"
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Dispatch ``scene3d COMMAND ...`` to the command's own ``main``."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if not argv or argv[0] in ("-h", "--help"):
+        print(USAGE + "\n\ncommands:\n" + "\n".join(f"  {k:<12} {v}" for k, v in
+                                                    COMMANDS.items()))
+        return 0 if argv else 2
+    if argv[0] == "--version":
+        print(f"scene3d {__version__}")
+        return 0
+    command, rest = argv[0], argv[1:]
+    if command == "reconstruct":
+        from .chapter4 import main as run
+    elif command == "calibrate":
+        from .calibrate import main as run
+    else:
+        print(f"{USAGE}\nerror: unknown command {command!r}", file=sys.stderr)
+        return 2
+    try:
+        return run(rest, prog=f"scene3d {command}")
+    except SystemExit as exc:  # argparse's usage errors and --help
+        return int(exc.code or 0)

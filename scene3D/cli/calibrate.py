@@ -1,0 +1,297 @@
+"""``calibrate.py`` / ``scene3d calibrate``: camera calibration from a folder, a video or a webcam."""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import glob
+import logging
+import sys
+from collections import Counter
+from collections.abc import Iterator
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..calibration import (
+    BoardSpec,
+    CalibrationResult,
+    Detection,
+    calibrate,
+    corner_coverage,
+    coverage_warnings,
+    detect_board,
+    save_calibration,
+)
+from ..camera import undistort_image
+from ..export import atomic_write_bytes, save_figure
+from ..imageio import image_size, load_bgr
+from .common import EXIT_CODES_HELP, EXIT_OK, UsageError, add_common_args, run_command, show_images
+
+logger = logging.getLogger("scene3D.cli")
+
+IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
+
+
+def _board_size(text: str) -> tuple[int, int]:
+    try:
+        cols, rows = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"board size must look like 9x6, got {text!r}") from None
+    if cols < 2 or rows < 2:
+        raise argparse.ArgumentTypeError(f"board size must be at least 2x2, got {text!r}")
+    return cols, rows
+
+
+def _positive_float(text: str) -> float:
+    value = float(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
+    return value
+
+
+def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog=prog,
+        description=(
+            "Calibrate a camera from views of a chessboard or ChArUco board and write its "
+            "intrinsics for chapter4.py --calib. Headless unless --show."
+        ),
+        epilog=(
+            "The output is OpenCV FileStorage YAML (camera_matrix, distortion_coefficients, "
+            "image_width, image_height, rms_px, per_view_errors, board, date); NAME_coverage.png "
+            "and NAME_view_errors.png are written beside it (NAME: --out without suffix). Nothing is overwritten without "
+            f"--force. {EXIT_CODES_HELP}."
+        ),
+    )
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument("--images", metavar="GLOB_OR_DIR",
+                        help="a folder of photos or a glob such as 'calib/*.jpg' (quote it)")
+    source.add_argument("--video", type=Path, metavar="FILE", help="a video of the board")
+    source.add_argument("--camera", type=int, metavar="INDEX", help="a webcam, e.g. 0")
+    board = parser.add_argument_group("board")
+    board.add_argument("--pattern", choices=("chessboard", "charuco"), default="chessboard",
+                       help="calibration target (default: chessboard)")
+    board.add_argument("--board", type=_board_size, default=None, metavar="COLSxROWS",
+                       help="chessboard: inner corners (default 9x6, the book's); "
+                            "charuco: squares (default 5x7)")
+    board.add_argument("--square-size", type=_positive_float, default=1.0, metavar="M",
+                       help="side of a square in metres (default 1.0, i.e. results in units of "
+                            "squares; K and the distortion do not depend on it)")
+    board.add_argument("--marker-size", type=_positive_float, default=None, metavar="M",
+                       help="charuco: side of a marker in metres (default: half a square)")
+    board.add_argument("--dictionary", default="DICT_6X6_250",
+                       help="charuco: ArUco dictionary (default DICT_6X6_250)")
+    parser.add_argument("--frames", type=int, default=20, metavar="N",
+                        help="video/webcam: distinct views to collect (default 20, the book's)")
+    parser.add_argument("--min-motion", type=float, default=0.05, metavar="FRACTION",
+                        help="video/webcam: a view counts as distinct when its corners moved by "
+                             "this fraction of the image diagonal (default 0.05)")
+    parser.add_argument("--skip-other-sizes", action="store_true",
+                        help="with photos of mixed sizes, keep the most common size and skip "
+                             "the others (default: refuse)")
+    parser.add_argument("--no-reject", action="store_true",
+                        help="keep every view (default: drop views with > 3x the median error "
+                             "and solve again)")
+    parser.add_argument("--out", type=Path, default=Path("camera.yaml"), metavar="FILE",
+                        help="output calibration (default camera.yaml)")
+    parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    parser.add_argument("--save-undistorted", type=Path, metavar="DIR",
+                        help="also write the undistorted views into DIR")
+    parser.add_argument("--show", action="store_true",
+                        help="open the coverage and error plots in windows when a display exists")
+    add_common_args(parser)
+    return parser
+
+
+def _board_from_args(args: argparse.Namespace) -> BoardSpec:
+    if args.pattern == "chessboard":
+        return BoardSpec("chessboard", args.board or (9, 6), args.square_size)
+    marker = args.marker_size if args.marker_size is not None else args.square_size / 2
+    return BoardSpec("charuco", args.board or (5, 7), args.square_size, marker, args.dictionary)
+
+
+def _image_files(spec: str) -> list[Path]:
+    path = Path(spec)
+    if path.is_dir():
+        files = sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+    else:
+        files = sorted(Path(p) for p in glob.glob(spec) if Path(p).is_file())
+    if not files:
+        raise UsageError(f"no images found in '{spec}'")
+    return files
+
+
+def _photos(args: argparse.Namespace) -> Iterator[tuple[str, np.ndarray]]:
+    images = [(p.name, load_bgr(p)) for p in _image_files(args.images)]
+    sizes = Counter(image_size(img) for _, img in images)
+    if len(sizes) > 1:
+        listing = ", ".join(f"{w}x{h} ({n})" for (w, h), n in sizes.most_common())
+        if not args.skip_other_sizes:
+            raise UsageError(f"the images have different sizes: {listing}; one calibration "
+                             "holds for one size (--skip-other-sizes keeps the most common)")
+        keep = sizes.most_common(1)[0][0]
+        skipped = [name for name, img in images if image_size(img) != keep]
+        logger.warning("skipping %d image(s) not %dx%d: %s", len(skipped), *keep,
+                       ", ".join(skipped))
+        images = [(n, img) for n, img in images if image_size(img) == keep]
+    yield from images
+
+
+def _frames(args: argparse.Namespace) -> Iterator[tuple[str, np.ndarray]]:
+    if args.video is not None:
+        if not args.video.is_file():
+            raise FileNotFoundError(f"video not found: '{args.video}'")
+        capture, what = cv2.VideoCapture(str(args.video)), f"video '{args.video}'"
+    else:
+        capture, what = cv2.VideoCapture(args.camera), f"camera {args.camera}"
+    if not capture.isOpened():
+        raise UsageError(f"cannot open {what}")
+    index = 0
+    try:
+        while True:
+            ok, frame = capture.read()
+            if not ok:
+                return
+            yield f"frame {index}", frame
+            index += 1
+    finally:
+        capture.release()
+
+
+def _is_distinct(det: Detection, kept: list[Detection], min_motion_px: float) -> bool:
+    for other in kept:
+        if other.image_points.shape == det.image_points.shape:
+            motion = np.linalg.norm(other.image_points - det.image_points, axis=1).mean()
+            if motion < min_motion_px:
+                return False
+    return True
+
+
+def collect_views(args: argparse.Namespace, board: BoardSpec
+                  ) -> tuple[list[Detection], list[np.ndarray], tuple[int, int], int]:
+    """Detect the board in every photo, or in video frames until ``--frames`` distinct views."""
+    from_stream = args.images is None
+    source = _frames(args) if from_stream else _photos(args)
+    views: list[Detection] = []
+    images: list[np.ndarray] = []
+    size, seen = None, 0
+    for name, img in source:
+        seen += 1
+        if size is None:
+            size = image_size(img)
+        elif image_size(img) != size:
+            raise UsageError(f"'{name}' is {image_size(img)}, not {size} like the first view")
+        det = detect_board(img, board, name)
+        if det is None:
+            logger.info("%s: board not found", name)
+            continue
+        if from_stream:
+            min_motion = args.min_motion * float(np.hypot(*size))
+            if not _is_distinct(det, views, min_motion):
+                continue
+            print(f"view {len(views) + 1}/{args.frames} from {name}", file=sys.stderr)
+        else:
+            logger.info("%s: %d corners (%s)", name, len(det.image_points), det.method)
+        views.append(det)
+        images.append(img)
+        if from_stream and len(views) >= args.frames:
+            break
+    if size is None:
+        raise UsageError("the source gave no images")
+    return views, images, size, seen
+
+
+def _report(result: CalibrationResult) -> str:
+    K, d, std = result.K, result.dist, result.std_intrinsics
+    lines = [
+        f"RMS reprojection error: {result.rms_px:.4f} px over {len(result.per_view_errors_px)} "
+        f"views ({result.image_size[0]}x{result.image_size[1]}, {result.board.describe()})",
+        f"fx = {K[0, 0]:.3f} +- {std['fx']:.3f}   fy = {K[1, 1]:.3f} +- {std['fy']:.3f}",
+        f"cx = {K[0, 2]:.3f} +- {std['cx']:.3f}   cy = {K[1, 2]:.3f} +- {std['cy']:.3f}",
+        "distortion: " + ", ".join(
+            f"{n} = {v:+.5f} +- {std.get(n, float('nan')):.5f}"
+            for n, v in zip(("k1", "k2", "p1", "p2", "k3"), d)),
+        "per-view RMS (px): " + ", ".join(
+            f"{n} {e:.3f}" for n, e in result.per_view_errors_px.items()),
+    ]
+    if result.rejected_views:
+        lines.append("dropped as outliers (> 3x median error): " + ", ".join(
+            f"{n} ({e:.2f} px)" for n, e in result.rejected_views.items()))
+    return "\n".join(lines)
+
+
+def _outputs(args: argparse.Namespace) -> list[Path]:
+    stem = args.out.with_suffix("")
+    return [args.out, Path(f"{stem}_coverage.png"), Path(f"{stem}_view_errors.png")]
+
+
+def run(args: argparse.Namespace) -> int:
+    board = _board_from_args(args)
+    if args.frames < 3:
+        raise UsageError(f"--frames must be at least 3, got {args.frames}")
+    outputs = _outputs(args)
+    existing = [p for p in outputs if p.exists()]
+    if existing and not args.force:
+        raise UsageError(f"'{existing[0]}' exists; use --force to overwrite it")
+    if not args.out.parent.is_dir():
+        raise UsageError(f"output folder '{args.out.parent}' does not exist")
+
+    views, images, size, seen = collect_views(args, board)
+    if not views:
+        hint = ("check --board: it counts inner corners (a board of 10x7 squares has 9x6)"
+                if board.pattern == "chessboard" else
+                "check --board (squares), --marker-size and --dictionary")
+        raise UsageError(f"the board was not found in any of the {seen} views; {hint}")
+    if len(views) < 3:
+        raise UsageError(f"the board was found in only {len(views)} of {seen} views; "
+                         "calibration needs at least 3")
+    result = calibrate(views, size, board, reject_outliers=not args.no_reject)
+    kept = [v for v in views if v.name in result.per_view_errors_px]
+    counts = corner_coverage([v.image_points for v in kept], size)
+    warnings = coverage_warnings(counts)
+    for w in warnings:
+        logger.warning("%s", w)
+
+    from ..plotting import plot_calibration_coverage, plot_view_errors
+
+    extras = {
+        "rms_px": result.rms_px,
+        "per_view_errors": np.array(list(result.per_view_errors_px.values())).reshape(1, -1),
+        "view_names": ";".join(result.per_view_errors_px),
+        "std_intrinsics": np.array([result.std_intrinsics[k] for k in ("fx", "fy", "cx", "cy")]
+                                   ).reshape(1, -1),
+        "board": board.describe(),
+        "square_size_m": board.square_size_m,
+        "calibration_date": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
+    }
+    undistorted = []
+    if args.save_undistorted is not None:
+        args.save_undistorted.mkdir(parents=True, exist_ok=True)
+        for view, img in zip(views, images):
+            target = args.save_undistorted / f"{Path(view.name).stem.replace(' ', '_')}.png"
+            if target.exists() and not args.force:
+                raise UsageError(f"'{target}' exists; use --force to overwrite it")
+            undistorted.append((target, undistort_image(img, result.K, result.dist)))
+
+    written = [save_calibration(args.out, result.as_camera(), extras, overwrite=args.force)]
+    written.append(save_figure(
+        plot_calibration_coverage([v.image_points for v in kept], size, counts), outputs[1]))
+    written.append(save_figure(plot_view_errors(result.per_view_errors_px,
+                                                result.rejected_views), outputs[2]))
+    for target, img in undistorted:
+        written.append(atomic_write_bytes(target, cv2.imencode(".png", img)[1].tobytes()))
+    if not args.quiet:
+        print(_report(result))
+    for path in written:
+        print(f"Wrote '{path}'")
+    if args.show:
+        show_images(written[1:3])
+    return EXIT_OK
+
+
+def main(argv: list[str] | None = None, prog: str = "calibrate.py") -> int:
+    """Entry point of ``calibrate.py``; returns the exit code."""
+    args = build_parser(prog).parse_args(sys.argv[1:] if argv is None else argv)
+    return run_command(args, run)

@@ -1,0 +1,181 @@
+"""``chapter4.py`` / ``scene3d reconstruct``: two photos in, plots, point cloud and summary out."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..calibration_io import CameraCalibration, load_calibration
+from ..camera import adapt_intrinsics_to_size
+from ..datasets import BOOK_PAIR, fetch_fountain_p11
+from ..export import save_figure, write_json, write_ply
+from ..geometry import rotation_angle_deg
+from ..features import FEATURE_MODES, normalize_feature_mode
+from ..imageio import BOOK_MAX_WIDTH_PX, image_size, load_bgr
+from ..scene import SceneReconstruction3D
+from .common import (
+    EXIT_CODES_HELP,
+    EXIT_OK,
+    UsageError,
+    add_common_args,
+    prepare_output_dir,
+    run_command,
+    show_images,
+)
+
+logger = logging.getLogger("scene3D.cli")
+
+REPO_DATA = Path(__file__).resolve().parents[2] / "data"
+DEFAULT_CALIB = REPO_DATA / "fountain_P11_intrinsics.yaml"
+PLOT_FILES = ("optic_flow.png", "epipolar_lines.png", "rectified.png", "point_cloud.png")
+
+
+def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog=prog,
+        description=(
+            "Reconstruct a 3D scene from two photos of it taken by one calibrated camera "
+            "(OpenCV with Python Blueprints, chapter 4). Without images it runs the book's "
+            "example, fountain-P11 images 0004 and 0005 (found in $SCENE3D_DATA or the "
+            "cache, or downloaded and checked)."
+        ),
+        epilog=(
+            f"Outputs in --out: {', '.join(PLOT_FILES)}, point_cloud.ply (binary, RGB) and "
+            "reconstruction.json (R, t with x_cam2 = R x_cam1 + t and |t| = 1: the scale is "
+            f"unknown). Files are replaced only once the run has succeeded. {EXIT_CODES_HELP}."
+        ),
+    )
+    parser.add_argument("images", nargs="*", metavar="IMAGE",
+                        help="two photos of the same scene (default: the book's pair)")
+    parser.add_argument("--calib", type=Path, metavar="FILE",
+                        help="camera calibration (OpenCV YAML/XML as calibrate.py writes it); "
+                             "required with your own images; scaled when the images have the "
+                             "same aspect ratio but another size")
+    parser.add_argument("--feature", default="sift", type=str.lower,
+                        choices=[m.lower() for m in FEATURE_MODES],
+                        help="features: sift (default), surf (the book's; falls back to sift "
+                             "when OpenCV lacks it), orb, akaze, or flow (tracked corners)")
+    size = parser.add_mutually_exclusive_group()
+    size.add_argument("--no-pyr-down", action="store_true",
+                      help="work at full resolution (slower, sometimes more accurate)")
+    size.add_argument("--max-width", type=int, default=BOOK_MAX_WIDTH_PX, metavar="PX",
+                      help="halve the images with pyrDown while wider than this "
+                           f"(default {BOOK_MAX_WIDTH_PX}, the book's rule: 3072 -> 768)")
+    parser.add_argument("--out", type=Path, default=Path("out"), metavar="DIR",
+                        help="output folder (default: out/)")
+    parser.add_argument("--no-plots", action="store_true",
+                        help="skip the PNG figures (faster; matplotlib is not imported)")
+    parser.add_argument("--show", action="store_true",
+                        help="also open the figures in windows when a display exists")
+    add_common_args(parser)
+    return parser
+
+
+def _resolve_inputs(args: argparse.Namespace) -> tuple[Path, Path, Path]:
+    """Image paths and calibration file, after the defaults."""
+    if len(args.images) not in (0, 2):
+        raise UsageError(f"give exactly two images (or none for the book's pair), got "
+                         f"{len(args.images)}")
+    if args.images:
+        if args.calib is None:
+            raise UsageError("your own images need --calib FILE (make one with calibrate.py)")
+        return Path(args.images[0]), Path(args.images[1]), args.calib
+    folder = fetch_fountain_p11(BOOK_PAIR)
+    calib = args.calib if args.calib is not None else DEFAULT_CALIB
+    return folder / BOOK_PAIR[0], folder / BOOK_PAIR[1], calib
+
+
+def _load_camera(calib_path: Path) -> CameraCalibration:
+    if calib_path == DEFAULT_CALIB and not calib_path.is_file():
+        # An installed copy without the repository's data/ folder: the same K from the dataset.
+        K = np.loadtxt(fetch_fountain_p11(("images/K.txt",)) / "images" / "K.txt")
+        return CameraCalibration(K, np.zeros(5), (3072, 2048))
+    return load_calibration(calib_path)
+
+
+def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path], calib: Path,
+             timings: dict[str, float], requested: str) -> dict:
+    return {
+        "scene3D_version": __version__,
+        "conventions": "x_cam2 = R @ x_cam1 + t; |t| = 1 (scale unknown); points3d in the "
+                       "camera-1 frame; pixels with integer coordinates at pixel centres",
+        "inputs": {"image1": str(paths[0]), "image2": str(paths[1]), "calibration": str(calib)},
+        "R": result.R, "t": result.t, "K": result.K,
+        "image_size": list(image_size(scene.img1)),
+        "native_image_size": list(scene.native_size),
+        "feature": result.feature, "feature_requested": requested,
+        "num_matches": result.num_matches, "num_inliers": result.num_inliers,
+        "num_points": result.num_points,
+        "reprojection_rmse_px": result.reprojection_rmse_px,
+        "median_parallax_deg": result.median_parallax_deg,
+        "homography_inlier_ratio": result.homography_inlier_ratio,
+        "trusted": result.trusted, "warnings": list(result.warnings),
+        "timings_s": timings,
+    }
+
+
+def run(args: argparse.Namespace) -> int:
+    t_start = time.perf_counter()
+    mode = normalize_feature_mode(args.feature)
+    path1, path2, calib_path = _resolve_inputs(args)
+    camera = _load_camera(calib_path)
+    out = prepare_output_dir(args.out)
+
+    t0 = time.perf_counter()
+    img1, img2 = load_bgr(path1), load_bgr(path2)
+    K = adapt_intrinsics_to_size(camera.K, camera.image_size, image_size(img1))
+    scene = SceneReconstruction3D(K, camera.dist)
+    scene.load_image_pair(img1, img2, use_pyr_down=not args.no_pyr_down,
+                          max_width=args.max_width)
+    load_s = time.perf_counter() - t0
+
+    result = scene.reconstruct(mode)
+    timings = {"load": load_s, **{k: v for k, v in result.timings_s.items() if k != "total"}}
+
+    figures = {}
+    if not args.no_plots:
+        t0 = time.perf_counter()
+        figures = {
+            "optic_flow.png": scene.plot_optic_flow(),
+            "epipolar_lines.png": scene.draw_epipolar_lines(mode),
+            "rectified.png": scene.plot_rectified_images(mode),
+            "point_cloud.png": scene.plot_point_cloud(mode),
+        }
+        timings["plots"] = time.perf_counter() - t0
+
+    # Everything is computed: only now touch the output folder.
+    t0 = time.perf_counter()
+    written = [save_figure(fig, out / name) for name, fig in figures.items()]
+    written.append(write_ply(out / "point_cloud.ply", result.points3d, result.colors))
+    timings["write"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_start
+    summary = _summary(scene, result, (path1, path2), calib_path, timings, args.feature)
+    written.append(write_json(out / "reconstruction.json", summary))
+
+    if not args.quiet:
+        w, h = image_size(scene.img1)
+        print(f"{path1.name} + {path2.name} at {w}x{h}, {result.feature}: "
+              f"{result.num_matches} matches, {result.num_inliers} inliers, "
+              f"{result.num_points} points, reprojection RMSE "
+              f"{result.reprojection_rmse_px:.3f} px, {timings['total']:.2f} s")
+        print(f"camera 2: rotated {rotation_angle_deg(result.R):.2f} deg, moved towards "
+              f"({result.t[0]:+.3f}, {result.t[1]:+.3f}, {result.t[2]:+.3f}) (unit baseline)")
+        if not result.trusted:
+            print("warning: the pose may not be trustworthy: " + "; ".join(result.warnings))
+    for path in written:
+        print(f"Wrote '{path}'")
+    if args.show and figures:
+        show_images([out / name for name in figures])
+    return EXIT_OK
+
+
+def main(argv: list[str] | None = None, prog: str = "chapter4.py") -> int:
+    """Entry point of ``chapter4.py``; returns the exit code."""
+    args = build_parser(prog).parse_args(sys.argv[1:] if argv is None else argv)
+    return run_command(args, run)

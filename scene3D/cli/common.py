@@ -1,0 +1,112 @@
+"""What every scene3D command shares: logging flags, exit codes, error reporting."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+from ..errors import CalibrationError, DatasetError, ReconstructionError
+
+EXIT_OK = 0
+EXIT_FAILED = 1  # valid input, but the reconstruction / calibration failed
+EXIT_USAGE = 2  # bad usage or bad input
+
+EXIT_CODES_HELP = (
+    "exit codes: 0 success, 1 the reconstruction or calibration failed, "
+    "2 bad usage or input"
+)
+
+
+class UsageError(Exception):
+    """A command-line mistake the user can fix (exit code 2)."""
+
+
+def add_common_args(parser: argparse.ArgumentParser) -> None:
+    """``-v/--verbose``, ``-q/--quiet`` and ``--debug``."""
+    group = parser.add_argument_group("output and diagnostics")
+    group.add_argument("-v", "--verbose", action="count", default=0,
+                       help="more log messages on stderr (-vv for debug)")
+    group.add_argument("-q", "--quiet", action="store_true",
+                       help="only errors on stderr, only file names on stdout")
+    group.add_argument("--debug", action="store_true",
+                       help="show the full traceback of an error")
+
+
+def configure_logging(args: argparse.Namespace) -> None:
+    if args.quiet:
+        level = logging.ERROR
+    elif args.verbose >= 2 or args.debug:
+        level = logging.DEBUG
+    elif args.verbose == 1:
+        level = logging.INFO
+    else:
+        level = logging.WARNING
+    logging.basicConfig(level=level, format="%(levelname)s: %(message)s", stream=sys.stderr,
+                        force=True)
+
+
+def prepare_output_dir(path: Path) -> Path:
+    """Create ``path`` (and parents) or raise ``UsageError`` naming why it cannot be used."""
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"--out '{path}' exists and is not a folder")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"cannot create output folder '{path}': {exc.strerror}") from exc
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise UsageError(f"output folder '{path}' is not writable")
+    return path
+
+
+def run_command(args: argparse.Namespace, body: Callable[[argparse.Namespace], int]) -> int:
+    """Run ``body(args)`` and turn exceptions into one-line errors and exit codes."""
+    configure_logging(args)
+    try:
+        return body(args)
+    except KeyboardInterrupt:
+        print("error: interrupted", file=sys.stderr)
+        return 130
+    except (ReconstructionError, CalibrationError) as exc:
+        if args.debug:
+            raise
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    except (UsageError, DatasetError, FileNotFoundError, FileExistsError, ValueError,
+            OSError) as exc:
+        if args.debug:
+            raise
+        print(f"error: {_message(exc)}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+def _message(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.filename and exc.strerror:
+        return f"{exc.strerror}: '{exc.filename}'"
+    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+
+
+def display_available() -> bool:
+    """True when a window can be opened (an X11/Wayland display, or macOS/Windows)."""
+    if sys.platform in ("darwin", "win32"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def show_images(paths: list[Path]) -> None:
+    """Open the written PNGs in windows (``--show``); warn when there is no display."""
+    log = logging.getLogger("scene3D.cli")
+    if not display_available():
+        log.warning("--show: no display available; the figures are in the written PNG files")
+        return
+    import matplotlib.image as mpimg
+    import matplotlib.pyplot as plt
+
+    for path in paths:
+        fig = plt.figure(path.name)
+        fig.gca().imshow(mpimg.imread(path))
+        fig.gca().set_axis_off()
+    plt.show()

@@ -1,0 +1,39 @@
+"""Exceptions raised by scene3D.
+
+Bad input raises the built-in ``ValueError`` / ``FileNotFoundError`` with a
+message naming the argument. A computation that ran on valid input but could not
+give a trustworthy answer raises one of the errors below.
+"""
+
+from __future__ import annotations
+
+
+class ReconstructionError(RuntimeError):
+    """A two-view (or multi-view) reconstruction could not be trusted.
+
+    Attributes
+    ----------
+    reason : str
+        Short machine-readable cause: ``"too_few_matches"``, ``"too_few_inliers"``,
+        ``"no_parallax"``, ``"no_cheirality_winner"``, ``"too_few_points"``.
+    counts : dict[str, int | float]
+        The numbers behind the decision (matches, inliers, parallax, ...).
+    """
+
+    def __init__(self, reason: str, message: str, **counts: int | float) -> None:
+        self.reason = reason
+        self.counts = dict(counts)
+        details = ", ".join(f"{k}={_fmt(v)}" for k, v in self.counts.items())
+        super().__init__(f"{message} ({details})" if details else message)
+
+
+class CalibrationError(RuntimeError):
+    """Camera calibration ran on readable data but failed (e.g. too few usable views)."""
+
+
+class DatasetError(RuntimeError):
+    """A dataset file is not available locally and could not be downloaded and verified."""
+
+
+def _fmt(value: int | float) -> str:
+    return f"{value:.3g}" if isinstance(value, float) else str(value)

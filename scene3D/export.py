@@ -1,0 +1,117 @@
+"""Writing results: atomic file writes, PLY point clouds, JSON summaries, figures.
+
+Every writer goes through :func:`atomic_write_bytes`: the data land in a
+temporary file beside the target that is renamed over it only when complete, so
+an interrupted run never leaves a half-written file.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+_PLY_VERTEX = np.dtype([
+    ("x", "<f4"), ("y", "<f4"), ("z", "<f4"),
+    ("red", "u1"), ("green", "u1"), ("blue", "u1"),
+])
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
+    """Write ``data`` to ``path`` through a temporary file and a rename."""
+    path = Path(path)
+    fd, tmp_name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.chmod(tmp_name, 0o644)
+        os.replace(tmp_name, path)
+    finally:
+        Path(tmp_name).unlink(missing_ok=True)
+    return path
+
+
+def ply_bytes(points3d: np.ndarray, colors: np.ndarray | None = None) -> bytes:
+    """Binary little-endian PLY of ``(N, 3)`` points with ``(N, 3) uint8`` RGB colours.
+
+    Points without colours are written white. Coordinates are float32.
+    """
+    points3d = np.asarray(points3d, dtype=np.float64)
+    if points3d.ndim != 2 or points3d.shape[1] != 3:
+        raise ValueError(f"`points3d` must have shape (N, 3), got {points3d.shape}")
+    if colors is None:
+        colors = np.full((len(points3d), 3), 255, dtype=np.uint8)
+    colors = np.asarray(colors)
+    if colors.shape != points3d.shape:
+        raise ValueError(f"`colors` must have shape {points3d.shape}, got {colors.shape}")
+    vertices = np.empty(len(points3d), dtype=_PLY_VERTEX)
+    for i, axis in enumerate("xyz"):
+        vertices[axis] = points3d[:, i]
+    for i, channel in enumerate(("red", "green", "blue")):
+        vertices[channel] = colors[:, i]
+    header = (
+        "ply\nformat binary_little_endian 1.0\ncomment written by scene3D\n"
+        f"element vertex {len(points3d)}\n"
+        "property float x\nproperty float y\nproperty float z\n"
+        "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+        "end_header\n"
+    )
+    return header.encode("ascii") + vertices.tobytes()
+
+
+def write_ply(
+    path: str | os.PathLike, points3d: np.ndarray, colors: np.ndarray | None = None
+) -> Path:
+    """Write a coloured point cloud as binary PLY (MeshLab, Open3D, CloudCompare read it)."""
+    return atomic_write_bytes(path, ply_bytes(points3d, colors))
+
+
+def read_ply(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """Read a PLY written by :func:`write_ply`: ``(N, 3) float64`` points, ``(N, 3) uint8`` RGB."""
+    data = Path(path).read_bytes()
+    end = data.find(b"end_header\n")
+    if not data.startswith(b"ply\n") or end < 0:
+        raise ValueError(f"'{path}' is not a PLY file")
+    header = data[:end].decode("ascii").splitlines()
+    if "format binary_little_endian 1.0" not in header:
+        raise ValueError(f"'{path}' is not binary little-endian PLY")
+    count = next(int(line.split()[2]) for line in header if line.startswith("element vertex"))
+    vertices = np.frombuffer(data, dtype=_PLY_VERTEX, count=count, offset=end + len("end_header\n"))
+    points = np.column_stack([vertices[a] for a in "xyz"]).astype(np.float64)
+    colors = np.column_stack([vertices[c] for c in ("red", "green", "blue")])
+    return points, colors
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer, np.bool_)):
+        return value.item()
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def write_json(path: str | os.PathLike, obj: dict) -> Path:
+    """Write ``obj`` (numpy arrays allowed) as indented JSON."""
+    text = json.dumps(_jsonable(obj), indent=2) + "\n"
+    return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = 100) -> Path:
+    """Render a matplotlib figure to PNG and write it atomically."""
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=dpi, bbox_inches="tight")
+    return atomic_write_bytes(path, buffer.getvalue())

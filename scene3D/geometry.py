@@ -1,0 +1,118 @@
+"""Shared conventions and small geometric helpers.
+
+Conventions (used by every module of scene3D)
+---------------------------------------------
+- Pixels follow OpenCV: x to the right, y down, integer coordinates at pixel
+  centres. Images are indexed ``img[y, x]`` and are BGR ``uint8`` as cv2 loads them.
+- Poses are world-to-camera: ``x_cam = R @ X + t`` and ``P = K @ [R | t]``.
+  In a two-view reconstruction camera 1 is ``[I | 0]`` and ``(R, t)`` maps
+  camera-1 coordinates to camera-2 coordinates: ``x_cam2 = R @ x_cam1 + t``
+  (``R_cam2_from_cam1``).
+- Epipolar constraint ``x2^T F x1 = 0`` in pixels, ``E = [t]x R`` and
+  ``F = K2^-T E K1^-1`` (Hartley & Zisserman, sections 9.2 and 9.6).
+- A translation estimated from two views has unit norm: the scale of the scene
+  is unknown, and so are the units of ``points3d``.
+- Arrays: 2D points ``(N, 2) float64``, 3D points ``(N, 3) float64``,
+  ``K``/``F``/``E``/``R`` ``(3, 3)``, ``t`` ``(3,)``, ``P`` ``(3, 4)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+FloatArray = NDArray[np.float64]
+
+
+def as_points2d(points: ArrayLike, name: str = "points") -> FloatArray:
+    """Return ``points`` as a ``(N, 2) float64`` array, accepting ``(N, 1, 2)`` too.
+
+    Raises
+    ------
+    ValueError
+        If the shape is not ``(N, 2)`` / ``(N, 1, 2)`` or values are not finite.
+    """
+    arr = np.asarray(points, dtype=np.float64)
+    if arr.ndim == 3 and arr.shape[1:] == (1, 2):
+        arr = arr.reshape(-1, 2)
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise ValueError(f"`{name}` must have shape (N, 2), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"`{name}` contains non-finite values")
+    return arr
+
+
+def as_matrix(value: ArrayLike, shape: tuple[int, ...], name: str) -> FloatArray:
+    """Return ``value`` as a finite float64 array of exactly ``shape``."""
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.shape != shape:
+        raise ValueError(f"`{name}` must have shape {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"`{name}` contains non-finite values")
+    return arr
+
+
+def check_same_length(pts1: FloatArray, pts2: FloatArray) -> None:
+    """Raise ``ValueError`` unless two point arrays have the same number of rows."""
+    if len(pts1) != len(pts2):
+        raise ValueError(
+            f"`pts1` and `pts2` must have the same length, got {len(pts1)} and {len(pts2)}"
+        )
+
+
+def skew(v: ArrayLike) -> FloatArray:
+    """Return the ``(3, 3)`` cross-product matrix ``[v]x`` with ``[v]x @ w == v x w``."""
+    x, y, z = np.asarray(v, dtype=np.float64).reshape(3)
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def to_homogeneous(points: FloatArray) -> FloatArray:
+    """Append a column of ones: ``(N, D) -> (N, D + 1)``."""
+    return np.hstack([points, np.ones((len(points), 1))])
+
+
+def normalize_points(points: FloatArray, K: FloatArray) -> FloatArray:
+    """Pixel coordinates ``(N, 2)`` to normalised image coordinates ``K^-1 x`` ``(N, 2)``."""
+    rays = to_homogeneous(points) @ np.linalg.inv(K).T
+    return rays[:, :2] / rays[:, 2:3]
+
+
+def projection_matrix(K: FloatArray, R: FloatArray, t: FloatArray) -> FloatArray:
+    """Return ``P = K @ [R | t]`` with shape ``(3, 4)``."""
+    return K @ np.hstack([R, np.reshape(t, (3, 1))])
+
+
+def project(points3d: FloatArray, K: FloatArray, R: FloatArray, t: FloatArray) -> FloatArray:
+    """Project world points ``(N, 3)`` to pixels ``(N, 2)`` with ``x = K (R X + t)``."""
+    cam = points3d @ R.T + np.reshape(t, (1, 3))
+    pix = cam @ K.T
+    return pix[:, :2] / pix[:, 2:3]
+
+
+def rotation_angle_deg(R: ArrayLike) -> float:
+    """Angle of the rotation ``R`` in degrees (0 for the identity)."""
+    R = np.asarray(R, dtype=np.float64)
+    cos = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
+    return float(np.degrees(np.arccos(cos)))
+
+
+def rotation_error_deg(R_est: ArrayLike, R_true: ArrayLike) -> float:
+    """Angle in degrees of ``R_est @ R_true^T``: how far apart two rotations are."""
+    return rotation_angle_deg(np.asarray(R_est) @ np.asarray(R_true).T)
+
+
+def angle_between_deg(a: ArrayLike, b: ArrayLike) -> float:
+    """Angle in degrees between two 3-vectors (direction only, sign matters)."""
+    a = np.asarray(a, dtype=np.float64).reshape(3)
+    b = np.asarray(b, dtype=np.float64).reshape(3)
+    cos = np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b))
+    return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+
+
+def rotation_about_axis(axis: ArrayLike, angle_deg: float) -> FloatArray:
+    """Rotation matrix ``(3, 3)`` turning by ``angle_deg`` about ``axis`` (right hand)."""
+    axis = np.asarray(axis, dtype=np.float64).reshape(3)
+    axis = axis / np.linalg.norm(axis)
+    theta = np.radians(angle_deg)
+    K = skew(axis)
+    return np.eye(3) + np.sin(theta) * K + (1.0 - np.cos(theta)) * (K @ K)

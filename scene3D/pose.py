@@ -1,0 +1,114 @@
+"""Relative pose from an essential matrix: the four decompositions and cheirality.
+
+``E = U diag(1, 1, 0) V^T`` gives ``R = U W V^T`` or ``U W^T V^T`` and
+``t = +-u3`` (H&Z section 9.6.2, result 9.19). The right one of the four puts
+the triangulated points in front of both cameras (H&Z figure 9.12); we count
+over all inliers rather than trusting one point, as the book did.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .errors import ReconstructionError
+from .geometry import FloatArray, as_matrix, as_points2d, check_same_length
+from .triangulation import in_front_mask, triangulate_points
+
+logger = logging.getLogger(__name__)
+
+_W = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+
+
+def decompose_essential(E: ArrayLike) -> list[tuple[FloatArray, FloatArray]]:
+    """The four ``(R, t)`` candidates of an essential matrix.
+
+    Returns
+    -------
+    list of (R, t)
+        ``R`` (3, 3) proper rotations (det +1) and ``t`` (3,) unit vectors, in the
+        order ``(R1, t), (R1, -t), (R2, t), (R2, -t)``.
+    """
+    E = as_matrix(E, (3, 3), "E")
+    U, _, Vt = np.linalg.svd(E)
+    # E is defined up to sign, so flipping U or V keeps it valid and makes R proper.
+    if np.linalg.det(U) < 0:
+        U = -U
+    if np.linalg.det(Vt) < 0:
+        Vt = -Vt
+    R1 = U @ _W @ Vt
+    R2 = U @ _W.T @ Vt
+    t = U[:, 2] / np.linalg.norm(U[:, 2])
+    return [(R1, t), (R1, -t), (R2, t), (R2, -t)]
+
+
+def cheirality_count(
+    R: FloatArray, t: FloatArray, pts1: FloatArray, pts2: FloatArray, K: FloatArray
+) -> tuple[int, np.ndarray]:
+    """How many correspondences triangulate in front of both cameras for pose ``(R, t)``.
+
+    Returns the count and the ``(N,) bool`` mask.
+    """
+    points = triangulate_points(pts1, pts2, K, R, t)
+    mask = in_front_mask(points, R, t)
+    return int(mask.sum()), mask
+
+
+def choose_pose(
+    E: ArrayLike,
+    pts1: ArrayLike,
+    pts2: ArrayLike,
+    K: ArrayLike,
+    min_fraction: float = 0.5,
+    min_margin: float = 1.5,
+) -> tuple[FloatArray, FloatArray, np.ndarray]:
+    """Pick the decomposition of ``E`` that puts most points in front of both cameras.
+
+    Parameters
+    ----------
+    E : (3, 3) array_like
+        Essential matrix, ``x2n^T E x1n = 0``.
+    pts1, pts2 : (N, 2) array_like
+        Inlier pixels in image 1 and image 2.
+    K : (3, 3) array_like
+        Intrinsics of both images.
+    min_fraction : float
+        The winner must put at least this fraction of the points in front.
+    min_margin : float
+        ... and at least this many times as many as the runner-up.
+
+    Returns
+    -------
+    R : (3, 3) float64
+        ``R_cam2_from_cam1``, det +1.
+    t : (3,) float64
+        Unit translation, ``x_cam2 = R x_cam1 + t``; the scale is unknown.
+    in_front : (N,) bool
+        Points in front of both cameras for the chosen pose.
+
+    Raises
+    ------
+    ReconstructionError
+        ``"no_cheirality_winner"`` when no candidate wins clearly.
+    """
+    p1 = as_points2d(pts1, "pts1")
+    p2 = as_points2d(pts2, "pts2")
+    check_same_length(p1, p2)
+    K = as_matrix(K, (3, 3), "K")
+    scored = []
+    for R, t in decompose_essential(E):
+        count, mask = cheirality_count(R, t, p1, p2, K)
+        scored.append((count, R, t, mask))
+    scored.sort(key=lambda item: item[0], reverse=True)
+    best, runner_up = scored[0][0], scored[1][0]
+    logger.debug("cheirality counts: %s", [s[0] for s in scored])
+    if best < min_fraction * len(p1) or best < min_margin * runner_up:
+        raise ReconstructionError(
+            "no_cheirality_winner",
+            "no pose puts the points clearly in front of both cameras",
+            points=len(p1), best=best, runner_up=runner_up,
+        )
+    _, R, t, mask = scored[0]
+    return R, t, mask

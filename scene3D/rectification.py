@@ -1,0 +1,81 @@
+"""Stereo rectification of a calibrated pair with known relative pose."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .geometry import FloatArray
+from .imageio import image_size
+
+
+@dataclass(frozen=True)
+class RectifiedPair:
+    """Two images warped so that corresponding points share a row.
+
+    Attributes
+    ----------
+    img1, img2 : (H, W, 3) uint8
+        Rectified images, same size as the inputs.
+    R1, R2 : (3, 3) float64
+        Rotations from each camera frame to its rectified frame.
+    P1, P2 : (3, 4) float64
+        Projection matrices of the rectified cameras (in the rectified camera-1
+        frame); ``P2[0, 3] = -f * baseline``.
+    Q : (4, 4) float64
+        Disparity-to-depth matrix for ``cv2.reprojectImageTo3D``.
+    """
+
+    img1: np.ndarray
+    img2: np.ndarray
+    R1: FloatArray
+    R2: FloatArray
+    P1: FloatArray
+    P2: FloatArray
+    Q: FloatArray
+
+
+def rectify_pair(
+    img1: np.ndarray,
+    img2: np.ndarray,
+    K: FloatArray,
+    R: FloatArray,
+    t: FloatArray,
+    alpha: float = 1.0,
+) -> RectifiedPair:
+    """Rectify two undistorted images with ``cv2.stereoRectify``.
+
+    Parameters
+    ----------
+    img1, img2 : (H, W, C) uint8
+        Undistorted images of the same size.
+    K : (3, 3)
+        Intrinsics of both images.
+    R, t : (3, 3), (3,)
+        ``x_cam2 = R x_cam1 + t``.
+    alpha : float
+        0 crops to valid pixels only, 1 keeps every source pixel (the book's choice).
+    """
+    size = image_size(img1)  # (width, height): the book passed (height, width)
+    no_dist = np.zeros(5)
+    R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(
+        K, no_dist, K, no_dist, size, np.asarray(R, np.float64),
+        np.asarray(t, np.float64).reshape(3, 1), flags=cv2.CALIB_ZERO_DISPARITY, alpha=alpha,
+    )
+    map1x, map1y = cv2.initUndistortRectifyMap(K, no_dist, R1, P1, size, cv2.CV_32FC1)
+    map2x, map2y = cv2.initUndistortRectifyMap(K, no_dist, R2, P2, size, cv2.CV_32FC1)
+    rect1 = cv2.remap(img1, map1x, map1y, cv2.INTER_LINEAR)
+    rect2 = cv2.remap(img2, map2x, map2y, cv2.INTER_LINEAR)
+    return RectifiedPair(rect1, rect2, R1, R2, P1, P2, Q)
+
+
+def rectify_points(
+    points: FloatArray, K: FloatArray, R_rect: FloatArray, P_rect: FloatArray
+) -> FloatArray:
+    """Map pixels ``(N, 2)`` of an undistorted image to its rectified image."""
+    if len(points) == 0:
+        return np.zeros((0, 2))
+    out = cv2.undistortPoints(points.reshape(-1, 1, 2), K, None, R=R_rect, P=P_rect)
+    return out.reshape(-1, 2).astype(np.float64)

@@ -1,0 +1,186 @@
+"""Synthetic scenes with known geometry, for tests, benchmarks and demos.
+
+- :func:`asymmetric_camera` / :func:`asymmetric_pose`: a deliberately lopsided
+  setup (fx != fy, off-centre principal point, oblique rotation, off-axis
+  translation) so that a transposed matrix or a negated ``t`` cannot pass.
+- :func:`render_planes`: ray-cast textured rectangles (a room corner with a box)
+  seen by a pinhole camera.
+- :func:`render_board`: a chessboard seen by a camera with lens distortion.
+
+Poses follow :mod:`scene3D.geometry`: ``x_cam = R X + t``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .geometry import FloatArray, rotation_about_axis
+
+
+def asymmetric_camera(width: int = 640, height: int = 480) -> FloatArray:
+    """Intrinsics with fx != fy and the principal point off centre."""
+    return np.array([[0.82 * width * 1.25, 0.0, 0.52 * width],
+                     [0.0, 0.80 * width * 1.25, 0.47 * height],
+                     [0.0, 0.0, 1.0]])
+
+
+def asymmetric_pose(angle_deg: float = 8.0, baseline: float = 1.0) -> tuple[FloatArray, FloatArray]:
+    """``(R, t)`` of camera 2 (``x_cam2 = R x_cam1 + t``): oblique rotation, off-axis motion.
+
+    Camera 2 sits at ``C2`` (mostly to the right, a little down and forward) and
+    turns back towards the scene; ``|t| = baseline``.
+    """
+    R = rotation_about_axis([0.25, 1.0, 0.12], angle_deg)
+    center = np.array([1.0, 0.18, 0.25])
+    center *= baseline / np.linalg.norm(center)
+    return R, -R @ center
+
+
+def random_points(n: int, seed: int = 0, depth: tuple[float, float] = (4.0, 9.0)) -> FloatArray:
+    """``(n, 3)`` points spread in front of camera 1 (camera-1 frame)."""
+    rng = np.random.default_rng(seed)
+    z = rng.uniform(*depth, n)
+    x = rng.uniform(-0.5, 0.5, n) * z
+    y = rng.uniform(-0.4, 0.4, n) * z
+    return np.column_stack([x, y, z])
+
+
+def texture(size: int = 512, seed: int = 0) -> np.ndarray:
+    """A grey ``uint8`` texture with blobs at several scales and sharp-edged shapes (corners)."""
+    rng = np.random.default_rng(seed)
+    img = np.zeros((size, size), np.float32)
+    for cells in (8, 16, 32, 64, 128):
+        noise = rng.standard_normal((cells, cells)).astype(np.float32)
+        img += cv2.resize(noise, (size, size), interpolation=cv2.INTER_CUBIC)
+    img = 128.0 + 25.0 * img
+    for _ in range(120):
+        x, y = rng.integers(0, size, 2)
+        r = int(rng.integers(4, size // 16))
+        value = float(rng.integers(0, 256))
+        if rng.random() < 0.5:
+            cv2.circle(img, (int(x), int(y)), r, value, -1, cv2.LINE_AA)
+        else:
+            cv2.rectangle(img, (int(x), int(y)), (int(x) + r, int(y) + 2 * r // 3), value, -1)
+    return np.clip(img, 0, 255).astype(np.uint8)
+
+
+@dataclass(frozen=True)
+class Rectangle:
+    """A textured rectangle ``origin + a u + b v`` with ``0 <= a, b <= 1`` (world frame)."""
+
+    origin: tuple[float, float, float]
+    u: tuple[float, float, float]
+    v: tuple[float, float, float]
+    seed: int = 0
+
+
+def box_scene() -> list[Rectangle]:
+    """A back wall, a floor and a box, in front of a camera at the origin looking along +z."""
+    return [
+        Rectangle((-8.0, -6.0, 12.0), (16.0, 0.0, 0.0), (0.0, 9.5, 0.0), seed=1),  # wall
+        Rectangle((-8.0, 3.5, 3.0), (16.0, 0.0, 0.0), (0.0, 0.0, 9.0), seed=2),  # floor
+        Rectangle((-2.5, 0.5, 6.0), (3.0, 0.0, 0.0), (0.0, 3.0, 0.0), seed=3),  # box front
+        Rectangle((0.5, 0.5, 6.0), (0.0, 0.0, 2.5), (0.0, 3.0, 0.0), seed=4),  # box side
+        Rectangle((-2.5, 0.5, 6.0), (3.0, 0.0, 0.0), (0.0, 0.0, 2.5), seed=5),  # box top
+    ]
+
+
+def _pixel_rays(K: FloatArray, size: tuple[int, int], supersample: int) -> FloatArray:
+    w, h = size
+    offsets = (np.arange(supersample) + 0.5) / supersample - 0.5
+    xs = (np.arange(w)[:, None] + offsets[None, :]).ravel()
+    ys = (np.arange(h)[:, None] + offsets[None, :]).ravel()
+    gx, gy = np.meshgrid(xs, ys)
+    pix = np.stack([gx, gy, np.ones_like(gx)], axis=-1)
+    return pix @ np.linalg.inv(K).T  # (h*s, w*s, 3) camera-frame rays
+
+
+def render_planes(
+    K: FloatArray,
+    R: FloatArray,
+    t: FloatArray,
+    size: tuple[int, int] = (640, 480),
+    rectangles: list[Rectangle] | None = None,
+    supersample: int = 2,
+) -> tuple[np.ndarray, FloatArray]:
+    """Ray-cast textured rectangles seen by the camera ``x_cam = R X + t``.
+
+    Returns
+    -------
+    image : (H, W, 3) uint8
+        BGR rendering (grey texture, tinted per rectangle); background black.
+    depth : (H, W) float64
+        z of the visible surface in the camera frame (inf for background).
+    """
+    rectangles = box_scene() if rectangles is None else rectangles
+    w, h = size
+    rays_cam = _pixel_rays(K, size, supersample)
+    rays = rays_cam @ R  # world directions: R^T d, row-vector form
+    center = -R.T @ np.reshape(t, 3)
+    best = np.full(rays.shape[:2], np.inf)
+    shade = np.zeros(rays.shape[:2] + (3,), np.float32)
+    for rect in rectangles:
+        o, u, v = (np.asarray(a, dtype=np.float64) for a in (rect.origin, rect.u, rect.v))
+        n = np.cross(u, v)
+        denom = rays @ n
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = ((o - center) @ n) / denom
+        hit = center + s[..., None] * rays - o
+        a = hit @ u / (u @ u)
+        b = hit @ v / (v @ v)
+        visible = (s > 0) & (a >= 0) & (a <= 1) & (b >= 0) & (b <= 1) & (s < best)
+        tex = texture(512, rect.seed)
+        sample = cv2.remap(tex, (a * 511).astype(np.float32), (b * 511).astype(np.float32),
+                           cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+        tint = 0.6 + 0.4 * np.random.default_rng(rect.seed).random(3)
+        best = np.where(visible, s, best)
+        shade[visible] = sample[visible][:, None] * tint[None, :]
+    # Rays are (x, y, 1) in camera coordinates, so the ray parameter s is the depth.
+    shade = shade.reshape(h, supersample, w, supersample, 3).mean(axis=(1, 3))
+    depth = best.reshape(h, supersample, w, supersample)[:, supersample // 2, :, supersample // 2]
+    return np.clip(shade + 0.5, 0, 255).astype(np.uint8), depth
+
+
+def render_board(
+    K: FloatArray,
+    dist: FloatArray,
+    rvec: FloatArray,
+    tvec: FloatArray,
+    inner_corners: tuple[int, int] = (9, 6),
+    square_size: float = 1.0,
+    size: tuple[int, int] = (640, 480),
+    supersample: int = 3,
+) -> np.ndarray:
+    """Grey ``uint8`` image of a chessboard seen through a distorting lens.
+
+    The board lies on ``z = 0`` of its frame with inner corner ``(i, j)`` at
+    ``(i, j, 0) * square_size``; ``rvec, tvec`` map board to camera coordinates.
+    A white margin of one square surrounds the squares.
+    """
+    w, h = size
+    offsets = (np.arange(supersample) + 0.5) / supersample - 0.5
+    xs = (np.arange(w)[:, None] + offsets[None, :]).ravel()
+    ys = (np.arange(h)[:, None] + offsets[None, :]).ravel()
+    gx, gy = np.meshgrid(xs, ys)
+    pix = np.stack([gx.ravel(), gy.ravel()], axis=1).reshape(-1, 1, 2)
+    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-10)
+    norm = cv2.undistortPoints(pix, K, dist, None, None, None, criteria).reshape(-1, 2)
+    rays = np.column_stack([norm, np.ones(len(norm))])
+    R, _ = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64))
+    tvec = np.asarray(tvec, dtype=np.float64).reshape(3)
+    # Board plane z_b = 0: points X = R [a, b, 0] + tvec; solve s ray = R [a b 0] + tvec.
+    n = R[:, 2]
+    s = (n @ tvec) / (rays @ n)
+    hit = (s[:, None] * rays - tvec) @ R  # board coordinates
+    a = hit[:, 0] / square_size + 1.0  # squares from the outer board edge
+    b = hit[:, 1] / square_size + 1.0
+    cols, rows = inner_corners
+    inside = (a >= 0) & (a < cols + 1) & (b >= 0) & (b < rows + 1) & (s > 0)
+    black = ((np.floor(a).astype(int) + np.floor(b).astype(int)) % 2 == 0) & inside
+    margin = (a >= -1) & (a < cols + 2) & (b >= -1) & (b < rows + 2) & (s > 0)
+    value = np.where(black, 20.0, np.where(margin, 235.0, 120.0))
+    img = value.reshape(h, supersample, w, supersample).mean(axis=(1, 3))
+    return np.clip(img + 0.5, 0, 255).astype(np.uint8)

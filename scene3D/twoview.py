@@ -1,0 +1,290 @@
+"""Two-view reconstruction from matches: E, pose, triangulation and sanity checks.
+
+The pipeline (book chapter 4, done right):
+
+1. robust fundamental matrix (for epipolar lines),
+2. essential matrix from calibrated points (5-point, USAC),
+3. pose by cheirality over all inliers,
+4. triangulation, keeping points in front of both cameras with small
+   reprojection error and enough parallax,
+5. checks that refuse degenerate pairs instead of returning a wrong pose.
+
+Frames: points are in the camera-1 frame, ``x_cam2 = R x_cam1 + t``, ``|t| = 1``
+(the scale is unknown).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .epipolar import estimate_essential, estimate_fundamental, estimate_homography
+from .errors import ReconstructionError
+from .features import Matches
+from .geometry import FloatArray, as_matrix, as_points2d, check_same_length
+from .pose import choose_pose
+from .triangulation import (
+    in_front_mask,
+    parallax_angles_deg,
+    reprojection_errors,
+    triangulate_points,
+)
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class TwoViewSettings:
+    """Thresholds of the two-view pipeline (defaults suit the book's 768 px images).
+
+    Attributes
+    ----------
+    threshold_px : float
+        Robust-estimation inlier threshold for F, E and H, in pixels.
+    min_matches, min_inliers, min_points : int
+        Below these counts the pair is refused.
+    min_median_parallax_deg : float
+        Median triangulation angle below which the pair has no usable baseline
+        (pure rotation, tiny motion).
+    min_point_parallax_deg : float
+        Points seen under a smaller angle are dropped (their depth is unreliable).
+    max_reprojection_px : float
+        Points reprojecting worse than this in either view are dropped.
+    planar_ratio : float
+        Homography inliers / essential inliers above which the scene is flagged
+        as planar (the pose may be ambiguous).
+    """
+
+    threshold_px: float = 1.0
+    min_matches: int = 20
+    min_inliers: int = 15
+    min_points: int = 10
+    min_median_parallax_deg: float = 1.0
+    min_point_parallax_deg: float = 0.5
+    max_reprojection_px: float = 2.0
+    planar_ratio: float = 0.95
+
+
+@dataclass(frozen=True)
+class TwoViewReconstruction:
+    """The result of reconstructing one image pair.
+
+    Attributes
+    ----------
+    R : (3, 3) float64
+        ``R_cam2_from_cam1``.
+    t : (3,) float64
+        Unit translation, ``x_cam2 = R @ x_cam1 + t`` (scale unknown).
+    points3d : (N, 3) float64
+        Triangulated points in the camera-1 frame, in units of the baseline.
+    colors : (N, 3) uint8
+        RGB colour of each point, sampled from image 1.
+    pts1, pts2 : (N, 2) float64
+        Pixels of the kept points in the working images.
+    K : (3, 3) float64
+        Intrinsics of the working images.
+    F, E : (3, 3) float64
+        Fundamental (pixels) and essential matrices.
+    num_matches, num_inliers : int
+        Putative matches, and inliers of the essential matrix.
+    reprojection_rmse_px : float
+        RMS reprojection error of ``points3d`` over both views.
+    feature : str
+        The detector that actually ran.
+    median_parallax_deg : float
+        Median triangulation angle of the kept points.
+    homography_inlier_ratio : float
+        Homography inliers / essential inliers (near 1: planar scene or no baseline).
+    trusted : bool
+        False when a check raised a doubt; see ``warnings``.
+    warnings : tuple[str, ...]
+        Human-readable doubts about the result.
+    inlier_pts1, inlier_pts2 : (M, 2) float64
+        All essential-matrix inliers (before triangulation filters).
+    timings_s : dict[str, float]
+        Seconds per stage.
+    """
+
+    R: FloatArray
+    t: FloatArray
+    points3d: FloatArray
+    colors: np.ndarray
+    pts1: FloatArray
+    pts2: FloatArray
+    K: FloatArray
+    F: FloatArray
+    E: FloatArray
+    num_matches: int
+    num_inliers: int
+    reprojection_rmse_px: float
+    feature: str
+    median_parallax_deg: float
+    homography_inlier_ratio: float
+    trusted: bool
+    warnings: tuple[str, ...]
+    inlier_pts1: FloatArray
+    inlier_pts2: FloatArray
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def num_points(self) -> int:
+        return len(self.points3d)
+
+    @property
+    def Rt1(self) -> FloatArray:
+        """``[I | 0]``, the book's camera-1 matrix (3, 4)."""
+        return np.hstack([np.eye(3), np.zeros((3, 1))])
+
+    @property
+    def Rt2(self) -> FloatArray:
+        """``[R | t]``, the book's camera-2 matrix (3, 4)."""
+        return np.hstack([self.R, self.t.reshape(3, 1)])
+
+
+def sample_colors(img_bgr: np.ndarray, points: FloatArray) -> np.ndarray:
+    """RGB ``uint8`` colours ``(N, 3)`` of a BGR image at pixels ``(N, 2)`` (nearest pixel)."""
+    h, w = img_bgr.shape[:2]
+    x = np.clip(np.rint(points[:, 0]).astype(int), 0, w - 1)
+    y = np.clip(np.rint(points[:, 1]).astype(int), 0, h - 1)
+    if img_bgr.ndim == 2:
+        grey = img_bgr[y, x]
+        return np.stack([grey, grey, grey], axis=1).astype(np.uint8)
+    return img_bgr[y, x, ::-1].astype(np.uint8)
+
+
+def is_rotation_homography(H: FloatArray, K: FloatArray, tolerance: float = 0.02) -> bool:
+    """True when ``H`` is (close to) ``K R K^-1``, the homography of a camera that only turned.
+
+    ``K^-1 H K`` is then a rotation up to scale: its singular values are equal
+    (within ``tolerance``, relative). A plane seen from two centres gives
+    ``R + t n^T / d`` instead, whose singular values differ by about ``|t| / d``.
+    """
+    if not np.all(np.isfinite(H)):
+        return False
+    singular = np.linalg.svd(np.linalg.inv(K) @ H @ K, compute_uv=False)
+    return bool(singular[0] / singular[2] - 1.0 < tolerance)
+
+
+def reconstruct_from_matches(
+    pts1: ArrayLike,
+    pts2: ArrayLike,
+    K: ArrayLike,
+    settings: TwoViewSettings | None = None,
+) -> dict:
+    """Estimate pose and structure from correspondences (the geometric core).
+
+    Parameters
+    ----------
+    pts1, pts2 : (N, 2) array_like
+        Matched pixels in image 1 and image 2.
+    K : (3, 3) array_like
+        Intrinsics shared by both images.
+
+    Returns
+    -------
+    dict
+        The fields of :class:`TwoViewReconstruction` that depend on geometry only
+        (everything but ``colors``, ``feature`` and ``timings_s``), plus
+        ``"keep"``, the index of the kept points in the inlier set.
+
+    Raises
+    ------
+    ReconstructionError
+        Too few matches / inliers / points, no parallax, or no cheirality winner.
+    """
+    s = settings or TwoViewSettings()
+    p1 = as_points2d(pts1, "pts1")
+    p2 = as_points2d(pts2, "pts2")
+    check_same_length(p1, p2)
+    K = as_matrix(K, (3, 3), "K")
+    n = len(p1)
+    if n < s.min_matches:
+        raise ReconstructionError(
+            "too_few_matches", "too few matches between the images",
+            matches=n, required=s.min_matches,
+        )
+    F, _ = estimate_fundamental(p1, p2, s.threshold_px)
+    E, inliers = estimate_essential(p1, p2, K, s.threshold_px)
+    num_inliers = int(inliers.sum())
+    if not np.all(np.isfinite(E)) or num_inliers < s.min_inliers:
+        raise ReconstructionError(
+            "too_few_inliers", "too few matches agree on an essential matrix",
+            matches=n, inliers=num_inliers, required=s.min_inliers,
+        )
+    in1, in2 = p1[inliers], p2[inliers]
+    H, h_inliers = estimate_homography(in1, in2, s.threshold_px)
+    h_ratio = float(h_inliers.sum()) / num_inliers
+
+    if h_ratio > s.planar_ratio and is_rotation_homography(H, K):
+        raise ReconstructionError(
+            "no_parallax",
+            "the images are related by a pure rotation (no baseline): depth cannot be recovered",
+            inliers=num_inliers, homography_inlier_ratio=h_ratio,
+        )
+    R, t, _ = choose_pose(E, in1, in2, K)
+    points = triangulate_points(in1, in2, K, R, t)
+    front = in_front_mask(points, R, t)
+    parallax = np.where(front, parallax_angles_deg(np.nan_to_num(points), R, t), 0.0)
+    median_parallax = float(np.median(parallax))
+    if median_parallax < s.min_median_parallax_deg:
+        raise ReconstructionError(
+            "no_parallax",
+            "the views have (almost) no parallax: pure rotation or too small a baseline",
+            inliers=num_inliers, median_parallax_deg=median_parallax,
+            homography_inlier_ratio=h_ratio,
+        )
+    errors = np.full((len(in1), 2), np.inf)
+    errors[front] = reprojection_errors(points[front], in1[front], in2[front], K, R, t)
+    keep = (
+        front
+        & (parallax >= s.min_point_parallax_deg)
+        & (errors.max(axis=1) <= s.max_reprojection_px)
+    )
+    if keep.sum() < s.min_points:
+        raise ReconstructionError(
+            "too_few_points", "too few points triangulate reliably",
+            inliers=num_inliers, in_front=int(front.sum()), kept=int(keep.sum()),
+            required=s.min_points,
+        )
+    warnings = []
+    if h_ratio > s.planar_ratio:
+        warnings.append(
+            f"a homography explains {h_ratio:.0%} of the inliers (planar scene or weak "
+            "baseline): the pose may be ambiguous"
+        )
+    kept_errors = errors[keep]
+    return dict(
+        R=R, t=t, points3d=points[keep], pts1=in1[keep], pts2=in2[keep], K=K, F=F, E=E,
+        num_matches=n, num_inliers=num_inliers,
+        reprojection_rmse_px=float(np.sqrt(np.mean(kept_errors**2))),
+        median_parallax_deg=float(np.median(parallax[keep])),
+        homography_inlier_ratio=h_ratio, trusted=not warnings, warnings=tuple(warnings),
+        inlier_pts1=in1, inlier_pts2=in2,
+    )
+
+
+def reconstruct_two_view(
+    img1: np.ndarray,
+    matches: Matches,
+    K: ArrayLike,
+    settings: TwoViewSettings | None = None,
+) -> TwoViewReconstruction:
+    """Reconstruct a pair from its matches; ``img1`` (BGR) gives the point colours.
+
+    See :func:`reconstruct_from_matches` for the steps and the errors raised.
+    """
+    t0 = time.perf_counter()
+    fields = reconstruct_from_matches(matches.pts1, matches.pts2, K, settings)
+    t1 = time.perf_counter()
+    colors = sample_colors(img1, fields["pts1"])
+    timings = dict(matches.timings_s)
+    timings["geometry"] = t1 - t0
+    timings["total"] = sum(timings.values())
+    for w in fields["warnings"]:
+        logger.warning("%s", w)
+    return TwoViewReconstruction(colors=colors, feature=matches.feature, timings_s=timings,
+                                 **fields)
