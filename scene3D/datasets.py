@@ -6,8 +6,8 @@ Where files are looked for, in order:
    ``shared/data`` folder beside a source checkout, when it exists),
 2. the user cache, ``$SCENE3D_CACHE`` or ``$XDG_CACHE_HOME/scene3D`` or
    ``~/.cache/scene3D``,
-3. a download from the openMVG/SfM_quality_evaluation GitHub repository into the
-   cache. Every file is checked against its SHA-256 and written atomically.
+3. a download from the openMVG/SfM_quality_evaluation GitHub repository (or
+   ``$SCENE3D_DATA_URL``) into the cache. Every file is checked against its SHA-256 and written atomically.
 
 Strecha ``.camera`` files hold, line by line: ``K`` (3 rows), the distortion
 (one row), ``R`` (3 rows), the camera centre ``C`` (one row) and the image size.
@@ -122,7 +122,7 @@ def fetch_fountain_p11(
     *,
     data_root: Path | None = None,
     cache_dir: Path | None = None,
-    base_url: str = FOUNTAIN_P11_URL,
+    base_url: str | None = None,
     timeout_s: float = 30.0,
     download: bool = True,
 ) -> Path:
@@ -135,8 +135,9 @@ def fetch_fountain_p11(
         default all of them.
     data_root, cache_dir : Path, optional
         Override :func:`default_data_root` / :func:`default_cache_dir`.
-    base_url : str
-        Where ``<base_url>/<file>`` is downloaded from.
+    base_url : str, optional
+        Where ``<base_url>/<file>`` is downloaded from; default ``$SCENE3D_DATA_URL``
+        or :data:`FOUNTAIN_P11_URL` (set the variable to use a mirror).
     download : bool
         False: only look locally.
 
@@ -157,6 +158,7 @@ def fetch_fountain_p11(
     root = data_root if data_root is not None else default_data_root()
     if root is not None and all((root / FOUNTAIN_P11 / f).is_file() for f in wanted):
         return root / FOUNTAIN_P11
+    base_url = base_url or os.environ.get("SCENE3D_DATA_URL") or FOUNTAIN_P11_URL
     cache = (cache_dir if cache_dir is not None else default_cache_dir()) / FOUNTAIN_P11
     for name in wanted:
         target = cache / name

@@ -57,7 +57,37 @@ def estimate_fundamental(
     F, mask = cv2.findFundamentalMat(p1, p2, ROBUST_METHOD, threshold_px, confidence, max_iters)
     if F is None or F.shape != (3, 3):
         return np.full((3, 3), np.nan), np.zeros(len(p1), dtype=bool)
-    return F / np.linalg.norm(F), _mask(mask, len(p1))
+    inliers = _mask(mask, len(p1))
+    if inliers.sum() >= 8:
+        # Polish: normalised 8-point least squares over all inliers (exact without noise).
+        F = fundamental_8point(p1[inliers], p2[inliers])
+    return F / np.linalg.norm(F), inliers
+
+
+def _hartley_normalization(points: FloatArray) -> FloatArray:
+    """Similarity ``T`` (3, 3) moving points to zero mean and mean distance sqrt(2)."""
+    centroid = points.mean(axis=0)
+    scale = np.sqrt(2.0) / max(np.linalg.norm(points - centroid, axis=1).mean(), 1e-12)
+    return np.array([[scale, 0, -scale * centroid[0]], [0, scale, -scale * centroid[1]],
+                     [0, 0, 1.0]])
+
+
+def fundamental_8point(pts1: ArrayLike, pts2: ArrayLike) -> FloatArray:
+    """Normalised 8-point algorithm (H&Z algorithm 11.1), rank 2 enforced, unit norm.
+
+    A least-squares fit over all the given correspondences (N >= 8): use it on
+    inliers only.
+    """
+    p1, p2 = _check_pair(pts1, pts2, 8)
+    T1, T2 = _hartley_normalization(p1), _hartley_normalization(p2)
+    x1 = to_homogeneous(p1) @ T1.T
+    x2 = to_homogeneous(p2) @ T2.T
+    A = np.einsum("ni,nj->nij", x2, x1).reshape(-1, 9)  # rows: kron(x2, x1)
+    F = np.linalg.svd(A)[2][-1].reshape(3, 3)
+    U, S, Vt = np.linalg.svd(F)
+    F = U @ np.diag([S[0], S[1], 0.0]) @ Vt
+    F = T2.T @ F @ T1
+    return F / np.linalg.norm(F)
 
 
 def estimate_essential(
@@ -67,11 +97,14 @@ def estimate_essential(
     threshold_px: float = 1.0,
     confidence: float = 0.999,
     max_iters: int = 10000,
+    refine: bool = True,
 ) -> tuple[FloatArray, np.ndarray]:
     """Robustly estimate the essential matrix with the 5-point solver (USAC MAGSAC++).
 
     Both views share the intrinsics ``K``; E is estimated from calibrated
-    points directly, not as ``K^T F K``.
+    points directly, not as ``K^T F K``. With ``refine`` the estimate is then
+    polished by minimising Sampson distances over the inliers, which are
+    re-selected with the polished model (local optimisation).
 
     Parameters
     ----------
@@ -95,13 +128,43 @@ def estimate_essential(
     if E is None or E.shape != (3, 3):
         # Several solutions are stacked as (3k, 3) when the solver is not robust.
         return np.full((3, 3), np.nan), np.zeros(len(p1), dtype=bool)
-    return E / np.linalg.norm(E), _mask(mask, len(p1))
+    inliers = _mask(mask, len(p1))
+    if refine and inliers.sum() >= 6:
+        E, inliers = _refine_essential(E, p1, p2, K, inliers, threshold_px)
+    return E / np.linalg.norm(E), inliers
+
+
+def _refine_essential(
+    E: FloatArray, p1: FloatArray, p2: FloatArray, K: FloatArray, inliers: np.ndarray,
+    threshold_px: float, rounds: int = 2,
+) -> tuple[FloatArray, np.ndarray]:
+    """Local optimisation: refine on the inliers, re-select inliers, repeat."""
+    from .pose import decompose_essential
+    from .refinement import refine_relative_pose, sampson_residuals
+
+    R, t = decompose_essential(E)[0]  # any of the four gives the same E up to sign
+    for _ in range(rounds):
+        R, t = refine_relative_pose(R, t, p1[inliers], p2[inliers], K, scale_px=threshold_px)
+        E_new = essential_from_pose(R, t)
+        F = np.linalg.inv(K).T @ E_new @ np.linalg.inv(K)
+        new_inliers = np.abs(sampson_residuals(F, p1, p2)) <= threshold_px
+        if new_inliers.sum() < 6:
+            break
+        E = E_new
+        if np.array_equal(new_inliers, inliers):
+            break
+        inliers = new_inliers
+    return E, inliers
 
 
 def estimate_homography(
     pts1: ArrayLike, pts2: ArrayLike, threshold_px: float = 1.0, confidence: float = 0.999
 ) -> tuple[FloatArray, np.ndarray]:
     """Robustly estimate a homography ``x2 ~ H x1``; used to detect planar scenes and rotations.
+
+    After USAC MAGSAC++ the homography is refitted by least squares on its
+    inliers, and the inliers are those with a transfer error in image 2 below
+    ``2 * threshold_px`` (noise in both images adds up in the transfer).
 
     Returns ``(H, inliers)``; ``H`` is NaN when no homography was found.
     """
@@ -110,7 +173,21 @@ def estimate_homography(
                                  confidence=confidence)
     if H is None:
         return np.full((3, 3), np.nan), np.zeros(len(p1), dtype=bool)
-    return H, _mask(mask, len(p1))
+    inliers = _mask(mask, len(p1))
+    if inliers.sum() >= 4:
+        H_ls, _ = cv2.findHomography(p1[inliers], p2[inliers], 0)
+        if H_ls is not None:
+            H = H_ls
+    return H, homography_transfer_errors(H, p1, p2) < 2.0 * threshold_px
+
+
+def homography_transfer_errors(H: ArrayLike, pts1: ArrayLike, pts2: ArrayLike) -> FloatArray:
+    """Distances ``(N,)`` in pixels between ``x2`` and ``H x1``."""
+    mapped = to_homogeneous(np.asarray(pts1, dtype=np.float64)) @ np.asarray(H).T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mapped = mapped[:, :2] / mapped[:, 2:3]
+    errors = np.linalg.norm(mapped - np.asarray(pts2, dtype=np.float64), axis=1)
+    return np.where(np.isfinite(errors), errors, np.inf)
 
 
 def essential_from_pose(R: ArrayLike, t: ArrayLike) -> FloatArray:

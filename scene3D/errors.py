@@ -15,7 +15,8 @@ class ReconstructionError(RuntimeError):
     ----------
     reason : str
         Short machine-readable cause: ``"too_few_matches"``, ``"too_few_inliers"``,
-        ``"no_parallax"``, ``"no_cheirality_winner"``, ``"too_few_points"``.
+        ``"no_parallax"``, ``"planar_scene"``, ``"no_cheirality_winner"``,
+        ``"too_few_points"``.
     counts : dict[str, int | float]
         The numbers behind the decision (matches, inliers, parallax, ...).
     """

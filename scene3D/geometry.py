@@ -92,8 +92,9 @@ def project(points3d: FloatArray, K: FloatArray, R: FloatArray, t: FloatArray) -
 def rotation_angle_deg(R: ArrayLike) -> float:
     """Angle of the rotation ``R`` in degrees (0 for the identity)."""
     R = np.asarray(R, dtype=np.float64)
-    cos = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
-    return float(np.degrees(np.arccos(cos)))
+    # ||R - I||_F = 2 sqrt(2) sin(angle / 2): accurate for small angles, unlike arccos.
+    half_chord = np.linalg.norm(R - np.eye(3)) / (2.0 * np.sqrt(2.0))
+    return float(np.degrees(2.0 * np.arcsin(np.clip(half_chord, 0.0, 1.0))))
 
 
 def rotation_error_deg(R_est: ArrayLike, R_true: ArrayLike) -> float:

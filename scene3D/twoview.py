@@ -55,8 +55,10 @@ class TwoViewSettings:
     max_reprojection_px : float
         Points reprojecting worse than this in either view are dropped.
     planar_ratio : float
-        Homography inliers / essential inliers above which the scene is flagged
-        as planar (the pose may be ambiguous).
+        Homography inliers / essential inliers above which the pair is refused as
+        planar (or as a pure rotation when the homography is one).
+    planar_warning_ratio : float
+        Above this ratio the result is kept but marked untrusted.
     """
 
     threshold_px: float = 1.0
@@ -67,6 +69,7 @@ class TwoViewSettings:
     min_point_parallax_deg: float = 0.5
     max_reprojection_px: float = 2.0
     planar_ratio: float = 0.95
+    planar_warning_ratio: float = 0.85
 
 
 @dataclass(frozen=True)
@@ -219,11 +222,18 @@ def reconstruct_from_matches(
     H, h_inliers = estimate_homography(in1, in2, s.threshold_px)
     h_ratio = float(h_inliers.sum()) / num_inliers
 
-    if h_ratio > s.planar_ratio and is_rotation_homography(H, K):
+    if h_ratio > s.planar_ratio:
+        if is_rotation_homography(H, K):
+            raise ReconstructionError(
+                "no_parallax",
+                "the images are related by a pure rotation (no baseline): depth cannot be "
+                "recovered", inliers=num_inliers, homography_inlier_ratio=h_ratio,
+            )
         raise ReconstructionError(
-            "no_parallax",
-            "the images are related by a pure rotation (no baseline): depth cannot be recovered",
-            inliers=num_inliers, homography_inlier_ratio=h_ratio,
+            "planar_scene",
+            "one homography explains the matches (a planar scene): the relative pose is "
+            "ambiguous; add depth to the view", inliers=num_inliers,
+            homography_inlier_ratio=h_ratio,
         )
     R, t, _ = choose_pose(E, in1, in2, K)
     points = triangulate_points(in1, in2, K, R, t)
@@ -251,10 +261,10 @@ def reconstruct_from_matches(
             required=s.min_points,
         )
     warnings = []
-    if h_ratio > s.planar_ratio:
+    if h_ratio > s.planar_warning_ratio:
         warnings.append(
-            f"a homography explains {h_ratio:.0%} of the inliers (planar scene or weak "
-            "baseline): the pose may be ambiguous"
+            f"a homography explains {h_ratio:.0%} of the inliers (nearly planar scene or weak "
+            "baseline): the pose may be inaccurate"
         )
     kept_errors = errors[keep]
     return dict(

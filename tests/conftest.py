@@ -1,0 +1,71 @@
+"""Shared fixtures: where the real data live, synthetic scenes with known geometry."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import matplotlib
+import numpy as np
+import pytest
+
+matplotlib.use("Agg")
+
+from scene3D import synthetic  # noqa: E402
+from scene3D.datasets import default_data_root  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _data_root() -> Path | None:
+    root = default_data_root()
+    return root if root is not None and root.is_dir() else None
+
+
+@pytest.fixture(scope="session")
+def data_root() -> Path:
+    """``$SCENE3D_DATA`` (default ../shared/data). Missing data skip locally, fail in CI."""
+    root = _data_root()
+    if root is None:
+        if os.environ.get("CI"):
+            pytest.fail("SCENE3D_DATA is not set and ../shared/data does not exist")
+        pytest.skip("real data not available: set SCENE3D_DATA (see README)")
+    return root
+
+
+@pytest.fixture(scope="session")
+def fountain(data_root: Path) -> Path:
+    return data_root / "fountain-P11"
+
+
+@pytest.fixture(scope="session")
+def chessboards(data_root: Path) -> Path:
+    return data_root / "chessboard"
+
+
+@pytest.fixture(scope="session")
+def camera() -> np.ndarray:
+    return synthetic.asymmetric_camera()
+
+
+@pytest.fixture(scope="session")
+def true_pose() -> tuple[np.ndarray, np.ndarray]:
+    return synthetic.asymmetric_pose()
+
+
+@pytest.fixture(scope="session")
+def rendered_pair(camera, true_pose):
+    """Two renderings of the box scene: (img1, img2, K, R_true, t_true)."""
+    R, t = true_pose
+    img1, _ = synthetic.render_planes(camera, np.eye(3), np.zeros(3))
+    img2, _ = synthetic.render_planes(camera, R, t)
+    return img1, img2, camera, R, t
+
+
+@pytest.fixture(scope="session")
+def rotated_pair(camera, true_pose):
+    """The box scene seen from one centre, the camera only turned."""
+    R, _ = true_pose
+    img1, _ = synthetic.render_planes(camera, np.eye(3), np.zeros(3))
+    img2, _ = synthetic.render_planes(camera, R, np.zeros(3))
+    return img1, img2, camera

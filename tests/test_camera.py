@@ -1,0 +1,71 @@
+import cv2
+import numpy as np
+import pytest
+
+from scene3D.camera import (
+    adapt_intrinsics_to_size,
+    scale_intrinsics_pyr_down,
+    scale_intrinsics_resize,
+    validate_distortion,
+    validate_intrinsics,
+)
+
+K = np.array([[800.0, 0.0, 331.3], [0.0, 790.0, 247.6], [0.0, 0.0, 1.0]])
+
+
+def _blob(size, center, sigma=3.0):
+    w, h = size
+    x, y = np.meshgrid(np.arange(w), np.arange(h))
+    img = 255 * np.exp(-((x - center[0]) ** 2 + (y - center[1]) ** 2) / (2 * sigma**2))
+    return img.astype(np.float32)
+
+
+def _centroid(img):
+    y, x = np.mgrid[: img.shape[0], : img.shape[1]]
+    return np.array([(x * img).sum(), (y * img).sum()]) / img.sum()
+
+
+def test_pyr_down_scaling_follows_the_pixels():
+    """A blob at (x, y) lands at K'-consistent coordinates after two pyrDowns."""
+    center = np.array([401.3, 233.7])
+    img = _blob((800, 600), center, sigma=6.0)
+    small = cv2.pyrDown(cv2.pyrDown(img))
+    K2 = scale_intrinsics_pyr_down(K, 2)
+    np.testing.assert_allclose(K2, np.diag([0.25, 0.25, 1.0]) @ K)
+    np.testing.assert_allclose(_centroid(small), center / 4, atol=0.02)
+
+
+def test_resize_scaling_keeps_pixel_centres():
+    center = np.array([301.3, 211.7])
+    img = _blob((640, 480), center, sigma=5.0)
+    small = cv2.resize(img, (320, 240), interpolation=cv2.INTER_AREA)
+    K2 = scale_intrinsics_resize(K, (640, 480), (320, 240))
+    assert K2[0, 2] == pytest.approx(0.5 * (K[0, 2] + 0.5) - 0.5)
+    np.testing.assert_allclose(_centroid(small), 0.5 * (center + 0.5) - 0.5, atol=0.02)
+
+
+def test_adapt_intrinsics():
+    np.testing.assert_allclose(adapt_intrinsics_to_size(K, (640, 480), (640, 480)), K)
+    half = adapt_intrinsics_to_size(K, (640, 480), (320, 240))
+    assert half[0, 0] == pytest.approx(400.0)
+    with pytest.raises(ValueError, match="aspect ratio"):
+        adapt_intrinsics_to_size(K, (640, 480), (640, 360))
+
+
+@pytest.mark.parametrize("bad, message", [
+    (np.eye(2), r"`K` must have shape \(3, 3\), got \(2, 2\)"),
+    (np.diag([-1.0, 1.0, 1.0]), "positive focal"),
+    (np.array([[1.0, 0, 0], [0, 1, 0], [0, 0, np.nan]]), "non-finite"),
+    (np.array([[1.0, 0, 0], [0, 1, 0], [1, 0, 1]]), "last row"),
+])
+def test_invalid_intrinsics(bad, message):
+    with pytest.raises(ValueError, match=message):
+        validate_intrinsics(bad)
+
+
+def test_distortion_lengths():
+    assert validate_distortion(None).size == 0
+    for n in (0, 4, 5, 8, 12, 14):
+        assert validate_distortion(np.zeros((1, n))).shape == (n,)
+    with pytest.raises(ValueError, match="got 3"):
+        validate_distortion([0.1, 0.0, 0.0])

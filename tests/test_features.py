@@ -1,0 +1,52 @@
+import logging
+
+import cv2
+import numpy as np
+import pytest
+
+from scene3D import features
+from scene3D.features import find_matches, match_descriptors, normalize_feature_mode
+
+
+def test_modes_are_case_insensitive_and_unknown_modes_are_listed():
+    assert normalize_feature_mode("sift") == "SIFT"
+    assert normalize_feature_mode("FLOW") == "flow"
+    with pytest.raises(ValueError, match="valid modes are SIFT, SURF, ORB, AKAZE, flow"):
+        normalize_feature_mode("BRISK")
+
+
+def test_ratio_and_mutual_check():
+    d1 = np.array([[0, 0], [10, 0], [0, 10]], np.float32)
+    # d2[0] is close to d1[0]; d2[1] is ambiguous between d1[1] and d1[2]; d2[2] is far away.
+    d2 = np.array([[0.1, 0], [5, 5], [100, 100]], np.float32)
+    i1, i2 = match_descriptors(d1, d2, cv2.NORM_L2, ratio=0.8)
+    assert list(zip(i1, i2)) == [(0, 0)]
+
+
+@pytest.mark.parametrize("mode, tolerance_px", [
+    ("SIFT", 0.5), ("ORB", 1.0), ("AKAZE", 0.5), ("flow", 0.1),  # ORB has no sub-pixel step
+])
+def test_known_shift_is_found(rendered_pair, mode, tolerance_px):
+    img1 = rendered_pair[0]
+    shift = np.array([6.25, -3.5])
+    M = np.float32([[1, 0, shift[0]], [0, 1, shift[1]]])
+    img2 = cv2.warpAffine(img1, M, (img1.shape[1], img1.shape[0]))
+    m = find_matches(img1, img2, mode)
+    assert len(m) > 100
+    assert m.feature == mode
+    d = m.pts2 - m.pts1 - shift
+    assert np.median(np.linalg.norm(d, axis=1)) < tolerance_px
+    assert set(m.timings_s) == {"features", "matching"}
+
+
+def test_surf_falls_back_to_sift_with_one_warning(rendered_pair, caplog, monkeypatch):
+    monkeypatch.setattr(features, "_warned_surf", False)
+    img1, img2 = rendered_pair[:2]
+    with caplog.at_level(logging.WARNING):
+        m = find_matches(img1, img2, "SURF")
+        find_matches(img1, img2, "surf")
+    if m.feature == "SURF":  # an OpenCV build with the non-free module
+        pytest.skip("this OpenCV has SURF")
+    assert m.feature == "SIFT"
+    assert len(m) > 100
+    assert sum("SURF" in r.message for r in caplog.records) == 1

@@ -1,0 +1,47 @@
+import numpy as np
+import pytest
+
+from scene3D.geometry import (
+    angle_between_deg,
+    as_points2d,
+    normalize_points,
+    project,
+    rotation_about_axis,
+    rotation_angle_deg,
+    rotation_error_deg,
+    skew,
+)
+
+
+def test_skew_is_the_cross_product():
+    a, b = np.array([0.3, -1.2, 2.0]), np.array([1.5, 0.2, -0.7])
+    np.testing.assert_allclose(skew(a) @ b, np.cross(a, b))
+
+
+def test_rotation_about_axis_is_proper_and_has_the_angle():
+    R = rotation_about_axis([1.0, 2.0, -0.5], 33.0)
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(R) == pytest.approx(1.0)
+    assert rotation_angle_deg(R) == pytest.approx(33.0)
+    assert rotation_error_deg(R, R) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_angle_between_depends_on_sign():
+    assert angle_between_deg([1, 0, 0], [0, 1, 0]) == pytest.approx(90.0)
+    assert angle_between_deg([1, 0, 0], [-2, 0, 0]) == pytest.approx(180.0)
+
+
+def test_project_and_normalize_are_inverse():
+    K = np.array([[800.0, 0, 330], [0, 780, 250], [0, 0, 1]])
+    X = np.array([[0.5, -0.2, 4.0], [-1.0, 0.7, 6.0]])
+    pix = project(X, K, np.eye(3), np.zeros(3))
+    np.testing.assert_allclose(pix[0], [800 * 0.125 + 330, 780 * -0.05 + 250])
+    np.testing.assert_allclose(normalize_points(pix, K), X[:, :2] / X[:, 2:])
+
+
+def test_as_points2d_accepts_opencv_layout_and_rejects_others():
+    assert as_points2d(np.zeros((5, 1, 2), np.float32)).shape == (5, 2)
+    with pytest.raises(ValueError, match=r"`pts1` must have shape \(N, 2\), got \(5, 3\)"):
+        as_points2d(np.zeros((5, 3)), "pts1")
+    with pytest.raises(ValueError, match="non-finite"):
+        as_points2d([[np.nan, 1.0]])

@@ -1,0 +1,103 @@
+import numpy as np
+import pytest
+
+from scene3D.errors import ReconstructionError
+from scene3D.evaluation import relative_pose_error
+from scene3D.features import find_matches
+from scene3D.geometry import project
+from scene3D.twoview import TwoViewSettings, reconstruct_from_matches, reconstruct_two_view
+
+from .helpers import correspondences
+
+
+def test_noise_free_pose_and_points_are_exact(camera, true_pose):
+    R, t = true_pose
+    points, pts1, pts2 = correspondences(camera, R, t, n=300)
+    r = reconstruct_from_matches(pts1, pts2, camera)
+    err = relative_pose_error(r["R"], r["t"], R, t)
+    assert err.rotation_deg < 1e-6 and err.translation_deg < 1e-6
+    assert np.linalg.norm(r["t"]) == pytest.approx(1.0)
+    assert r["reprojection_rmse_px"] < 1e-6
+    # Same points, in units of the baseline.
+    scale = np.linalg.norm(t)
+    expected = {tuple(np.round(p, 6)) for p in pts1}
+    assert {tuple(np.round(p, 6)) for p in r["pts1"]} <= expected
+    reproj = project(r["points3d"] * scale, camera, R, t)
+    np.testing.assert_allclose(reproj, r["pts2"], atol=1e-6)
+    assert r["num_inliers"] == 300 and r["trusted"]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_noisy_pose_is_within_bounds(camera, true_pose, seed):
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, t, n=300, noise_px=0.5, seed=seed)
+    r = reconstruct_from_matches(pts1, pts2, camera)
+    err = relative_pose_error(r["R"], r["t"], R, t)
+    assert err.rotation_deg < 0.5
+    assert err.translation_deg < 2.0
+    assert 0.2 < r["reprojection_rmse_px"] < 1.0
+
+
+def test_too_few_matches(camera, true_pose):
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, t, n=12)
+    with pytest.raises(ReconstructionError, match="too few matches") as info:
+        reconstruct_from_matches(pts1, pts2, camera)
+    assert info.value.reason == "too_few_matches"
+    assert info.value.counts == {"matches": 12, "required": 20}
+
+
+def test_pure_rotation_points_are_refused(camera, true_pose):
+    R, _ = true_pose
+    _, pts1, pts2 = correspondences(camera, R, np.zeros(3), n=300, noise_px=0.3)
+    with pytest.raises(ReconstructionError) as info:
+        reconstruct_from_matches(pts1, pts2, camera)
+    assert info.value.reason == "no_parallax"
+
+
+def test_tiny_baseline_is_refused(camera, true_pose):
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, 0.01 * t, n=300, noise_px=0.3)
+    with pytest.raises(ReconstructionError) as info:
+        reconstruct_from_matches(pts1, pts2, camera)
+    assert info.value.reason == "no_parallax"
+
+
+def test_random_matches_are_refused(camera):
+    rng = np.random.default_rng(3)
+    pts1 = rng.uniform(0, 640, (200, 2))
+    pts2 = rng.uniform(0, 640, (200, 2))
+    with pytest.raises(ReconstructionError):
+        reconstruct_from_matches(pts1, pts2, camera, TwoViewSettings(min_inliers=30))
+
+
+def test_planar_scene_is_refused(camera, true_pose):
+    """All points on one plane: the pose is ambiguous, so the pair is refused."""
+    R, t = true_pose
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(-3, 3, (300, 2))
+    points = np.column_stack([xy, 7.0 + 0.2 * xy[:, 0]])
+    pts1 = project(points, camera, np.eye(3), np.zeros(3))
+    pts2 = project(points, camera, R, t)
+    with pytest.raises(ReconstructionError, match="planar") as info:
+        reconstruct_from_matches(pts1, pts2, camera)
+    assert info.value.reason == "planar_scene"
+
+
+def test_rendered_pair_end_to_end(rendered_pair):
+    img1, img2, K, R, t = rendered_pair
+    result = reconstruct_two_view(img1, find_matches(img1, img2, "SIFT"), K)
+    err = relative_pose_error(result.R, result.t, R, t)
+    assert err.rotation_deg < 0.1 and err.translation_deg < 0.5
+    assert result.num_points > 500
+    assert result.colors.shape == (result.num_points, 3) and result.colors.dtype == np.uint8
+    assert result.trusted
+    assert result.Rt2.shape == (3, 4)
+    assert {"features", "matching", "geometry", "total"} <= set(result.timings_s)
+
+
+def test_rendered_pure_rotation_raises(rotated_pair):
+    img1, img2, K = rotated_pair
+    with pytest.raises(ReconstructionError) as info:
+        reconstruct_two_view(img1, find_matches(img1, img2, "SIFT"), K)
+    assert info.value.reason == "no_parallax"
