@@ -54,7 +54,7 @@ def load_calibration(path: str | os.PathLike) -> CameraCalibration:
         raise FileNotFoundError(f"calibration file not found: '{path}'")
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-    except cv2.error as exc:
+    except (cv2.error, SystemError) as exc:
         raise ValueError(f"cannot parse calibration file '{path}': not OpenCV YAML/XML") from exc
     try:
         if not fs.isOpened():

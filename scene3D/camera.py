@@ -34,7 +34,9 @@ def validate_intrinsics(K: ArrayLike) -> FloatArray:
             f"`K` must have positive focal lengths, got fx={arr[0, 0]:g}, fy={arr[1, 1]:g}"
         )
     if not np.allclose(arr[2], [0.0, 0.0, 1.0]) or arr[1, 0] != 0:
-        raise ValueError(f"`K` must be upper triangular with last row [0, 0, 1], got {arr.tolist()}")
+        raise ValueError(
+            f"`K` must be upper triangular with last row [0, 0, 1], got {arr.tolist()}"
+        )
     return arr
 
 

@@ -191,8 +191,9 @@ class StrechaCamera:
     Attributes
     ----------
     K : (3, 3) float64
-    dist : (3,) float64
-        Distortion as stored (zero for fountain-P11).
+    dist : (5,) float64
+        OpenCV distortion ``(k1, k2, 0, 0, k3)`` from the stored radial terms
+        (zero for fountain-P11).
     R : (3, 3) float64
         World-to-camera rotation, ``x_cam = R X + t``.
     t : (3,) float64
@@ -223,7 +224,8 @@ def read_strecha_camera(path: str | os.PathLike) -> StrechaCamera:
     if values.size != 9 + 3 + 9 + 3 + 2:
         raise ValueError(f"camera file '{path}' must hold 26 numbers, got {values.size}")
     K = values[0:9].reshape(3, 3)
-    dist = values[9:12]
+    k1, k2, k3 = values[9:12]
+    dist = np.array([k1, k2, 0.0, 0.0, k3])  # radial terms in OpenCV's order
     R_cam_to_world = values[12:21].reshape(3, 3)
     center = values[21:24]
     R = R_cam_to_world.T

@@ -195,7 +195,9 @@ def essential_from_pose(R: ArrayLike, t: ArrayLike) -> FloatArray:
     return skew(t) @ np.asarray(R, dtype=np.float64)
 
 
-def fundamental_from_essential(E: ArrayLike, K1: ArrayLike, K2: ArrayLike | None = None) -> FloatArray:
+def fundamental_from_essential(
+    E: ArrayLike, K1: ArrayLike, K2: ArrayLike | None = None
+) -> FloatArray:
     """``F = K2^-T E K1^-1`` scaled to unit Frobenius norm (H&Z eq. 9.12)."""
     K1 = np.asarray(K1, dtype=np.float64)
     K2 = K1 if K2 is None else np.asarray(K2, dtype=np.float64)

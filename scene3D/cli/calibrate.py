@@ -1,4 +1,4 @@
-"""``calibrate.py`` / ``scene3d calibrate``: camera calibration from a folder, a video or a webcam."""
+"""``calibrate.py`` / ``scene3d calibrate``: calibrate a camera from photos, a video or a webcam."""
 
 from __future__ import annotations
 
@@ -61,8 +61,8 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
         epilog=(
             "The output is OpenCV FileStorage YAML (camera_matrix, distortion_coefficients, "
             "image_width, image_height, rms_px, per_view_errors, board, date); NAME_coverage.png "
-            "and NAME_view_errors.png are written beside it (NAME: --out without suffix). Nothing is overwritten without "
-            f"--force. {EXIT_CODES_HELP}."
+            "and NAME_view_errors.png are written beside it (NAME: --out without its suffix). "
+            f"Nothing is overwritten without --force. {EXIT_CODES_HELP}."
         ),
     )
     source = parser.add_mutually_exclusive_group(required=True)

@@ -15,8 +15,8 @@ from ..calibration_io import CameraCalibration, load_calibration
 from ..camera import adapt_intrinsics_to_size
 from ..datasets import BOOK_PAIR, fetch_fountain_p11
 from ..export import save_figure, write_json, write_ply
-from ..geometry import rotation_angle_deg
 from ..features import FEATURE_MODES, normalize_feature_mode
+from ..geometry import rotation_angle_deg
 from ..imageio import BOOK_MAX_WIDTH_PX, image_size, load_bgr
 from ..scene import SceneReconstruction3D
 from .common import (

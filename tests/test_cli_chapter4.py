@@ -1,0 +1,186 @@
+"""chapter4.py end to end, as a user runs it: a subprocess, files and exit codes."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from scene3D.calibration_io import CameraCalibration, save_calibration
+from scene3D.datasets import read_strecha_camera, relative_pose
+from scene3D.evaluation import relative_pose_error
+from scene3D.export import read_ply
+
+from .conftest import REPO
+
+
+def run(args, cwd, env=None, data_root=None):
+    full_env = dict(os.environ, **(env or {}))
+    if data_root is not None:
+        full_env["SCENE3D_DATA"] = str(data_root)
+    return subprocess.run([sys.executable, str(REPO / "chapter4.py"), *map(str, args)],
+                          cwd=cwd, env=full_env, capture_output=True, text=True, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def synthetic_files(tmp_path_factory, rendered_pair, rotated_pair):
+    folder = tmp_path_factory.mktemp("synthetic")
+    img1, img2, K, R, t = rendered_pair
+    cv2.imwrite(str(folder / "a.png"), img1)
+    cv2.imwrite(str(folder / "b.png"), img2)
+    cv2.imwrite(str(folder / "rot.png"), rotated_pair[1])
+    cv2.imwrite(str(folder / "small.png"), cv2.resize(img2, (320, 240)))
+    save_calibration(folder / "camera.yaml", CameraCalibration(K, np.zeros(5), (640, 480)))
+    # The same camera calibrated at twice the resolution: K must be scaled down.
+    K2 = K.copy()
+    K2[:2] = 2 * K[:2]
+    K2[:2, 2] = 2 * (K[:2, 2] + 0.5) - 0.5
+    save_calibration(folder / "camera_2x.yaml", CameraCalibration(K2, np.zeros(5), (1280, 960)))
+    save_calibration(folder / "camera_wide.yaml", CameraCalibration(K, np.zeros(5), (640, 360)))
+    return folder
+
+
+def test_default_run_is_the_book_pair_against_ground_truth(tmp_path, data_root):
+    proc = run(["--out", tmp_path / "out"], cwd=tmp_path, data_root=data_root)
+    assert proc.returncode == 0, proc.stderr
+    out = tmp_path / "out"
+    names = {"optic_flow.png", "epipolar_lines.png", "rectified.png", "point_cloud.png",
+             "point_cloud.ply", "reconstruction.json"}
+    assert {p.name for p in out.iterdir()} == names
+    for name in names:
+        assert f"Wrote '{out / name}'" in proc.stdout
+    summary = json.loads((out / "reconstruction.json").read_text())
+    gt = data_root / "fountain-P11" / "gt_dense_cameras"
+    cam4, cam5 = (read_strecha_camera(gt / f"000{i}.jpg.camera") for i in (4, 5))
+    err = relative_pose_error(np.array(summary["R"]), np.array(summary["t"]),
+                              *relative_pose(cam4, cam5))
+    assert err.rotation_deg < 1.0 and err.translation_deg < 3.0
+    assert summary["image_size"] == [768, 512]
+    np.testing.assert_allclose(summary["K"], np.diag([0.25, 0.25, 1]) @ cam4.K)
+    assert summary["feature"] == "SIFT"
+    assert summary["num_inliers"] <= summary["num_matches"]
+    assert summary["reprojection_rmse_px"] < 0.5
+    assert {"features", "matching", "geometry", "plots", "total"} <= set(summary["timings_s"])
+    assert summary["inputs"]["image1"].endswith("0004.jpg")
+    points, colors = read_ply(out / "point_cloud.ply")
+    assert len(points) == summary["num_points"] > 200
+    assert colors.shape == (len(points), 3)
+    assert np.all(points[:, 2] > 0)  # in front of camera 1
+
+
+def test_synthetic_pair_with_calibration_file(tmp_path, synthetic_files, rendered_pair):
+    _, _, _, R, t = rendered_pair
+    f = synthetic_files
+    proc = run([f / "a.png", f / "b.png", "--calib", f / "camera_2x.yaml", "--no-plots",
+                "--feature", "akaze", "--out", tmp_path / "o"], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((tmp_path / "o" / "reconstruction.json").read_text())
+    err = relative_pose_error(np.array(summary["R"]), np.array(summary["t"]), R, t)
+    assert err.rotation_deg < 0.2 and err.translation_deg < 1.0
+    assert summary["feature"] == "AKAZE"
+    assert not list((tmp_path / "o").glob("*.png"))
+
+
+def test_surf_falls_back_with_a_warning(tmp_path, synthetic_files):
+    f = synthetic_files
+    proc = run([f / "a.png", f / "b.png", "--calib", f / "camera.yaml", "--no-plots",
+                "--feature", "surf", "--out", tmp_path], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((tmp_path / "reconstruction.json").read_text())
+    assert summary["feature_requested"] == "surf"
+    if summary["feature"] == "SIFT":
+        assert "SURF is patented" in proc.stderr
+
+
+def _scene3d_command():
+    """The installed ``scene3d`` console script, else ``python -m scene3D`` (same entry point)."""
+    script = Path(sys.executable).parent / "scene3d"
+    return [str(script)] if script.exists() else [sys.executable, "-m", "scene3D"]
+
+
+def test_console_script_reconstruct(tmp_path, synthetic_files):
+    f = synthetic_files
+    proc = subprocess.run(
+        [*_scene3d_command(), "reconstruct", f / "a.png", f / "b.png", "--calib",
+         f / "camera.yaml", "--no-plots", "-q", "--out", tmp_path],
+        capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip().splitlines()[-1] == f"Wrote '{tmp_path / 'reconstruction.json'}'"
+    assert (tmp_path / "point_cloud.ply").exists()
+    help_proc = subprocess.run([*_scene3d_command(), "--help"], capture_output=True, text=True)
+    assert help_proc.returncode == 0 and "reconstruct" in help_proc.stdout
+    bad = subprocess.run([*_scene3d_command(), "explode"], capture_output=True, text=True)
+    assert bad.returncode == 2 and "unknown command 'explode'" in bad.stderr
+
+
+@pytest.mark.parametrize("case, code, message", [
+    ("missing", 2, "image not found"),
+    ("text", 2, "not an image file"),
+    ("empty", 2, "the file is empty"),
+    ("sizes", 2, "same size"),
+    ("bad_yaml", 2, "calibration file"),
+    ("no_matrix", 2, "no 'camera_matrix'"),
+    ("aspect", 2, "aspect ratio"),
+    ("out_is_file", 2, "is not a folder"),
+    ("no_calib", 2, "--calib"),
+    ("one_image", 2, "exactly two images"),
+    ("rotation", 1, "pure rotation"),
+])
+def test_bad_inputs_exit_codes_and_messages(tmp_path, synthetic_files, case, code, message):
+    f = synthetic_files
+    calib = f / "camera.yaml"
+    (tmp_path / "text.jpg").write_text("hello")
+    (tmp_path / "empty.jpg").touch()
+    (tmp_path / "bad.yaml").write_text("camera_matrix: [1, 2\n  : :")
+    (tmp_path / "nomatrix.yaml").write_text("%YAML:1.0\n---\nimage_width: 640\n")
+    (tmp_path / "file").write_text("x")
+    args = {
+        "missing": [tmp_path / "nope.jpg", f / "b.png", "--calib", calib],
+        "text": [tmp_path / "text.jpg", f / "b.png", "--calib", calib],
+        "empty": [f / "a.png", tmp_path / "empty.jpg", "--calib", calib],
+        "sizes": [f / "a.png", f / "small.png", "--calib", calib],
+        "bad_yaml": [f / "a.png", f / "b.png", "--calib", tmp_path / "bad.yaml"],
+        "no_matrix": [f / "a.png", f / "b.png", "--calib", tmp_path / "nomatrix.yaml"],
+        "aspect": [f / "a.png", f / "b.png", "--calib", f / "camera_wide.yaml"],
+        "out_is_file": [f / "a.png", f / "b.png", "--calib", calib, "--out", tmp_path / "file"],
+        "no_calib": [f / "a.png", f / "b.png"],
+        "one_image": [f / "a.png", "--calib", calib],
+        "rotation": [f / "a.png", f / "rot.png", "--calib", calib],
+    }[case]
+    if "--out" not in args:
+        args += ["--out", tmp_path / "out"]
+    proc = run(args + ["--no-plots"], cwd=tmp_path)
+    assert proc.returncode == code
+    assert message in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "out" / "reconstruction.json").exists()
+
+
+def test_debug_shows_the_traceback(tmp_path, synthetic_files):
+    f = synthetic_files
+    proc = run([tmp_path / "nope.jpg", f / "b.png", "--calib", f / "camera.yaml", "--debug"],
+               cwd=tmp_path)
+    assert proc.returncode != 0 and "Traceback" in proc.stderr
+
+
+def test_offline_without_data_is_one_clear_error(tmp_path):
+    env = {"SCENE3D_DATA": str(tmp_path / "none"), "SCENE3D_CACHE": str(tmp_path / "cache"),
+           "SCENE3D_DATA_URL": "http://127.0.0.1:9/offline"}
+    proc = run(["--out", tmp_path / "out"], cwd=tmp_path, env=env)
+    assert proc.returncode == 2
+    assert "SCENE3D_DATA" in proc.stderr and "--calib" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_help_explains_the_outputs():
+    proc = subprocess.run([sys.executable, str(REPO / "chapter4.py"), "--help"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0
+    for word in ("--calib", "--feature", "--no-pyr-down", "--max-width", "--out", "--no-plots",
+                 "--show", "reconstruction.json", "exit codes"):
+        assert word in proc.stdout

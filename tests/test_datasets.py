@@ -1,0 +1,87 @@
+"""The fountain-P11 downloader, against a local HTTP server serving the shared copy."""
+
+import functools
+import http.server
+import shutil
+import threading
+
+import pytest
+
+from scene3D.datasets import FOUNTAIN_P11_SHA256, fetch_fountain_p11, sha256_of
+from scene3D.errors import DatasetError
+
+FILES = ("images/K.txt", "gt_dense_cameras/0004.jpg.camera", "images/0004.jpg")
+
+
+@pytest.fixture
+def serve():
+    """Start an HTTP server on 127.0.0.1 for a folder; yields (start(folder) -> url, hits)."""
+    servers, hits = [], []
+
+    class Handler(http.server.SimpleHTTPRequestHandler):
+        def do_GET(self):
+            hits.append(self.path)
+            super().do_GET()
+
+        def log_message(self, *args):
+            pass
+
+    def start(folder):
+        handler = functools.partial(Handler, directory=str(folder))
+        server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+        threading.Thread(target=server.serve_forever, daemon=True).start()
+        servers.append(server)
+        return f"http://127.0.0.1:{server.server_address[1]}/fountain-P11"
+
+    yield start, hits
+    for server in servers:
+        server.shutdown()
+        server.server_close()
+
+
+def test_download_verifies_and_caches(serve, data_root, tmp_path):
+    start, hits = serve
+    url = start(data_root)
+    empty = tmp_path / "no-data"
+    empty.mkdir()
+    folder = fetch_fountain_p11(FILES, data_root=empty, cache_dir=tmp_path / "cache",
+                                base_url=url)
+    assert folder == tmp_path / "cache" / "fountain-P11"
+    for name in FILES:
+        assert sha256_of(folder / name) == FOUNTAIN_P11_SHA256[name]
+    assert len(hits) == 3
+    # Second call: everything cached and verified, nothing downloaded.
+    fetch_fountain_p11(FILES, data_root=empty, cache_dir=tmp_path / "cache", base_url=url)
+    assert len(hits) == 3
+    assert not list(folder.rglob("*.part"))
+
+
+def test_local_copy_is_used_first(data_root, tmp_path):
+    folder = fetch_fountain_p11(FILES, data_root=data_root, cache_dir=tmp_path, download=False)
+    assert folder == data_root / "fountain-P11"
+
+
+def test_corrupted_file_is_rejected(serve, data_root, tmp_path):
+    start, _ = serve
+    mirror = tmp_path / "mirror" / "fountain-P11"
+    shutil.copytree(data_root / "fountain-P11" / "gt_dense_cameras", mirror / "gt_dense_cameras")
+    (mirror / "images").mkdir()
+    (mirror / "images" / "K.txt").write_text("2759.48 0 1520.69\n0 2764.16 1006.81\n0 0 2\n")
+    cache = tmp_path / "cache"
+    with pytest.raises(DatasetError, match="SHA-256"):
+        fetch_fountain_p11(("images/K.txt",), data_root=tmp_path, cache_dir=cache,
+                           base_url=start(tmp_path / "mirror"))
+    assert not (cache / "fountain-P11" / "images" / "K.txt").exists()
+    assert not list(cache.rglob("*.part"))
+
+
+def test_offline_error_says_what_to_do(tmp_path):
+    with pytest.raises(DatasetError, match="SCENE3D_DATA") as info:
+        fetch_fountain_p11(("images/K.txt",), data_root=tmp_path, cache_dir=tmp_path,
+                           base_url="http://127.0.0.1:9/nothing", timeout_s=2)
+    assert "--calib" in str(info.value)
+
+
+def test_unknown_file_is_refused(tmp_path):
+    with pytest.raises(ValueError, match="not a fountain-P11 file"):
+        fetch_fountain_p11(("images/9999.jpg",), data_root=tmp_path)

@@ -1,0 +1,40 @@
+import json
+
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+from scene3D.export import read_ply, save_figure, write_json, write_ply
+
+
+def test_ply_round_trip_and_header(tmp_path):
+    rng = np.random.default_rng(0)
+    points = rng.normal(size=(50, 3))
+    colors = rng.integers(0, 256, (50, 3), dtype=np.uint8)
+    path = write_ply(tmp_path / "cloud.ply", points, colors)
+    data = path.read_bytes()
+    header = data[: data.index(b"end_header\n")].decode()
+    assert "format binary_little_endian 1.0" in header
+    assert "element vertex 50" in header
+    assert "property uchar red" in header
+    # 15 bytes a vertex: three float32 and three uint8.
+    assert len(data) == data.index(b"end_header\n") + len("end_header\n") + 50 * 15
+    p, c = read_ply(path)
+    np.testing.assert_allclose(p, points, rtol=1e-6, atol=1e-6)
+    np.testing.assert_array_equal(c, colors)
+
+
+def test_writes_are_atomic_and_leave_no_temporaries(tmp_path):
+    write_json(tmp_path / "a.json", {"R": np.eye(3), "n": np.int64(3), "ok": np.bool_(True)})
+    assert json.loads((tmp_path / "a.json").read_text())["R"][1] == [0.0, 1.0, 0.0]
+    fig = Figure()
+    fig.add_subplot().plot([0, 1])
+    save_figure(fig, tmp_path / "f.png")
+    assert (tmp_path / "f.png").read_bytes().startswith(b"\x89PNG")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "f.png"]
+
+
+def test_ply_rejects_bad_shapes(tmp_path):
+    with pytest.raises(ValueError, match=r"`points3d` must have shape \(N, 3\)"):
+        write_ply(tmp_path / "x.ply", np.zeros((4, 2)))
+    assert not (tmp_path / "x.ply").exists()

@@ -1,0 +1,103 @@
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+from scene3D import ReconstructionError, SceneReconstruction3D
+from scene3D.evaluation import relative_pose_error
+
+
+@pytest.fixture(scope="module")
+def scene(rendered_pair):
+    img1, img2, K, _, _ = rendered_pair
+    s = SceneReconstruction3D(K, np.zeros(5))
+    s.load_image_pair(img1, img2)
+    return s
+
+
+def test_book_api_recovers_the_pose_and_sets_the_book_attributes(scene, rendered_pair):
+    _, _, K, R, t = rendered_pair
+    result = scene.reconstruct("SIFT")
+    err = relative_pose_error(result.R, result.t, R, t)
+    assert err.rotation_deg < 0.1 and err.translation_deg < 0.5
+    assert scene.F.shape == scene.E.shape == (3, 3)
+    np.testing.assert_allclose(scene.Rt1, np.hstack([np.eye(3), np.zeros((3, 1))]))
+    np.testing.assert_allclose(scene.Rt2, np.hstack([result.R, result.t[:, None]]))
+    assert scene.match_pts1.shape == scene.match_pts2.shape == (result.num_matches, 2)
+    assert scene.match_inliers1.shape == (result.num_inliers, 2)
+    np.testing.assert_allclose(scene.K, K)  # 640 px wide: no pyrDown
+
+
+def test_plots_return_figures_and_reuse_the_features(scene):
+    matches = scene.matches("SIFT")
+    result = scene.reconstruct("SIFT")
+    for fig in (scene.plot_optic_flow(), scene.draw_epipolar_lines(),
+                scene.plot_rectified_images(), scene.plot_point_cloud()):
+        assert isinstance(fig, Figure) and fig.axes
+    assert scene.matches("sift") is matches  # computed once, reused by every plot
+    assert scene.reconstruct() is result
+
+
+def test_pyr_down_scales_K_exactly(rendered_pair):
+    img1, img2, K, R, t = rendered_pair
+    big1 = np.kron(img1, np.ones((4, 4, 1), np.uint8))[:, :, :3]  # 2560 x 1920
+    big2 = np.kron(img2, np.ones((4, 4, 1), np.uint8))[:, :, :3]
+    K_big = np.diag([4.0, 4.0, 1.0]) @ K
+    s = SceneReconstruction3D(K_big)
+    s.load_image_pair(big1, big2)
+    assert s.img1.shape == (480, 640, 3)  # 2560 -> 1280 -> 640
+    np.testing.assert_allclose(s.K, K)
+    s2 = SceneReconstruction3D(K_big)
+    s2.load_image_pair(big1, big2, use_pyr_down=False)
+    assert s2.img1.shape == big1.shape
+
+
+def test_array_inputs_in_other_formats(rendered_pair):
+    img1, img2, K, R, t = rendered_pair
+    grey = img1.mean(axis=2).astype(np.uint8)
+    rgba = np.dstack([img2, np.full(img2.shape[:2], 255, np.uint8)])
+    s = SceneReconstruction3D(K)
+    s.load_image_pair(grey, rgba.astype(np.uint16) * 257)
+    assert s.img1.shape == s.img2.shape == (480, 640, 3) and s.img2.dtype == np.uint8
+
+
+def test_distortion_is_removed(rendered_pair):
+    import cv2
+
+    img1, img2, K, R, t = rendered_pair
+    dist = np.array([-0.05, 0.01, 0.0, 0.0, 0.0])
+    # Distort the renderings with the model, then let the class undo it.
+    h, w = img1.shape[:2]
+    grid = np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1).reshape(-1, 1, 2).astype(float)
+    undist = cv2.undistortPoints(grid, K, dist, P=K).reshape(h, w, 2).astype(np.float32)
+    d1 = cv2.remap(img1, undist[..., 0], undist[..., 1], cv2.INTER_LINEAR)
+    d2 = cv2.remap(img2, undist[..., 0], undist[..., 1], cv2.INTER_LINEAR)
+    s = SceneReconstruction3D(K, dist)
+    s.load_image_pair(d1, d2)
+    err = relative_pose_error(*(lambda r: (r.R, r.t))(s.reconstruct()), R, t)
+    assert err.rotation_deg < 0.2 and err.translation_deg < 1.0
+
+
+def test_pure_rotation_raises(rotated_pair):
+    img1, img2, K = rotated_pair
+    s = SceneReconstruction3D(K)
+    s.load_image_pair(img1, img2)
+    with pytest.raises(ReconstructionError, match="pure rotation"):
+        s.plot_point_cloud()
+
+
+def test_bad_inputs(tmp_path, rendered_pair):
+    img1, _, K, _, _ = rendered_pair
+    with pytest.raises(ValueError, match=r"`K` must have shape \(3, 3\)"):
+        SceneReconstruction3D(np.eye(4))
+    with pytest.raises(ValueError, match="coefficients, got 2"):
+        SceneReconstruction3D(K, [0.1, 0.2])
+    s = SceneReconstruction3D(K)
+    with pytest.raises(FileNotFoundError, match="nope.jpg"):
+        s.load_image_pair(tmp_path / "nope.jpg", img1)
+    with pytest.raises(ValueError, match="same size"):
+        s.load_image_pair(img1, img1[:200])
+    with pytest.raises(ValueError, match="unknown feature mode 'HOG'"):
+        s.load_image_pair(img1, img1)
+        s.reconstruct("HOG")
+    with pytest.raises(RuntimeError, match="load_image_pair"):
+        SceneReconstruction3D(K).reconstruct()
