@@ -136,15 +136,21 @@ def estimate_essential(
 
 def _refine_essential(
     E: FloatArray, p1: FloatArray, p2: FloatArray, K: FloatArray, inliers: np.ndarray,
-    threshold_px: float, rounds: int = 2,
+    threshold_px: float, rounds: int = 3,
 ) -> tuple[FloatArray, np.ndarray]:
-    """Local optimisation: refine on the inliers, re-select inliers, repeat."""
+    """Local optimisation: refine on the inliers, re-select inliers, repeat.
+
+    The refinement uses a Cauchy loss whose scale is a third of the inlier
+    threshold (the threshold is taken as about three standard deviations of
+    the keypoint noise), so that near-threshold matches weigh little.
+    """
     from .pose import decompose_essential
     from .refinement import refine_relative_pose, sampson_residuals
 
     R, t = decompose_essential(E)[0]  # any of the four gives the same E up to sign
     for _ in range(rounds):
-        R, t = refine_relative_pose(R, t, p1[inliers], p2[inliers], K, scale_px=threshold_px)
+        R, t = refine_relative_pose(R, t, p1[inliers], p2[inliers], K, loss="cauchy",
+                                    scale_px=threshold_px / 3.0)
         E_new = essential_from_pose(R, t)
         F = np.linalg.inv(K).T @ E_new @ np.linalg.inv(K)
         new_inliers = np.abs(sampson_residuals(F, p1, p2)) <= threshold_px

@@ -110,20 +110,20 @@ def match_descriptors(
     if desc1 is None or desc2 is None or len(desc1) < 2 or len(desc2) < 2:
         return empty, empty
     matcher = cv2.BFMatcher(norm)
-    forward = matcher.knnMatch(desc1, desc2, k=2)
-    backward = matcher.match(desc2, desc1)
+    forward = [pair for pair in matcher.knnMatch(desc1, desc2, k=2) if len(pair) == 2]
+    passed = [best for best, second in forward if best.distance < ratio * second.distance]
+    idx1 = np.array([m.queryIdx for m in passed], dtype=int)
+    idx2 = np.array([m.trainIdx for m in passed], dtype=int)
+    if len(idx1) == 0:
+        return empty, empty
+    # Mutual check: only the image-2 descriptors that won a ratio test need their own
+    # nearest neighbour in image 1 (the same answer as matching all of them, for less work).
+    candidates = np.unique(idx2)
+    backward = matcher.match(desc2[candidates], desc1)
     best_back = np.full(len(desc2), -1, dtype=int)
-    for m in backward:
-        best_back[m.queryIdx] = m.trainIdx
-    idx1, idx2 = [], []
-    for pair in forward:
-        if len(pair) < 2:
-            continue
-        best, second = pair
-        if best.distance < ratio * second.distance and best_back[best.trainIdx] == best.queryIdx:
-            idx1.append(best.queryIdx)
-            idx2.append(best.trainIdx)
-    return np.asarray(idx1, dtype=int), np.asarray(idx2, dtype=int)
+    best_back[candidates[[m.queryIdx for m in backward]]] = [m.trainIdx for m in backward]
+    mutual = best_back[idx2] == idx1
+    return idx1[mutual], idx2[mutual]
 
 
 def track_flow(

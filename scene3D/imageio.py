@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import os
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import cv2
@@ -18,7 +19,7 @@ BOOK_MAX_WIDTH_PX = 1200
 
 
 def read_image(path: str | os.PathLike) -> np.ndarray:
-    """Read an image file as stored (any depth and channel count).
+    """Read an image file as stored: grey or colour, 8 or 16 bits (an alpha channel is dropped).
 
     The pixels are taken as stored: EXIF orientation is not applied, so that
     they match the sensor layout a calibration describes.
@@ -36,7 +37,9 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     data = np.fromfile(path, dtype=np.uint8)  # works with non-ASCII paths too
     if data.size == 0:
         raise ValueError(f"cannot read image '{path}': the file is empty")
-    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    # Any depth (16-bit stays 16-bit) and grey or colour as stored; alpha is dropped.
+    flags = cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR | cv2.IMREAD_IGNORE_ORIENTATION
+    img = cv2.imdecode(data, flags)
     if img is None:
         raise ValueError(f"cannot read image '{path}': not an image file")
     return img
@@ -74,6 +77,16 @@ def load_bgr(source: ImageSource, name: str = "image") -> np.ndarray:
     if isinstance(source, (str, os.PathLike)):
         return to_bgr8(read_image(source), name=str(source))
     return to_bgr8(source, name=name)
+
+
+def load_bgr_pair(
+    source1: ImageSource, source2: ImageSource
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`load_bgr` of two images at once (decoding releases the GIL)."""
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        first = pool.submit(load_bgr, source1, "img1")
+        second = pool.submit(load_bgr, source2, "img2")
+        return first.result(), second.result()
 
 
 def pyr_down_levels(width: int, max_width: int = BOOK_MAX_WIDTH_PX) -> int:

@@ -1,17 +1,22 @@
-"""Non-linear refinement of two-view geometry (scipy ``least_squares``).
+"""Non-linear refinement of two-view geometry.
 
-:func:`refine_relative_pose` polishes ``(R, t)`` by minimising the Sampson
-distances (a first-order geometric error in pixels, H&Z section 11.4.3) of the
-inlier correspondences. ``t`` stays on the unit sphere: it is updated in the
-plane tangent to it and renormalised, since a two-view translation has no scale.
+- :func:`refine_relative_pose` polishes ``(R, t)`` by minimising the Sampson
+  distances (a first-order geometric error in pixels, H&Z section 11.4.3) of the
+  inlier correspondences under a robust loss, with a small Levenberg-Marquardt
+  solver in numpy (5 unknowns; no scipy import on the default path).
+- :func:`bundle_adjust_two_view` refines the pose *and* the 3D points by
+  minimising reprojection errors in both images (H&Z section 18.1, the gold
+  standard), with scipy ``least_squares``, a sparse Jacobian and a robust loss.
+
+In both, ``t`` stays on the unit sphere: it is updated in the plane tangent to it
+and renormalised, since a two-view translation has no scale. Frames as in
+:mod:`scene3D.geometry`: ``x_cam2 = R x_cam1 + t``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 
 from .geometry import FloatArray, skew, to_homogeneous
 
@@ -26,18 +31,62 @@ def sampson_residuals(F: FloatArray, pts1: FloatArray, pts2: FloatArray) -> Floa
     return algebraic / np.maximum(norm, 1e-300)
 
 
-def _tangent_basis(t: FloatArray) -> FloatArray:
-    """Two unit vectors ``(2, 3)`` orthogonal to ``t`` and to each other."""
-    helper = np.eye(3)[int(np.argmin(np.abs(t)))]
-    b1 = np.cross(t, helper)
-    b1 /= np.linalg.norm(b1)
-    return np.vstack([b1, np.cross(t, b1)])
-
-
 def pose_to_fundamental(R: FloatArray, t: FloatArray, K: FloatArray) -> FloatArray:
     """``F = K^-T [t]x R K^-1`` (not normalised)."""
     K_inv = np.linalg.inv(K)
     return K_inv.T @ skew(t) @ R @ K_inv
+
+
+def rotation_from_vector(w: FloatArray) -> FloatArray:
+    """Rodrigues' formula: the rotation by ``|w|`` radians about ``w``."""
+    theta = float(np.linalg.norm(w))
+    if theta < 1e-12:
+        return np.eye(3) + skew(w)
+    k = skew(np.asarray(w) / theta)
+    return np.eye(3) + np.sin(theta) * k + (1.0 - np.cos(theta)) * (k @ k)
+
+
+def _tangent_basis(t: FloatArray) -> FloatArray:
+    """Two unit vectors ``(2, 3)`` orthogonal to the unit vector ``t`` and to each other."""
+    helper = np.eye(3)[int(np.argmin(np.abs(t)))]
+    b1 = skew(t) @ helper
+    b1 /= np.linalg.norm(b1)
+    return np.vstack([b1, skew(t) @ b1])
+
+
+def _update_pose(
+    R: FloatArray, t: FloatArray, dx: FloatArray, basis: FloatArray | None = None
+) -> tuple[FloatArray, FloatArray]:
+    """Apply a 5-vector step: rotation vector (3) and tangent step of ``t`` (2)."""
+    basis = _tangent_basis(t) if basis is None else basis
+    R_new = rotation_from_vector(dx[:3]) @ R
+    t_new = t + dx[3:] @ basis
+    return R_new, t_new / np.linalg.norm(t_new)
+
+
+def _robust_weights(r: FloatArray, loss: str, scale: float) -> FloatArray:
+    """IRLS weights ``rho'(r^2)`` of scipy's losses (``r`` in units of ``scale``)."""
+    z = (r / scale) ** 2
+    if loss == "linear":
+        return np.ones_like(z)
+    if loss == "cauchy":
+        return 1.0 / (1.0 + z)
+    if loss == "soft_l1":
+        return 1.0 / np.sqrt(1.0 + z)
+    if loss == "huber":
+        return np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(np.maximum(z, 1e-300)))
+    raise ValueError(f"unknown loss {loss!r}; use linear, huber, soft_l1 or cauchy")
+
+
+def _robust_cost(r: FloatArray, loss: str, scale: float) -> float:
+    z = (r / scale) ** 2
+    rho = {
+        "linear": lambda: z,
+        "cauchy": lambda: np.log1p(z),
+        "soft_l1": lambda: 2.0 * (np.sqrt(1.0 + z) - 1.0),
+        "huber": lambda: np.where(z <= 1.0, z, 2.0 * np.sqrt(z) - 1.0),
+    }[loss]()
+    return float(scale**2 * np.sum(rho))
 
 
 def refine_relative_pose(
@@ -46,11 +95,11 @@ def refine_relative_pose(
     pts1: ArrayLike,
     pts2: ArrayLike,
     K: ArrayLike,
-    loss: str = "soft_l1",
-    scale_px: float = 1.0,
-    max_evaluations: int = 50,
+    loss: str = "cauchy",
+    scale_px: float = 0.5,
+    max_iterations: int = 30,
 ) -> tuple[FloatArray, FloatArray]:
-    """Refine a relative pose by minimising Sampson distances.
+    """Refine a relative pose by minimising robust Sampson distances (Levenberg-Marquardt).
 
     Parameters
     ----------
@@ -61,29 +110,126 @@ def refine_relative_pose(
     K : (3, 3) array_like
         Intrinsics shared by both views.
     loss, scale_px : str, float
-        Robust loss of ``least_squares`` and its inlier scale in pixels.
+        Robust loss (``"linear"``, ``"huber"``, ``"soft_l1"``, ``"cauchy"``, as in
+        scipy) and its scale in pixels.
 
     Returns
     -------
     R, t : (3, 3), (3,) float64
         Refined pose; ``|t| = 1``.
     """
-    R0 = np.asarray(R, dtype=np.float64)
-    t0 = np.asarray(t, dtype=np.float64).reshape(3)
-    t0 = t0 / np.linalg.norm(t0)
+    R = np.asarray(R, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64).reshape(3)
+    t = t / np.linalg.norm(t)
     p1 = np.asarray(pts1, dtype=np.float64)
     p2 = np.asarray(pts2, dtype=np.float64)
     K = np.asarray(K, dtype=np.float64)
-    basis = _tangent_basis(t0)
 
-    def unpack(x: FloatArray) -> tuple[FloatArray, FloatArray]:
-        R_x = Rotation.from_rotvec(x[:3]).as_matrix() @ R0
-        t_x = t0 + x[3:] @ basis
-        return R_x, t_x / np.linalg.norm(t_x)
+    K_inv = np.linalg.inv(K)
+    h1, h2 = to_homogeneous(p1), to_homogeneous(p2)
+
+    def residuals(R_: FloatArray, t_: FloatArray) -> FloatArray:
+        F = K_inv.T @ skew(t_) @ R_ @ K_inv
+        Fx1 = h1 @ F.T
+        Ftx2 = h2 @ F
+        norm = np.sqrt(Fx1[:, 0] ** 2 + Fx1[:, 1] ** 2 + Ftx2[:, 0] ** 2 + Ftx2[:, 1] ** 2)
+        return np.einsum("ij,ij->i", h2, Fx1) / np.maximum(norm, 1e-300)
+
+    r = residuals(R, t)
+    cost = _robust_cost(r, loss, scale_px)
+    damping = 1e-3
+    eps = 1e-7
+    for _ in range(max_iterations):
+        sqrt_w = np.sqrt(_robust_weights(r, loss, scale_px))
+        basis = _tangent_basis(t)
+        J = np.empty((len(r), 5))
+        for k in range(5):
+            step = np.zeros(5)
+            step[k] = eps
+            J[:, k] = (residuals(*_update_pose(R, t, step, basis)) - r) / eps
+        Jw, rw = J * sqrt_w[:, None], r * sqrt_w
+        H, g = Jw.T @ Jw, Jw.T @ rw
+        improved = False
+        while damping < 1e8:
+            dx = np.linalg.solve(H + damping * np.diag(np.diag(H) + 1e-12), -g)
+            R_new, t_new = _update_pose(R, t, dx, basis)
+            r_new = residuals(R_new, t_new)
+            cost_new = _robust_cost(r_new, loss, scale_px)
+            if cost_new < cost:
+                improved = cost - cost_new > 1e-8 * max(cost, 1e-30)
+                R, t, r, cost = R_new, t_new, r_new, cost_new
+                damping = max(damping / 10.0, 1e-9)
+                break
+            damping *= 10.0
+        if not improved or np.linalg.norm(dx) < 1e-10:
+            break
+    return R, t
+
+
+def bundle_adjust_two_view(
+    R: ArrayLike,
+    t: ArrayLike,
+    points3d: ArrayLike,
+    pts1: ArrayLike,
+    pts2: ArrayLike,
+    K: ArrayLike,
+    loss: str = "cauchy",
+    scale_px: float = 0.5,
+    max_evaluations: int = 100,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Two-view bundle adjustment of the pose and the points.
+
+    Minimises the reprojection errors of ``points3d`` in both images (camera 1
+    fixed at ``[I | 0]``, ``|t| = 1`` fixing the gauge) with scipy
+    ``least_squares`` (trust region, sparse Jacobian: each point's four
+    residuals depend on its 3 coordinates and the 5 pose parameters).
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array_like
+        Initial pose, ``x_cam2 = R x_cam1 + t``.
+    points3d : (N, 3) array_like
+        Initial points in the camera-1 frame.
+    pts1, pts2 : (N, 2) array_like
+        Their observed pixels in image 1 and image 2.
+    K : (3, 3) array_like
+    loss, scale_px : str, float
+        Robust loss and its scale in pixels (scipy's names).
+
+    Returns
+    -------
+    R, t, points3d : (3, 3), (3,), (N, 3) float64
+    """
+    from scipy.optimize import least_squares
+    from scipy.sparse import lil_matrix
+
+    R0 = np.asarray(R, dtype=np.float64)
+    t0 = np.asarray(t, dtype=np.float64).reshape(3)
+    t0 = t0 / np.linalg.norm(t0)
+    X0 = np.asarray(points3d, dtype=np.float64)
+    obs = np.hstack([np.asarray(pts1, np.float64), np.asarray(pts2, np.float64)])  # (N, 4)
+    K = np.asarray(K, dtype=np.float64)
+    n = len(X0)
+
+    def project(X: FloatArray, R_: FloatArray, t_: FloatArray) -> FloatArray:
+        cam = X @ R_.T + t_
+        pix = cam @ K.T
+        return pix[:, :2] / pix[:, 2:3]
 
     def residuals(x: FloatArray) -> FloatArray:
-        return sampson_residuals(pose_to_fundamental(*unpack(x), K), p1, p2)
+        R_x, t_x = _update_pose(R0, t0, x[:5])
+        X = x[5:].reshape(n, 3)
+        return (np.hstack([project(X, np.eye(3), np.zeros(3)), project(X, R_x, t_x)])
+                - obs).ravel()
 
-    result = least_squares(residuals, np.zeros(5), loss=loss, f_scale=scale_px,
-                           max_nfev=max_evaluations, x_scale="jac")
-    return unpack(result.x)
+    sparsity = lil_matrix((4 * n, 5 + 3 * n), dtype=int)
+    rows = np.arange(4 * n)
+    sparsity[rows[:, None], np.arange(5)[None, :]] = 1
+    point_cols = 5 + 3 * np.repeat(np.arange(n), 4)
+    for k in range(3):
+        sparsity[rows, point_cols + k] = 1
+    x0 = np.concatenate([np.zeros(5), X0.ravel()])
+    result = least_squares(residuals, x0, jac_sparsity=sparsity, loss=loss, f_scale=scale_px,
+                           max_nfev=max_evaluations, x_scale="jac", method="trf")
+    R_out, t_out = _update_pose(R0, t0, result.x[:5])
+    return R_out, t_out, result.x[5:].reshape(n, 3)

@@ -15,6 +15,7 @@ reconstruction are computed once per feature mode and reused by every plot.
 from __future__ import annotations
 
 import logging
+from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -28,7 +29,14 @@ from .camera import (
     validate_intrinsics,
 )
 from .features import Matches, find_matches, normalize_feature_mode
-from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, image_size, load_bgr, pyr_down, pyr_down_levels
+from .imageio import (
+    BOOK_MAX_WIDTH_PX,
+    ImageSource,
+    image_size,
+    load_bgr_pair,
+    pyr_down,
+    pyr_down_levels,
+)
 from .rectification import RectifiedPair, rectify_pair
 from .twoview import TwoViewReconstruction, TwoViewSettings, reconstruct_two_view
 
@@ -96,8 +104,7 @@ class SceneReconstruction3D:
         ValueError
             A file is not an image, or the two images differ in size.
         """
-        a = load_bgr(img1, "img1")
-        b = load_bgr(img2, "img2")
+        a, b = load_bgr_pair(img1, img2)
         if a.shape != b.shape:
             raise ValueError(
                 "the two images must have the same size, got "
@@ -105,12 +112,15 @@ class SceneReconstruction3D:
             )
         self.native_size = image_size(a)
         self.pyr_levels = pyr_down_levels(a.shape[1], max_width) if use_pyr_down else 0
-        # Undistort at native resolution, where the distortion model was calibrated.
-        if has_distortion(self.d):
-            a = undistort_image(a, self.K_native, self.d)
-            b = undistort_image(b, self.K_native, self.d)
-        self.img1 = pyr_down(a, self.pyr_levels)
-        self.img2 = pyr_down(b, self.pyr_levels)
+
+        def working_image(img: np.ndarray) -> np.ndarray:
+            # Undistort at native resolution, where the distortion model was calibrated.
+            if has_distortion(self.d):
+                img = undistort_image(img, self.K_native, self.d)
+            return pyr_down(img, self.pyr_levels)
+
+        with ThreadPoolExecutor(max_workers=2) as pool:  # cv2 releases the GIL
+            self.img1, self.img2 = pool.map(working_image, (a, b))
         self.K = scale_intrinsics_pyr_down(self.K_native, self.pyr_levels)
         self.K_inv = np.linalg.inv(self.K)
         self._matches.clear()

@@ -17,7 +17,7 @@ from ..datasets import BOOK_PAIR, fetch_fountain_p11
 from ..export import save_figure, write_json, write_ply
 from ..features import FEATURE_MODES, normalize_feature_mode
 from ..geometry import rotation_angle_deg
-from ..imageio import BOOK_MAX_WIDTH_PX, image_size, load_bgr
+from ..imageio import BOOK_MAX_WIDTH_PX, image_size, load_bgr_pair
 from ..scene import SceneReconstruction3D
 from .common import (
     EXIT_CODES_HELP,
@@ -128,7 +128,7 @@ def run(args: argparse.Namespace) -> int:
     out = prepare_output_dir(args.out)
 
     t0 = time.perf_counter()
-    img1, img2 = load_bgr(path1), load_bgr(path2)
+    img1, img2 = load_bgr_pair(path1, path2)
     K = adapt_intrinsics_to_size(camera.K, camera.image_size, image_size(img1))
     scene = SceneReconstruction3D(K, camera.dist)
     scene.load_image_pair(img1, img2, use_pyr_down=not args.no_pyr_down,

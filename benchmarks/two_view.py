@@ -1,0 +1,276 @@
+"""Two-view accuracy and speed: scene3D against the book, plain OpenCV, PoseLib and pycolmap.
+
+    python benchmarks/two_view.py [--sizes 1536 768] [--methods ...] [--quick]
+
+Runs fountain-P11 pairs (i, i+1) and (i, i+2) at each working width, compares every
+estimated relative pose with the Strecha ground truth and prints a markdown table
+(rows per method and size) plus the whole-process time of ``chapter4.py --no-plots``
+against a hand-written plain-OpenCV script. Per-pair rows go to a CSV.
+
+Thread settings, the same for every method: OpenCV with ``cv2.setNumThreads(1)``,
+pycolmap with ``num_threads=1``, PoseLib single-threaded. scene3D computes the two
+images' features concurrently in two Python threads (one OpenCV thread each); the others
+compute them one after the other. The book, plain-OpenCV and PoseLib rows share one set
+of SIFT matches (ratio 0.8); scene3D and pycolmap compute their own.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from scene3D.camera import scale_intrinsics_pyr_down
+from scene3D.datasets import FOUNTAIN_P11, default_data_root, read_strecha_camera, relative_pose
+from scene3D.errors import ReconstructionError
+from scene3D.evaluation import pose_auc, relative_pose_error
+from scene3D.features import find_matches
+from scene3D.imageio import load_bgr, pyr_down, pyr_down_levels
+from scene3D.pose import choose_pose
+from scene3D.twoview import reconstruct_two_view
+
+REPO = Path(__file__).resolve().parents[1]
+METHODS = ("book", "opencv", "poselib", "pycolmap", "scene3D")
+
+
+@dataclass
+class Outcome:
+    method: str
+    width: int
+    pair: tuple[int, int]
+    rotation_deg: float = float("inf")
+    translation_deg: float = float("inf")
+    inliers: int = 0
+    flagged: bool = False  # refused or marked untrusted by the method
+    error: str = ""
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def max_deg(self) -> float:
+        return max(self.rotation_deg, self.translation_deg)
+
+
+def shared_sift(img1, img2):
+    """Plain OpenCV SIFT + ratio 0.8 (no mutual check), sequential."""
+    t0 = time.perf_counter()
+    sift = cv2.SIFT_create()
+    kp1, d1 = sift.detectAndCompute(cv2.cvtColor(img1, cv2.COLOR_BGR2GRAY), None)
+    kp2, d2 = sift.detectAndCompute(cv2.cvtColor(img2, cv2.COLOR_BGR2GRAY), None)
+    t1 = time.perf_counter()
+    good = [m for m, n in cv2.BFMatcher().knnMatch(d1, d2, k=2) if m.distance < 0.8 * n.distance]
+    p1 = np.float64([kp1[m.queryIdx].pt for m in good])
+    p2 = np.float64([kp2[m.trainIdx].pt for m in good])
+    return p1, p2, {"features": t1 - t0, "matching": time.perf_counter() - t1}
+
+
+def run_book(p1, p2, K):
+    """The book's algorithm: F by RANSAC at 0.1 px, E = K^T F K, cheirality fixed (counted)."""
+    F, mask = cv2.findFundamentalMat(p1, p2, cv2.FM_RANSAC, 0.1, 0.99)
+    inl = mask.ravel() > 0
+    E = K.T @ F @ K
+    R, t, _ = choose_pose(E, p1[inl], p2[inl], K)
+    return R, t, int(inl.sum())
+
+
+def run_opencv(p1, p2, K):
+    E, mask = cv2.findEssentialMat(p1, p2, K, cv2.USAC_MAGSAC, 0.999, 1.0)
+    n, R, t, mask = cv2.recoverPose(E, p1, p2, K, mask=mask)
+    return R, t.ravel(), int(n)
+
+
+def run_poselib(p1, p2, K, size):
+    import poselib
+
+    cam = {"model": "PINHOLE", "width": size[0], "height": size[1],
+           "params": [K[0, 0], K[1, 1], K[0, 2], K[1, 2]]}
+    pose, info = poselib.estimate_relative_pose(p1, p2, cam, cam, {"max_epipolar_error": 1.0}, {})
+    return pose.R, pose.t, int(info["num_inliers"])
+
+
+def run_pycolmap(img1, img2, K):
+    import pycolmap
+
+    t0 = time.perf_counter()
+    ext_opts = pycolmap.FeatureExtractionOptions()
+    ext_opts.num_threads = 1
+    extractor = pycolmap.FeatureExtractor.create(ext_opts, device=pycolmap.Device.cpu)
+    gray1 = cv2.cvtColor(img1, cv2.COLOR_BGR2GRAY)
+    gray2 = cv2.cvtColor(img2, cv2.COLOR_BGR2GRAY)
+    k1, d1 = extractor.extract_from_uint8_array(gray1)
+    k2, d2 = extractor.extract_from_uint8_array(gray2)
+    t1 = time.perf_counter()
+    match_opts = pycolmap.FeatureMatchingOptions()
+    match_opts.num_threads = 1
+    match_opts.use_gpu = False
+    matches = pycolmap.FeatureMatcher.create(match_opts, device=pycolmap.Device.cpu).match(
+        k1, d1, k2, d2)
+    t2 = time.perf_counter()
+    h, w = gray1.shape
+    # COLMAP puts pixel centres at +0.5: shift the principal point accordingly.
+    cam = pycolmap.Camera(model="PINHOLE", width=w, height=h,
+                          params=[K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5])
+    p1 = np.array([[k.x, k.y] for k in k1])
+    p2 = np.array([[k.x, k.y] for k in k2])
+    geom = pycolmap.estimate_calibrated_two_view_geometry(cam, p1, cam, p2, matches)
+    if not pycolmap.estimate_two_view_geometry_pose(cam, p1, cam, p2, geom):
+        raise RuntimeError("pycolmap found no pose")
+    t3 = time.perf_counter()
+    pose = geom.cam2_from_cam1
+    timings = {"features": t1 - t0, "matching": t2 - t1, "geometry": t3 - t2}
+    return pose.rotation.matrix(), np.asarray(pose.translation), len(geom.inlier_matches), timings
+
+
+def load_pair(folder: Path, a: int, b: int, width: int):
+    cam1 = read_strecha_camera(folder / "gt_dense_cameras" / f"{a:04d}.jpg.camera")
+    cam2 = read_strecha_camera(folder / "gt_dense_cameras" / f"{b:04d}.jpg.camera")
+    levels = pyr_down_levels(cam1.image_size[0], width)
+    img1 = pyr_down(load_bgr(folder / "images" / f"{a:04d}.jpg"), levels)
+    img2 = pyr_down(load_bgr(folder / "images" / f"{b:04d}.jpg"), levels)
+    return img1, img2, scale_intrinsics_pyr_down(cam1.K, levels), relative_pose(cam1, cam2)
+
+
+def evaluate_pair(folder, a, b, width, methods) -> list[Outcome]:
+    img1, img2, K, (R_true, t_true) = load_pair(folder, a, b, width)
+    size = (img1.shape[1], img1.shape[0])
+    outcomes = []
+    shared = shared_sift(img1, img2) if {"book", "opencv", "poselib"} & set(methods) else None
+    for method in methods:
+        out = Outcome(method, size[0], (a, b))
+        t0 = time.perf_counter()
+        try:
+            if method == "scene3D":
+                matches = find_matches(img1, img2, "SIFT")
+                result = reconstruct_two_view(img1, matches, K)
+                R, t, out.inliers = result.R, result.t, result.num_inliers
+                out.flagged = not result.trusted
+                out.timings_s = {k: v for k, v in result.timings_s.items() if k != "total"}
+            elif method == "pycolmap":
+                R, t, out.inliers, out.timings_s = run_pycolmap(img1, img2, K)
+            else:
+                p1, p2, match_times = shared
+                t_geom = time.perf_counter()
+                R, t, out.inliers = {"book": run_book, "opencv": run_opencv}.get(
+                    method, lambda p, q, k: run_poselib(p, q, k, size))(p1, p2, K)
+                out.timings_s = dict(match_times, geometry=time.perf_counter() - t_geom)
+            err = relative_pose_error(R, t, R_true, t_true)
+            out.rotation_deg, out.translation_deg = err.rotation_deg, err.translation_deg
+        except ReconstructionError as exc:
+            out.flagged, out.error = True, exc.reason
+        except Exception as exc:  # a peer failing on a pair counts as a failure
+            out.error = f"{type(exc).__name__}: {exc}"
+        if method == "scene3D" or method == "pycolmap":
+            out.timings_s["total"] = time.perf_counter() - t0
+        else:
+            out.timings_s["total"] = sum(out.timings_s.values())
+        outcomes.append(out)
+    return outcomes
+
+
+def summarize(outcomes: list[Outcome]) -> dict:
+    rot = np.array([o.rotation_deg for o in outcomes])
+    tdir = np.array([o.translation_deg for o in outcomes])
+    worst = np.maximum(rot, tdir)
+    stages = ("features", "matching", "geometry", "total")
+    return {
+        "pairs": len(outcomes),
+        "median_rot": float(np.median(rot)), "p90_rot": float(np.percentile(rot, 90)),
+        "median_t": float(np.median(tdir)), "p90_t": float(np.percentile(tdir, 90)),
+        "ok2": float(np.mean(worst < 2)), "ok5": float(np.mean(worst < 5)),
+        "auc5": pose_auc(worst, 5.0),
+        "inliers": float(np.mean([o.inliers for o in outcomes])),
+        "flagged": sum(o.flagged for o in outcomes),
+        "unflagged_wrong": sum((o.max_deg > 5) and not o.flagged for o in outcomes),
+        **{f"t_{s}": float(np.mean([o.timings_s.get(s, 0.0) for o in outcomes])) for s in stages},
+    }
+
+
+def process_ratio(folder: Path, runs: int = 3) -> tuple[float, float]:
+    """Median wall time of chapter4.py --no-plots and of the plain-OpenCV script, same pair."""
+    img1, img2 = folder / "images" / "0004.jpg", folder / "images" / "0005.jpg"
+    ours = [sys.executable, str(REPO / "chapter4.py"), str(img1), str(img2), "--calib",
+            str(REPO / "data" / "fountain_P11_intrinsics.yaml"), "--no-plots", "-q"]
+    plain = [sys.executable, str(REPO / "benchmarks" / "plain_opencv.py"), str(img1), str(img2),
+             str(folder / "images" / "K.txt")]
+    times: dict[str, list[float]] = {"ours": [], "plain": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(runs):  # interleaved, so that machine noise hits both alike
+            for name, cmd in (("plain", plain), ("ours", ours + ["--out", tmp])):
+                t0 = time.perf_counter()
+                subprocess.run(cmd, check=True, capture_output=True)
+                times[name].append(time.perf_counter() - t0)
+    return statistics.median(times["ours"]), statistics.median(times["plain"])
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--data", type=Path, default=None,
+                        help="folder holding fountain-P11/ (default: $SCENE3D_DATA)")
+    parser.add_argument("--sizes", type=int, nargs="+", default=[1536, 768])
+    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
+    parser.add_argument("--quick", action="store_true", help="only pairs (i, i+1), i even")
+    parser.add_argument("--csv", type=Path, default=REPO / "out" / "bench" / "two_view.csv")
+    args = parser.parse_args(argv)
+    cv2.setNumThreads(1)
+    root = args.data or default_data_root()
+    folder = root / FOUNTAIN_P11
+    methods = [m for m in args.methods if m in ("book", "opencv", "scene3D") or _has(m)]
+    pairs = [(i, i + 1) for i in range(10)] + [(i, i + 2) for i in range(9)]
+    if args.quick:
+        pairs = [(i, i + 1) for i in range(0, 10, 2)]
+    outcomes: list[Outcome] = []
+    for width in args.sizes:
+        for a, b in pairs:
+            outcomes += evaluate_pair(folder, a, b, width, methods)
+            print(f"width {width} pair {a}-{b} done", file=sys.stderr)
+    args.csv.parent.mkdir(parents=True, exist_ok=True)
+    with open(args.csv, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["method", "width", "pair", "rot_deg", "t_deg", "inliers", "flagged",
+                         "error", "t_features", "t_matching", "t_geometry", "t_total"])
+        for o in outcomes:
+            writer.writerow([o.method, o.width, f"{o.pair[0]}-{o.pair[1]}", o.rotation_deg,
+                             o.translation_deg, o.inliers, o.flagged, o.error,
+                             *(o.timings_s.get(s, 0.0) for s in
+                               ("features", "matching", "geometry", "total"))])
+    print(f"fountain-P11, {len(pairs)} pairs per size; errors in degrees against the Strecha "
+          "cameras; failures count as infinite error.\n")
+    print("| method | width | median rot | p90 rot | median t-dir | p90 t-dir | both < 2 deg "
+          "| both < 5 deg | AUC@5deg | inliers | flagged | wrong & unflagged | features s "
+          "| matching s | geometry s | total s |")
+    print("|---" * 16 + "|")
+    for width in sorted({o.width for o in outcomes}, reverse=True):
+        for method in methods:
+            s = summarize([o for o in outcomes if o.method == method and o.width == width])
+            print(f"| {method} | {width} | {s['median_rot']:.3f} | {s['p90_rot']:.3f} | "
+                  f"{s['median_t']:.3f} | {s['p90_t']:.3f} | {s['ok2']:.0%} | {s['ok5']:.0%} | "
+                  f"{s['auc5']:.1f} | {s['inliers']:.0f} | {s['flagged']} | "
+                  f"{s['unflagged_wrong']} | {s['t_features']:.2f} | {s['t_matching']:.2f} | "
+                  f"{s['t_geometry']:.3f} | {s['t_total']:.2f} |")
+    ours, plain = process_ratio(folder)
+    print(f"\nWhole process, book pair at 768 px: chapter4.py --no-plots {ours:.2f} s, "
+          f"plain-OpenCV script {plain:.2f} s, ratio {ours / plain:.2f}")
+    print(f"Per-pair rows: {args.csv}")
+    return 0
+
+
+def _has(module: str) -> bool:
+    try:
+        __import__(module)
+        return True
+    except ImportError:
+        print(f"{module} is not installed (pip install -e '.[bench]'); skipping it",
+              file=sys.stderr)
+        return False
+
+
+if __name__ == "__main__":
+    sys.exit(main())
