@@ -25,8 +25,13 @@ def test_read_files(tmp_path):
     path = tmp_path / "ä image.png"
     cv2.imwrite(str(tmp_path / "x.png"), img)
     (tmp_path / "x.png").rename(path)
-    assert read_image(path).shape == (20, 30, 4)
+    assert read_image(path).shape == (20, 30, 3)  # alpha dropped
     assert load_bgr(path).shape == (20, 30, 3)
+    deep = tmp_path / "deep.png"
+    cv2.imwrite(str(deep), np.full((8, 9), 40000, np.uint16))
+    assert read_image(deep).dtype == np.uint16 and read_image(deep).ndim == 2
+    out = load_bgr(deep)
+    assert out.shape == (8, 9, 3) and out.dtype == np.uint8 and out[0, 0, 0] == round(40000 / 257)
 
 
 def test_bad_files(tmp_path):
