@@ -32,7 +32,7 @@ import numpy as np
 from scene3D.camera import scale_intrinsics_pyr_down
 from scene3D.datasets import FOUNTAIN_P11, default_data_root, read_strecha_camera, relative_pose
 from scene3D.errors import ReconstructionError
-from scene3D.evaluation import pose_auc, relative_pose_error
+from scene3D.evaluation import relative_pose_error, summarize_pose_errors
 from scene3D.features import find_matches
 from scene3D.imageio import load_bgr, pyr_down, pyr_down_levels
 from scene3D.pose import choose_pose
@@ -176,21 +176,13 @@ def evaluate_pair(folder, a, b, width, methods) -> list[Outcome]:
 
 
 def summarize(outcomes: list[Outcome]) -> dict:
-    rot = np.array([o.rotation_deg for o in outcomes])
-    tdir = np.array([o.translation_deg for o in outcomes])
-    worst = np.maximum(rot, tdir)
-    stages = ("features", "matching", "geometry", "total")
-    return {
-        "pairs": len(outcomes),
-        "median_rot": float(np.median(rot)), "p90_rot": float(np.percentile(rot, 90)),
-        "median_t": float(np.median(tdir)), "p90_t": float(np.percentile(tdir, 90)),
-        "ok2": float(np.mean(worst < 2)), "ok5": float(np.mean(worst < 5)),
-        "auc5": pose_auc(worst, 5.0),
-        "inliers": float(np.mean([o.inliers for o in outcomes])),
-        "flagged": sum(o.flagged for o in outcomes),
-        "unflagged_wrong": sum((o.max_deg > 5) and not o.flagged for o in outcomes),
-        **{f"t_{s}": float(np.mean([o.timings_s.get(s, 0.0) for o in outcomes])) for s in stages},
-    }
+    stats = summarize_pose_errors([o.rotation_deg for o in outcomes],
+                                  [o.translation_deg for o in outcomes],
+                                  [o.flagged for o in outcomes])
+    stats["inliers"] = float(np.mean([o.inliers for o in outcomes]))
+    for stage in ("features", "matching", "geometry", "total"):
+        stats[f"t_{stage}"] = float(np.mean([o.timings_s.get(stage, 0.0) for o in outcomes]))
+    return stats
 
 
 def process_ratio(folder: Path, runs: int = 3) -> tuple[float, float]:
@@ -250,11 +242,12 @@ def main(argv: list[str] | None = None) -> int:
     for width in sorted({o.width for o in outcomes}, reverse=True):
         for method in methods:
             s = summarize([o for o in outcomes if o.method == method and o.width == width])
-            print(f"| {method} | {width} | {s['median_rot']:.3f} | {s['p90_rot']:.3f} | "
-                  f"{s['median_t']:.3f} | {s['p90_t']:.3f} | {s['ok2']:.0%} | {s['ok5']:.0%} | "
-                  f"{s['auc5']:.1f} | {s['inliers']:.0f} | {s['flagged']} | "
-                  f"{s['unflagged_wrong']} | {s['t_features']:.2f} | {s['t_matching']:.2f} | "
-                  f"{s['t_geometry']:.3f} | {s['t_total']:.2f} |")
+            print(f"| {method} | {width} | {s['median_rotation_deg']:.3f} | "
+                  f"{s['p90_rotation_deg']:.3f} | {s['median_translation_deg']:.3f} | "
+                  f"{s['p90_translation_deg']:.3f} | {s['within_2deg']:.0%} | "
+                  f"{s['within_5deg']:.0%} | {s['auc_5deg']:.1f} | {s['inliers']:.0f} | "
+                  f"{s['flagged']:.0f} | {s['wrong_unflagged']:.0f} | {s['t_features']:.2f} | "
+                  f"{s['t_matching']:.2f} | {s['t_geometry']:.3f} | {s['t_total']:.2f} |")
     ours, plain = process_ratio(folder)
     print(f"\nWhole process, book pair at 768 px: chapter4.py --no-plots {ours:.2f} s, "
           f"plain-OpenCV script {plain:.2f} s, ratio {ours / plain:.2f}")

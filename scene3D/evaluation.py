@@ -49,3 +49,91 @@ def pose_auc(max_errors_deg: ArrayLike, threshold_deg: float = 5.0) -> float:
     r = np.concatenate([r, [r[-1]]])
     area = np.sum(np.diff(e) * r[:-1])
     return float(100.0 * area / threshold_deg)
+
+
+def summarize_pose_errors(
+    rotation_deg: ArrayLike, translation_deg: ArrayLike, flagged: ArrayLike | None = None
+) -> dict[str, float]:
+    """Benchmark statistics of per-pair errors (failed pairs as ``inf``).
+
+    Returns medians and 90th percentiles of both errors, the fractions of pairs
+    with both errors below 2 and 5 degrees, AUC@5deg (percent), and, when
+    ``flagged`` says which pairs the method refused or marked untrusted, how many
+    wrong poses (> 5 deg) went unflagged.
+    """
+    rot = np.asarray(rotation_deg, dtype=np.float64)
+    tdir = np.asarray(translation_deg, dtype=np.float64)
+    worst = np.maximum(rot, tdir)
+    flags = np.zeros(len(rot), bool) if flagged is None else np.asarray(flagged, bool)
+    return {
+        "pairs": float(len(rot)),
+        "median_rotation_deg": float(np.median(rot)),
+        "p90_rotation_deg": float(np.percentile(rot, 90)),
+        "median_translation_deg": float(np.median(tdir)),
+        "p90_translation_deg": float(np.percentile(tdir, 90)),
+        "within_2deg": float(np.mean(worst < 2.0)),
+        "within_5deg": float(np.mean(worst < 5.0)),
+        "auc_5deg": pose_auc(worst, 5.0),
+        "flagged": float(flags.sum()),
+        "wrong_unflagged": float(np.sum((worst > 5.0) & ~flags)),
+    }
+
+
+def similarity_transform(src: ArrayLike, dst: ArrayLike) -> tuple[float, np.ndarray, np.ndarray]:
+    """Least-squares similarity ``dst ~ s R src + t`` (Umeyama, 1991).
+
+    Parameters
+    ----------
+    src, dst : (N, 3) array_like
+        Corresponding points, N >= 3 and not collinear.
+
+    Returns
+    -------
+    s : float
+    R : (3, 3) float64
+        Proper rotation.
+    t : (3,) float64
+    """
+    src = np.asarray(src, dtype=np.float64)
+    dst = np.asarray(dst, dtype=np.float64)
+    mu_s, mu_d = src.mean(axis=0), dst.mean(axis=0)
+    a, b = src - mu_s, dst - mu_d
+    U, S, Vt = np.linalg.svd(b.T @ a / len(src))
+    D = np.eye(3)
+    if np.linalg.det(U) * np.linalg.det(Vt) < 0:
+        D[2, 2] = -1.0
+    R = U @ D @ Vt
+    s = float(np.trace(np.diag(S) @ D) / np.mean(np.sum(a**2, axis=1)))
+    return s, R, mu_d - s * R @ mu_s
+
+
+@dataclass(frozen=True)
+class CameraSetError:
+    """Errors of registered cameras after a similarity alignment to ground truth.
+
+    Attributes
+    ----------
+    center_errors : (V,) float64
+        Distance of each aligned camera centre to the true one, as a fraction of
+        the scene extent (the largest distance between two true centres).
+    rotation_errors_deg : (V,) float64
+        Angle between each aligned camera orientation and the true one.
+    """
+
+    center_errors: np.ndarray
+    rotation_errors_deg: np.ndarray
+
+
+def camera_set_error(
+    R_est: ArrayLike, centers_est: ArrayLike, R_true: ArrayLike, centers_true: ArrayLike
+) -> CameraSetError:
+    """Compare world-to-camera rotations ``(V, 3, 3)`` and centres ``(V, 3)`` up to similarity."""
+    R_est, R_true = np.asarray(R_est, np.float64), np.asarray(R_true, np.float64)
+    c_est, c_true = np.asarray(centers_est, np.float64), np.asarray(centers_true, np.float64)
+    s, A, b = similarity_transform(c_est, c_true)
+    aligned = (s * (A @ c_est.T)).T + b
+    extent = max(np.linalg.norm(p - q) for p in c_true for q in c_true)
+    center_errors = np.linalg.norm(aligned - c_true, axis=1) / extent
+    # World points map as X_true = s A X_est + b, so R_est A^T is the aligned orientation.
+    rot = np.array([rotation_error_deg(Re @ A.T, Rt) for Re, Rt in zip(R_est, R_true)])
+    return CameraSetError(center_errors, rot)

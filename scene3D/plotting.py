@@ -169,3 +169,15 @@ def plot_view_errors(
     ax.set_ylabel("RMS reprojection error (px)")
     ax.set_title("Per-view error" + (" (red: dropped as outliers)" if rejected_views else ""))
     return fig
+
+
+def plot_disparity(disparity: np.ndarray, ax: Axes | None = None) -> Figure:
+    """The disparity map (pixels) with a colour bar; invalid pixels (NaN) are white."""
+    fig, (ax,) = _axes(ax, figsize=(9, 6))
+    finite = disparity[np.isfinite(disparity)]
+    lo, hi = (np.percentile(finite, [1, 99]) if finite.size else (0.0, 1.0))
+    image = ax.imshow(disparity, cmap="viridis", vmin=lo, vmax=hi)
+    fig.colorbar(image, ax=ax, label="disparity (px)", shrink=0.8)
+    ax.set_title(f"Disparity of rectified image 1 ({finite.size / disparity.size:.0%} valid)")
+    ax.set_axis_off()
+    return fig

@@ -28,6 +28,7 @@ from .camera import (
     validate_distortion,
     validate_intrinsics,
 )
+from .dense import DenseReconstruction, dense_point_cloud
 from .features import Matches, find_matches, normalize_feature_mode
 from .imageio import (
     BOOK_MAX_WIDTH_PX,
@@ -88,6 +89,7 @@ class SceneReconstruction3D:
         self.pyr_levels = 0
         self._matches: dict[str, Matches] = {}
         self._results: dict[str, TwoViewReconstruction] = {}
+        self._dense: dict[tuple[str, int], DenseReconstruction] = {}
 
     # -- loading -----------------------------------------------------------------
     def load_image_pair(self, img1: ImageSource, img2: ImageSource, use_pyr_down: bool = True,
@@ -125,6 +127,7 @@ class SceneReconstruction3D:
         self.K_inv = np.linalg.inv(self.K)
         self._matches.clear()
         self._results.clear()
+        self._dense.clear()
         logger.info("working size %dx%d (pyrDown x%d)", self.img1.shape[1], self.img1.shape[0],
                     self.pyr_levels)
 
@@ -170,6 +173,22 @@ class SceneReconstruction3D:
         result = self.reconstruct(feat_mode)
         img1, img2 = self._require_images()
         return rectify_pair(img1, img2, self.K, result.R, result.t)
+
+    def dense_point_cloud(self, feat_mode: str = "SIFT", block_size: int = 5
+                          ) -> DenseReconstruction:
+        """Dense, coloured point cloud by semi-global matching on the rectified pair.
+
+        Uses the pose and the sparse matches of :meth:`reconstruct` (the disparity
+        range comes from them); points are in the camera-1 frame, same scale as
+        the sparse cloud. Cached per feature mode and block size.
+        """
+        key = (normalize_feature_mode(feat_mode), block_size)
+        if key not in self._dense:
+            result = self.reconstruct(feat_mode)
+            img1, img2 = self._require_images()
+            self._dense[key] = dense_point_cloud(img1, img2, self.K, result.R, result.t,
+                                                 result.pts1, result.pts2, block_size)
+        return self._dense[key]
 
     # -- the book's plots ----------------------------------------------------------
     def plot_optic_flow(self) -> Figure:

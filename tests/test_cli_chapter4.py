@@ -184,3 +184,15 @@ def test_help_explains_the_outputs():
     for word in ("--calib", "--feature", "--no-pyr-down", "--max-width", "--out", "--no-plots",
                  "--show", "reconstruction.json", "exit codes"):
         assert word in proc.stdout
+
+
+def test_dense_outputs(tmp_path, synthetic_files):
+    f = synthetic_files
+    proc = run([f / "a.png", f / "b.png", "--calib", f / "camera.yaml", "--dense",
+                "--out", tmp_path], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((tmp_path / "reconstruction.json").read_text())
+    points, colors = read_ply(tmp_path / "dense.ply")
+    assert len(points) == summary["dense"]["num_points"] > 50_000
+    assert (tmp_path / "disparity.png").read_bytes().startswith(b"\x89PNG")
+    assert "dense" in summary["timings_s"]

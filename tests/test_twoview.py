@@ -101,3 +101,25 @@ def test_rendered_pure_rotation_raises(rotated_pair):
     with pytest.raises(ReconstructionError) as info:
         reconstruct_two_view(img1, find_matches(img1, img2, "SIFT"), K)
     assert info.value.reason == "no_parallax"
+
+
+def test_weak_pairs_are_marked_untrusted(camera, true_pose):
+    """Few inliers among many outliers: a pose comes back, flagged with the reasons."""
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, t, n=40, noise_px=0.3)
+    rng = np.random.default_rng(1)
+    outliers1 = rng.uniform(0, 640, (160, 2))
+    outliers2 = rng.uniform(0, 640, (160, 2))
+    r = reconstruct_from_matches(np.vstack([pts1, outliers1]), np.vstack([pts2, outliers2]),
+                                 camera)
+    assert not r["trusted"]
+    text = " ".join(r["warnings"])
+    assert "inliers" in text and "of the 200 matches" in text
+
+
+def test_short_baseline_is_marked_untrusted(camera, true_pose):
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, 0.15 * t, n=300, noise_px=0.1)
+    r = reconstruct_from_matches(pts1, pts2, camera)
+    assert 1.0 <= r["median_parallax_deg"] < 2.0
+    assert not r["trusted"] and "weak parallax" in " ".join(r["warnings"])

@@ -1,4 +1,4 @@
-"""The ``scene3d`` command: ``scene3d reconstruct ...`` and ``scene3d calibrate ...``."""
+"""The ``scene3d`` command: ``scene3d reconstruct|calibrate|evaluate ...``."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from .. import __version__
 COMMANDS = {
     "reconstruct": "reconstruct a scene from two photos (chapter4.py)",
     "calibrate": "calibrate a camera from chessboard views (calibrate.py)",
+    "evaluate": "compare two-view poses with a Strecha-format ground truth",
 }
 
 USAGE = "usage: scene3d {" + ",".join(COMMANDS) + "} [options]   (scene3d COMMAND --help)"
@@ -29,6 +30,8 @@ def main(argv: list[str] | None = None) -> int:
         from .chapter4 import main as run
     elif command == "calibrate":
         from .calibrate import main as run
+    elif command == "evaluate":
+        from .evaluate import main as run
     else:
         print(f"{USAGE}\nerror: unknown command {command!r}", file=sys.stderr)
         return 2

@@ -19,6 +19,7 @@ from ..features import FEATURE_MODES, normalize_feature_mode
 from ..geometry import rotation_angle_deg
 from ..imageio import BOOK_MAX_WIDTH_PX, image_size, load_bgr_pair
 from ..scene import SceneReconstruction3D
+from ..twoview import TwoViewSettings
 from .common import (
     EXIT_CODES_HELP,
     EXIT_OK,
@@ -46,9 +47,10 @@ def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
             "cache, or downloaded and checked)."
         ),
         epilog=(
-            f"Outputs in --out: {', '.join(PLOT_FILES)}, point_cloud.ply (binary, RGB) and "
-            "reconstruction.json (R, t with x_cam2 = R x_cam1 + t and |t| = 1: the scale is "
-            f"unknown). Files are replaced only once the run has succeeded. {EXIT_CODES_HELP}."
+            f"Outputs in --out: {', '.join(PLOT_FILES)}, point_cloud.ply (binary, RGB), "
+            "with --dense dense.ply and disparity.png, and reconstruction.json (R, t with "
+            "x_cam2 = R x_cam1 + t and |t| = 1: the scale is unknown). Files are replaced "
+            f"only once the run has succeeded. {EXIT_CODES_HELP}."
         ),
     )
     parser.add_argument("images", nargs="*", metavar="IMAGE",
@@ -67,6 +69,12 @@ def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
     size.add_argument("--max-width", type=int, default=BOOK_MAX_WIDTH_PX, metavar="PX",
                       help="halve the images with pyrDown while wider than this "
                            f"(default {BOOK_MAX_WIDTH_PX}, the book's rule: 3072 -> 768)")
+    parser.add_argument("--bundle-adjust", action="store_true",
+                        help="finish with a two-view bundle adjustment of pose and points "
+                             "(lower reprojection error; slower)")
+    parser.add_argument("--dense", action="store_true",
+                        help="also match every pixel of the rectified pair (SGBM) and write "
+                             "dense.ply and disparity.png")
     parser.add_argument("--out", type=Path, default=Path("out"), metavar="DIR",
                         help="output folder (default: out/)")
     parser.add_argument("--no-plots", action="store_true",
@@ -130,7 +138,8 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     img1, img2 = load_bgr_pair(path1, path2)
     K = adapt_intrinsics_to_size(camera.K, camera.image_size, image_size(img1))
-    scene = SceneReconstruction3D(K, camera.dist)
+    scene = SceneReconstruction3D(K, camera.dist,
+                                  TwoViewSettings(bundle_adjust=args.bundle_adjust))
     scene.load_image_pair(img1, img2, use_pyr_down=not args.no_pyr_down,
                           max_width=args.max_width)
     load_s = time.perf_counter() - t0
@@ -148,14 +157,28 @@ def run(args: argparse.Namespace) -> int:
             "point_cloud.png": scene.plot_point_cloud(mode),
         }
         timings["plots"] = time.perf_counter() - t0
+    dense = None
+    if args.dense:
+        t0 = time.perf_counter()
+        dense = scene.dense_point_cloud(mode)
+        timings["dense"] = time.perf_counter() - t0
+        if not args.no_plots:
+            from ..plotting import plot_disparity
+
+            figures["disparity.png"] = plot_disparity(dense.disparity)
 
     # Everything is computed: only now touch the output folder.
     t0 = time.perf_counter()
     written = [save_figure(fig, out / name) for name, fig in figures.items()]
     written.append(write_ply(out / "point_cloud.ply", result.points3d, result.colors))
+    if dense is not None:
+        written.append(write_ply(out / "dense.ply", dense.points3d, dense.colors))
     timings["write"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     summary = _summary(scene, result, (path1, path2), calib_path, timings, args.feature)
+    if dense is not None:
+        summary["dense"] = {"num_points": dense.num_points,
+                            "disparity_range_px": list(dense.disparity_range)}
     written.append(write_json(out / "reconstruction.json", summary))
 
     if not args.quiet:
@@ -164,6 +187,9 @@ def run(args: argparse.Namespace) -> int:
               f"{result.num_matches} matches, {result.num_inliers} inliers, "
               f"{result.num_points} points, reprojection RMSE "
               f"{result.reprojection_rmse_px:.3f} px, {timings['total']:.2f} s")
+        if dense is not None:
+            print(f"dense: {dense.num_points} points from disparities in "
+                  f"[{dense.disparity_range[0]}, {dense.disparity_range[1]}) px")
         print(f"camera 2: rotated {rotation_angle_deg(result.R):.2f} deg, moved towards "
               f"({result.t[0]:+.3f}, {result.t[1]:+.3f}, {result.t[2]:+.3f}) (unit baseline)")
         if not result.trusted:

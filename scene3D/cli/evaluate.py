@@ -1,0 +1,134 @@
+"""``scene3d evaluate``: the two-view pipeline against a Strecha-format ground truth."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..datasets import read_strecha_camera, relative_pose
+from ..errors import ReconstructionError
+from ..evaluation import relative_pose_error, summarize_pose_errors
+from ..features import FEATURE_MODES
+from ..imageio import BOOK_MAX_WIDTH_PX
+from ..scene import SceneReconstruction3D
+from .common import EXIT_CODES_HELP, EXIT_OK, UsageError, add_common_args, run_command
+
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
+
+
+def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog=prog,
+        description=(
+            "Run the two-view reconstruction on image pairs of a dataset in the Strecha "
+            "format (DATASET_DIR/images/NAME and DATASET_DIR/gt_dense_cameras/NAME.camera) "
+            "and compare every relative pose with the ground truth."
+        ),
+        epilog=("Errors are in degrees: rotation angle of R_est R_true^T and the angle "
+                "between translation directions; failed pairs count as infinite error. "
+                f"{EXIT_CODES_HELP}."),
+    )
+    parser.add_argument("dataset", type=Path, metavar="DATASET_DIR")
+    parser.add_argument("--pairs", nargs="+", default=["consecutive"], metavar="SPEC",
+                        help="'consecutive' (i, i+1; default), 'skip1' (i, i+2), or explicit "
+                             "index pairs such as 4-5 0-2 (indices into the sorted images)")
+    size = parser.add_mutually_exclusive_group()
+    size.add_argument("--max-width", type=int, default=BOOK_MAX_WIDTH_PX, metavar="PX",
+                      help=f"pyrDown while wider than this (default {BOOK_MAX_WIDTH_PX})")
+    size.add_argument("--no-pyr-down", action="store_true", help="full resolution")
+    parser.add_argument("--feature", default="sift", type=str.lower,
+                        choices=[m.lower() for m in FEATURE_MODES])
+    parser.add_argument("--csv", type=Path, metavar="FILE", help="also write per-pair rows")
+    add_common_args(parser)
+    return parser
+
+
+def _views(dataset: Path) -> list[tuple[Path, Path]]:
+    images, cameras = dataset / "images", dataset / "gt_dense_cameras"
+    if not images.is_dir() or not cameras.is_dir():
+        raise UsageError(f"'{dataset}' needs images/ and gt_dense_cameras/ folders")
+    views = [(p, cameras / f"{p.name}.camera") for p in sorted(images.iterdir())
+             if p.suffix.lower() in IMAGE_SUFFIXES and (cameras / f"{p.name}.camera").is_file()]
+    if len(views) < 2:
+        raise UsageError(f"'{dataset}' has fewer than two images with a .camera file")
+    return views
+
+
+def _pairs(specs: list[str], count: int) -> list[tuple[int, int]]:
+    pairs: list[tuple[int, int]] = []
+    for spec in specs:
+        if spec == "consecutive":
+            pairs += [(i, i + 1) for i in range(count - 1)]
+        elif spec == "skip1":
+            pairs += [(i, i + 2) for i in range(count - 2)]
+        else:
+            try:
+                a, b = (int(v) for v in spec.split("-"))
+            except ValueError:
+                raise UsageError(f"bad pair {spec!r}: use consecutive, skip1 or A-B") from None
+            if not (0 <= a < count and 0 <= b < count) or a == b:
+                raise UsageError(f"pair {spec!r} is out of range 0..{count - 1}")
+            pairs.append((a, b))
+    return pairs
+
+
+def run(args: argparse.Namespace) -> int:
+    views = _views(args.dataset)
+    pairs = _pairs(args.pairs, len(views))
+    cameras = [read_strecha_camera(cam) for _, cam in views]
+    rows = []
+    for a, b in pairs:
+        t0 = time.perf_counter()
+        scene = SceneReconstruction3D(cameras[a].K, cameras[a].dist)
+        scene.load_image_pair(views[a][0], views[b][0], use_pyr_down=not args.no_pyr_down,
+                              max_width=args.max_width)
+        row = {"pair": f"{views[a][0].name}-{views[b][0].name}", "rotation_deg": np.inf,
+               "translation_deg": np.inf, "inliers": 0, "points": 0, "flagged": True,
+               "note": ""}
+        try:
+            result = scene.reconstruct(args.feature)
+            err = relative_pose_error(result.R, result.t, *relative_pose(cameras[a], cameras[b]))
+            row.update(rotation_deg=err.rotation_deg, translation_deg=err.translation_deg,
+                       inliers=result.num_inliers, points=result.num_points,
+                       flagged=not result.trusted, note="; ".join(result.warnings))
+        except ReconstructionError as exc:
+            row["note"] = f"refused: {exc.reason}"
+        row["seconds"] = time.perf_counter() - t0
+        rows.append(row)
+        if not args.quiet:
+            print(f"{row['pair']}: rot {row['rotation_deg']:.3f} deg, t-dir "
+                  f"{row['translation_deg']:.3f} deg, {row['inliers']} inliers, "
+                  f"{row['seconds']:.2f} s {row['note']}", file=sys.stderr)
+    stats = summarize_pose_errors([r["rotation_deg"] for r in rows],
+                                  [r["translation_deg"] for r in rows],
+                                  [r["flagged"] for r in rows])
+    width = scene.img1.shape[1]
+    print("| pair | rotation err (deg) | t-dir err (deg) | inliers | points | trusted | s |")
+    print("|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['pair']} | {r['rotation_deg']:.3f} | {r['translation_deg']:.3f} | "
+              f"{r['inliers']} | {r['points']} | {'no' if r['flagged'] else 'yes'} | "
+              f"{r['seconds']:.2f} |")
+    print(f"\n{len(rows)} pairs at {width} px, {args.feature}: median rotation "
+          f"{stats['median_rotation_deg']:.3f} deg (p90 {stats['p90_rotation_deg']:.3f}), "
+          f"median t-dir {stats['median_translation_deg']:.3f} deg "
+          f"(p90 {stats['p90_translation_deg']:.3f}), both < 2 deg {stats['within_2deg']:.0%}, "
+          f"< 5 deg {stats['within_5deg']:.0%}, AUC@5deg {stats['auc_5deg']:.1f}, "
+          f"flagged {int(stats['flagged'])}, wrong and unflagged {int(stats['wrong_unflagged'])}")
+    if args.csv is not None:
+        with open(args.csv, "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+        print(f"Wrote '{args.csv}'")
+    return EXIT_OK
+
+
+def main(argv: list[str] | None = None, prog: str = "scene3d evaluate") -> int:
+    args = build_parser(prog).parse_args(sys.argv[1:] if argv is None else argv)
+    return run_command(args, run)

@@ -1,0 +1,187 @@
+"""Dense reconstruction: semi-global matching on the rectified pair.
+
+The disparity search range comes from the sparse reconstruction (the disparities
+of the triangulated matches, with a margin), not from a magic constant. The
+disparity map is cleaned with a left-right consistency check and speckle
+filtering, then every valid pixel is triangulated in the rectified frame and
+rotated back to the camera-1 frame. With ``|t| = 1`` the dense points have the
+same scale as the sparse ones (units of the baseline).
+
+Rectified geometry (``cv2.stereoRectify`` with ``CALIB_ZERO_DISPARITY``): both
+rectified cameras share ``f`` and the principal point, rows correspond, and a
+pixel ``(x, y)`` of image 1 with disparity ``d = x1 - x2`` lies at depth
+``Z = f B / |d|`` with ``B = |t|``.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .geometry import FloatArray
+from .rectification import RectifiedPair, rectify_pair, rectify_points
+
+logger = logging.getLogger(__name__)
+
+#: Disparities are kept where the left and right maps agree to this many pixels.
+LR_TOLERANCE_PX = 1.0
+
+
+@dataclass(frozen=True)
+class DenseReconstruction:
+    """A dense point cloud from one rectified pair.
+
+    Attributes
+    ----------
+    points3d : (N, 3) float64
+        Points in the camera-1 frame, in units of the baseline (like the sparse cloud).
+    colors : (N, 3) uint8
+        RGB from rectified image 1.
+    pixels : (N, 2) float64
+        Where each point is seen in rectified image 1.
+    disparity : (H, W) float32
+        Disparity ``x1 - x2`` of rectified image 1 in pixels, NaN where invalid.
+    disparity_range : tuple[int, int]
+        The searched range ``[min, max)`` (pixels, in the matcher's orientation).
+    rectified : RectifiedPair
+    """
+
+    points3d: FloatArray
+    colors: np.ndarray
+    pixels: FloatArray
+    disparity: np.ndarray
+    disparity_range: tuple[int, int]
+    rectified: RectifiedPair
+
+    @property
+    def num_points(self) -> int:
+        return len(self.points3d)
+
+
+def disparity_range(
+    sparse_disparities: FloatArray, margin: float = 0.15, min_margin_px: int = 8
+) -> tuple[int, int]:
+    """``[min, max)`` search range covering the sparse disparities plus a margin.
+
+    The range spans the 1st to 99th percentile widened by ``margin`` of its width
+    (at least ``min_margin_px``) on each side, rounded out to a multiple of 16 as
+    SGBM requires.
+    """
+    lo, hi = np.percentile(sparse_disparities, [1, 99])
+    pad = max(margin * (hi - lo), min_margin_px)
+    lo = int(np.floor(lo - pad))
+    hi = int(np.ceil(hi + pad))
+    width = int(np.ceil((hi - lo) / 16.0) * 16)
+    return lo, lo + max(width, 16)
+
+
+def _sgbm(min_disp: int, num_disp: int, block: int) -> cv2.StereoSGBM:
+    return cv2.StereoSGBM_create(
+        minDisparity=min_disp, numDisparities=num_disp, blockSize=block,
+        P1=8 * 3 * block * block, P2=32 * 3 * block * block, disp12MaxDiff=-1,
+        uniquenessRatio=10, speckleWindowSize=0, mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY,
+    )
+
+
+def compute_disparity(
+    left: np.ndarray,
+    right: np.ndarray,
+    min_disparity: int,
+    num_disparities: int,
+    block_size: int = 5,
+    speckle_window: int = 100,
+    speckle_range_px: float = 2.0,
+) -> np.ndarray:
+    """SGBM disparity of ``left`` with a left-right check and speckle filtering.
+
+    Parameters
+    ----------
+    left, right : (H, W, 3) uint8
+        Rectified images; a left pixel ``x`` matches the right pixel ``x - d``.
+    min_disparity, num_disparities : int
+        Search range ``[min, min + num)``; ``num`` a multiple of 16.
+
+    Returns
+    -------
+    (H, W) float32
+        Disparities in pixels, NaN where invalid.
+    """
+    left_matcher = _sgbm(min_disparity, num_disparities, block_size)
+    disp_left = left_matcher.compute(left, right).astype(np.float32) / 16.0
+    # The right view's disparities: mirrored, the right image becomes a left image whose
+    # pixel x' matches x' - d with the same d, so the same range applies; mirror back.
+    right_matcher = _sgbm(min_disparity, num_disparities, block_size)
+    disp_right = right_matcher.compute(right[:, ::-1].copy(), left[:, ::-1].copy())
+    disp_right = disp_right[:, ::-1].astype(np.float32) / 16.0
+    invalid_left = disp_left < min_disparity
+    invalid_right = disp_right < min_disparity
+    h, w = disp_left.shape
+    xs = np.arange(w)[None, :] - np.rint(disp_left).astype(int)
+    inside = (xs >= 0) & (xs < w)
+    rows = np.arange(h)[:, None]
+    partner = disp_right[rows, np.clip(xs, 0, w - 1)]
+    partner_invalid = invalid_right[rows, np.clip(xs, 0, w - 1)]
+    consistent = inside & ~partner_invalid & (np.abs(disp_left - partner) <= LR_TOLERANCE_PX)
+    valid = ~invalid_left & consistent
+    # Speckle filter on a 16x fixed-point copy, as OpenCV expects.
+    fixed = np.where(valid, np.rint(disp_left * 16), (min_disparity - 1) * 16).astype(np.int16)
+    cv2.filterSpeckles(fixed, (min_disparity - 1) * 16, speckle_window,
+                       int(round(speckle_range_px * 16)))
+    valid &= fixed >= min_disparity * 16
+    return np.where(valid, disp_left, np.nan).astype(np.float32)
+
+
+def dense_point_cloud(
+    img1: np.ndarray,
+    img2: np.ndarray,
+    K: FloatArray,
+    R: FloatArray,
+    t: FloatArray,
+    sparse_pts1: FloatArray,
+    sparse_pts2: FloatArray,
+    block_size: int = 5,
+) -> DenseReconstruction:
+    """Dense, coloured point cloud of an undistorted pair with known relative pose.
+
+    Parameters
+    ----------
+    img1, img2 : (H, W, 3) uint8
+        Undistorted working images (BGR).
+    K : (3, 3)
+        Their intrinsics.
+    R, t : (3, 3), (3,)
+        ``x_cam2 = R x_cam1 + t``; ``|t|`` sets the scale of the result.
+    sparse_pts1, sparse_pts2 : (M, 2)
+        Pixels of reliable sparse matches, used to choose the disparity range.
+
+    Returns
+    -------
+    DenseReconstruction
+    """
+    rect = rectify_pair(img1, img2, K, R, t, alpha=0.0)
+    r1 = rectify_points(np.asarray(sparse_pts1, np.float64), K, rect.R1, rect.P1)
+    r2 = rectify_points(np.asarray(sparse_pts2, np.float64), K, rect.R2, rect.P2)
+    sparse_disp = r1[:, 0] - r2[:, 0]
+    # SGBM searches positive disparities; if image 2 is the left view, mirror both.
+    mirrored = float(np.median(sparse_disp)) < 0
+    left, right = rect.img1, rect.img2
+    if mirrored:
+        left, right, sparse_disp = left[:, ::-1].copy(), right[:, ::-1].copy(), -sparse_disp
+    lo, hi = disparity_range(sparse_disp)
+    logger.info("SGBM disparity range [%d, %d) from %d sparse points", lo, hi, len(sparse_disp))
+    disparity = compute_disparity(left, right, lo, hi - lo, block_size)
+    if mirrored:
+        disparity = -disparity[:, ::-1]
+    ys, xs = np.nonzero(np.isfinite(disparity) & (np.abs(disparity) > 0.5))
+    d = np.abs(disparity[ys, xs]).astype(np.float64)
+    f, cx, cy = rect.P1[0, 0], rect.P1[0, 2], rect.P1[1, 2]
+    baseline = float(np.linalg.norm(t))
+    z = f * baseline / d
+    rect_points = np.column_stack([(xs - cx) * z / f, (ys - cy) * z / f, z])
+    points = rect_points @ rect.R1  # rectified camera-1 frame -> camera-1 frame (R1^T x)
+    colors = rect.img1[ys, xs, ::-1].astype(np.uint8)
+    return DenseReconstruction(points, colors, np.column_stack([xs, ys]).astype(np.float64),
+                               disparity, (lo, hi), rect)

@@ -1,0 +1,49 @@
+import numpy as np
+import pytest
+
+from scene3D.cli.evaluate import main
+from scene3D.evaluation import pose_auc, relative_pose_error, summarize_pose_errors
+from scene3D.geometry import rotation_about_axis
+
+
+def test_pose_errors_of_a_known_perturbation():
+    R = rotation_about_axis([0, 1, 0], 10)
+    err = relative_pose_error(rotation_about_axis([1, 0, 0], 2) @ R, [0, 0, 2], R, [0, 0, 5])
+    assert err.rotation_deg == pytest.approx(2.0)
+    assert err.translation_deg == pytest.approx(0.0, abs=1e-6)  # scale does not matter
+    assert relative_pose_error(R, [0, 0, -1], R, [0, 0, 1]).translation_deg == pytest.approx(180)
+
+
+def test_auc_and_summary():
+    assert pose_auc([0.0, 0.0]) == pytest.approx(100.0)
+    assert pose_auc([np.inf, np.inf]) == pytest.approx(0.0)
+    # Errors 1 and 3 deg: recall 0.5 on [1, 3) and 1 on [3, 5) -> (0.5 * 2 + 1 * 2) / 5.
+    assert pose_auc([1.0, 3.0]) == pytest.approx(60.0)
+    stats = summarize_pose_errors([0.1, 1.0, 9.0, np.inf], [0.2, 3.0, 0.1, np.inf],
+                                  flagged=[False, False, False, True])
+    assert stats["within_2deg"] == 0.25 and stats["within_5deg"] == 0.5
+    assert stats["wrong_unflagged"] == 1  # the 9 deg pair; the failed one was flagged
+
+
+def test_evaluate_command_on_fountain(fountain, tmp_path, capsys):
+    csv_path = tmp_path / "rows.csv"
+    code = main([str(fountain), "--pairs", "4-5", "2-4", "--csv", str(csv_path), "-q"])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "| 0004.jpg-0005.jpg |" in out and "| 0002.jpg-0004.jpg |" in out
+    assert "2 pairs at 768 px" in out and "wrong and unflagged 0" in out
+    rows = csv_path.read_text().splitlines()
+    assert len(rows) == 3
+    rot, tdir = (float(v) for v in rows[1].split(",")[1:3])
+    assert rot < 1.0 and tdir < 3.0
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["{tmp}"], "needs images/ and gt_dense_cameras/"),
+    (["{fountain}", "--pairs", "3-99"], "out of range"),
+    (["{fountain}", "--pairs", "first"], "bad pair 'first'"),
+])
+def test_evaluate_bad_input(fountain, tmp_path, capsys, argv, message):
+    argv = [a.format(tmp=tmp_path, fountain=fountain) for a in argv]
+    assert main(argv) == 2
+    assert message in capsys.readouterr().err
