@@ -54,15 +54,16 @@ def pose_auc(max_errors_deg: ArrayLike, threshold_deg: float = 5.0) -> float:
 def summarize_pose_errors(
     rotation_deg: ArrayLike, translation_deg: ArrayLike, flagged: ArrayLike | None = None
 ) -> dict[str, float]:
-    """Benchmark statistics of per-pair errors (failed pairs as ``inf``).
+    """Benchmark statistics of per-pair errors (failed pairs as ``inf``, counted as 180 deg).
 
     Returns medians and 90th percentiles of both errors, the fractions of pairs
     with both errors below 2 and 5 degrees, AUC@5deg (percent), and, when
     ``flagged`` says which pairs the method refused or marked untrusted, how many
     wrong poses (> 5 deg) went unflagged.
     """
-    rot = np.asarray(rotation_deg, dtype=np.float64)
-    tdir = np.asarray(translation_deg, dtype=np.float64)
+    # A failed pair (inf) is as wrong as an angle can be: 180 deg, so percentiles stay finite.
+    rot = np.minimum(np.asarray(rotation_deg, dtype=np.float64), 180.0)
+    tdir = np.minimum(np.asarray(translation_deg, dtype=np.float64), 180.0)
     worst = np.maximum(rot, tdir)
     flags = np.zeros(len(rot), bool) if flagged is None else np.asarray(flagged, bool)
     return {
