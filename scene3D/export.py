@@ -115,3 +115,65 @@ def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = 100) -> Path:
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=dpi, bbox_inches="tight")
     return atomic_write_bytes(path, buffer.getvalue())
+
+
+def colmap_text_files(
+    names: list[str],
+    K: np.ndarray,
+    image_size: tuple[int, int],
+    registered: np.ndarray,
+    R: np.ndarray,
+    t: np.ndarray,
+    points3d: np.ndarray,
+    colors: np.ndarray,
+    obs_view: np.ndarray,
+    obs_point: np.ndarray,
+    obs_xy: np.ndarray,
+    errors_px: np.ndarray,
+) -> dict[str, str]:
+    """A COLMAP text model (``cameras.txt``, ``images.txt``, ``points3D.txt``) as strings.
+
+    One PINHOLE camera; image poses world-to-camera as quaternion ``(qw, qx, qy, qz)``
+    and translation. COLMAP puts pixel centres at ``+0.5``, so principal point and
+    2D points are shifted by half a pixel from the OpenCV convention used elsewhere.
+    """
+    from .geometry import quaternion_from_rotation
+
+    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5
+    cameras = ("# Camera list with one line of data per camera:\n"
+               "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
+               f"1 PINHOLE {image_size[0]} {image_size[1]} {fx:.10g} {fy:.10g} "
+               f"{cx:.10g} {cy:.10g}\n")
+    # Index of each observation within its image's list of 2D points.
+    point2d_index = np.zeros(len(obs_view), dtype=int)
+    image_lines = ["# Image list with two lines of data per image:",
+                   "#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME",
+                   "#   POINTS2D[] as (X, Y, POINT3D_ID)"]
+    for v in np.nonzero(registered)[0]:
+        mine = np.nonzero(obs_view == v)[0]
+        point2d_index[mine] = np.arange(len(mine))
+        q = quaternion_from_rotation(R[v])
+        image_lines.append(f"{v + 1} " + " ".join(f"{x:.12g}" for x in (*q, *t[v]))
+                           + f" 1 {names[v]}")
+        image_lines.append(" ".join(f"{obs_xy[k, 0] + 0.5:.6f} {obs_xy[k, 1] + 0.5:.6f} "
+                                    f"{obs_point[k] + 1}" for k in mine))
+    point_lines = ["# 3D point list with one line of data per point:",
+                   "#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as (IMAGE_ID, POINT2D_IDX)"]
+    order = np.argsort(obs_point, kind="stable")
+    starts = np.searchsorted(obs_point[order], np.arange(len(points3d) + 1))
+    for p in range(len(points3d)):
+        ks = order[starts[p]:starts[p + 1]]
+        track = " ".join(f"{obs_view[k] + 1} {point2d_index[k]}" for k in ks)
+        X, c = points3d[p], colors[p]
+        point_lines.append(f"{p + 1} {X[0]:.10g} {X[1]:.10g} {X[2]:.10g} {c[0]} {c[1]} {c[2]} "
+                           f"{errors_px[p]:.6f} {track}")
+    return {"cameras.txt": cameras, "images.txt": "\n".join(image_lines) + "\n",
+            "points3D.txt": "\n".join(point_lines) + "\n"}
+
+
+def write_text_files(folder: str | os.PathLike, files: dict[str, str]) -> list[Path]:
+    """Write several text files into ``folder`` (created if needed), each atomically."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    return [atomic_write_bytes(folder / name, text.encode("utf-8"))
+            for name, text in files.items()]

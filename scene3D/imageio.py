@@ -10,6 +10,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from .camera import has_distortion, undistort_image
+
 logger = logging.getLogger(__name__)
 
 ImageSource = str | os.PathLike | np.ndarray
@@ -87,6 +89,13 @@ def load_bgr_pair(
         first = pool.submit(load_bgr, source1, "img1")
         second = pool.submit(load_bgr, source2, "img2")
         return first.result(), second.result()
+
+
+def working_image(img: np.ndarray, K: np.ndarray, dist: np.ndarray, levels: int) -> np.ndarray:
+    """Undistort at native resolution (where the model holds), then ``pyrDown`` ``levels`` times."""
+    if has_distortion(dist):
+        img = undistort_image(img, K, dist)
+    return pyr_down(img, levels)
 
 
 def pyr_down_levels(width: int, max_width: int = BOOK_MAX_WIDTH_PX) -> int:

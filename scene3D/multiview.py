@@ -138,6 +138,14 @@ class MultiViewReconstruction:
     def mean_track_length(self) -> float:
         return float(len(self.observations.view) / max(len(self.points3d), 1))
 
+    def point_errors_px(self) -> FloatArray:
+        """Mean reprojection error of each point over its observations ``(P,)``."""
+        err = np.linalg.norm(reprojection_residuals(self.R, self.t, self.points3d,
+                                                    self.observations, self.K), axis=1)
+        sums = np.bincount(self.observations.point, err, minlength=len(self.points3d))
+        counts = np.bincount(self.observations.point, minlength=len(self.points3d))
+        return sums / np.maximum(counts, 1)
+
     @property
     def unregistered(self) -> tuple[str, ...]:
         return tuple(n for n, ok in zip(self.names, self.registered) if not ok)

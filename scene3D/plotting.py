@@ -93,6 +93,11 @@ def plot_rectified(rectified: RectifiedPair, num_rows: int = 20) -> Figure:
     return fig
 
 
+def _display_axes(points: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Camera-style coordinates to plot axes: x right, z (depth) away, -y up."""
+    return points[:, 0], points[:, 2], -points[:, 1]
+
+
 def plot_point_cloud(
     points3d: FloatArray,
     colors: np.ndarray | None = None,
@@ -108,7 +113,7 @@ def plot_point_cloud(
     idx = _subsample(len(points3d), max_points)
     pts = points3d[idx]
     c = None if colors is None else colors[idx] / 255.0
-    x, y, z = pts[:, 0], pts[:, 2], -pts[:, 1]
+    x, y, z = _display_axes(pts)
     ax.scatter(x, y, z, c=c, s=2, depthshade=False)
     if len(pts):
         lo = np.percentile(np.column_stack([x, y, z]), 2, axis=0)
@@ -180,4 +185,40 @@ def plot_disparity(disparity: np.ndarray, ax: Axes | None = None) -> Figure:
     fig.colorbar(image, ax=ax, label="disparity (px)", shrink=0.8)
     ax.set_title(f"Disparity of rectified image 1 ({finite.size / disparity.size:.0%} valid)")
     ax.set_axis_off()
+    return fig
+
+
+def plot_cameras_and_points(
+    points3d: FloatArray,
+    colors: np.ndarray | None,
+    R: FloatArray,
+    t: FloatArray,
+    K: FloatArray,
+    image_size: tuple[int, int],
+    ax: Axes | None = None,
+    max_points: int = 20000,
+) -> Figure:
+    """The point cloud with a frustum per camera (world frame, poses ``x_cam = R X + t``).
+
+    Views with NaN poses (not registered) are skipped. Frusta are drawn at a
+    depth of 8 % of the extent of the cloud.
+    """
+    fig = plot_point_cloud(points3d, colors, ax=ax, max_points=max_points)
+    ax = fig.axes[0]
+    lo, hi = np.percentile(points3d, [2, 98], axis=0) if len(points3d) else (0, 1)
+    depth = 0.08 * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
+    w, h = image_size
+    corners = np.array([[0, 0, 1], [w, 0, 1], [w, h, 1], [0, h, 1]], dtype=float)
+    rays = corners @ np.linalg.inv(K).T * depth  # camera frame, at the chosen depth
+    drawn = 0
+    for R_v, t_v in zip(R, t):
+        if not np.all(np.isfinite(R_v)):
+            continue
+        center = -R_v.T @ t_v
+        world = rays @ R_v + center  # R^T (x - t) for each corner
+        for corner in world:
+            ax.plot(*_display_axes(np.array([center, corner])), color="tab:red", linewidth=0.8)
+        ax.plot(*_display_axes(np.vstack([world, world[:1]])), color="tab:red", linewidth=0.8)
+        drawn += 1
+    ax.set_title(f"{len(points3d)} points, {drawn} cameras")
     return fig

@@ -22,9 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .camera import (
-    has_distortion,
     scale_intrinsics_pyr_down,
-    undistort_image,
     validate_distortion,
     validate_intrinsics,
 )
@@ -35,8 +33,8 @@ from .imageio import (
     ImageSource,
     image_size,
     load_bgr_pair,
-    pyr_down,
     pyr_down_levels,
+    working_image,
 )
 from .rectification import RectifiedPair, rectify_pair
 from .twoview import TwoViewReconstruction, TwoViewSettings, reconstruct_two_view
@@ -114,15 +112,9 @@ class SceneReconstruction3D:
             )
         self.native_size = image_size(a)
         self.pyr_levels = pyr_down_levels(a.shape[1], max_width) if use_pyr_down else 0
-
-        def working_image(img: np.ndarray) -> np.ndarray:
-            # Undistort at native resolution, where the distortion model was calibrated.
-            if has_distortion(self.d):
-                img = undistort_image(img, self.K_native, self.d)
-            return pyr_down(img, self.pyr_levels)
-
         with ThreadPoolExecutor(max_workers=2) as pool:  # cv2 releases the GIL
-            self.img1, self.img2 = pool.map(working_image, (a, b))
+            self.img1, self.img2 = pool.map(
+                lambda img: working_image(img, self.K_native, self.d, self.pyr_levels), (a, b))
         self.K = scale_intrinsics_pyr_down(self.K_native, self.pyr_levels)
         self.K_inv = np.linalg.inv(self.K)
         self._matches.clear()

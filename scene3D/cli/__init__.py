@@ -1,4 +1,4 @@
-"""The ``scene3d`` command: ``scene3d reconstruct|calibrate|evaluate ...``."""
+"""The ``scene3d`` command: ``scene3d reconstruct|calibrate|evaluate|reconstruct-views ...``."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ COMMANDS = {
     "reconstruct": "reconstruct a scene from two photos (chapter4.py)",
     "calibrate": "calibrate a camera from chessboard views (calibrate.py)",
     "evaluate": "compare two-view poses with a Strecha-format ground truth",
+    "reconstruct-views": "incremental SfM over many photos, with bundle adjustment",
 }
 
 USAGE = "usage: scene3d {" + ",".join(COMMANDS) + "} [options]   (scene3d COMMAND --help)"
@@ -32,6 +33,8 @@ def main(argv: list[str] | None = None) -> int:
         from .calibrate import main as run
     elif command == "evaluate":
         from .evaluate import main as run
+    elif command == "reconstruct-views":
+        from .multiview import main as run
     else:
         print(f"{USAGE}\nerror: unknown command {command!r}", file=sys.stderr)
         return 2
