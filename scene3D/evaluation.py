@@ -128,10 +128,21 @@ class CameraSetError:
 def camera_set_error(
     R_est: ArrayLike, centers_est: ArrayLike, R_true: ArrayLike, centers_true: ArrayLike
 ) -> CameraSetError:
-    """Compare world-to-camera rotations ``(V, 3, 3)`` and centres ``(V, 3)`` up to similarity."""
+    """Compare world-to-camera rotations ``(V, 3, 3)`` and centres ``(V, 3)`` up to similarity.
+
+    The alignment ``X_true = s A X_est + b`` takes its rotation ``A`` from the
+    camera orientations (``R_est = R_true A`` for every view; their chordal mean),
+    which stays well determined when the centres lie near a line or an arc, and
+    its scale and offset from the centres (least squares).
+    """
     R_est, R_true = np.asarray(R_est, np.float64), np.asarray(R_true, np.float64)
     c_est, c_true = np.asarray(centers_est, np.float64), np.asarray(centers_true, np.float64)
-    s, A, b = similarity_transform(c_est, c_true)
+    U, _, Vt = np.linalg.svd(np.einsum("vji,vjk->ik", R_true, R_est))  # sum of R_true^T R_est
+    A = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+    a = (c_est - c_est.mean(axis=0)) @ A.T
+    d = c_true - c_true.mean(axis=0)
+    s = float(np.sum(a * d) / np.sum(a * a))
+    b = c_true.mean(axis=0) - s * A @ c_est.mean(axis=0)
     aligned = (s * (A @ c_est.T)).T + b
     extent = max(np.linalg.norm(p - q) for p in c_true for q in c_true)
     center_errors = np.linalg.norm(aligned - c_true, axis=1) / extent

@@ -1,0 +1,231 @@
+"""Multi-view reconstruction: synthetic views with known cameras, then fountain-P11."""
+
+import json
+import shutil
+import subprocess
+import sys
+
+import cv2
+import numpy as np
+import pytest
+
+from scene3D.bundle import Observations, bundle_adjust, reprojection_residuals
+from scene3D.evaluation import camera_set_error, similarity_transform
+from scene3D.geometry import (
+    project,
+    quaternion_from_rotation,
+    rotation_about_axis,
+    rotation_from_quaternion,
+)
+from scene3D.multiview import (
+    SfMSettings,
+    ViewFeatures,
+    build_tracks,
+    incremental_reconstruction,
+    select_pairs,
+)
+
+from .conftest import REPO
+
+K = np.array([[800.0, 0, 330], [0, 780, 245], [0, 0, 1]])
+
+
+def _ring_of_cameras(n=6):
+    """Cameras on an arc looking at the origin region, world-to-camera poses."""
+    Rs, ts = [], []
+    for i in range(n):
+        angle = -25 + 50 * i / (n - 1)
+        R = rotation_about_axis([0.1, 1.0, 0.05], angle)
+        center = np.array([8 * np.sin(np.radians(angle)), 0.3 * i - 0.5,
+                           -8 * np.cos(np.radians(angle)) + 8])
+        Rs.append(R)
+        ts.append(-R @ center)
+    return np.array(Rs), np.array(ts)
+
+
+def _synthetic_views(noise_px=0.0, seed=0):
+    rng = np.random.default_rng(seed)
+    points = rng.uniform([-3, -2, 6], [3, 2, 11], (500, 3))
+    Rs, ts = _ring_of_cameras()
+    features, ids = [], []
+    for R, t in zip(Rs, ts):
+        pix = project(points, K, R, t)
+        visible = np.nonzero((pix[:, 0] > 0) & (pix[:, 0] < 660) & (pix[:, 1] > 0) &
+                             (pix[:, 1] < 490))[0]
+        order = rng.permutation(visible)  # keypoint order unrelated to point ids
+        noisy = pix[order] + rng.normal(0, noise_px, (len(order), 2)) if noise_px else pix[order]
+        features.append(ViewFeatures(noisy, np.zeros((len(order), 1), np.float32),
+                                     np.zeros((len(order), 3), np.uint8)))
+        ids.append(order)
+    pair_matches = {}
+    for i, j in select_pairs(len(Rs), "all")[0]:
+        common, a, b = np.intersect1d(ids[i], ids[j], return_indices=True)
+        pair_matches[(i, j)] = (a, b)
+    return features, pair_matches, Rs, ts, points
+
+
+@pytest.mark.parametrize("noise_px, center_tol, rot_tol_deg, rmse_tol", [
+    (0.0, 1e-6, 1e-5, 1e-5),  # exact up to a similarity
+    (0.5, 5e-3, 0.2, 0.8),
+])
+def test_synthetic_views_are_recovered_up_to_similarity(noise_px, center_tol, rot_tol_deg,
+                                                        rmse_tol):
+    features, pair_matches, Rs, ts, _ = _synthetic_views(noise_px)
+    state, _ = incremental_reconstruction(features, pair_matches, K, SfMSettings())
+    assert state.registered.all()
+    centers_true = -np.einsum("vji,vj->vi", Rs, ts)
+    err = camera_set_error(state.R, state.centers(), Rs, centers_true)
+    assert err.center_errors.max() < center_tol
+    assert err.rotation_errors_deg.max() < rot_tol_deg
+    obs = state.observations()
+    res = reprojection_residuals(state.R, state.t, np.array(state.points), obs, K)
+    assert np.sqrt(np.mean(res**2)) < rmse_tol
+    assert len(state.points) > 400
+
+
+def test_tracks_chain_matches_and_drop_inconsistent_ones():
+    matches = {(0, 1): (np.array([0, 1]), np.array([5, 6])),
+               (1, 2): (np.array([5, 6]), np.array([9, 9]))}  # 0:0 and 0:1 meet in 2:9
+    tracks = build_tracks([3, 7, 10], matches)
+    assert tracks == []
+    tracks = build_tracks([3, 7, 10], {(0, 1): (np.array([0]), np.array([5])),
+                                       (1, 2): (np.array([5]), np.array([9]))})
+    assert tracks == [{0: 0, 1: 5, 2: 9}]
+
+
+def test_pair_selection():
+    assert select_pairs(4, "all")[0] == [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
+    pairs, text = select_pairs(30, "auto", neighbours=2)
+    assert pairs[:3] == [(0, 1), (0, 2), (1, 2)] and "neighbours" in text
+    with pytest.raises(ValueError, match="'auto', 'all' or 'sequential'"):
+        select_pairs(3, "random")
+
+
+def test_bundle_adjustment_reduces_error_and_fixes_the_reference():
+    features, pair_matches, Rs, ts, points = _synthetic_views()
+    rng = np.random.default_rng(3)
+    view, point, xy = [], [], []
+    for v, (R, t) in enumerate(zip(Rs, ts)):
+        pix = project(points, K, R, t)
+        view += [v] * len(points)
+        point += list(range(len(points)))
+        xy.append(pix + rng.normal(0, 0.3, pix.shape))
+    obs = Observations(np.array(view), np.array(point), np.vstack(xy))
+    R0 = np.array([rotation_about_axis([1, 0, 0], 0.3) @ R for R in Rs])
+    R0[0] = Rs[0]
+    X0 = points + rng.normal(0, 0.05, points.shape)
+    before = np.sqrt(np.mean(reprojection_residuals(R0, ts, X0, obs, K) ** 2))
+    R1, t1, X1 = bundle_adjust(R0, ts.copy(), X0, obs, K, fixed_view=0, loss="linear")
+    after = np.sqrt(np.mean(reprojection_residuals(R1, t1, X1, obs, K) ** 2))
+    assert before > 3.0 and after < 0.35
+    np.testing.assert_allclose(R1[0], Rs[0])
+
+
+def test_similarity_and_quaternions():
+    rng = np.random.default_rng(0)
+    src = rng.normal(size=(10, 3))
+    R = rotation_about_axis([1, 2, 3], 40)
+    dst = 2.5 * src @ R.T + np.array([1.0, -2.0, 0.5])
+    s, A, b = similarity_transform(src, dst)
+    assert s == pytest.approx(2.5) and np.allclose(A, R) and np.allclose(b, [1, -2, 0.5])
+    for axis, angle in (([1, 0, 0], 179.0), ([0, 1, 1], 30.0), ([1, 1, 0], -120.0)):
+        Q = rotation_about_axis(axis, angle)
+        q = quaternion_from_rotation(Q)
+        assert q[0] >= 0 and np.allclose(rotation_from_quaternion(q), Q)
+
+
+# -- real data -------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def fountain_views(fountain, tmp_path_factory):
+    """reconstruct-views on all 11 fountain images at half resolution (1536 px)."""
+    out = tmp_path_factory.mktemp("views")
+    proc = subprocess.run(
+        [sys.executable, "-m", "scene3D", "reconstruct-views", str(fountain / "images"),
+         "--calib", str(REPO / "data" / "fountain_P11_intrinsics.yaml"),
+         "--ground-truth", str(fountain / "gt_dense_cameras"), "--out", str(out)],
+        capture_output=True, text=True, timeout=900)
+    return proc, out
+
+
+def test_fountain_all_views_against_ground_truth(fountain_views):
+    proc, out = fountain_views
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((out / "reconstruction.json").read_text())
+    assert summary["registered"] == 11 and summary["unregistered"] == []
+    assert summary["image_size"] == [1536, 1024]
+    assert summary["reprojection_rmse_px"] < 1.0
+    gt = summary["ground_truth"]
+    assert gt["max_center_error_fraction"] < 0.02
+    assert gt["max_rotation_error_deg"] < 0.5
+    assert summary["points"] > 3000 and summary["mean_track_length"] > 2.5
+    assert "registered view" in proc.stderr  # progress per view
+
+
+def test_colmap_model_is_consistent(fountain_views):
+    """Parse the COLMAP text files and reproject points with the stored poses."""
+    _, out = fountain_views
+    cam_line = [line for line in (out / "colmap" / "cameras.txt").read_text().splitlines()
+                if not line.startswith("#")][0].split()
+    assert cam_line[1] == "PINHOLE"
+    fx, fy, cx, cy = map(float, cam_line[4:8])
+    lines = [line for line in (out / "colmap" / "images.txt").read_text().splitlines()
+             if not line.startswith("#")]
+    images = {}
+    for header, pts in zip(lines[0::2], lines[1::2]):
+        h = header.split()
+        R = rotation_from_quaternion(list(map(float, h[1:5])))
+        t = np.array(list(map(float, h[5:8])))
+        xy = np.array(pts.split(), float).reshape(-1, 3)
+        images[int(h[0])] = (R, t, xy)
+    assert len(images) == 11
+    checked = 0
+    for line in (out / "colmap" / "points3D.txt").read_text().splitlines()[2:200]:
+        v = line.split()
+        X = np.array(list(map(float, v[1:4])))
+        track = np.array(v[8:], int).reshape(-1, 2)
+        for image_id, idx in track:
+            R, t, xy = images[image_id]
+            assert int(xy[idx, 2]) == int(v[0])  # the 2D point refers back to this 3D point
+            c = R @ X + t
+            u = np.array([fx * c[0] / c[2] + cx, fy * c[1] / c[2] + cy])
+            assert np.linalg.norm(u - xy[idx, :2]) < 3.0
+            checked += 1
+    assert checked > 300
+
+
+def test_pycolmap_reads_the_model(fountain_views):
+    pycolmap = pytest.importorskip("pycolmap")
+    _, out = fountain_views
+    model = pycolmap.Reconstruction(str(out / "colmap"))
+    assert model.num_reg_images() == 11 and model.num_points3D() > 3000
+
+
+def test_an_unrelated_image_is_reported_not_registered(fountain, chessboards, tmp_path):
+    folder = tmp_path / "mixed"
+    folder.mkdir()
+    for i in (3, 4, 5, 6):
+        shutil.copy(fountain / "images" / f"{i:04d}.jpg", folder / f"{i:04d}.jpg")
+    board = cv2.imread(str(chessboards / "opencv-left" / "left01.jpg"))
+    cv2.imwrite(str(folder / "0005b_board.jpg"), cv2.resize(board, (3072, 2048)))
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        [sys.executable, "-m", "scene3D", "reconstruct-views", str(folder), "--calib",
+         str(REPO / "data" / "fountain_P11_intrinsics.yaml"), "--max-width", "800",
+         "--no-plots", "--out", str(out)], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((out / "reconstruction.json").read_text())
+    assert summary["unregistered"] == ["0005b_board.jpg"]
+    assert summary["registered"] == 4
+    assert "view '0005b_board.jpg' could not be registered" in proc.stderr
+
+
+def test_reconstruct_views_bad_input(tmp_path, fountain):
+    base = [sys.executable, "-m", "scene3D", "reconstruct-views"]
+    calib = str(REPO / "data" / "fountain_P11_intrinsics.yaml")
+    one = subprocess.run(base + [str(fountain / "images" / "0004.jpg"), "--calib", calib,
+                                 "--out", str(tmp_path)], capture_output=True, text=True)
+    assert one.returncode == 2 and "at least two images" in one.stderr
+    missing = subprocess.run(base + [str(tmp_path / "*.jpg"), "--calib", calib],
+                             capture_output=True, text=True)
+    assert missing.returncode == 2 and "no image matches" in missing.stderr
