@@ -113,10 +113,30 @@ def angle_between_deg(a: ArrayLike, b: ArrayLike) -> float:
 def rotation_about_axis(axis: ArrayLike, angle_deg: float) -> FloatArray:
     """Rotation matrix ``(3, 3)`` turning by ``angle_deg`` about ``axis`` (right hand)."""
     axis = np.asarray(axis, dtype=np.float64).reshape(3)
-    axis = axis / np.linalg.norm(axis)
-    theta = np.radians(angle_deg)
-    K = skew(axis)
-    return np.eye(3) + np.sin(theta) * K + (1.0 - np.cos(theta)) * (K @ K)
+    return rotations_from_vectors((np.radians(angle_deg) / np.linalg.norm(axis) * axis)[None])[0]
+
+
+def rotations_from_vectors(w: FloatArray) -> FloatArray:
+    """Rodrigues' formula for ``(M, 3)`` rotation vectors: ``(M, 3, 3)`` rotations."""
+    theta = np.linalg.norm(w, axis=1)
+    safe = np.where(theta < 1e-12, 1.0, theta)
+    k = w / safe[:, None]
+    K = np.zeros((len(w), 3, 3))
+    K[:, 0, 1], K[:, 0, 2] = -k[:, 2], k[:, 1]
+    K[:, 1, 0], K[:, 1, 2] = k[:, 2], -k[:, 0]
+    K[:, 2, 0], K[:, 2, 1] = -k[:, 1], k[:, 0]
+    s = np.sin(theta)[:, None, None]
+    c = (1.0 - np.cos(theta))[:, None, None]
+    R = np.eye(3)[None] + s * K + c * (K @ K)
+    small = theta < 1e-12
+    if small.any():  # first order for tiny angles
+        Ws = np.zeros((small.sum(), 3, 3))
+        ws = w[small]
+        Ws[:, 0, 1], Ws[:, 0, 2] = -ws[:, 2], ws[:, 1]
+        Ws[:, 1, 0], Ws[:, 1, 2] = ws[:, 2], -ws[:, 0]
+        Ws[:, 2, 0], Ws[:, 2, 1] = -ws[:, 1], ws[:, 0]
+        R[small] = np.eye(3)[None] + Ws
+    return R
 
 
 def quaternion_from_rotation(R: ArrayLike) -> FloatArray:

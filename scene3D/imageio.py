@@ -16,6 +16,10 @@ logger = logging.getLogger(__name__)
 
 ImageSource = str | os.PathLike | np.ndarray
 
+#: File endings taken as images when a folder is given.
+IMAGE_SUFFIXES = frozenset({".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm",
+                            ".ppm"})
+
 #: The book halves images with ``cv2.pyrDown`` while they are wider than this.
 BOOK_MAX_WIDTH_PX = 1200
 

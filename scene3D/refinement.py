@@ -6,10 +6,10 @@
   solver in numpy (5 unknowns; no scipy import on the default path).
 - :func:`bundle_adjust_two_view` refines the pose *and* the 3D points by
   minimising reprojection errors in both images (H&Z section 18.1, the gold
-  standard), with scipy ``least_squares``, a sparse Jacobian and a robust loss.
+  standard), with scipy ``least_squares``, a sparse Jacobian and a robust loss
+  (:mod:`scene3D.bundle`).
 
-In both, ``t`` stays on the unit sphere: it is updated in the plane tangent to it
-and renormalised, since a two-view translation has no scale. Frames as in
+In both, ``t`` ends on the unit sphere, since a two-view translation has no scale. Frames as in
 :mod:`scene3D.geometry`: ``x_cam2 = R x_cam1 + t``.
 """
 
@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .geometry import FloatArray, skew, to_homogeneous
+from .geometry import FloatArray, rotations_from_vectors, skew, to_homogeneous
 
 
 def sampson_residuals(F: FloatArray, pts1: FloatArray, pts2: FloatArray) -> FloatArray:
@@ -37,15 +37,6 @@ def pose_to_fundamental(R: FloatArray, t: FloatArray, K: FloatArray) -> FloatArr
     return K_inv.T @ skew(t) @ R @ K_inv
 
 
-def rotation_from_vector(w: FloatArray) -> FloatArray:
-    """Rodrigues' formula: the rotation by ``|w|`` radians about ``w``."""
-    theta = float(np.linalg.norm(w))
-    if theta < 1e-12:
-        return np.eye(3) + skew(w)
-    k = skew(np.asarray(w) / theta)
-    return np.eye(3) + np.sin(theta) * k + (1.0 - np.cos(theta)) * (k @ k)
-
-
 def _tangent_basis(t: FloatArray) -> FloatArray:
     """Two unit vectors ``(2, 3)`` orthogonal to the unit vector ``t`` and to each other."""
     helper = np.eye(3)[int(np.argmin(np.abs(t)))]
@@ -59,7 +50,7 @@ def _update_pose(
 ) -> tuple[FloatArray, FloatArray]:
     """Apply a 5-vector step: rotation vector (3) and tangent step of ``t`` (2)."""
     basis = _tangent_basis(t) if basis is None else basis
-    R_new = rotation_from_vector(dx[:3]) @ R
+    R_new = rotations_from_vectors(dx[None, :3])[0] @ R
     t_new = t + dx[3:] @ basis
     return R_new, t_new / np.linalg.norm(t_new)
 
@@ -173,16 +164,15 @@ def bundle_adjust_two_view(
     pts1: ArrayLike,
     pts2: ArrayLike,
     K: ArrayLike,
-    loss: str = "cauchy",
-    scale_px: float = 0.5,
+    loss: str = "soft_l1",
+    scale_px: float = 1.0,
     max_evaluations: int = 100,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Two-view bundle adjustment of the pose and the points.
 
-    Minimises the reprojection errors of ``points3d`` in both images (camera 1
-    fixed at ``[I | 0]``, ``|t| = 1`` fixing the gauge) with scipy
-    ``least_squares`` (trust region, sparse Jacobian: each point's four
-    residuals depend on its 3 coordinates and the 5 pose parameters).
+    Minimises the reprojection errors of ``points3d`` in both images with camera
+    1 fixed at ``[I | 0]`` (:func:`scene3D.bundle.bundle_adjust`), then rescales
+    so that ``|t| = 1`` again.
 
     Parameters
     ----------
@@ -200,36 +190,15 @@ def bundle_adjust_two_view(
     -------
     R, t, points3d : (3, 3), (3,), (N, 3) float64
     """
-    from scipy.optimize import least_squares
-    from scipy.sparse import lil_matrix
+    from .bundle import Observations, bundle_adjust
 
-    R0 = np.asarray(R, dtype=np.float64)
-    t0 = np.asarray(t, dtype=np.float64).reshape(3)
-    t0 = t0 / np.linalg.norm(t0)
-    X0 = np.asarray(points3d, dtype=np.float64)
-    obs = np.hstack([np.asarray(pts1, np.float64), np.asarray(pts2, np.float64)])  # (N, 4)
-    K = np.asarray(K, dtype=np.float64)
-    n = len(X0)
-
-    def project(X: FloatArray, R_: FloatArray, t_: FloatArray) -> FloatArray:
-        cam = X @ R_.T + t_
-        pix = cam @ K.T
-        return pix[:, :2] / pix[:, 2:3]
-
-    def residuals(x: FloatArray) -> FloatArray:
-        R_x, t_x = _update_pose(R0, t0, x[:5])
-        X = x[5:].reshape(n, 3)
-        return (np.hstack([project(X, np.eye(3), np.zeros(3)), project(X, R_x, t_x)])
-                - obs).ravel()
-
-    sparsity = lil_matrix((4 * n, 5 + 3 * n), dtype=int)
-    rows = np.arange(4 * n)
-    sparsity[rows[:, None], np.arange(5)[None, :]] = 1
-    point_cols = 5 + 3 * np.repeat(np.arange(n), 4)
-    for k in range(3):
-        sparsity[rows, point_cols + k] = 1
-    x0 = np.concatenate([np.zeros(5), X0.ravel()])
-    result = least_squares(residuals, x0, jac_sparsity=sparsity, loss=loss, f_scale=scale_px,
-                           max_nfev=max_evaluations, x_scale="jac", method="trf")
-    R_out, t_out = _update_pose(R0, t0, result.x[:5])
-    return R_out, t_out, result.x[5:].reshape(n, 3)
+    X = np.asarray(points3d, dtype=np.float64)
+    n = len(X)
+    Rs = np.stack([np.eye(3), np.asarray(R, dtype=np.float64)])
+    ts = np.stack([np.zeros(3), np.asarray(t, dtype=np.float64).reshape(3)])
+    obs = Observations(np.repeat([0, 1], n), np.tile(np.arange(n), 2),
+                       np.vstack([np.asarray(pts1, np.float64), np.asarray(pts2, np.float64)]))
+    Rs, ts, X = bundle_adjust(Rs, ts, X, obs, np.asarray(K, np.float64), fixed_view=0,
+                              loss=loss, scale_px=scale_px, max_evaluations=max_evaluations)
+    scale = np.linalg.norm(ts[1])
+    return Rs[1], ts[1] / scale, X / scale

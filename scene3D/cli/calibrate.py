@@ -26,12 +26,11 @@ from ..calibration import (
 )
 from ..camera import undistort_image
 from ..export import atomic_write_bytes, save_figure
-from ..imageio import image_size, load_bgr
+from ..imageio import IMAGE_SUFFIXES, image_size, load_bgr
 from .common import EXIT_CODES_HELP, EXIT_OK, UsageError, add_common_args, run_command, show_images
 
 logger = logging.getLogger("scene3D.cli")
 
-IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
 
 
 def _board_size(text: str) -> tuple[int, int]:

@@ -25,6 +25,7 @@ from .common import (
     EXIT_OK,
     UsageError,
     add_common_args,
+    add_size_args,
     prepare_output_dir,
     run_command,
     show_images,
@@ -63,12 +64,7 @@ def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
                         choices=[m.lower() for m in FEATURE_MODES],
                         help="features: sift (default), surf (the book's; falls back to sift "
                              "when OpenCV lacks it), orb, akaze, or flow (tracked corners)")
-    size = parser.add_mutually_exclusive_group()
-    size.add_argument("--no-pyr-down", action="store_true",
-                      help="work at full resolution (slower, sometimes more accurate)")
-    size.add_argument("--max-width", type=int, default=BOOK_MAX_WIDTH_PX, metavar="PX",
-                      help="halve the images with pyrDown while wider than this "
-                           f"(default {BOOK_MAX_WIDTH_PX}, the book's rule: 3072 -> 768)")
+    add_size_args(parser, BOOK_MAX_WIDTH_PX, "the book's rule, 3072 -> 768")
     parser.add_argument("--bundle-adjust", action="store_true",
                         help="finish with a two-view bundle adjustment of pose and points "
                              "(lower reprojection error; slower)")

@@ -36,6 +36,16 @@ def add_common_args(parser: argparse.ArgumentParser) -> None:
                        help="show the full traceback of an error")
 
 
+def add_size_args(parser: argparse.ArgumentParser, default_width: int, note: str) -> None:
+    """``--max-width PX`` or ``--no-pyr-down``: the working size of the images."""
+    size = parser.add_mutually_exclusive_group()
+    size.add_argument("--max-width", type=int, default=default_width, metavar="PX",
+                      help=f"halve the images with pyrDown while wider than this "
+                           f"(default {default_width}: {note})")
+    size.add_argument("--no-pyr-down", action="store_true",
+                      help="work at full resolution (slower, sometimes more accurate)")
+
+
 def configure_logging(args: argparse.Namespace) -> None:
     if args.quiet:
         level = logging.ERROR

@@ -14,11 +14,16 @@ from ..datasets import read_strecha_camera, relative_pose
 from ..errors import ReconstructionError
 from ..evaluation import relative_pose_error, summarize_pose_errors
 from ..features import FEATURE_MODES
-from ..imageio import BOOK_MAX_WIDTH_PX
+from ..imageio import BOOK_MAX_WIDTH_PX, IMAGE_SUFFIXES
 from ..scene import SceneReconstruction3D
-from .common import EXIT_CODES_HELP, EXIT_OK, UsageError, add_common_args, run_command
-
-IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
+from .common import (
+    EXIT_CODES_HELP,
+    EXIT_OK,
+    UsageError,
+    add_common_args,
+    add_size_args,
+    run_command,
+)
 
 
 def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
@@ -37,10 +42,7 @@ def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
     parser.add_argument("--pairs", nargs="+", default=["consecutive"], metavar="SPEC",
                         help="'consecutive' (i, i+1; default), 'skip1' (i, i+2), or explicit "
                              "index pairs such as 4-5 0-2 (indices into the sorted images)")
-    size = parser.add_mutually_exclusive_group()
-    size.add_argument("--max-width", type=int, default=BOOK_MAX_WIDTH_PX, metavar="PX",
-                      help=f"pyrDown while wider than this (default {BOOK_MAX_WIDTH_PX})")
-    size.add_argument("--no-pyr-down", action="store_true", help="full resolution")
+    add_size_args(parser, BOOK_MAX_WIDTH_PX, "the book's rule, 3072 -> 768")
     parser.add_argument("--feature", default="sift", type=str.lower,
                         choices=[m.lower() for m in FEATURE_MODES])
     parser.add_argument("--csv", type=Path, metavar="FILE", help="also write per-pair rows")

@@ -19,18 +19,19 @@ from ..export import colmap_text_files, save_figure, write_json, write_ply, writ
 from ..features import FEATURE_MODES
 from ..imageio import (
     BOOK_MAX_WIDTH_PX,
+    IMAGE_SUFFIXES,
     image_size,
     load_bgr,
     pyr_down_levels,
     working_image,
 )
 from ..multiview import SfMSettings, reconstruct_views
-from .calibrate import IMAGE_SUFFIXES
 from .common import (
     EXIT_CODES_HELP,
     EXIT_OK,
     UsageError,
     add_common_args,
+    add_size_args,
     prepare_output_dir,
     run_command,
 )
@@ -57,11 +58,7 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
                         help="image files, a folder, or quoted globs such as 'photos/*.jpg'")
     parser.add_argument("--calib", type=Path, required=True, metavar="FILE",
                         help="camera calibration (OpenCV YAML/XML as calibrate.py writes it)")
-    size = parser.add_mutually_exclusive_group()
-    size.add_argument("--max-width", type=int, default=BOOK_MAX_WIDTH_PX * 2, metavar="PX",
-                      help="pyrDown while wider than this (default 2400: 3072 -> 1536, half "
-                           "resolution)")
-    size.add_argument("--no-pyr-down", action="store_true", help="full resolution")
+    add_size_args(parser, 2 * BOOK_MAX_WIDTH_PX, "3072 -> 1536, half resolution")
     parser.add_argument("--pairs", choices=("auto", "all", "sequential"), default="auto",
                         help="which pairs to match: all pairs (up to 20 views in auto), or "
                              "each view with its --neighbours followers (ordered sequences)")
