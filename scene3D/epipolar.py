@@ -130,15 +130,18 @@ def estimate_essential(
         return np.full((3, 3), np.nan), np.zeros(len(p1), dtype=bool)
     inliers = _mask(mask, len(p1))
     if refine and inliers.sum() >= 6:
-        E, inliers = _refine_essential(E, p1, p2, K, inliers, threshold_px)
+        E, inliers = refine_essential(E, p1, p2, K, inliers, threshold_px)
     return E / np.linalg.norm(E), inliers
 
 
-def _refine_essential(
+def refine_essential(
     E: FloatArray, p1: FloatArray, p2: FloatArray, K: FloatArray, inliers: np.ndarray,
     threshold_px: float, rounds: int = 3,
 ) -> tuple[FloatArray, np.ndarray]:
-    """Local optimisation: refine on the inliers, re-select inliers, repeat.
+    """Local optimisation of an essential matrix: refine on the inliers, re-select, repeat.
+
+    ``p1, p2`` are all the correspondences ``(N, 2)`` and ``inliers`` their
+    current ``(N,) bool`` mask; returns the refined ``E`` and the new mask.
 
     The refinement uses a Cauchy loss whose scale is a third of the inlier
     threshold (the threshold is taken as about three standard deviations of
