@@ -21,18 +21,30 @@ world-to-camera ``x_cam = R X + t``. The scale is that of the initial pair
 from __future__ import annotations
 
 import logging
+import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .bundle import Observations, bundle_adjust, reprojection_residuals
+from .camera import scale_intrinsics_pyr_down, validate_distortion, validate_intrinsics
 from .epipolar import estimate_essential
 from .errors import ReconstructionError
 from .features import create_detector, match_descriptors, to_gray
 from .geometry import FloatArray
+from .imageio import (
+    BOOK_MAX_WIDTH_PX,
+    ImageSource,
+    image_size,
+    load_bgr,
+    pyr_down_levels,
+    working_image,
+)
 from .twoview import TwoViewSettings, reconstruct_from_matches
 
 logger = logging.getLogger(__name__)
@@ -460,41 +472,86 @@ def incremental_reconstruction(
     return state, timings
 
 
+def load_views(
+    sources: Sequence[ImageSource], K: ArrayLike, dist: ArrayLike | None = None,
+    max_width: int | None = 2 * BOOK_MAX_WIDTH_PX,
+) -> tuple[list[np.ndarray], FloatArray]:
+    """Load images of one camera, undistort them and halve them while wider than ``max_width``.
+
+    ``K`` and ``dist`` describe the native images; returns the working images and
+    their ``K``. ``max_width=None`` keeps the native size.
+
+    Raises
+    ------
+    FileNotFoundError, ValueError
+        A missing or unreadable image, or images of different sizes.
+    """
+    K = validate_intrinsics(K)
+    dist = validate_distortion(dist)
+    images = [load_bgr(src, f"image {i}") for i, src in enumerate(sources)]
+    sizes = [image_size(img) for img in images]
+    for src, size in zip(sources, sizes):
+        if size != sizes[0]:
+            name = src if isinstance(src, (str, os.PathLike)) else "an image"
+            raise ValueError(f"'{name}' is {size[0]}x{size[1]}, not {sizes[0][0]}x"
+                             f"{sizes[0][1]} like the first image: one camera, one size")
+    levels = 0 if max_width is None or not images else pyr_down_levels(sizes[0][0], max_width)
+    return ([working_image(img, K, dist, levels) for img in images],
+            scale_intrinsics_pyr_down(K, levels))
+
+
 def reconstruct_views(
-    images: Sequence[np.ndarray],
-    K: FloatArray,
+    images: Sequence[ImageSource],
+    K: ArrayLike,
+    dist: ArrayLike | None = None,
+    *,
+    max_width: int | None = 2 * BOOK_MAX_WIDTH_PX,
     names: Sequence[str] | None = None,
     feature: str = "SIFT",
     pairs: str = "auto",
     settings: SfMSettings | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> MultiViewReconstruction:
-    """Reconstruct cameras and points from undistorted working images of one camera.
+    """Reconstruct cameras and points from several photos of one calibrated camera.
 
     Parameters
     ----------
-    images : sequence of (H, W, 3) uint8
-        BGR images of the same size, undistorted.
-    K : (3, 3)
-        Their intrinsics.
+    images : sequence of paths or (H, W[, C]) arrays
+        Photos of the same size.
+    K : (3, 3) array_like
+        Intrinsics of the **native** images.
+    dist : array_like, optional
+        OpenCV distortion coefficients; the images are undistorted first.
+    max_width : int or None
+        Halve with ``pyrDown`` while wider than this (default 2400: 3072 -> 1536);
+        None keeps the native size. The result's ``K`` is for the working size.
+    names : sequence of str, optional
+        Names for the report (default: file names, or view0, view1, ...).
     pairs : str
         ``"auto"``, ``"all"`` or ``"sequential"`` (see :func:`select_pairs`).
+    progress : callable, optional
+        Called with one line of text per step (default: logging at INFO).
 
     Raises
     ------
     ReconstructionError
         Fewer than two views, or no pair gives a trustworthy start.
+    FileNotFoundError, ValueError
+        Unreadable images or images of different sizes.
     """
     s = settings or SfMSettings()
     say = progress or (lambda message: logger.info("%s", message))
-    names = tuple(names) if names is not None else tuple(f"view{i}" for i in range(len(images)))
+    if names is None:
+        names = [Path(src).name if isinstance(src, (str, os.PathLike)) else f"view{i}"
+                 for i, src in enumerate(images)]
+    names = tuple(names)
     if len(images) < 2:
         raise ReconstructionError("too_few_views", "need at least two images",
                                   views=len(images))
-    sizes = {img.shape for img in images}
-    if len(sizes) != 1:
-        raise ValueError(f"all images must have the same size, got {sorted(sizes)}")
     timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    images, K = load_views(images, K, dist, max_width)
+    timings["load"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     features = [extract_features(img, feature) for img in images]
     timings["features"] = time.perf_counter() - t0

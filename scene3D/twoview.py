@@ -195,6 +195,45 @@ def is_rotation_homography(H: FloatArray, K: FloatArray, tolerance: float = 0.02
     return bool(singular[0] / singular[2] - 1.0 < tolerance)
 
 
+def _refuse_homography_pairs(H: FloatArray, h_ratio: float, K: FloatArray, num_inliers: int,
+                             s: TwoViewSettings) -> None:
+    """Raise when one homography explains the inliers: a pure rotation or a plane."""
+    if h_ratio <= s.planar_ratio:
+        return
+    if is_rotation_homography(H, K):
+        raise ReconstructionError(
+            "no_parallax",
+            "the images are related by a pure rotation (no baseline): depth cannot be "
+            "recovered", inliers=num_inliers, homography_inlier_ratio=h_ratio,
+        )
+    raise ReconstructionError(
+        "planar_scene",
+        "one homography explains the matches (a planar scene): the relative pose is "
+        "ambiguous; add depth to the view", inliers=num_inliers,
+        homography_inlier_ratio=h_ratio,
+    )
+
+
+def trust_warnings(num_matches: int, num_inliers: int, median_parallax_deg: float,
+                   homography_ratio: float, s: TwoViewSettings) -> list[str]:
+    """Reasons to doubt a pose that passed every hard check (empty: trusted)."""
+    warnings = []
+    if num_inliers < s.trusted_inliers:
+        warnings.append(f"only {num_inliers} inliers: the pose rests on few matches")
+    if num_inliers < s.trusted_inlier_ratio * num_matches:
+        warnings.append(f"only {num_inliers / num_matches:.0%} of the {num_matches} matches "
+                        "are inliers (wide baseline or repeated texture)")
+    if median_parallax_deg < s.trusted_parallax_deg:
+        warnings.append(f"weak parallax ({median_parallax_deg:.1f} deg median): depth and "
+                        "translation direction are poorly determined")
+    if homography_ratio > s.planar_warning_ratio:
+        warnings.append(
+            f"a homography explains {homography_ratio:.0%} of the inliers (nearly planar "
+            "scene or weak baseline): the pose may be inaccurate"
+        )
+    return warnings
+
+
 def reconstruct_from_matches(
     pts1: ArrayLike,
     pts2: ArrayLike,
@@ -249,19 +288,7 @@ def reconstruct_from_matches(
     H, h_inliers = estimate_homography(in1, in2, s.threshold_px)
     h_ratio = float(h_inliers.sum()) / num_inliers
 
-    if h_ratio > s.planar_ratio:
-        if is_rotation_homography(H, K):
-            raise ReconstructionError(
-                "no_parallax",
-                "the images are related by a pure rotation (no baseline): depth cannot be "
-                "recovered", inliers=num_inliers, homography_inlier_ratio=h_ratio,
-            )
-        raise ReconstructionError(
-            "planar_scene",
-            "one homography explains the matches (a planar scene): the relative pose is "
-            "ambiguous; add depth to the view", inliers=num_inliers,
-            homography_inlier_ratio=h_ratio,
-        )
+    _refuse_homography_pairs(H, h_ratio, K, num_inliers, s)
     R, t, _ = choose_pose(E, in1, in2, K)
     points = triangulate_points(in1, in2, K, R, t)
     front = in_front_mask(points, R, t)
@@ -287,21 +314,8 @@ def reconstruct_from_matches(
             inliers=num_inliers, in_front=int(front.sum()), kept=int(keep.sum()),
             required=s.min_points,
         )
-    warnings = []
     median_kept_parallax = float(np.median(parallax[keep]))
-    if num_inliers < s.trusted_inliers:
-        warnings.append(f"only {num_inliers} inliers: the pose rests on few matches")
-    if num_inliers < s.trusted_inlier_ratio * n:
-        warnings.append(f"only {num_inliers / n:.0%} of the {n} matches are inliers "
-                        "(wide baseline or repeated texture)")
-    if median_kept_parallax < s.trusted_parallax_deg:
-        warnings.append(f"weak parallax ({median_kept_parallax:.1f} deg median): depth and "
-                        "translation direction are poorly determined")
-    if h_ratio > s.planar_warning_ratio:
-        warnings.append(
-            f"a homography explains {h_ratio:.0%} of the inliers (nearly planar scene or weak "
-            "baseline): the pose may be inaccurate"
-        )
+    warnings = trust_warnings(n, num_inliers, median_kept_parallax, h_ratio, s)
     points, pts1_kept, pts2_kept = points[keep], in1[keep], in2[keep]
     kept_errors = errors[keep]
     if s.bundle_adjust:

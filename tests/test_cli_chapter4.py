@@ -196,3 +196,14 @@ def test_dense_outputs(tmp_path, synthetic_files):
     assert len(points) == summary["dense"]["num_points"] > 50_000
     assert (tmp_path / "disparity.png").read_bytes().startswith(b"\x89PNG")
     assert "dense" in summary["timings_s"]
+
+
+def test_show_without_a_display_warns_and_still_writes(tmp_path, synthetic_files):
+    f = synthetic_files
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    proc = subprocess.run([sys.executable, str(REPO / "chapter4.py"), f / "a.png", f / "b.png",
+                           "--calib", f / "camera.yaml", "--show", "--out", tmp_path],
+                          env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "no display available" in proc.stderr
+    assert (tmp_path / "point_cloud.png").exists()

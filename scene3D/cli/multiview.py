@@ -12,19 +12,12 @@ from pathlib import Path
 import numpy as np
 
 from ..calibration_io import load_calibration
-from ..camera import adapt_intrinsics_to_size, scale_intrinsics_pyr_down
+from ..camera import adapt_intrinsics_to_size
 from ..datasets import read_strecha_camera
 from ..evaluation import camera_set_error
 from ..export import colmap_text_files, save_figure, write_json, write_ply, write_text_files
 from ..features import FEATURE_MODES
-from ..imageio import (
-    BOOK_MAX_WIDTH_PX,
-    IMAGE_SUFFIXES,
-    image_size,
-    load_bgr,
-    pyr_down_levels,
-    working_image,
-)
+from ..imageio import BOOK_MAX_WIDTH_PX, IMAGE_SUFFIXES, image_size, load_bgr
 from ..multiview import SfMSettings, reconstruct_views
 from .common import (
     EXIT_CODES_HELP,
@@ -117,29 +110,20 @@ def run(args: argparse.Namespace) -> int:
     if args.ground_truth is not None and not args.ground_truth.is_dir():
         raise UsageError(f"--ground-truth '{args.ground_truth}' is not a folder")
 
-    t0 = time.perf_counter()
-    first = load_bgr(paths[0])
-    size = image_size(first)
-    K_native = adapt_intrinsics_to_size(camera.K, camera.image_size, size)
-    levels = 0 if args.no_pyr_down else pyr_down_levels(size[0], args.max_width)
-    images = []
-    for path in paths:
-        img = first if path == paths[0] else load_bgr(path)
-        if image_size(img) != size:
-            raise UsageError(f"'{path}' is {image_size(img)[0]}x{image_size(img)[1]}, not "
-                             f"{size[0]}x{size[1]} like '{paths[0]}': one camera, one size")
-        images.append(working_image(img, K_native, camera.dist, levels))
-    K = scale_intrinsics_pyr_down(K_native, levels)
-    load_s = time.perf_counter() - t0
+    first = load_bgr(paths[0])  # its size tells how to scale the calibration
+    K_native = adapt_intrinsics_to_size(camera.K, camera.image_size, image_size(first))
 
     def progress(message: str) -> None:
         if not args.quiet:
             print(message, file=sys.stderr)
 
     names = [p.name for p in paths]
-    recon = reconstruct_views(images, K, names, args.feature, args.pairs,
-                              SfMSettings(neighbours=args.neighbours), progress)
-    timings = {"load": load_s, **{k: v for k, v in recon.timings_s.items() if k != "total"}}
+    recon = reconstruct_views(
+        [first, *paths[1:]], K_native, camera.dist,
+        max_width=None if args.no_pyr_down else args.max_width, names=names,
+        feature=args.feature, pairs=args.pairs,
+        settings=SfMSettings(neighbours=args.neighbours), progress=progress)
+    timings = {k: v for k, v in recon.timings_s.items() if k != "total"}
     summary = {
         "views": len(names), "registered": int(recon.registered.sum()),
         "unregistered": list(recon.unregistered), "points": len(recon.points3d),
