@@ -4,14 +4,29 @@ After Chapter 4 of *OpenCV with Python Blueprints*, on OpenCV 5. The frames and
 array conventions are stated once in :mod:`scene3D.geometry`.
 """
 
-from .dense import DenseReconstruction, dense_point_cloud
+from typing import Any
+
 from .errors import CalibrationError, DatasetError, ReconstructionError
 from .features import FEATURE_MODES, Matches, find_matches
-from .multiview import MultiViewReconstruction, reconstruct_views
 from .scene import SceneReconstruction3D
 from .twoview import TwoViewReconstruction, TwoViewSettings, reconstruct_from_matches
 
 __version__ = "0.1.0"
+
+# Imported on first use, so that the two-view command does not pay for them.
+_LAZY = {
+    "DenseReconstruction": "dense", "dense_point_cloud": "dense",
+    "MultiViewReconstruction": "multiview", "reconstruct_views": "multiview",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    raise AttributeError(f"module 'scene3D' has no attribute {name!r}")
+
 
 __all__ = [
     "FEATURE_MODES",

@@ -26,7 +26,6 @@ from .camera import (
     validate_distortion,
     validate_intrinsics,
 )
-from .dense import DenseReconstruction, dense_point_cloud
 from .features import Matches, find_matches, normalize_feature_mode
 from .imageio import (
     BOOK_MAX_WIDTH_PX,
@@ -41,6 +40,8 @@ from .twoview import TwoViewReconstruction, TwoViewSettings, reconstruct_two_vie
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
+
+    from .dense import DenseReconstruction
 
 logger = logging.getLogger(__name__)
 
@@ -174,6 +175,8 @@ class SceneReconstruction3D:
         range comes from them); points are in the camera-1 frame, same scale as
         the sparse cloud. Cached per feature mode and block size.
         """
+        from .dense import dense_point_cloud
+
         key = (normalize_feature_mode(feat_mode), block_size)
         if key not in self._dense:
             result = self.reconstruct(feat_mode)
