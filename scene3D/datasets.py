@@ -18,10 +18,8 @@ coordinates), so the world-to-camera pose of :mod:`scene3D.geometry` is
 
 from __future__ import annotations
 
-import hashlib
 import logging
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -87,6 +85,8 @@ def default_cache_dir() -> Path:
 
 def sha256_of(path: Path) -> str:
     """Hex SHA-256 of a file."""
+    import hashlib  # only when verifying: it costs ~5 ms to import
+
     digest = hashlib.sha256()
     with open(path, "rb") as f:
         for block in iter(lambda: f.read(1 << 20), b""):
@@ -96,6 +96,8 @@ def sha256_of(path: Path) -> str:
 
 def _download(url: str, target: Path, expected_sha256: str, timeout_s: float) -> None:
     """Download ``url`` to ``target`` atomically, refusing content with another hash."""
+    import hashlib
+    import tempfile
     import urllib.request  # only when downloading: it costs ~20 ms to import
 
     target.parent.mkdir(parents=True, exist_ok=True)
