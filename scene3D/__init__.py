@@ -9,7 +9,12 @@ from typing import Any
 from .errors import CalibrationError, DatasetError, ReconstructionError
 from .features import FEATURE_MODES, Matches, find_matches
 from .scene import SceneReconstruction3D
-from .twoview import TwoViewReconstruction, TwoViewSettings, reconstruct_from_matches
+from .twoview import (
+    TwoViewGeometry,
+    TwoViewReconstruction,
+    TwoViewSettings,
+    reconstruct_from_matches,
+)
 
 __version__ = "0.1.0"
 
@@ -37,6 +42,7 @@ __all__ = [
     "MultiViewReconstruction",
     "ReconstructionError",
     "SceneReconstruction3D",
+    "TwoViewGeometry",
     "TwoViewReconstruction",
     "TwoViewSettings",
     "__version__",

@@ -45,7 +45,7 @@ from .imageio import (
     pyr_down_levels,
     working_image,
 )
-from .twoview import TwoViewSettings, reconstruct_from_matches
+from .twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
 
 logger = logging.getLogger(__name__)
 
@@ -392,7 +392,8 @@ class _State:
 
 def _initial_pair(features: list[ViewFeatures],
                   pair_matches: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]],
-                  K: FloatArray, candidates: int = 6) -> tuple[tuple[int, int], dict]:
+                  K: FloatArray, candidates: int = 6
+                  ) -> tuple[tuple[int, int], TwoViewGeometry]:
     """The verified pair (among those with most matches) giving most reliable points."""
     ranked = sorted(pair_matches, key=lambda p: len(pair_matches[p][0]), reverse=True)
     best, best_score = None, -1.0
@@ -404,8 +405,8 @@ def _initial_pair(features: list[ViewFeatures],
         except ReconstructionError:
             continue
         # Favour many points seen under a good angle (a wide but well-matched baseline).
-        score = r["points3d"].shape[0] * min(r["median_parallax_deg"], 8.0)
-        if r["trusted"] and score > best_score:
+        score = r.points3d.shape[0] * min(r.median_parallax_deg, 8.0)
+        if r.trusted and score > best_score:
             best, best_score = ((i, j), r), score
     if best is None:
         raise ReconstructionError("no_initial_pair",
@@ -433,7 +434,7 @@ def incremental_reconstruction(
     t0 = time.perf_counter()
     (i, j), r = _initial_pair(features, pair_matches, K)
     state.R[i], state.t[i] = np.eye(3), np.zeros(3)
-    state.R[j], state.t[j] = r["R"], r["t"]
+    state.R[j], state.t[j] = r.R, r.t
     state.registered[[i, j]] = True
     state.triangulate_new()
     state.adjust(fixed_view=i)

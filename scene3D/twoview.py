@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -93,6 +93,34 @@ class TwoViewSettings:
     trusted_inlier_ratio: float = 0.25
     trusted_parallax_deg: float = 2.0
     bundle_adjust: bool = False
+
+
+@dataclass(frozen=True)
+class TwoViewGeometry:
+    """What :func:`reconstruct_from_matches` finds from correspondences alone.
+
+    The fields mean the same as in :class:`TwoViewReconstruction`, plus
+    ``refinement_s``, the seconds spent refining the pose.
+    """
+
+    R: FloatArray
+    t: FloatArray
+    points3d: FloatArray
+    pts1: FloatArray
+    pts2: FloatArray
+    K: FloatArray
+    F: FloatArray
+    E: FloatArray
+    num_matches: int
+    num_inliers: int
+    reprojection_rmse_px: float
+    median_parallax_deg: float
+    homography_inlier_ratio: float
+    trusted: bool
+    warnings: tuple[str, ...]
+    inlier_pts1: FloatArray
+    inlier_pts2: FloatArray
+    refinement_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -239,7 +267,7 @@ def reconstruct_from_matches(
     pts2: ArrayLike,
     K: ArrayLike,
     settings: TwoViewSettings | None = None,
-) -> dict:
+) -> TwoViewGeometry:
     """Estimate pose and structure from correspondences (the geometric core).
 
     Parameters
@@ -251,10 +279,7 @@ def reconstruct_from_matches(
 
     Returns
     -------
-    dict
-        The fields of :class:`TwoViewReconstruction` that depend on geometry only
-        (everything but ``colors``, ``feature`` and ``timings_s``), plus
-        ``"refinement_s"``, the seconds spent refining.
+    TwoViewGeometry
 
     Raises
     ------
@@ -326,7 +351,7 @@ def reconstruct_from_matches(
         E /= np.linalg.norm(E)
         kept_errors = reprojection_errors(points, pts1_kept, pts2_kept, K, R, t)
         refine_s += time.perf_counter() - t_ba
-    return dict(
+    return TwoViewGeometry(
         R=R, t=t, points3d=points, pts1=pts1_kept, pts2=pts2_kept, K=K, F=F, E=E,
         num_matches=n, num_inliers=num_inliers,
         reprojection_rmse_px=float(np.sqrt(np.mean(kept_errors**2))),
@@ -347,15 +372,16 @@ def reconstruct_two_view(
     See :func:`reconstruct_from_matches` for the steps and the errors raised.
     """
     t0 = time.perf_counter()
-    fields = reconstruct_from_matches(matches.pts1, matches.pts2, K, settings)
+    geometry = reconstruct_from_matches(matches.pts1, matches.pts2, K, settings)
     t1 = time.perf_counter()
-    refinement_s = fields.pop("refinement_s")
-    colors = sample_colors(img1, fields["pts1"])
+    refinement_s = geometry.refinement_s
+    colors = sample_colors(img1, geometry.pts1)
     timings = dict(matches.timings_s)
     timings["geometry"] = t1 - t0 - refinement_s
     timings["refinement"] = refinement_s
     timings["total"] = sum(timings.values())
-    for w in fields["warnings"]:
+    for w in geometry.warnings:
         logger.warning("%s", w)
     return TwoViewReconstruction(colors=colors, feature=matches.feature, timings_s=timings,
-                                 **fields)
+                                 **{f.name: getattr(geometry, f.name)
+                                    for f in fields(TwoViewGeometry) if f.name != "refinement_s"})

@@ -46,9 +46,9 @@ def test_bundle_adjustment_does_not_worsen_noisy_pairs(camera, true_pose):
         plain = reconstruct_from_matches(pts1, pts2, camera)
         adjusted = reconstruct_from_matches(pts1, pts2, camera,
                                             TwoViewSettings(bundle_adjust=True))
-        plain_errors.append(relative_pose_error(plain["R"], plain["t"], R, t).max_deg)
-        adjusted_errors.append(relative_pose_error(adjusted["R"], adjusted["t"], R, t).max_deg)
-        assert np.linalg.norm(adjusted["t"]) == pytest.approx(1.0)
+        plain_errors.append(relative_pose_error(plain.R, plain.t, R, t).max_deg)
+        adjusted_errors.append(relative_pose_error(adjusted.R, adjusted.t, R, t).max_deg)
+        assert np.linalg.norm(adjusted.t) == pytest.approx(1.0)
     assert np.mean(adjusted_errors) <= np.mean(plain_errors) + 0.005
     assert max(adjusted_errors) < 2.0
 

@@ -14,17 +14,17 @@ def test_noise_free_pose_and_points_are_exact(camera, true_pose):
     R, t = true_pose
     points, pts1, pts2 = correspondences(camera, R, t, n=300)
     r = reconstruct_from_matches(pts1, pts2, camera)
-    err = relative_pose_error(r["R"], r["t"], R, t)
+    err = relative_pose_error(r.R, r.t, R, t)
     assert err.rotation_deg < 1e-6 and err.translation_deg < 1e-6
-    assert np.linalg.norm(r["t"]) == pytest.approx(1.0)
-    assert r["reprojection_rmse_px"] < 1e-6
+    assert np.linalg.norm(r.t) == pytest.approx(1.0)
+    assert r.reprojection_rmse_px < 1e-6
     # Same points, in units of the baseline.
     scale = np.linalg.norm(t)
     expected = {tuple(np.round(p, 6)) for p in pts1}
-    assert {tuple(np.round(p, 6)) for p in r["pts1"]} <= expected
-    reproj = project(r["points3d"] * scale, camera, R, t)
-    np.testing.assert_allclose(reproj, r["pts2"], atol=1e-6)
-    assert r["num_inliers"] == 300 and r["trusted"]
+    assert {tuple(np.round(p, 6)) for p in r.pts1} <= expected
+    reproj = project(r.points3d * scale, camera, R, t)
+    np.testing.assert_allclose(reproj, r.pts2, atol=1e-6)
+    assert r.num_inliers == 300 and r.trusted
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])
@@ -32,10 +32,10 @@ def test_noisy_pose_is_within_bounds(camera, true_pose, seed):
     R, t = true_pose
     _, pts1, pts2 = correspondences(camera, R, t, n=300, noise_px=0.5, seed=seed)
     r = reconstruct_from_matches(pts1, pts2, camera)
-    err = relative_pose_error(r["R"], r["t"], R, t)
+    err = relative_pose_error(r.R, r.t, R, t)
     assert err.rotation_deg < 0.5
     assert err.translation_deg < 2.0
-    assert 0.2 < r["reprojection_rmse_px"] < 1.0
+    assert 0.2 < r.reprojection_rmse_px < 1.0
 
 
 def test_too_few_matches(camera, true_pose):
@@ -112,8 +112,8 @@ def test_weak_pairs_are_marked_untrusted(camera, true_pose):
     outliers2 = rng.uniform(0, 640, (160, 2))
     r = reconstruct_from_matches(np.vstack([pts1, outliers1]), np.vstack([pts2, outliers2]),
                                  camera)
-    assert not r["trusted"]
-    text = " ".join(r["warnings"])
+    assert not r.trusted
+    text = " ".join(r.warnings)
     assert "inliers" in text and "of the 200 matches" in text
 
 
@@ -121,5 +121,5 @@ def test_short_baseline_is_marked_untrusted(camera, true_pose):
     R, t = true_pose
     _, pts1, pts2 = correspondences(camera, R, 0.15 * t, n=300, noise_px=0.1)
     r = reconstruct_from_matches(pts1, pts2, camera)
-    assert 1.0 <= r["median_parallax_deg"] < 2.0
-    assert not r["trusted"] and "weak parallax" in " ".join(r["warnings"])
+    assert 1.0 <= r.median_parallax_deg < 2.0
+    assert not r.trusted and "weak parallax" in " ".join(r.warnings)
