@@ -229,3 +229,23 @@ def test_reconstruct_views_bad_input(tmp_path, fountain):
     missing = subprocess.run(base + [str(tmp_path / "*.jpg"), "--calib", calib],
                              capture_output=True, text=True)
     assert missing.returncode == 2 and "no image matches" in missing.stderr
+
+
+def test_sequential_pairs_through_the_api(fountain):
+    from scene3D import reconstruct_views
+    from scene3D.datasets import read_strecha_camera
+
+    cams = [read_strecha_camera(fountain / "gt_dense_cameras" / f"{i:04d}.jpg.camera")
+            for i in range(2, 7)]
+    paths = [fountain / "images" / f"{i:04d}.jpg" for i in range(2, 7)]
+    messages = []
+    recon = reconstruct_views(paths, cams[0].K, np.zeros(5), max_width=800,
+                              pairs="sequential", settings=SfMSettings(neighbours=1),
+                              progress=messages.append)
+    assert recon.pair_selection == "neighbours (1 following views)"
+    assert recon.registered.all() and recon.names[0] == "0002.jpg"
+    assert recon.image_size == (768, 512)
+    err = camera_set_error(recon.R, recon.centers, np.array([c.R for c in cams]),
+                           np.array([c.center for c in cams]))
+    assert err.center_errors.max() < 0.02 and err.rotation_errors_deg.max() < 0.5
+    assert any("registered view" in m for m in messages)
