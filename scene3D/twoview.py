@@ -97,10 +97,38 @@ class TwoViewSettings:
 
 @dataclass(frozen=True)
 class TwoViewGeometry:
-    """What :func:`reconstruct_from_matches` finds from correspondences alone.
+    """Pose and structure of a pair, as found from its correspondences alone.
 
-    The fields mean the same as in :class:`TwoViewReconstruction`, plus
-    ``refinement_s``, the seconds spent refining the pose.
+    Attributes
+    ----------
+    R : (3, 3) float64
+        ``R_cam2_from_cam1``.
+    t : (3,) float64
+        Unit translation, ``x_cam2 = R @ x_cam1 + t`` (scale unknown).
+    points3d : (N, 3) float64
+        Triangulated points in the camera-1 frame, in units of the baseline.
+    pts1, pts2 : (N, 2) float64
+        Pixels of the kept points in the working images.
+    K : (3, 3) float64
+        Intrinsics of the working images.
+    F, E : (3, 3) float64
+        Fundamental (pixels) and essential matrices.
+    num_matches, num_inliers : int
+        Putative matches, and inliers of the essential matrix.
+    reprojection_rmse_px : float
+        RMS reprojection error of ``points3d`` over both views.
+    median_parallax_deg : float
+        Median triangulation angle of the kept points.
+    homography_inlier_ratio : float
+        Homography inliers / essential inliers (near 1: planar scene or no baseline).
+    trusted : bool
+        False when a check raised a doubt; see ``warnings``.
+    warnings : tuple[str, ...]
+        Human-readable doubts about the result.
+    inlier_pts1, inlier_pts2 : (M, 2) float64
+        All essential-matrix inliers (before triangulation filters).
+    refinement_s : float
+        Seconds spent refining the pose (and bundle adjusting, if asked).
     """
 
     R: FloatArray
@@ -123,65 +151,22 @@ class TwoViewGeometry:
     refinement_s: float = 0.0
 
 
-@dataclass(frozen=True)
-class TwoViewReconstruction:
-    """The result of reconstructing one image pair.
+@dataclass(frozen=True, kw_only=True)
+class TwoViewReconstruction(TwoViewGeometry):
+    """The result of reconstructing one image pair: :class:`TwoViewGeometry` plus
 
     Attributes
     ----------
-    R : (3, 3) float64
-        ``R_cam2_from_cam1``.
-    t : (3,) float64
-        Unit translation, ``x_cam2 = R @ x_cam1 + t`` (scale unknown).
-    points3d : (N, 3) float64
-        Triangulated points in the camera-1 frame, in units of the baseline.
     colors : (N, 3) uint8
         RGB colour of each point, sampled from image 1.
-    pts1, pts2 : (N, 2) float64
-        Pixels of the kept points in the working images.
-    K : (3, 3) float64
-        Intrinsics of the working images.
-    F, E : (3, 3) float64
-        Fundamental (pixels) and essential matrices.
-    num_matches, num_inliers : int
-        Putative matches, and inliers of the essential matrix.
-    reprojection_rmse_px : float
-        RMS reprojection error of ``points3d`` over both views.
     feature : str
         The detector that actually ran.
-    median_parallax_deg : float
-        Median triangulation angle of the kept points.
-    homography_inlier_ratio : float
-        Homography inliers / essential inliers (near 1: planar scene or no baseline).
-    trusted : bool
-        False when a check raised a doubt; see ``warnings``.
-    warnings : tuple[str, ...]
-        Human-readable doubts about the result.
-    inlier_pts1, inlier_pts2 : (M, 2) float64
-        All essential-matrix inliers (before triangulation filters).
     timings_s : dict[str, float]
         Seconds per stage.
     """
 
-    R: FloatArray
-    t: FloatArray
-    points3d: FloatArray
     colors: np.ndarray
-    pts1: FloatArray
-    pts2: FloatArray
-    K: FloatArray
-    F: FloatArray
-    E: FloatArray
-    num_matches: int
-    num_inliers: int
-    reprojection_rmse_px: float
     feature: str
-    median_parallax_deg: float
-    homography_inlier_ratio: float
-    trusted: bool
-    warnings: tuple[str, ...]
-    inlier_pts1: FloatArray
-    inlier_pts2: FloatArray
     timings_s: dict[str, float] = field(default_factory=dict)
 
     @property
@@ -384,4 +369,4 @@ def reconstruct_two_view(
         logger.warning("%s", w)
     return TwoViewReconstruction(colors=colors, feature=matches.feature, timings_s=timings,
                                  **{f.name: getattr(geometry, f.name)
-                                    for f in fields(TwoViewGeometry) if f.name != "refinement_s"})
+                                    for f in fields(TwoViewGeometry)})
