@@ -207,3 +207,17 @@ def test_show_without_a_display_warns_and_still_writes(tmp_path, synthetic_files
     assert proc.returncode == 0, proc.stderr
     assert "no display available" in proc.stderr
     assert (tmp_path / "point_cloud.png").exists()
+
+
+def test_max_width_halves_images_and_scales_K(tmp_path, synthetic_files, rendered_pair):
+    f = synthetic_files
+    K = rendered_pair[2]
+    proc = run([f / "a.png", f / "b.png", "--calib", f / "camera.yaml", "--max-width", "400",
+                "--no-plots", "--out", tmp_path], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((tmp_path / "reconstruction.json").read_text())
+    assert summary["image_size"] == [320, 240]
+    np.testing.assert_allclose(summary["K"], np.diag([0.5, 0.5, 1.0]) @ K)
+    both = run([f / "a.png", f / "b.png", "--calib", f / "camera.yaml", "--max-width", "400",
+                "--no-pyr-down"], cwd=tmp_path)
+    assert both.returncode == 2 and "not allowed with" in both.stderr
