@@ -235,7 +235,7 @@ def main(argv: list[str] | None = None) -> int:
                              *(o.timings_s.get(s, 0.0) for s in
                                ("features", "matching", "geometry", "refinement", "total"))])
     print(f"fountain-P11, {len(pairs)} pairs per size; errors in degrees against the Strecha "
-          "cameras; failures count as infinite error.\n")
+          "cameras; a failed pair counts as 180 deg (zero for AUC).\n")
     print("| method | width | median rot | p90 rot | median t-dir | p90 t-dir | both < 2 deg "
           "| both < 5 deg | AUC@5deg | inliers | flagged | wrong & unflagged | features s "
           "| matching s | geometry s | refinement s | total s |")
