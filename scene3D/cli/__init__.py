@@ -20,8 +20,9 @@ def main(argv: list[str] | None = None) -> int:
     """Dispatch ``scene3d COMMAND ...`` to the command's own ``main``."""
     argv = sys.argv[1:] if argv is None else list(argv)
     if not argv or argv[0] in ("-h", "--help"):
-        print(USAGE + "\n\ncommands:\n" + "\n".join(f"  {k:<12} {v}" for k, v in
-                                                    COMMANDS.items()))
+        text = USAGE + "\n\ncommands:\n" + "\n".join(f"  {k:<18} {v}"
+                                                      for k, v in COMMANDS.items())
+        print(text, file=sys.stdout if argv else sys.stderr)
         return 0 if argv else 2
     if argv[0] == "--version":
         print(f"scene3d {__version__}")
