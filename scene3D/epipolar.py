@@ -155,7 +155,7 @@ def refine_essential(
         R, t = refine_relative_pose(R, t, p1[inliers], p2[inliers], K, loss="cauchy",
                                     scale_px=threshold_px / 3.0)
         E_new = essential_from_pose(R, t)
-        F = np.linalg.inv(K).T @ E_new @ np.linalg.inv(K)
+        F = fundamental_from_essential(E_new, K)
         new_inliers = np.abs(sampson_residuals(F, p1, p2)) <= threshold_px
         if new_inliers.sum() < 6:
             break

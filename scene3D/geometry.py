@@ -89,6 +89,11 @@ def project(points3d: FloatArray, K: FloatArray, R: FloatArray, t: FloatArray) -
     return pix[:, :2] / pix[:, 2:3]
 
 
+def camera_centers(R: ArrayLike, t: ArrayLike) -> FloatArray:
+    """Centres ``C = -R^T t`` ``(V, 3)`` of world-to-camera poses ``R (V, 3, 3)``, ``t (V, 3)``."""
+    return -np.einsum("vji,vj->vi", np.asarray(R, np.float64), np.asarray(t, np.float64))
+
+
 def rotation_angle_deg(R: ArrayLike) -> float:
     """Angle of the rotation ``R`` in degrees (0 for the identity)."""
     R = np.asarray(R, dtype=np.float64)

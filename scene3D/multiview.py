@@ -36,7 +36,7 @@ from .camera import scale_intrinsics_pyr_down, validate_distortion, validate_int
 from .epipolar import estimate_essential
 from .errors import ReconstructionError
 from .features import create_detector, match_descriptors, to_gray
-from .geometry import FloatArray
+from .geometry import FloatArray, camera_centers
 from .imageio import (
     BOOK_MAX_WIDTH_PX,
     ImageSource,
@@ -45,7 +45,7 @@ from .imageio import (
     pyr_down_levels,
     working_image,
 )
-from .twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
+from .twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches, sample_colors
 
 logger = logging.getLogger(__name__)
 
@@ -144,7 +144,7 @@ class MultiViewReconstruction:
     @property
     def centers(self) -> FloatArray:
         """Camera centres ``C = -R^T t`` in world coordinates ``(V, 3)``."""
-        return -np.einsum("vji,vj->vi", self.R, self.t)
+        return camera_centers(self.R, self.t)
 
     @property
     def mean_track_length(self) -> float:
@@ -171,10 +171,7 @@ def extract_features(img: np.ndarray, feature: str = "SIFT",
     detector, _, _ = create_detector(feature, max_features)
     kps, desc = detector.detectAndCompute(to_gray(img), None)
     pts = np.array([k.pt for k in kps], dtype=np.float64).reshape(-1, 2)
-    h, w = img.shape[:2]
-    xi = np.clip(np.rint(pts[:, 0]).astype(int), 0, w - 1)
-    yi = np.clip(np.rint(pts[:, 1]).astype(int), 0, h - 1)
-    return ViewFeatures(pts, desc, img[yi, xi, ::-1].astype(np.uint8))
+    return ViewFeatures(pts, desc, sample_colors(img, pts))
 
 
 def select_pairs(num_views: int, mode: str = "auto", neighbours: int = 3
@@ -286,7 +283,7 @@ class _State:
         self.point_obs: list[dict[int, int]] = []  # view -> keypoint, inliers only
 
     def centers(self) -> FloatArray:
-        return -np.einsum("vji,vj->vi", self.R, self.t)
+        return camera_centers(self.R, self.t)
 
     def add_point(self, track_id: int, X: FloatArray, obs: dict[int, int]) -> None:
         self.track_point[track_id] = len(self.points)

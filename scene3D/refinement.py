@@ -23,18 +23,16 @@ from .geometry import FloatArray, rotations_from_vectors, skew, to_homogeneous
 
 def sampson_residuals(F: FloatArray, pts1: FloatArray, pts2: FloatArray) -> FloatArray:
     """Signed Sampson distances ``(N,)`` in pixels of correspondences to ``x2^T F x1 = 0``."""
-    h1, h2 = to_homogeneous(pts1), to_homogeneous(pts2)
+    return _sampson(F, to_homogeneous(pts1), to_homogeneous(pts2))
+
+
+def _sampson(F: FloatArray, h1: FloatArray, h2: FloatArray) -> FloatArray:
+    """:func:`sampson_residuals` of homogeneous pixels ``(N, 3)`` (for repeated calls)."""
     Fx1 = h1 @ F.T
     Ftx2 = h2 @ F
-    algebraic = np.sum(h2 * Fx1, axis=1)
+    algebraic = np.einsum("ij,ij->i", h2, Fx1)
     norm = np.sqrt(Fx1[:, 0] ** 2 + Fx1[:, 1] ** 2 + Ftx2[:, 0] ** 2 + Ftx2[:, 1] ** 2)
     return algebraic / np.maximum(norm, 1e-300)
-
-
-def pose_to_fundamental(R: FloatArray, t: FloatArray, K: FloatArray) -> FloatArray:
-    """``F = K^-T [t]x R K^-1`` (not normalised)."""
-    K_inv = np.linalg.inv(K)
-    return K_inv.T @ skew(t) @ R @ K_inv
 
 
 def _tangent_basis(t: FloatArray) -> FloatArray:
@@ -120,11 +118,7 @@ def refine_relative_pose(
     h1, h2 = to_homogeneous(p1), to_homogeneous(p2)
 
     def residuals(R_: FloatArray, t_: FloatArray) -> FloatArray:
-        F = K_inv.T @ skew(t_) @ R_ @ K_inv
-        Fx1 = h1 @ F.T
-        Ftx2 = h2 @ F
-        norm = np.sqrt(Fx1[:, 0] ** 2 + Fx1[:, 1] ** 2 + Ftx2[:, 0] ** 2 + Ftx2[:, 1] ** 2)
-        return np.einsum("ij,ij->i", h2, Fx1) / np.maximum(norm, 1e-300)
+        return _sampson(K_inv.T @ skew(t_) @ R_ @ K_inv, h1, h2)  # F = K^-T [t]x R K^-1
 
     r = residuals(R, t)
     cost = _robust_cost(r, loss, scale_px)
