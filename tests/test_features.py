@@ -23,6 +23,26 @@ def test_ratio_and_mutual_check():
     assert list(zip(i1, i2)) == [(0, 0)]
 
 
+def _opencv_ratio_and_cross_check(d1, d2, ratio):
+    """The reference: cv2.BFMatcher knnMatch + ratio test, and a full backward match."""
+    matcher = cv2.BFMatcher(cv2.NORM_L2)
+    backward = {m.queryIdx: m.trainIdx for m in matcher.match(d2, d1)}
+    return [(m.queryIdx, m.trainIdx) for m, n in matcher.knnMatch(d1, d2, k=2)
+            if m.distance < ratio * n.distance and backward[m.trainIdx] == m.queryIdx]
+
+
+def test_blas_matcher_finds_exactly_the_opencv_matches(rendered_pair, monkeypatch):
+    sift = cv2.SIFT_create()
+    gray = [cv2.cvtColor(img, cv2.COLOR_BGR2GRAY) for img in rendered_pair[:2]]
+    (_, d1), (_, d2) = (sift.detectAndCompute(g, None) for g in gray)
+    expected = _opencv_ratio_and_cross_check(d1, d2, 0.8)
+    assert len(expected) > 100
+    assert list(zip(*match_descriptors(d1, d2, cv2.NORM_L2, 0.8))) == expected
+    # Blocks of rows give the same answer as one block.
+    small_blocks = features._match_l2(d1, d2, 0.8, block_rows=97)
+    assert list(zip(*small_blocks)) == expected
+
+
 @pytest.mark.parametrize("mode, tolerance_px", [
     ("SIFT", 0.5), ("ORB", 1.0), ("AKAZE", 0.5), ("flow", 0.1),  # ORB has no sub-pixel step
 ])
