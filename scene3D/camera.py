@@ -62,33 +62,35 @@ def has_distortion(dist: FloatArray) -> bool:
     return bool(np.any(dist != 0))
 
 
-def scale_intrinsics_pyr_down(K: FloatArray, levels: int = 1) -> FloatArray:
-    """Intrinsics after ``levels`` calls of ``cv2.pyrDown``.
+def scale_intrinsics(K: FloatArray, sx: float, sy: float) -> FloatArray:
+    """Intrinsics of an image scaled by ``(sx, sy)`` with pixel edges kept on pixel edges.
 
-    ``pyrDown`` centres output pixel ``j`` on input pixel ``2 j``, so pixel
-    coordinates simply halve: ``x' = x / 2`` for ``fx, fy, cx, cy`` alike.
+    With pixel centres at integer coordinates, ``x' = sx (x + 0.5) - 0.5``: what
+    ``cv2.resize`` and area averaging (and JPEG's scaled decoding) do.
     """
-    S = np.diag([0.5**levels, 0.5**levels, 1.0])
-    return S @ K
+    K2 = np.array(K, dtype=np.float64)
+    K2[0, :2] *= sx
+    K2[1, 1] *= sy
+    K2[0, 2] = sx * (K[0, 2] + 0.5) - 0.5
+    K2[1, 2] = sy * (K[1, 2] + 0.5) - 0.5
+    return K2
+
+
+def scale_intrinsics_halved(K: FloatArray, levels: int) -> FloatArray:
+    """Intrinsics after halving the image ``levels`` times by area averaging.
+
+    See :func:`scene3D.imageio.halve`: one output pixel averages a
+    ``2^levels`` square of input pixels.
+    """
+    s = 0.5**levels
+    return scale_intrinsics(K, s, s)
 
 
 def scale_intrinsics_resize(
     K: FloatArray, from_size: tuple[int, int], to_size: tuple[int, int]
 ) -> FloatArray:
-    """Intrinsics of an image resized from ``from_size`` to ``to_size`` (width, height).
-
-    A resize maps pixel edges to pixel edges, so with pixel centres at integer
-    coordinates ``x' = s (x + 0.5) - 0.5``.
-    """
-    sx = to_size[0] / from_size[0]
-    sy = to_size[1] / from_size[1]
-    K2 = K.copy()
-    K2[0, 0] *= sx
-    K2[0, 1] *= sx
-    K2[1, 1] *= sy
-    K2[0, 2] = sx * (K[0, 2] + 0.5) - 0.5
-    K2[1, 2] = sy * (K[1, 2] + 0.5) - 0.5
-    return K2
+    """Intrinsics of an image resized from ``from_size`` to ``to_size`` (width, height)."""
+    return scale_intrinsics(K, to_size[0] / from_size[0], to_size[1] / from_size[1])
 
 
 def adapt_intrinsics_to_size(

@@ -1,10 +1,17 @@
-"""Reading images from paths or arrays into BGR ``uint8``, and the book's pyramid rule."""
+"""Reading images from paths or arrays into BGR ``uint8``, and the book's size rule.
+
+The book halves its 3072 px photos with ``cv2.pyrDown`` while they are wider than
+1200 px. We keep the rule but halve by area averaging (each output pixel is the
+mean of a ``2^L x 2^L`` block): for a JPEG file that is what the decoder's scaled
+IDCT already produces, so the full-size image is never decoded or held in memory.
+Pixel centres map as ``x' = (x + 0.5) / 2^L - 0.5`` (see
+:func:`scene3D.camera.scale_intrinsics_halved`).
+"""
 
 from __future__ import annotations
 
 import logging
 import os
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import cv2
@@ -20,8 +27,26 @@ ImageSource = str | os.PathLike | np.ndarray
 IMAGE_SUFFIXES = frozenset({".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm",
                             ".ppm"})
 
-#: The book halves images with ``cv2.pyrDown`` while they are wider than this.
+#: The book halves images while they are wider than this.
 BOOK_MAX_WIDTH_PX = 1200
+
+
+def _read_bytes(path: str | os.PathLike) -> np.ndarray:
+    """The bytes of an image file ``(n,) uint8``; checks that it exists and is not empty."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"image not found: '{path}'")
+    data = np.fromfile(path, dtype=np.uint8)  # works with non-ASCII paths too
+    if data.size == 0:
+        raise ValueError(f"cannot read image '{path}': the file is empty")
+    return data
+
+
+def _decode(data: np.ndarray, flags: int, path: str | os.PathLike) -> np.ndarray:
+    img = cv2.imdecode(data, flags | cv2.IMREAD_IGNORE_ORIENTATION)
+    if img is None:
+        raise ValueError(f"cannot read image '{path}': not an image file")
+    return img
 
 
 def read_image(path: str | os.PathLike) -> np.ndarray:
@@ -37,18 +62,50 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     ValueError
         If the file is empty or not an image OpenCV can decode.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"image not found: '{path}'")
-    data = np.fromfile(path, dtype=np.uint8)  # works with non-ASCII paths too
-    if data.size == 0:
-        raise ValueError(f"cannot read image '{path}': the file is empty")
     # Any depth (16-bit stays 16-bit) and grey or colour as stored; alpha is dropped.
-    flags = cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR | cv2.IMREAD_IGNORE_ORIENTATION
-    img = cv2.imdecode(data, flags)
-    if img is None:
-        raise ValueError(f"cannot read image '{path}': not an image file")
-    return img
+    return _decode(_read_bytes(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR, path)
+
+
+def header_size(head: bytes | np.ndarray) -> tuple[int, int] | None:
+    """``(width, height)`` from the first bytes of a JPEG or PNG file, or None.
+
+    Reads the JPEG frame header (SOFn marker) or the PNG IHDR chunk; None for
+    other formats, or when the header is not within ``head``.
+    """
+    head = memoryview(head).cast("B")
+    if bytes(head[:8]) == b"\x89PNG\r\n\x1a\n" and len(head) >= 24:
+        return (int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big"))
+    if bytes(head[:2]) != b"\xff\xd8":
+        return None
+    i = 2
+    while i + 9 <= len(head):
+        if head[i] != 0xFF:
+            return None
+        marker = head[i + 1]
+        if marker == 0xFF:  # fill byte
+            i += 1
+            continue
+        # Frame headers SOF0..SOF15, except DHT (C4), JPG (C8) and DAC (CC).
+        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+            height = int.from_bytes(head[i + 5:i + 7], "big")
+            width = int.from_bytes(head[i + 7:i + 9], "big")
+            return (width, height) if width and height else None
+        i += 2 + int.from_bytes(head[i + 2:i + 4], "big")
+    return None
+
+
+def read_image_size(path: str | os.PathLike) -> tuple[int, int]:
+    """``(width, height)`` of an image file: from its header for JPEG and PNG, else by decoding.
+
+    Raises ``FileNotFoundError`` / ``ValueError`` like :func:`read_image`.
+    """
+    path = Path(path)
+    if path.is_file():
+        with open(path, "rb") as f:
+            size = header_size(f.read(1 << 18))  # EXIF, ICC etc. come first; 256 KiB is plenty
+        if size is not None:
+            return size
+    return image_size(read_image(path))
 
 
 def to_bgr8(img: np.ndarray, name: str = "image") -> np.ndarray:
@@ -85,37 +142,74 @@ def load_bgr(source: ImageSource, name: str = "image") -> np.ndarray:
     return to_bgr8(source, name=name)
 
 
-def load_bgr_pair(
-    source1: ImageSource, source2: ImageSource
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`load_bgr` of two images at once (decoding releases the GIL)."""
-    with ThreadPoolExecutor(max_workers=2) as pool:
-        first = pool.submit(load_bgr, source1, "img1")
-        second = pool.submit(load_bgr, source2, "img2")
-        return first.result(), second.result()
-
-
-def working_image(img: np.ndarray, K: np.ndarray, dist: np.ndarray, levels: int) -> np.ndarray:
-    """Undistort at native resolution (where the model holds), then ``pyrDown`` ``levels`` times."""
-    if has_distortion(dist):
-        img = undistort_image(img, K, dist)
-    return pyr_down(img, levels)
-
-
-def pyr_down_levels(width: int, max_width: int = BOOK_MAX_WIDTH_PX) -> int:
-    """How many ``pyrDown`` halvings bring ``width`` to at most ``max_width`` (the book's rule)."""
+def halving_levels(width: int, max_width: int | None = BOOK_MAX_WIDTH_PX) -> int:
+    """How many halvings bring ``width`` to at most ``max_width`` (the book's rule); None: 0."""
     levels = 0
-    while width > max_width:
-        width = (width + 1) // 2
+    while max_width is not None and width > max_width:
+        width //= 2
         levels += 1
     return levels
 
 
-def pyr_down(img: np.ndarray, levels: int) -> np.ndarray:
-    """Apply ``cv2.pyrDown`` ``levels`` times."""
-    for _ in range(levels):
-        img = cv2.pyrDown(img)
-    return img
+def halve(img: np.ndarray, levels: int) -> np.ndarray:
+    """Halve ``img`` ``levels`` times by area averaging: ``(H, W[, C]) -> (H >> L, W >> L[, C])``.
+
+    Each output pixel is the mean of a ``2^L`` square block; rows and columns that
+    do not fill a block (at the bottom and right) are dropped, so that the
+    scaling is exact (:func:`scene3D.camera.scale_intrinsics_halved`).
+    """
+    if levels == 0:
+        return img
+    k = 1 << levels
+    h, w = img.shape[0] // k, img.shape[1] // k
+    if h == 0 or w == 0:
+        raise ValueError(f"a {img.shape[1]}x{img.shape[0]} image cannot be halved {levels} times")
+    return cv2.resize(img[:h * k, :w * k], (w, h), interpolation=cv2.INTER_AREA)
+
+
+#: ``cv2.imdecode`` flags that make libjpeg decode at 1/2, 1/4 and 1/8 size.
+_REDUCED_COLOR = {1: cv2.IMREAD_REDUCED_COLOR_2, 2: cv2.IMREAD_REDUCED_COLOR_4,
+                  3: cv2.IMREAD_REDUCED_COLOR_8}
+
+
+def load_working_image(
+    source: ImageSource, K: np.ndarray, dist: np.ndarray,
+    max_width: int | None = BOOK_MAX_WIDTH_PX, name: str = "image",
+) -> tuple[np.ndarray, tuple[int, int], int]:
+    """The working image of a path or array: BGR ``uint8``, undistorted, halved to ``max_width``.
+
+    ``K`` and ``dist`` describe the native image; it is undistorted at native
+    resolution (where the model holds) and then halved while wider than
+    ``max_width`` (None: never). A JPEG file without distortion to remove is
+    decoded straight at the reduced size, which is faster and needs less memory
+    than decoding it whole.
+
+    Returns
+    -------
+    image : (h, w, 3) uint8
+    native_size : (width, height) of the source
+    levels : int
+        Halvings applied; the working ``K`` is ``scale_intrinsics_halved(K, levels)``.
+    """
+    if isinstance(source, (str, os.PathLike)):
+        data = _read_bytes(source)
+        size = header_size(data[:1 << 18])
+        levels = halving_levels(size[0], max_width) if size is not None else 0
+        if levels and not has_distortion(dist) and bytes(data[:2]) == b"\xff\xd8":
+            direct = min(levels, 3)
+            img = to_bgr8(_decode(data, _REDUCED_COLOR[direct], source), str(source))
+            # libjpeg rounds partial blocks up; keep the whole ones only, as halve() does.
+            img = img[:size[1] >> direct, :size[0] >> direct]
+            return halve(img, levels - direct), size, levels
+        img = to_bgr8(_decode(data, cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR, source),
+                      str(source))
+    else:
+        img = to_bgr8(source, name=name)
+    native = image_size(img)
+    levels = halving_levels(native[0], max_width)
+    if has_distortion(dist):
+        img = undistort_image(img, K, dist)
+    return halve(img, levels), native, levels
 
 
 def image_size(img: np.ndarray) -> tuple[int, int]:

@@ -32,19 +32,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .bundle import Observations, bundle_adjust, reprojection_residuals
-from .camera import scale_intrinsics_pyr_down, validate_distortion, validate_intrinsics
+from .camera import scale_intrinsics_halved, validate_distortion, validate_intrinsics
 from .epipolar import estimate_essential
 from .errors import ReconstructionError
 from .features import create_detector, match_descriptors, to_gray
 from .geometry import FloatArray, camera_centers
-from .imageio import (
-    BOOK_MAX_WIDTH_PX,
-    ImageSource,
-    image_size,
-    load_bgr,
-    pyr_down_levels,
-    working_image,
-)
+from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, load_working_image
 from .twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches, sample_colors
 
 logger = logging.getLogger(__name__)
@@ -477,7 +470,8 @@ def load_views(
     """Load images of one camera, undistort them and halve them while wider than ``max_width``.
 
     ``K`` and ``dist`` describe the native images; returns the working images and
-    their ``K``. ``max_width=None`` keeps the native size.
+    their ``K``. ``max_width=None`` keeps the native size. See
+    :func:`scene3D.imageio.load_working_image`.
 
     Raises
     ------
@@ -486,16 +480,16 @@ def load_views(
     """
     K = validate_intrinsics(K)
     dist = validate_distortion(dist)
-    images = [load_bgr(src, f"image {i}") for i, src in enumerate(sources)]
-    sizes = [image_size(img) for img in images]
-    for src, size in zip(sources, sizes):
-        if size != sizes[0]:
+    loaded = [load_working_image(src, K, dist, max_width, f"image {i}")
+              for i, src in enumerate(sources)]
+    for src, (_, size, _) in zip(sources, loaded):
+        if size != loaded[0][1]:
             name = src if isinstance(src, (str, os.PathLike)) else "an image"
-            raise ValueError(f"'{name}' is {size[0]}x{size[1]}, not {sizes[0][0]}x"
-                             f"{sizes[0][1]} like the first image: one camera, one size")
-    levels = 0 if max_width is None or not images else pyr_down_levels(sizes[0][0], max_width)
-    return ([working_image(img, K, dist, levels) for img in images],
-            scale_intrinsics_pyr_down(K, levels))
+            first = loaded[0][1]
+            raise ValueError(f"'{name}' is {size[0]}x{size[1]}, not {first[0]}x{first[1]} "
+                             "like the first image: one camera, one size")
+    levels = loaded[0][2] if loaded else 0
+    return [img for img, _, _ in loaded], scale_intrinsics_halved(K, levels)
 
 
 def reconstruct_views(
@@ -521,7 +515,7 @@ def reconstruct_views(
     dist : array_like, optional
         OpenCV distortion coefficients; the images are undistorted first.
     max_width : int or None
-        Halve with ``pyrDown`` while wider than this (default 2400: 3072 -> 1536);
+        Halve while wider than this (default 2400: 3072 -> 1536);
         None keeps the native size. The result's ``K`` is for the working size.
     names : sequence of str, optional
         Names for the report (default: file names, or view0, view1, ...).

@@ -21,20 +21,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .camera import (
-    scale_intrinsics_pyr_down,
-    validate_distortion,
-    validate_intrinsics,
-)
+from .camera import scale_intrinsics_halved, validate_distortion, validate_intrinsics
 from .features import Matches, find_matches, normalize_feature_mode
-from .imageio import (
-    BOOK_MAX_WIDTH_PX,
-    ImageSource,
-    image_size,
-    load_bgr_pair,
-    pyr_down_levels,
-    working_image,
-)
+from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, load_working_image
 from .rectification import RectifiedPair, rectify_pair
 from .twoview import TwoViewReconstruction, TwoViewSettings, reconstruct_two_view
 
@@ -85,7 +74,8 @@ class SceneReconstruction3D:
         self.K_inv = np.linalg.inv(self.K)
         self.img1: np.ndarray | None = None
         self.img2: np.ndarray | None = None
-        self.pyr_levels = 0
+        self.native_size: tuple[int, int] | None = None  # (width, height) as loaded
+        self.halvings = 0  # times the loaded images were halved
         self._matches: dict[str, Matches] = {}
         self._results: dict[str, TwoViewReconstruction] = {}
         self._dense: dict[tuple[str, int], DenseReconstruction] = {}
@@ -93,10 +83,12 @@ class SceneReconstruction3D:
     # -- loading -----------------------------------------------------------------
     def load_image_pair(self, img1: ImageSource, img2: ImageSource, use_pyr_down: bool = True,
                         max_width: int = BOOK_MAX_WIDTH_PX) -> None:
-        """Load two images (paths or arrays), downscale them like the book and undistort.
+        """Load two images (paths or arrays), undistort them and downscale them like the book.
 
         While wider than ``max_width`` (the book's 1200 px) the images are halved
-        with ``cv2.pyrDown`` and ``K`` is scaled to match (3072 px -> 768 px, K / 4).
+        and ``K`` is scaled to match (3072 px -> 768 px). The book halves with
+        ``cv2.pyrDown``; we average 2x2 blocks, which a JPEG decoder does for free
+        (see :mod:`scene3D.imageio`). ``use_pyr_down=False`` keeps the native size.
 
         Raises
         ------
@@ -105,24 +97,24 @@ class SceneReconstruction3D:
         ValueError
             A file is not an image, or the two images differ in size.
         """
-        a, b = load_bgr_pair(img1, img2)
-        if a.shape != b.shape:
-            raise ValueError(
-                "the two images must have the same size, got "
-                f"{a.shape[1]}x{a.shape[0]} and {b.shape[1]}x{b.shape[0]}"
-            )
-        self.native_size = image_size(a)
-        self.pyr_levels = pyr_down_levels(a.shape[1], max_width) if use_pyr_down else 0
-        with ThreadPoolExecutor(max_workers=2) as pool:  # cv2 releases the GIL
-            self.img1, self.img2 = pool.map(
-                lambda img: working_image(img, self.K_native, self.d, self.pyr_levels), (a, b))
-        self.K = scale_intrinsics_pyr_down(self.K_native, self.pyr_levels)
+        width = max_width if use_pyr_down else None
+        with ThreadPoolExecutor(max_workers=2) as pool:  # decoding releases the GIL
+            first, second = pool.map(
+                lambda src, name: load_working_image(src, self.K_native, self.d, width, name),
+                (img1, img2), ("img1", "img2"))
+        (a, size1, levels), (b, size2, _) = first, second
+        if size1 != size2:
+            raise ValueError(f"the two images must have the same size, got {size1[0]}x"
+                             f"{size1[1]} and {size2[0]}x{size2[1]}")
+        self.img1, self.img2 = a, b
+        self.native_size = size1
+        self.halvings = levels
+        self.K = scale_intrinsics_halved(self.K_native, levels)
         self.K_inv = np.linalg.inv(self.K)
         self._matches.clear()
         self._results.clear()
         self._dense.clear()
-        logger.info("working size %dx%d (pyrDown x%d)", self.img1.shape[1], self.img1.shape[0],
-                    self.pyr_levels)
+        logger.info("working size %dx%d (halved %d times)", a.shape[1], a.shape[0], levels)
 
     def _require_images(self) -> tuple[np.ndarray, np.ndarray]:
         if self.img1 is None or self.img2 is None:

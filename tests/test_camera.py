@@ -4,7 +4,6 @@ import pytest
 
 from scene3D.camera import (
     adapt_intrinsics_to_size,
-    scale_intrinsics_pyr_down,
     scale_intrinsics_resize,
     validate_distortion,
     validate_intrinsics,
@@ -23,16 +22,6 @@ def _blob(size, center, sigma=3.0):
 def _centroid(img):
     y, x = np.mgrid[: img.shape[0], : img.shape[1]]
     return np.array([(x * img).sum(), (y * img).sum()]) / img.sum()
-
-
-def test_pyr_down_scaling_follows_the_pixels():
-    """A blob at (x, y) lands at K'-consistent coordinates after two pyrDowns."""
-    center = np.array([401.3, 233.7])
-    img = _blob((800, 600), center, sigma=6.0)
-    small = cv2.pyrDown(cv2.pyrDown(img))
-    K2 = scale_intrinsics_pyr_down(K, 2)
-    np.testing.assert_allclose(K2, np.diag([0.25, 0.25, 1.0]) @ K)
-    np.testing.assert_allclose(_centroid(small), center / 4, atol=0.02)
 
 
 def test_resize_scaling_keeps_pixel_centres():

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from scene3D.calibration_io import CameraCalibration, save_calibration
+from scene3D.camera import scale_intrinsics
 from scene3D.datasets import read_strecha_camera, relative_pose
 from scene3D.evaluation import relative_pose_error
 from scene3D.export import read_ply
@@ -36,9 +37,7 @@ def synthetic_files(tmp_path_factory, rendered_pair, rotated_pair):
     cv2.imwrite(str(folder / "small.png"), cv2.resize(img2, (320, 240)))
     save_calibration(folder / "camera.yaml", CameraCalibration(K, np.zeros(5), (640, 480)))
     # The same camera calibrated at twice the resolution: K must be scaled down.
-    K2 = K.copy()
-    K2[:2] = 2 * K[:2]
-    K2[:2, 2] = 2 * (K[:2, 2] + 0.5) - 0.5
+    K2 = scale_intrinsics(K, 2.0, 2.0)
     save_calibration(folder / "camera_2x.yaml", CameraCalibration(K2, np.zeros(5), (1280, 960)))
     save_calibration(folder / "camera_wide.yaml", CameraCalibration(K, np.zeros(5), (640, 360)))
     return folder
@@ -60,7 +59,7 @@ def test_default_run_is_the_book_pair_against_ground_truth(tmp_path, data_root):
                               *relative_pose(cam4, cam5))
     assert err.rotation_deg < 1.0 and err.translation_deg < 3.0
     assert summary["image_size"] == [768, 512]
-    np.testing.assert_allclose(summary["K"], np.diag([0.25, 0.25, 1]) @ cam4.K)
+    np.testing.assert_allclose(summary["K"], scale_intrinsics(cam4.K, 0.25, 0.25))
     assert summary["feature"] == "SIFT"
     assert summary["num_inliers"] <= summary["num_matches"]
     assert summary["reprojection_rmse_px"] < 0.5
@@ -217,7 +216,7 @@ def test_max_width_halves_images_and_scales_K(tmp_path, synthetic_files, rendere
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((tmp_path / "reconstruction.json").read_text())
     assert summary["image_size"] == [320, 240]
-    np.testing.assert_allclose(summary["K"], np.diag([0.5, 0.5, 1.0]) @ K)
+    np.testing.assert_allclose(summary["K"], scale_intrinsics(K, 0.5, 0.5))
     both = run([f / "a.png", f / "b.png", "--calib", f / "camera.yaml", "--max-width", "400",
                 "--no-pyr-down"], cwd=tmp_path)
     assert both.returncode == 2 and "not allowed with" in both.stderr

@@ -2,7 +2,17 @@ import cv2
 import numpy as np
 import pytest
 
-from scene3D.imageio import load_bgr, pyr_down_levels, read_image, to_bgr8
+from scene3D.camera import scale_intrinsics_halved
+from scene3D.imageio import (
+    halve,
+    halving_levels,
+    header_size,
+    load_bgr,
+    load_working_image,
+    read_image,
+    read_image_size,
+    to_bgr8,
+)
 
 
 def test_conversions_to_bgr8():
@@ -47,7 +57,71 @@ def test_bad_files(tmp_path):
         read_image(empty)
 
 
-def test_book_pyramid_rule():
-    assert pyr_down_levels(3072) == 2  # 3072 -> 1536 -> 768
-    assert pyr_down_levels(1200) == 0
-    assert pyr_down_levels(1536, max_width=800) == 1
+def test_book_size_rule():
+    assert halving_levels(3072) == 2  # 3072 -> 1536 -> 768
+    assert halving_levels(1200) == 0
+    assert halving_levels(1536, max_width=800) == 1
+    assert halving_levels(5000, max_width=None) == 0
+
+
+def _textured(width, height, seed=0):
+    """A smooth random texture (JPEG-friendly), BGR uint8."""
+    noise = np.random.default_rng(seed).random((height // 8 + 1, width // 8 + 1, 3))
+    img = cv2.resize(noise.astype(np.float32), (width, height), interpolation=cv2.INTER_CUBIC)
+    return np.clip(img * 255, 0, 255).astype(np.uint8)
+
+
+def test_header_sizes_without_decoding(tmp_path):
+    img = _textured(301, 203)
+    for ext in (".jpg", ".png", ".bmp"):
+        path = tmp_path / f"x{ext}"
+        cv2.imwrite(str(path), img)
+        assert read_image_size(path) == (301, 203)  # BMP: by decoding
+    assert header_size((tmp_path / "x.jpg").read_bytes()[:20]) is None  # header cut off
+    assert header_size(b"GIF89a") is None
+
+
+@pytest.mark.parametrize("width, height, levels", [(1200, 800, 2), (1203, 805, 2),
+                                                    (2000, 1000, 4)])
+def test_jpeg_decoded_small_equals_halving_the_full_image(tmp_path, width, height, levels):
+    """The fast path (libjpeg's scaled decoding) and the array path agree in size and pixels."""
+    path = tmp_path / "photo.jpg"
+    cv2.imwrite(str(path), _textured(width, height), [cv2.IMWRITE_JPEG_QUALITY, 95])
+    K, dist = np.eye(3), np.zeros(5)
+    max_width = width >> levels
+    fast, native, used = load_working_image(path, K, dist, max_width)
+    slow, _, _ = load_working_image(read_image(path), K, dist, max_width)
+    assert native == (width, height) and used == levels
+    assert fast.shape == slow.shape == (height >> levels, width >> levels, 3)
+    gray_fast, gray_slow = (cv2.cvtColor(x, cv2.COLOR_BGR2GRAY).astype(np.float32)
+                            for x in (fast, slow))
+    # The same pixel grid (so the same K): equal up to JPEG noise, while a quarter-pixel
+    # shift of the same texture already differs by several grey levels.
+    quarter = cv2.warpAffine(gray_slow, np.float32([[1, 0, 0.25], [0, 1, 0]]),
+                             gray_slow.shape[::-1], flags=cv2.INTER_CUBIC)
+    inner = np.s_[4:-4, 4:-4]
+    assert np.abs(gray_fast - gray_slow)[inner].mean() < 1.0
+    assert np.abs(quarter - gray_slow)[inner].mean() > 3.0
+
+
+def test_halving_keeps_pixel_centres_where_K_says():
+    """A blob at (x, y) lands where the halved K maps it: x' = (x + 0.5) / 4 - 0.5."""
+    K = np.array([[800.0, 0.0, 401.3], [0.0, 800.0, 233.7], [0.0, 0.0, 1.0]])
+    x, y = np.meshgrid(np.arange(803), np.arange(602))
+    img = 255 * np.exp(-((x - K[0, 2]) ** 2 + (y - K[1, 2]) ** 2) / (2 * 6.0**2))
+    small = halve(img.astype(np.float32), 2)
+    assert small.shape == (150, 200)
+    yy, xx = np.mgrid[:150, :200]
+    centroid = np.array([(xx * small).sum(), (yy * small).sum()]) / small.sum()
+    np.testing.assert_allclose(centroid, scale_intrinsics_halved(K, 2)[:2, 2], atol=0.02)
+    assert scale_intrinsics_halved(K, 2)[0, 0] == 200.0
+
+
+def test_distorted_jpeg_is_undistorted_at_full_size(tmp_path):
+    path = tmp_path / "photo.jpg"
+    cv2.imwrite(str(path), _textured(800, 600))
+    K = np.array([[700.0, 0, 400], [0, 700.0, 300], [0, 0, 1]])
+    dist = np.array([-0.2, 0.05, 0, 0, 0])
+    img, _, levels = load_working_image(path, K, dist, 400)
+    expected = halve(cv2.undistort(read_image(path), K, dist, None, K), 1)
+    assert levels == 1 and np.array_equal(img, expected)

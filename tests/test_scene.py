@@ -3,6 +3,7 @@ import pytest
 from matplotlib.figure import Figure
 
 from scene3D import ReconstructionError, SceneReconstruction3D
+from scene3D.camera import scale_intrinsics
 from scene3D.evaluation import relative_pose_error
 
 
@@ -24,7 +25,7 @@ def test_book_api_recovers_the_pose_and_sets_the_book_attributes(scene, rendered
     np.testing.assert_allclose(scene.Rt2, np.hstack([result.R, result.t[:, None]]))
     assert scene.match_pts1.shape == scene.match_pts2.shape == (result.num_matches, 2)
     assert scene.match_inliers1.shape == (result.num_inliers, 2)
-    np.testing.assert_allclose(scene.K, K)  # 640 px wide: no pyrDown
+    np.testing.assert_allclose(scene.K, K)  # 640 px wide: not halved
 
 
 def test_plots_return_figures_and_reuse_the_features(scene):
@@ -37,14 +38,16 @@ def test_plots_return_figures_and_reuse_the_features(scene):
     assert scene.reconstruct() is result
 
 
-def test_pyr_down_scales_K_exactly(rendered_pair):
+def test_halving_scales_K_exactly(rendered_pair):
     img1, img2, K, R, t = rendered_pair
+    # Each pixel repeated as a 4x4 block: pixel x of the rendering is centred at 4x + 1.5.
     big1 = np.kron(img1, np.ones((4, 4, 1), np.uint8))[:, :, :3]  # 2560 x 1920
     big2 = np.kron(img2, np.ones((4, 4, 1), np.uint8))[:, :, :3]
-    K_big = np.diag([4.0, 4.0, 1.0]) @ K
+    K_big = scale_intrinsics(K, 4.0, 4.0)
     s = SceneReconstruction3D(K_big)
     s.load_image_pair(big1, big2)
-    assert s.img1.shape == (480, 640, 3)  # 2560 -> 1280 -> 640
+    assert s.native_size == (2560, 1920) and s.halvings == 2  # 2560 -> 1280 -> 640
+    assert np.array_equal(s.img1, img1)  # averaging 4x4 blocks gives the rendering back
     np.testing.assert_allclose(s.K, K)
     s2 = SceneReconstruction3D(K_big)
     s2.load_image_pair(big1, big2, use_pyr_down=False)

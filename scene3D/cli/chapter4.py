@@ -17,7 +17,7 @@ from ..datasets import BOOK_PAIR, fetch_fountain_p11
 from ..export import save_figure, write_json, write_ply
 from ..features import FEATURE_MODES, normalize_feature_mode
 from ..geometry import rotation_angle_deg
-from ..imageio import BOOK_MAX_WIDTH_PX, image_size, load_bgr_pair
+from ..imageio import BOOK_MAX_WIDTH_PX, image_size, read_image_size
 from ..scene import SceneReconstruction3D
 from ..twoview import TwoViewSettings
 from .common import (
@@ -133,11 +133,10 @@ def run(args: argparse.Namespace) -> int:
     out = prepare_output_dir(args.out)
 
     t0 = time.perf_counter()
-    img1, img2 = load_bgr_pair(path1, path2)
-    K = adapt_intrinsics_to_size(camera.K, camera.image_size, image_size(img1))
+    K = adapt_intrinsics_to_size(camera.K, camera.image_size, read_image_size(path1))
     scene = SceneReconstruction3D(K, camera.dist,
                                   TwoViewSettings(bundle_adjust=args.bundle_adjust))
-    scene.load_image_pair(img1, img2, use_pyr_down=not args.no_pyr_down,
+    scene.load_image_pair(path1, path2, use_pyr_down=not args.no_pyr_down,
                           max_width=args.max_width)
     load_s = time.perf_counter() - t0
 

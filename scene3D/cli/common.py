@@ -40,10 +40,11 @@ def add_size_args(parser: argparse.ArgumentParser, default_width: int, note: str
     """``--max-width PX`` or ``--no-pyr-down``: the working size of the images."""
     size = parser.add_mutually_exclusive_group()
     size.add_argument("--max-width", type=int, default=default_width, metavar="PX",
-                      help=f"halve the images with pyrDown while wider than this "
-                           f"(default {default_width}: {note})")
+                      help=f"halve the images while wider than this, averaging 2x2 "
+                           f"pixels (default {default_width}: {note})")
     size.add_argument("--no-pyr-down", action="store_true",
-                      help="work at full resolution (slower, sometimes more accurate)")
+                      help="work at full resolution (slower, sometimes more accurate; "
+                           "the name is the book's, which halves with cv2.pyrDown)")
 
 
 def configure_logging(args: argparse.Namespace) -> None:

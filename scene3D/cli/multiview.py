@@ -17,7 +17,7 @@ from ..datasets import read_strecha_camera
 from ..evaluation import camera_set_error
 from ..export import colmap_text_files, save_figure, write_json, write_ply, write_text_files
 from ..features import FEATURE_MODES
-from ..imageio import BOOK_MAX_WIDTH_PX, IMAGE_SUFFIXES, image_size, load_bgr
+from ..imageio import BOOK_MAX_WIDTH_PX, IMAGE_SUFFIXES, read_image_size
 from ..multiview import SfMSettings, reconstruct_views
 from .common import (
     EXIT_CODES_HELP,
@@ -110,8 +110,7 @@ def run(args: argparse.Namespace) -> int:
     if args.ground_truth is not None and not args.ground_truth.is_dir():
         raise UsageError(f"--ground-truth '{args.ground_truth}' is not a folder")
 
-    first = load_bgr(paths[0])  # its size tells how to scale the calibration
-    K_native = adapt_intrinsics_to_size(camera.K, camera.image_size, image_size(first))
+    K_native = adapt_intrinsics_to_size(camera.K, camera.image_size, read_image_size(paths[0]))
 
     def progress(message: str) -> None:
         if not args.quiet:
@@ -119,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
 
     names = [p.name for p in paths]
     recon = reconstruct_views(
-        [first, *paths[1:]], K_native, camera.dist,
+        paths, K_native, camera.dist,
         max_width=None if args.no_pyr_down else args.max_width, names=names,
         feature=args.feature, pairs=args.pairs,
         settings=SfMSettings(neighbours=args.neighbours), progress=progress)
