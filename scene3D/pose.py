@@ -9,6 +9,7 @@ over all inliers rather than trusting one point, as the book did.
 from __future__ import annotations
 
 import logging
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -44,16 +45,26 @@ def decompose_essential(E: ArrayLike) -> list[tuple[FloatArray, FloatArray]]:
     return [(R1, t), (R1, -t), (R2, t), (R2, -t)]
 
 
-def cheirality_count(
-    R: FloatArray, t: FloatArray, pts1: FloatArray, pts2: FloatArray, K: FloatArray
-) -> tuple[int, np.ndarray]:
-    """How many correspondences triangulate in front of both cameras for pose ``(R, t)``.
+class PoseChoice(NamedTuple):
+    """The decomposition of ``E`` that :func:`choose_pose` picked.
 
-    Returns the count and the ``(N,) bool`` mask.
+    Attributes
+    ----------
+    R : (3, 3) float64
+        ``R_cam2_from_cam1``, det +1.
+    t : (3,) float64
+        Unit translation, ``x_cam2 = R x_cam1 + t``; the scale is unknown.
+    points3d : (N, 3) float64
+        The correspondences triangulated with this pose (camera-1 frame; NaN rows
+        at infinity).
+    in_front : (N,) bool
+        Points in front of both cameras.
     """
-    points = triangulate_points(pts1, pts2, K, R, t)
-    mask = in_front_mask(points, R, t)
-    return int(mask.sum()), mask
+
+    R: FloatArray
+    t: FloatArray
+    points3d: FloatArray
+    in_front: np.ndarray
 
 
 def choose_pose(
@@ -63,7 +74,7 @@ def choose_pose(
     K: ArrayLike,
     min_fraction: float = 0.5,
     min_margin: float = 1.5,
-) -> tuple[FloatArray, FloatArray, np.ndarray]:
+) -> PoseChoice:
     """Pick the decomposition of ``E`` that puts most points in front of both cameras.
 
     Parameters
@@ -81,12 +92,8 @@ def choose_pose(
 
     Returns
     -------
-    R : (3, 3) float64
-        ``R_cam2_from_cam1``, det +1.
-    t : (3,) float64
-        Unit translation, ``x_cam2 = R x_cam1 + t``; the scale is unknown.
-    in_front : (N,) bool
-        Points in front of both cameras for the chosen pose.
+    PoseChoice
+        ``(R, t, points3d, in_front)``.
 
     Raises
     ------
@@ -97,18 +104,21 @@ def choose_pose(
     p2 = as_points2d(pts2, "pts2")
     check_same_length(p1, p2)
     K = as_matrix(K, (3, 3), "K")
+    candidates = decompose_essential(E)
     scored = []
-    for R, t in decompose_essential(E):
-        count, mask = cheirality_count(R, t, p1, p2, K)
-        scored.append((count, R, t, mask))
+    for R, t in candidates[::2]:
+        # Linear triangulation is odd in t: the points of (R, -t) are those of (R, t), negated.
+        points = triangulate_points(p1, p2, K, R, t)
+        for sign in (1.0, -1.0):
+            mask = in_front_mask(sign * points, R, sign * t)
+            scored.append((int(mask.sum()), PoseChoice(R, sign * t, sign * points, mask)))
     scored.sort(key=lambda item: item[0], reverse=True)
     best, runner_up = scored[0][0], scored[1][0]
-    logger.debug("cheirality counts: %s", [s[0] for s in scored])
+    logger.debug("cheirality counts: %s", [count for count, _ in scored])
     if best < min_fraction * len(p1) or best < min_margin * runner_up:
         raise ReconstructionError(
             "no_cheirality_winner",
             "no pose puts the points clearly in front of both cameras",
             points=len(p1), best=best, runner_up=runner_up,
         )
-    _, R, t, mask = scored[0]
-    return R, t, mask
+    return scored[0][1]

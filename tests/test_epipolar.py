@@ -63,7 +63,7 @@ def test_noisy_points_give_an_accurate_pose(camera, true_pose, seed):
     R, t = true_pose
     _, pts1, pts2 = correspondences(camera, R, t, n=300, noise_px=0.5, seed=seed)
     E, inliers = estimate_essential(pts1, pts2, camera)
-    R_est, t_est, _ = choose_pose(E, pts1[inliers], pts2[inliers], camera)
+    R_est, t_est, _, _ = choose_pose(E, pts1[inliers], pts2[inliers], camera)
     err = relative_pose_error(R_est, t_est, R, t)
     assert err.rotation_deg < 0.5
     assert err.translation_deg < 2.0

@@ -31,10 +31,11 @@ def test_cheirality_picks_each_candidate_when_it_is_the_true_one(camera, true_po
     assert len(points) >= 50
     pts1 = project(points, camera, np.eye(3), np.zeros(3))
     pts2 = project(points, camera, R_c, t_c)
-    R_est, t_est, in_front = choose_pose(E, pts1, pts2, camera)
+    R_est, t_est, points_est, in_front = choose_pose(E, pts1, pts2, camera)
     np.testing.assert_allclose(R_est, R_c, atol=1e-9)
     np.testing.assert_allclose(t_est, t_c, atol=1e-9)
     assert in_front.all()
+    np.testing.assert_allclose(points_est, points, atol=1e-6)  # built with the unit t_c
 
 
 def _points_in_front_of_both(R, t, seed, n=200):
