@@ -4,25 +4,34 @@ After Chapter 4 of *OpenCV with Python Blueprints*, on OpenCV 5. The frames and
 array conventions are stated once in :mod:`scene3D.geometry`.
 """
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .errors import CalibrationError, DatasetError, ReconstructionError
-from .features import FEATURE_MODES, Matches, find_matches
-from .scene import SceneReconstruction3D
-from .twoview import (
-    TwoViewGeometry,
-    TwoViewReconstruction,
-    TwoViewSettings,
-    reconstruct_from_matches,
-)
 
 __version__ = "0.1.0"
 
-# Imported on first use, so that the two-view command does not pay for them.
+# The public names below are imported on first use: ``import scene3D`` stays cheap, and
+# the command-line entry points can set up the process before numpy and OpenCV load.
 _LAZY = {
+    "FEATURE_MODES": "features", "Matches": "features", "find_matches": "features",
+    "SceneReconstruction3D": "scene",
+    "TwoViewGeometry": "twoview", "TwoViewReconstruction": "twoview",
+    "TwoViewSettings": "twoview", "reconstruct_from_matches": "twoview",
     "DenseReconstruction": "dense", "dense_point_cloud": "dense",
     "MultiViewReconstruction": "multiview", "reconstruct_views": "multiview",
 }
+
+if TYPE_CHECKING:
+    from .dense import DenseReconstruction, dense_point_cloud
+    from .features import FEATURE_MODES, Matches, find_matches
+    from .multiview import MultiViewReconstruction, reconstruct_views
+    from .scene import SceneReconstruction3D
+    from .twoview import (
+        TwoViewGeometry,
+        TwoViewReconstruction,
+        TwoViewSettings,
+        reconstruct_from_matches,
+    )
 
 
 def __getattr__(name: str) -> Any:

@@ -2,9 +2,16 @@
 
 from __future__ import annotations
 
+import os
 import sys
 
 from .. import __version__
+
+# Before numpy loads: OpenBLAS's worker threads otherwise spin for about 0.1 s after
+# numpy starts (and after each BLAS call), taking one of the cores that OpenCV's
+# parallel decoding and SIFT need. With a short timeout they sleep at once; BLAS stays
+# multi-threaded. A value the user has set is kept.
+os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")
 
 COMMANDS = {
     "reconstruct": "reconstruct a scene from two photos (chapter4.py)",
