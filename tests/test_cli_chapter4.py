@@ -220,3 +220,18 @@ def test_max_width_halves_images_and_scales_K(tmp_path, synthetic_files, rendere
     both = run([f / "a.png", f / "b.png", "--calib", f / "camera.yaml", "--max-width", "400",
                 "--no-pyr-down"], cwd=tmp_path)
     assert both.returncode == 2 and "not allowed with" in both.stderr
+
+
+def test_startup_imports_nothing_heavy_before_the_cli_sets_up_blas():
+    """`import scene3D` loads neither numpy nor OpenCV; the CLI package sets the OpenBLAS
+    spin timeout before they load, and keeps a value the user chose."""
+    code = ("import os, sys, scene3D; heavy = {'numpy', 'cv2'} & set(sys.modules); "
+            "import scene3D.cli; print(sorted(heavy), os.environ['OPENBLAS_THREAD_TIMEOUT'])")
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_THREAD_TIMEOUT"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                         text=True, check=True).stdout.split()
+    assert out == ["[]", "4"]
+    env["OPENBLAS_THREAD_TIMEOUT"] = "10"
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                         text=True, check=True).stdout.split()
+    assert out == ["[]", "10"]
