@@ -144,6 +144,8 @@ def load_bgr(source: ImageSource, name: str = "image") -> np.ndarray:
 
 def halving_levels(width: int, max_width: int | None = BOOK_MAX_WIDTH_PX) -> int:
     """How many halvings bring ``width`` to at most ``max_width`` (the book's rule); None: 0."""
+    if max_width is not None and max_width < 1:
+        raise ValueError(f"max_width must be at least 1 px, got {max_width}")
     levels = 0
     while max_width is not None and width > max_width:
         width //= 2

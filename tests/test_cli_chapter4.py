@@ -220,6 +220,10 @@ def test_max_width_halves_images_and_scales_K(tmp_path, synthetic_files, rendere
     both = run([f / "a.png", f / "b.png", "--calib", f / "camera.yaml", "--max-width", "400",
                 "--no-pyr-down"], cwd=tmp_path)
     assert both.returncode == 2 and "not allowed with" in both.stderr
+    for bad in ("0", "-5", "wide"):
+        proc = run([f / "a.png", f / "b.png", "--calib", f / "camera.yaml", "--max-width", bad],
+                   cwd=tmp_path)
+        assert proc.returncode == 2 and "--max-width: must be" in proc.stderr
 
 
 def test_startup_imports_nothing_heavy_before_the_cli_sets_up_blas():

@@ -62,6 +62,8 @@ def test_book_size_rule():
     assert halving_levels(1200) == 0
     assert halving_levels(1536, max_width=800) == 1
     assert halving_levels(5000, max_width=None) == 0
+    with pytest.raises(ValueError, match="at least 1 px"):
+        halving_levels(3072, max_width=0)
 
 
 def _textured(width, height, seed=0):

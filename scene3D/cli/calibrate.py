@@ -27,7 +27,15 @@ from ..calibration import (
 from ..camera import undistort_image
 from ..export import atomic_write_bytes, save_figure
 from ..imageio import IMAGE_SUFFIXES, image_size, load_bgr
-from .common import EXIT_CODES_HELP, EXIT_OK, UsageError, add_common_args, run_command, show_images
+from .common import (
+    EXIT_CODES_HELP,
+    EXIT_OK,
+    UsageError,
+    add_common_args,
+    positive_float,
+    run_command,
+    show_images,
+)
 
 logger = logging.getLogger("scene3D.cli")
 
@@ -41,13 +49,6 @@ def _board_size(text: str) -> tuple[int, int]:
     if cols < 2 or rows < 2:
         raise argparse.ArgumentTypeError(f"board size must be at least 2x2, got {text!r}")
     return cols, rows
-
-
-def _positive_float(text: str) -> float:
-    value = float(text)
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
-    return value
 
 
 def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
@@ -75,10 +76,10 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
     board.add_argument("--board", type=_board_size, default=None, metavar="COLSxROWS",
                        help="chessboard: inner corners (default 9x6, the book's); "
                             "charuco: squares (default 5x7)")
-    board.add_argument("--square-size", type=_positive_float, default=1.0, metavar="M",
+    board.add_argument("--square-size", type=positive_float, default=1.0, metavar="M",
                        help="side of a square in metres (default 1.0, i.e. results in units of "
                             "squares; K and the distortion do not depend on it)")
-    board.add_argument("--marker-size", type=_positive_float, default=None, metavar="M",
+    board.add_argument("--marker-size", type=positive_float, default=None, metavar="M",
                        help="charuco: side of a marker in metres (default: half a square)")
     board.add_argument("--dictionary", default="DICT_6X6_250",
                        help="charuco: ArUco dictionary (default DICT_6X6_250)")

@@ -25,6 +25,28 @@ class UsageError(Exception):
     """A command-line mistake the user can fix (exit code 2)."""
 
 
+def positive_float(text: str) -> float:
+    """argparse type: a number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
+    return value
+
+
+def positive_int(text: str) -> int:
+    """argparse type: a whole number >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
+    return value
+
+
 def add_common_args(parser: argparse.ArgumentParser) -> None:
     """``-v/--verbose``, ``-q/--quiet`` and ``--debug``."""
     group = parser.add_argument_group("output and diagnostics")
@@ -39,7 +61,7 @@ def add_common_args(parser: argparse.ArgumentParser) -> None:
 def add_size_args(parser: argparse.ArgumentParser, default_width: int, note: str) -> None:
     """``--max-width PX`` or ``--no-pyr-down``: the working size of the images."""
     size = parser.add_mutually_exclusive_group()
-    size.add_argument("--max-width", type=int, default=default_width, metavar="PX",
+    size.add_argument("--max-width", type=positive_int, default=default_width, metavar="PX",
                       help=f"halve the images while wider than this, averaging 2x2 "
                            f"pixels (default {default_width}: {note})")
     size.add_argument("--no-pyr-down", action="store_true",

@@ -25,6 +25,7 @@ from .common import (
     UsageError,
     add_common_args,
     add_size_args,
+    positive_int,
     prepare_output_dir,
     run_command,
 )
@@ -55,7 +56,9 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
     parser.add_argument("--pairs", choices=("auto", "all", "sequential"), default="auto",
                         help="which pairs to match: all pairs (up to 20 views in auto), or "
                              "each view with its --neighbours followers (ordered sequences)")
-    parser.add_argument("--neighbours", type=int, default=3, metavar="N")
+    parser.add_argument("--neighbours", type=positive_int, default=3, metavar="N",
+                        help="with --pairs sequential (or auto beyond 20 views): how many "
+                             "following views each view is matched with (default 3)")
     parser.add_argument("--feature", default="sift", type=str.lower,
                         choices=[m.lower() for m in FEATURE_MODES if m != "flow"])
     parser.add_argument("--ground-truth", type=Path, metavar="DIR",
