@@ -45,7 +45,7 @@ def _read_bytes(path: str | os.PathLike) -> np.ndarray:
 def _decode(data: np.ndarray, flags: int, path: str | os.PathLike) -> np.ndarray:
     img = cv2.imdecode(data, flags | cv2.IMREAD_IGNORE_ORIENTATION)
     if img is None:
-        raise ValueError(f"cannot read image '{path}': not an image file")
+        raise ValueError(f"cannot read image '{path}': not an image file, or a damaged one")
     return img
 
 

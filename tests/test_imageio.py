@@ -55,6 +55,13 @@ def test_bad_files(tmp_path):
     empty.touch()
     with pytest.raises(ValueError, match="empty"):
         read_image(empty)
+    photo = tmp_path / "photo.jpg"
+    cv2.imwrite(str(photo), _textured(1200, 800))
+    cut = tmp_path / "cut.jpg"
+    cut.write_bytes(photo.read_bytes()[:2000])  # the header survives, the pixels do not
+    for max_width in (None, 300):  # full decoding and decoding at the reduced size
+        with pytest.raises(ValueError, match="damaged"):
+            load_working_image(cut, np.eye(3), np.zeros(5), max_width)
 
 
 def test_book_size_rule():
