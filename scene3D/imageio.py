@@ -85,6 +85,9 @@ def header_size(head: bytes | np.ndarray) -> tuple[int, int] | None:
         if marker == 0xFF:  # fill byte
             i += 1
             continue
+        if marker == 0x01 or 0xD0 <= marker <= 0xD7:  # TEM, RSTn: no length field
+            i += 2
+            continue
         # Frame headers SOF0..SOF15, except DHT (C4), JPG (C8) and DAC (CC).
         if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
             height = int.from_bytes(head[i + 5:i + 7], "big")
@@ -200,9 +203,12 @@ def load_working_image(
         if levels and not has_distortion(dist) and bytes(data[:2]) == b"\xff\xd8":
             direct = min(levels, 3)
             img = to_bgr8(_decode(data, _REDUCED_COLOR[direct], source), str(source))
-            # libjpeg rounds partial blocks up; keep the whole ones only, as halve() does.
-            img = img[:size[1] >> direct, :size[0] >> direct]
-            return halve(img, levels - direct), size, levels
+            k = 1 << direct
+            if image_size(img) == ((size[0] + k - 1) // k, (size[1] + k - 1) // k):
+                # libjpeg rounds partial blocks up; keep the whole ones only, as halve() does.
+                img = img[:size[1] >> direct, :size[0] >> direct]
+                return halve(img, levels - direct), size, levels
+            # The header did not describe the image: decode it whole below.
         img = to_bgr8(_decode(data, cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR, source),
                       str(source))
     else:

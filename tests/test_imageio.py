@@ -88,6 +88,18 @@ def test_header_sizes_without_decoding(tmp_path):
         assert read_image_size(path) == (301, 203)  # BMP: by decoding
     assert header_size((tmp_path / "x.jpg").read_bytes()[:20]) is None  # header cut off
     assert header_size(b"GIF89a") is None
+    # A restart marker (no length field) before the frame header; SOF0 for 200x100.
+    assert header_size(b"\xff\xd8\xff\xd0\xff\xc0\x00\x11\x08\x00\x64\x00\xc8\x03") == (200, 100)
+
+
+def test_a_header_that_lies_falls_back_to_full_decoding(tmp_path, monkeypatch):
+    from scene3D import imageio
+
+    path = tmp_path / "photo.jpg"
+    cv2.imwrite(str(path), _textured(1200, 800))
+    monkeypatch.setattr(imageio, "header_size", lambda head: (2400, 1600))
+    img, native, levels = load_working_image(path, np.eye(3), np.zeros(5), 300)
+    assert native == (1200, 800) and levels == 2 and img.shape == (200, 300, 3)
 
 
 @pytest.mark.parametrize("width, height, levels", [(1200, 800, 2), (1203, 805, 2),
