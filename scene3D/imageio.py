@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import logging
 import os
+from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import cv2
@@ -218,6 +220,37 @@ def load_working_image(
     if has_distortion(dist):
         img = undistort_image(img, K, dist)
     return halve(img, levels), native, levels
+
+
+def load_working_images(
+    sources: Sequence[ImageSource], K: np.ndarray, dist: np.ndarray,
+    max_width: int | None = BOOK_MAX_WIDTH_PX, names: Sequence[str] | None = None,
+) -> tuple[list[np.ndarray], tuple[int, int] | None, int]:
+    """:func:`load_working_image` of photos of one camera, two at a time (decoding
+    releases the GIL).
+
+    Returns the working images, their common native ``(width, height)`` (None for
+    no sources) and the number of halvings.
+
+    Raises
+    ------
+    ValueError
+        Also when the sources differ in size: one calibration holds for one size.
+    """
+    names = list(names) if names is not None else [f"image {i}" for i in range(len(sources))]
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        loaded = list(pool.map(
+            lambda src, name: load_working_image(src, K, dist, max_width, name), sources, names))
+    if not loaded:
+        return [], None, 0
+    first = loaded[0][1]
+    for src, name, (_, size, _) in zip(sources, names, loaded):
+        if size != first:
+            label = src if isinstance(src, (str, os.PathLike)) else name
+            raise ValueError(f"'{label}' is {size[0]}x{size[1]}, not {first[0]}x{first[1]} "
+                             "like the first image: the images must have the same size "
+                             "(one camera, one size)")
+    return [img for img, _, _ in loaded], first, loaded[0][2]
 
 
 def image_size(img: np.ndarray) -> tuple[int, int]:

@@ -37,7 +37,7 @@ from .epipolar import estimate_essential
 from .errors import ReconstructionError
 from .features import create_detector, match_descriptors, to_gray
 from .geometry import FloatArray, camera_centers
-from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, load_working_image
+from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, load_working_images
 from .twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches, sample_colors
 
 logger = logging.getLogger(__name__)
@@ -471,7 +471,7 @@ def load_views(
 
     ``K`` and ``dist`` describe the native images; returns the working images and
     their ``K``. ``max_width=None`` keeps the native size. See
-    :func:`scene3D.imageio.load_working_image`.
+    :func:`scene3D.imageio.load_working_images`.
 
     Raises
     ------
@@ -479,17 +479,8 @@ def load_views(
         A missing or unreadable image, or images of different sizes.
     """
     K = validate_intrinsics(K)
-    dist = validate_distortion(dist)
-    loaded = [load_working_image(src, K, dist, max_width, f"image {i}")
-              for i, src in enumerate(sources)]
-    for src, (_, size, _) in zip(sources, loaded):
-        if size != loaded[0][1]:
-            name = src if isinstance(src, (str, os.PathLike)) else "an image"
-            first = loaded[0][1]
-            raise ValueError(f"'{name}' is {size[0]}x{size[1]}, not {first[0]}x{first[1]} "
-                             "like the first image: one camera, one size")
-    levels = loaded[0][2] if loaded else 0
-    return [img for img, _, _ in loaded], scale_intrinsics_halved(K, levels)
+    images, _, levels = load_working_images(sources, K, validate_distortion(dist), max_width)
+    return images, scale_intrinsics_halved(K, levels)
 
 
 def reconstruct_views(

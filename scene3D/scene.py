@@ -15,7 +15,6 @@ reconstruction are computed once per feature mode and reused by every plot.
 from __future__ import annotations
 
 import logging
-from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -23,7 +22,7 @@ from numpy.typing import ArrayLike
 
 from .camera import scale_intrinsics_halved, validate_distortion, validate_intrinsics
 from .features import Matches, find_matches, normalize_feature_mode
-from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, load_working_image
+from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, load_working_images
 from .rectification import RectifiedPair, rectify_pair
 from .twoview import TwoViewReconstruction, TwoViewSettings, reconstruct_two_view
 
@@ -97,17 +96,11 @@ class SceneReconstruction3D:
         ValueError
             A file is not an image, or the two images differ in size.
         """
-        width = max_width if use_pyr_down else None
-        with ThreadPoolExecutor(max_workers=2) as pool:  # decoding releases the GIL
-            first, second = pool.map(
-                lambda src, name: load_working_image(src, self.K_native, self.d, width, name),
-                (img1, img2), ("img1", "img2"))
-        (a, size1, levels), (b, size2, _) = first, second
-        if size1 != size2:
-            raise ValueError(f"the two images must have the same size, got {size1[0]}x"
-                             f"{size1[1]} and {size2[0]}x{size2[1]}")
+        (a, b), size, levels = load_working_images(
+            (img1, img2), self.K_native, self.d, max_width if use_pyr_down else None,
+            ("img1", "img2"))
         self.img1, self.img2 = a, b
-        self.native_size = size1
+        self.native_size = size
         self.halvings = levels
         self.K = scale_intrinsics_halved(self.K_native, levels)
         self.K_inv = np.linalg.inv(self.K)
