@@ -2,8 +2,17 @@ import numpy as np
 import pytest
 
 from scene3D.evaluation import relative_pose_error
-from scene3D.geometry import rotation_about_axis
-from scene3D.refinement import bundle_adjust_two_view, refine_relative_pose
+from scene3D.geometry import rotation_about_axis, skew, to_homogeneous
+from scene3D.refinement import (
+    _fundamental_derivatives,
+    _robust_cost,
+    _sampson,
+    _sampson_jacobian,
+    _tangent_basis,
+    _update_pose,
+    bundle_adjust_two_view,
+    refine_relative_pose,
+)
 from scene3D.triangulation import reprojection_errors, triangulate_points
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches
 
@@ -24,6 +33,46 @@ def test_sampson_refinement_converges_to_the_exact_pose(camera, true_pose):
     err = relative_pose_error(R1, t1, R, t)
     assert err.rotation_deg < 1e-6 and err.translation_deg < 1e-6
     assert np.linalg.norm(t1) == pytest.approx(1.0)
+
+
+def test_sampson_jacobian_matches_finite_differences(camera, true_pose):
+    R, t = _perturbed(*true_pose, angle_deg=3.0)
+    _, pts1, pts2 = correspondences(camera, *true_pose, n=50, noise_px=2.0)
+    h1, h2 = to_homogeneous(pts1), to_homogeneous(pts2)
+    K_inv = np.linalg.inv(camera)
+
+    def sampson_at(R_, t_):
+        return _sampson(K_inv.T @ skew(t_) @ R_ @ K_inv, h1, h2)
+
+    basis = _tangent_basis(t)
+    J = _sampson_jacobian(K_inv.T @ skew(t) @ R @ K_inv,
+                          _fundamental_derivatives(R, t, basis, K_inv), h1, h2)
+    step = 1e-6
+    numeric = np.stack([(sampson_at(*_update_pose(R, t, step * e, basis))
+                         - sampson_at(*_update_pose(R, t, -step * e, basis))) / (2 * step)
+                        for e in np.eye(5)], axis=1)
+    np.testing.assert_allclose(J, numeric, rtol=1e-5, atol=1e-6 * np.abs(numeric).max())
+
+
+@pytest.mark.parametrize("loss", ["linear", "huber", "soft_l1", "cauchy"])
+def test_robust_refinement_ends_at_a_minimum_of_its_cost(camera, true_pose, loss):
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, t, n=200, noise_px=0.5, seed=4)
+    pts2[:20] += np.random.default_rng(9).normal(0, 3.0, (20, 2))  # moderate outliers
+    R1, t1 = refine_relative_pose(*_perturbed(R, t), pts1, pts2, camera, loss=loss,
+                                  scale_px=0.5)
+    K_inv = np.linalg.inv(camera)
+    h1, h2 = to_homogeneous(pts1), to_homogeneous(pts2)
+
+    def cost(R_, t_):
+        return _robust_cost(_sampson(K_inv.T @ skew(t_) @ R_ @ K_inv, h1, h2), loss, 0.5)
+
+    basis = _tangent_basis(t1)
+    at_result = cost(R1, t1)
+    for e in np.vstack([np.eye(5), -np.eye(5)]):
+        assert cost(*_update_pose(R1, t1, 1e-4 * e, basis)) > at_result
+    err = relative_pose_error(R1, t1, R, t)
+    assert err.rotation_deg < 0.2 and err.translation_deg < 1.0
 
 
 def test_two_view_bundle_adjustment_is_exact_without_noise(camera, true_pose):
