@@ -4,6 +4,7 @@ The pipeline (book chapter 4, done right):
 
 1. essential matrix from calibrated points (5-point, USAC), then a local
    optimisation of the pose on its inliers (robust Sampson refinement),
+   restarted until the best fit is found twice (:func:`scene3D.epipolar.fit_essential`),
 2. homography check: a pure rotation or a planar scene is refused,
 3. pose by cheirality over all inliers; ``F = K^-T E K^-1`` for epipolar lines,
 4. triangulation, keeping points in front of both cameras with small
@@ -25,10 +26,9 @@ from numpy.typing import ArrayLike
 
 from .epipolar import (
     essential_from_pose,
-    estimate_essential,
     estimate_homography,
+    fit_essential,
     fundamental_from_essential,
-    refine_essential,
 )
 from .errors import ReconstructionError
 from .features import Matches
@@ -48,6 +48,10 @@ class TwoViewSettings:
     ----------
     threshold_px : float
         Robust-estimation inlier threshold for F, E and H, in pixels.
+    max_starts : int
+        Most robust estimations of E (each locally optimised); the best is kept
+        once two starts agree on it (:func:`scene3D.epipolar.fit_essential`).
+        1 gives a single start, as plain OpenCV does.
     min_matches, min_inliers, min_points : int
         Below these counts the pair is refused.
     min_median_parallax_deg : float
@@ -77,6 +81,7 @@ class TwoViewSettings:
     """
 
     threshold_px: float = 1.0
+    max_starts: int = 8
     min_matches: int = 20
     min_inliers: int = 15
     min_points: int = 10
@@ -288,11 +293,9 @@ def reconstruct_from_matches(
             "too_few_matches", "too few matches between the images",
             matches=n, required=s.min_matches,
         )
-    E, inliers = estimate_essential(p1, p2, K, s.threshold_px, refine=False)
-    t_refine = time.perf_counter()
-    if inliers.sum() >= 6:
-        E, inliers = refine_essential(E, p1, p2, K, inliers, s.threshold_px)
-    refine_s = time.perf_counter() - t_refine
+    E, inliers, starts, refine_s = fit_essential(p1, p2, K, s.threshold_px,
+                                                 max_starts=s.max_starts)
+    logger.debug("essential matrix: %d robust starts", starts)
     num_inliers = int(inliers.sum())
     if not np.all(np.isfinite(E)) or num_inliers < s.min_inliers:
         raise ReconstructionError(

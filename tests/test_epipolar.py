@@ -4,11 +4,14 @@ import pytest
 from scene3D.epipolar import (
     epipolar_lines,
     epipolar_residuals,
+    essential_cost,
     essential_from_pose,
     estimate_essential,
     estimate_fundamental,
+    fit_essential,
     fundamental_from_essential,
 )
+from scene3D.evaluation import relative_pose_error
 from scene3D.geometry import normalize_points, to_homogeneous
 from scene3D.pose import choose_pose
 
@@ -58,8 +61,6 @@ def test_essential_rejects_outliers(camera, true_pose):
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_noisy_points_give_an_accurate_pose(camera, true_pose, seed):
-    from scene3D.evaluation import relative_pose_error
-
     R, t = true_pose
     _, pts1, pts2 = correspondences(camera, R, t, n=300, noise_px=0.5, seed=seed)
     E, inliers = estimate_essential(pts1, pts2, camera)
@@ -88,3 +89,50 @@ def test_bad_inputs_are_named(camera):
         estimate_fundamental(np.zeros((5, 2)), np.zeros((5, 2)))
     with pytest.raises(ValueError, match=r"`K` must have shape \(3, 3\)"):
         estimate_essential(np.zeros((10, 2)), np.zeros((10, 2)), np.eye(2))
+
+
+def _noisy_with_outliers(camera, R, t, seed=0):
+    _, pts1, pts2 = correspondences(camera, R, t, n=300, noise_px=0.3, seed=seed)
+    rng = np.random.default_rng(seed + 7)
+    bad = rng.choice(300, 60, replace=False)
+    pts2[bad] = rng.uniform(0, 640, (60, 2))
+    return pts1, pts2, bad
+
+
+def test_fit_essential_stops_once_the_best_fit_repeats(camera, true_pose):
+    R, t = true_pose
+    pts1, pts2, bad = _noisy_with_outliers(camera, R, t)
+    fit = fit_essential(pts1, pts2, camera, max_starts=8)
+    assert fit.starts == 2  # one clear optimum: the second start confirms the first
+    assert not fit.inliers[bad].any() and fit.inliers.sum() >= 230
+    R_est, t_est, _, _ = choose_pose(fit.E, pts1[fit.inliers], pts2[fit.inliers], camera)
+    err = relative_pose_error(R_est, t_est, R, t)
+    assert err.rotation_deg < 0.2 and err.translation_deg < 1.0
+    single = fit_essential(pts1, pts2, camera, max_starts=1)
+    assert single.starts == 1
+    assert _same_up_to_sign(single.E, fit.E, 1e-4)
+    E, inliers = estimate_essential(pts1, pts2, camera)  # the single-start public path
+    assert _same_up_to_sign(E, single.E, 1e-12) and np.array_equal(inliers, single.inliers)
+
+
+def test_essential_cost_prefers_the_true_model(camera, true_pose):
+    R, t = true_pose
+    pts1, pts2, _ = _noisy_with_outliers(camera, R, t, seed=3)
+    true_cost = essential_cost(essential_from_pose(R, t), pts1, pts2, camera, 1.0)
+    t_off = t / np.linalg.norm(t) + np.array([0.0, 0.02, 0.0])
+    off_cost = essential_cost(essential_from_pose(R, t_off), pts1, pts2, camera, 1.0)
+    assert true_cost < off_cost
+    # An outlier costs the same however far it is: the cap at the threshold.
+    far = pts2.copy()
+    far[0] += 500.0
+    near = pts2.copy()
+    near[0] += 50.0
+    assert essential_cost(essential_from_pose(R, t), pts1, far, camera, 1.0) == pytest.approx(
+        essential_cost(essential_from_pose(R, t), pts1, near, camera, 1.0))
+
+
+def test_fit_essential_needs_at_least_one_start(camera, true_pose):
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, t, n=20)
+    with pytest.raises(ValueError, match="max_starts must be >= 1"):
+        fit_essential(pts1, pts2, camera, max_starts=0)
