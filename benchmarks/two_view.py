@@ -1,8 +1,9 @@
 """Two-view accuracy and speed: scene3D against the book, plain OpenCV, PoseLib and pycolmap.
 
-    python benchmarks/two_view.py [--sizes 1536 768] [--methods ...] [--quick]
+    python benchmarks/two_view.py [--sizes 1536 768] [--methods ...] [--gaps 1 2] [--quick]
 
-Runs fountain-P11 pairs (i, i+1) and (i, i+2) at each working width, compares every
+Runs fountain-P11 pairs (i, i+1) and (i, i+2) (``--gaps 3 4 5``: wider baselines) at each
+working width, compares every
 estimated relative pose with the Strecha ground truth and prints a markdown table
 (rows per method and size) plus the whole-process time of ``chapter4.py --no-plots``
 against a hand-written plain-OpenCV script. Per-pair rows go to a CSV.
@@ -230,6 +231,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="folder holding fountain-P11/ (default: $SCENE3D_DATA)")
     parser.add_argument("--sizes", type=int, nargs="+", default=[1536, 768])
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
+    parser.add_argument("--gaps", type=int, nargs="+", default=[1, 2],
+                        help="pair each image i with i + gap (default: 1 2, the consecutive "
+                             "and skip-one pairs; larger gaps are wider baselines)")
     parser.add_argument("--quick", action="store_true", help="only pairs (i, i+1), i even")
     parser.add_argument("--csv", type=Path, default=REPO / "out" / "bench" / "two_view.csv")
     parser.add_argument("--process-only", action="store_true",
@@ -242,7 +246,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     cv2.setNumThreads(1)
     methods = [m for m in args.methods if m in ("book", "opencv", "scene3D") or _has(m)]
-    pairs = [(i, i + 1) for i in range(10)] + [(i, i + 2) for i in range(9)]
+    if min(args.gaps) < 1:
+        parser.error("--gaps must be whole numbers >= 1")
+    pairs = [(i, i + gap) for gap in args.gaps for i in range(11 - gap)]
     if args.quick:
         pairs = [(i, i + 1) for i in range(0, 10, 2)]
     outcomes: list[Outcome] = []

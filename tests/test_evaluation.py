@@ -38,10 +38,19 @@ def test_evaluate_command_on_fountain(fountain, tmp_path, capsys):
     assert rot < 1.0 and tdir < 3.0
 
 
+def test_evaluate_pair_specs():
+    from scene3D.cli.evaluate import _pairs
+
+    assert _pairs(["consecutive"], 4) == [(0, 1), (1, 2), (2, 3)]
+    assert _pairs(["skip1"], 4) == [(0, 2), (1, 3)]
+    assert _pairs(["skip4", "1-0"], 11) == [(i, i + 5) for i in range(6)] + [(1, 0)]
+
+
 @pytest.mark.parametrize("argv, message", [
     (["{tmp}"], "needs images/ and gt_dense_cameras/"),
     (["{fountain}", "--pairs", "3-99"], "out of range"),
     (["{fountain}", "--pairs", "first"], "bad pair 'first'"),
+    (["{fountain}", "--pairs", "skip10"], "no image pairs"),
 ])
 def test_evaluate_bad_input(fountain, tmp_path, capsys, argv, message):
     argv = [a.format(tmp=tmp_path, fountain=fountain) for a in argv]

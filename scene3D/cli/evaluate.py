@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import re
 import sys
 import time
 from pathlib import Path
@@ -40,8 +41,9 @@ def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
     )
     parser.add_argument("dataset", type=Path, metavar="DATASET_DIR")
     parser.add_argument("--pairs", nargs="+", default=["consecutive"], metavar="SPEC",
-                        help="'consecutive' (i, i+1; default), 'skip1' (i, i+2), or explicit "
-                             "index pairs such as 4-5 0-2 (indices into the sorted images)")
+                        help="'consecutive' (i, i+1; default), 'skipN' (i, i+1+N: skip1 for "
+                             "i, i+2, larger N for wider baselines), or explicit index pairs "
+                             "such as 4-5 0-2 (indices into the sorted images)")
     add_size_args(parser, BOOK_MAX_WIDTH_PX, "the book's rule, 3072 -> 768")
     parser.add_argument("--feature", default="sift", type=str.lower,
                         choices=[m.lower() for m in FEATURE_MODES])
@@ -64,18 +66,20 @@ def _views(dataset: Path) -> list[tuple[Path, Path]]:
 def _pairs(specs: list[str], count: int) -> list[tuple[int, int]]:
     pairs: list[tuple[int, int]] = []
     for spec in specs:
-        if spec == "consecutive":
-            pairs += [(i, i + 1) for i in range(count - 1)]
-        elif spec == "skip1":
-            pairs += [(i, i + 2) for i in range(count - 2)]
+        skip = re.fullmatch(r"skip(\d+)", spec)
+        if spec == "consecutive" or skip:
+            gap = 1 + (int(skip.group(1)) if skip else 0)
+            pairs += [(i, i + gap) for i in range(count - gap)]
         else:
             try:
                 a, b = (int(v) for v in spec.split("-"))
             except ValueError:
-                raise UsageError(f"bad pair {spec!r}: use consecutive, skip1 or A-B") from None
+                raise UsageError(f"bad pair {spec!r}: use consecutive, skipN or A-B") from None
             if not (0 <= a < count and 0 <= b < count) or a == b:
                 raise UsageError(f"pair {spec!r} is out of range 0..{count - 1}")
             pairs.append((a, b))
+    if not pairs:
+        raise UsageError(f"no image pairs: {' '.join(specs)} selects none of the {count} images")
     return pairs
 
 
