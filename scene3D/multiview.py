@@ -359,8 +359,10 @@ class _State:
         return (np.array(obj, np.float64).reshape(-1, 3), np.array(img, np.float64).reshape(-1, 2),
                 tids)
 
-    def register(self, view: int) -> bool:
-        obj, img, tids = self.correspondences_2d3d(view)
+    def register(self, view: int,
+                 found: tuple[FloatArray, FloatArray, list[int]] | None = None) -> bool:
+        """Register ``view`` by PnP on its 2D-3D matches (``found``: already collected)."""
+        obj, img, tids = found if found is not None else self.correspondences_2d3d(view)
         if len(obj) < self.s.min_registration_inliers:
             return False
         ok, rvec, tvec, inliers = cv2.solvePnPRansac(
@@ -438,12 +440,12 @@ def incremental_reconstruction(
                       v not in failed]
         if not candidates:
             break
-        counts = {v: len(state.correspondences_2d3d(v)[0]) for v in candidates}
-        view = max(counts, key=counts.get)
+        found = {v: state.correspondences_2d3d(v) for v in candidates}
+        view = max(found, key=lambda v: len(found[v][0]))
         t1 = time.perf_counter()
-        if not state.register(view):
+        if not state.register(view, found[view]):
             failed.add(view)
-            say(f"view {view}: cannot be registered ({counts[view]} 2D-3D matches)")
+            say(f"view {view}: cannot be registered ({len(found[view][0])} 2D-3D matches)")
             continue
         added = state.triangulate_new()
         t2 = time.perf_counter()
