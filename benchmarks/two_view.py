@@ -41,7 +41,11 @@ import numpy as np
 from scene3D.camera import scale_intrinsics_halved
 from scene3D.datasets import FOUNTAIN_P11, default_data_root, read_strecha_camera, relative_pose
 from scene3D.errors import ReconstructionError
-from scene3D.evaluation import relative_pose_error, summarize_pose_errors
+from scene3D.evaluation import (
+    paired_auc_difference,
+    relative_pose_error,
+    summarize_pose_errors,
+)
 from scene3D.features import find_matches
 from scene3D.imageio import load_working_image
 from scene3D.pose import choose_pose
@@ -283,9 +287,28 @@ def main(argv: list[str] | None = None) -> int:
                   f"{s['flagged']:.0f} | {s['wrong_unflagged']:.0f} | {s['t_features']:.2f} | "
                   f"{s['t_matching']:.2f} | {s['t_geometry']:.3f} | {s['t_refinement']:.3f} | "
                   f"{s['t_total']:.2f} |")
+    if "scene3D" in methods:
+        _print_auc_differences(outcomes, [m for m in methods if m != "scene3D"])
     _print_process_ratio(folder)
     print(f"Per-pair rows: {args.csv}")
     return 0
+
+
+def _print_auc_differences(outcomes: list[Outcome], peers: list[str]) -> None:
+    """scene3D's AUC@5deg minus each peer's, with a 95 % paired-bootstrap interval."""
+    print("\nAUC@5deg, scene3D minus each peer (percentage points, 95 % paired-bootstrap "
+          "interval over the pairs; an interval containing 0 does not separate the two):")
+    def worst(method: str, width: int) -> list[float]:  # per pair, in pair order
+        return [o.max_deg for o in sorted(outcomes, key=lambda o: o.pair)
+                if o.method == method and o.width == width]
+
+    for width in sorted({o.width for o in outcomes}, reverse=True):
+        ours = worst("scene3D", width)
+        cells = []
+        for peer in peers:
+            diff, low, high = paired_auc_difference(ours, worst(peer, width))
+            cells.append(f"{peer} {diff:+.2f} [{low:+.2f}, {high:+.2f}]")
+        print(f"- {width} px: " + "; ".join(cells))
 
 
 def _print_process_ratio(folder: Path) -> None:

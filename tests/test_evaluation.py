@@ -2,7 +2,12 @@ import numpy as np
 import pytest
 
 from scene3D.cli.evaluate import main
-from scene3D.evaluation import pose_auc, relative_pose_error, summarize_pose_errors
+from scene3D.evaluation import (
+    paired_auc_difference,
+    pose_auc,
+    relative_pose_error,
+    summarize_pose_errors,
+)
 from scene3D.geometry import rotation_about_axis
 
 
@@ -56,3 +61,22 @@ def test_evaluate_bad_input(fountain, tmp_path, capsys, argv, message):
     argv = [a.format(tmp=tmp_path, fountain=fountain) for a in argv]
     assert main(argv) == 2
     assert message in capsys.readouterr().err
+
+
+def test_paired_auc_difference_is_the_auc_difference_with_an_interval():
+    rng = np.random.default_rng(2)
+    a = rng.uniform(0.0, 1.0, 40)
+    b = a + rng.uniform(0.5, 1.5, 40)  # b is worse on every pair
+    b[3] = np.inf  # a failed pair
+    diff, low, high = paired_auc_difference(a, b)
+    assert diff == pytest.approx(pose_auc(a) - pose_auc(b), abs=1e-9)
+    assert 0.0 < low < diff < high
+    assert paired_auc_difference(a, a) == (0.0, 0.0, 0.0)
+    # Two methods that trade small wins pair by pair: the interval straddles zero.
+    c = a.copy()
+    c[::2] += 0.05
+    c[1::2] -= 0.05
+    _, low, high = paired_auc_difference(np.abs(c), a)
+    assert low < 0.0 < high
+    with pytest.raises(ValueError, match="equally long"):
+        paired_auc_difference(a, a[:-1])
