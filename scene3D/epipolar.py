@@ -108,12 +108,17 @@ class EssentialFit(NamedTuple):
         Robust estimations run (1 without restarts).
     refinement_s : float
         Seconds spent in the local optimisation (all starts).
+    confirmed : bool
+        The returned fit was reached from at least two starts (False with one start,
+        or when ``max_starts`` ran out first: then several models fit about equally
+        well and the pose is doubtful).
     """
 
     E: FloatArray
     inliers: np.ndarray
     starts: int
     refinement_s: float
+    confirmed: bool = False
 
 
 def fit_essential(
@@ -172,13 +177,14 @@ def fit_essential(
         E = E / np.linalg.norm(E)
         fits.append((essential_cost(E, p1, p2, K, threshold_px), E, inliers))
         best_E = min(fits, key=lambda fit: fit[0])[1]
-        if sum(_same_essential(E_, best_E) for _, E_, _ in fits) >= 2:
+        confirmed = sum(_same_essential(E_, best_E) for _, E_, _ in fits) >= 2
+        if confirmed:
             break
     if not fits:
         return EssentialFit(np.full((3, 3), np.nan), np.zeros(len(p1), dtype=bool),
                             max_starts, refinement_s)
     _, E, inliers = min(fits, key=lambda fit: fit[0])
-    return EssentialFit(E, inliers, len(fits), refinement_s)
+    return EssentialFit(E, inliers, len(fits), refinement_s, confirmed)
 
 
 def estimate_essential(

@@ -130,6 +130,10 @@ class TwoViewGeometry:
         All essential-matrix inliers (before triangulation filters).
     refinement_s : float
         Seconds spent refining the pose (and bundle adjusting, if asked).
+    robust_starts : int
+        Robust estimations of E run (:func:`scene3D.epipolar.fit_essential`); when
+        the best pose was not found twice in ``TwoViewSettings.max_starts`` of them,
+        the result is untrusted.
     """
 
     R: FloatArray
@@ -150,6 +154,7 @@ class TwoViewGeometry:
     inlier_pts1: FloatArray
     inlier_pts2: FloatArray
     refinement_s: float = 0.0
+    robust_starts: int = 1
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -293,9 +298,9 @@ def reconstruct_from_matches(
             "too_few_matches", "too few matches between the images",
             matches=n, required=s.min_matches,
         )
-    E, inliers, starts, refine_s = fit_essential(p1, p2, K, s.threshold_px,
-                                                 max_starts=s.max_starts)
-    logger.debug("essential matrix: %d robust starts", starts)
+    fit = fit_essential(p1, p2, K, s.threshold_px, max_starts=s.max_starts)
+    E, inliers, refine_s = fit.E, fit.inliers, fit.refinement_s
+    logger.debug("essential matrix: %d robust starts", fit.starts)
     num_inliers = int(inliers.sum())
     if not np.all(np.isfinite(E)) or num_inliers < s.min_inliers:
         raise ReconstructionError(
@@ -334,6 +339,9 @@ def reconstruct_from_matches(
         )
     median_kept_parallax = _median(parallax[keep])
     warnings = trust_warnings(n, num_inliers, median_kept_parallax, h_ratio, s)
+    if s.max_starts > 1 and not fit.confirmed:
+        warnings.append(f"no pose was found twice in {fit.starts} robust starts: several "
+                        "poses fit the matches about equally well")
     points, pts1_kept, pts2_kept = points[keep], in1[keep], in2[keep]
     kept_errors = errors[keep]
     if s.bundle_adjust:
@@ -350,7 +358,7 @@ def reconstruct_from_matches(
         reprojection_rmse_px=float(np.sqrt(np.mean(kept_errors**2))),
         median_parallax_deg=median_kept_parallax,
         homography_inlier_ratio=h_ratio, trusted=not warnings, warnings=tuple(warnings),
-        inlier_pts1=in1, inlier_pts2=in2, refinement_s=refine_s,
+        inlier_pts1=in1, inlier_pts2=in2, refinement_s=refine_s, robust_starts=fit.starts,
     )
 
 

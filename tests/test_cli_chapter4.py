@@ -62,6 +62,7 @@ def test_default_run_is_the_book_pair_against_ground_truth(tmp_path, data_root):
     np.testing.assert_allclose(summary["K"], scale_intrinsics(cam4.K, 0.25, 0.25))
     assert summary["feature"] == "SIFT"
     assert summary["num_inliers"] <= summary["num_matches"]
+    assert summary["robust_starts"] == 2 and summary["trusted"]  # confirmed at once
     assert summary["reprojection_rmse_px"] < 0.5
     assert {"features", "matching", "geometry", "plots", "total"} <= set(summary["timings_s"])
     assert summary["inputs"]["image1"].endswith("0004.jpg")

@@ -103,13 +103,13 @@ def test_fit_essential_stops_once_the_best_fit_repeats(camera, true_pose):
     R, t = true_pose
     pts1, pts2, bad = _noisy_with_outliers(camera, R, t)
     fit = fit_essential(pts1, pts2, camera, max_starts=8)
-    assert fit.starts == 2  # one clear optimum: the second start confirms the first
+    assert fit.starts == 2 and fit.confirmed  # one clear optimum: the second start confirms it
     assert not fit.inliers[bad].any() and fit.inliers.sum() >= 230
     R_est, t_est, _, _ = choose_pose(fit.E, pts1[fit.inliers], pts2[fit.inliers], camera)
     err = relative_pose_error(R_est, t_est, R, t)
     assert err.rotation_deg < 0.2 and err.translation_deg < 1.0
     single = fit_essential(pts1, pts2, camera, max_starts=1)
-    assert single.starts == 1
+    assert single.starts == 1 and not single.confirmed
     assert _same_up_to_sign(single.E, fit.E, 1e-4)
     E, inliers = estimate_essential(pts1, pts2, camera)  # the single-start public path
     assert _same_up_to_sign(E, single.E, 1e-12) and np.array_equal(inliers, single.inliers)
