@@ -20,6 +20,10 @@ from .refinement import refine_relative_pose, sampson_residuals
 #: Robust estimator used for F, E and H (OpenCV's USAC family, MAGSAC++ scoring).
 ROBUST_METHOD = cv2.USAC_MAGSAC
 
+#: Scale of the Cauchy loss of the local optimisation, as a fraction of the inlier
+#: threshold (the threshold taken as about three standard deviations of keypoint noise).
+LOSS_SCALE_OF_THRESHOLD = 1.0 / 3.0
+
 
 def _check_pair(pts1: ArrayLike, pts2: ArrayLike, minimum: int) -> tuple[FloatArray, FloatArray]:
     p1 = as_points2d(pts1, "pts1")
@@ -252,7 +256,8 @@ def essential_cost(E: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: ArrayLike,
     """
     F = fundamental_from_essential(E, K)
     distances = np.minimum(np.abs(sampson_residuals(F, pts1, pts2)), threshold_px)
-    return float(np.sum(np.log1p((3.0 * distances / threshold_px) ** 2)))
+    scale = LOSS_SCALE_OF_THRESHOLD * threshold_px
+    return float(np.sum(np.log1p((distances / scale) ** 2)))
 
 
 def _same_essential(E1: FloatArray, E2: FloatArray, tolerance: float = 1e-4) -> bool:
@@ -270,13 +275,13 @@ def refine_essential(
     current ``(N,) bool`` mask; returns the refined ``E`` and the new mask.
 
     The refinement uses a Cauchy loss whose scale is a third of the inlier
-    threshold (the threshold is taken as about three standard deviations of
-    the keypoint noise), so that near-threshold matches weigh little.
+    threshold (:data:`LOSS_SCALE_OF_THRESHOLD`), so that near-threshold matches
+    weigh little.
     """
     R, t = decompose_essential(E)[0]  # any of the four gives the same E up to sign
     for _ in range(rounds):
         R, t = refine_relative_pose(R, t, p1[inliers], p2[inliers], K, loss="cauchy",
-                                    scale_px=threshold_px / 3.0)
+                                    scale_px=LOSS_SCALE_OF_THRESHOLD * threshold_px)
         E_new = essential_from_pose(R, t)
         F = fundamental_from_essential(E_new, K)
         new_inliers = np.abs(sampson_residuals(F, p1, p2)) <= threshold_px

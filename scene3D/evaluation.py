@@ -51,7 +51,6 @@ def pose_auc(max_errors_deg: ArrayLike, threshold_deg: float = 5.0) -> float:
     return float(100.0 * area / threshold_deg)
 
 
-
 def paired_auc_difference(
     max_errors_a: ArrayLike,
     max_errors_b: ArrayLike,
@@ -90,6 +89,7 @@ def paired_auc_difference(
     tail = 100.0 * (1.0 - confidence) / 2.0
     low, high = np.percentile(means, [tail, 100.0 - tail])
     return float(per_pair.mean()), float(low), float(high)
+
 
 def summarize_pose_errors(
     rotation_deg: ArrayLike, translation_deg: ArrayLike, flagged: ArrayLike | None = None

@@ -3,7 +3,8 @@
 - :func:`refine_relative_pose` polishes ``(R, t)`` by minimising the Sampson
   distances (a first-order geometric error in pixels, H&Z section 11.4.3) of the
   inlier correspondences under a robust loss, with a small Levenberg-Marquardt
-  solver in numpy (5 unknowns; no scipy import on the default path).
+  solver in numpy (5 unknowns, analytic Jacobian, the loss's curvature in the
+  normal equations; no scipy import on the default path).
 - :func:`bundle_adjust_two_view` refines the pose *and* the 3D points by
   minimising reprojection errors in both images (H&Z section 18.1, the gold
   standard), with scipy ``least_squares``, a sparse Jacobian and a robust loss
@@ -51,7 +52,6 @@ def _update_pose(
     R_new = rotations_from_vectors(dx[None, :3])[0] @ R
     t_new = t + dx[3:] @ basis
     return R_new, t_new / np.linalg.norm(t_new)
-
 
 
 def _fundamental_derivatives(R: FloatArray, t: FloatArray, basis: FloatArray,

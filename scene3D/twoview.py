@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .epipolar import (
+    LOSS_SCALE_OF_THRESHOLD,
     essential_from_pose,
     estimate_homography,
     fit_essential,
@@ -347,7 +348,8 @@ def reconstruct_from_matches(
     if s.bundle_adjust:
         t_ba = time.perf_counter()
         R, t, points = bundle_adjust_two_view(R, t, points, pts1_kept, pts2_kept, K,
-                                              loss="cauchy", scale_px=s.threshold_px / 3.0)
+                                              loss="cauchy",
+                                              scale_px=LOSS_SCALE_OF_THRESHOLD * s.threshold_px)
         E = essential_from_pose(R, t)
         E = E / np.linalg.norm(E)
         kept_errors = reprojection_errors(points, pts1_kept, pts2_kept, K, R, t)
