@@ -5,7 +5,8 @@ The pipeline (book chapter 4, done right):
 1. essential matrix from calibrated points (5-point, USAC), then a local
    optimisation of the pose on its inliers (robust Sampson refinement),
    restarted until the best fit is found twice (:func:`scene3D.epipolar.fit_essential`),
-2. homography check: a pure rotation or a planar scene is refused,
+2. homography check: a pure rotation is refused, and so is a planar scene
+   unless matches off the plane rule out the other pose a plane allows,
 3. pose by cheirality over all inliers; ``F = K^-T E K^-1`` for epipolar lines,
 4. triangulation, keeping points in front of both cameras with small
    reprojection error and enough parallax,
@@ -21,6 +22,7 @@ import logging
 import time
 from dataclasses import dataclass, field, fields
 
+import cv2
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -33,10 +35,22 @@ from .epipolar import (
 )
 from .errors import ReconstructionError
 from .features import Matches
-from .geometry import FloatArray, as_matrix, as_points2d, check_same_length
+from .geometry import (
+    FloatArray,
+    angle_between_deg,
+    as_matrix,
+    as_points2d,
+    check_same_length,
+    rotation_error_deg,
+)
 from .pose import choose_pose
-from .refinement import bundle_adjust_two_view
-from .triangulation import parallax_angles_deg, reprojection_errors
+from .refinement import bundle_adjust_two_view, sampson_residuals
+from .triangulation import (
+    in_front_mask,
+    parallax_angles_deg,
+    reprojection_errors,
+    triangulate_points,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -63,8 +77,12 @@ class TwoViewSettings:
     max_reprojection_px : float
         Points reprojecting worse than this in either view are dropped.
     planar_ratio : float
-        Homography inliers / essential inliers above which the pair is refused as
-        planar (or as a pure rotation when the homography is one).
+        Homography inliers / essential inliers above which the pair is refused as a
+        pure rotation (when the homography is one) or checked for the planar
+        ambiguity (:func:`off_plane_evidence`).
+    min_off_plane_matches : int
+        A (nearly) planar pair is refused unless at least this many matches off the
+        plane rule out the other pose that the plane allows.
     planar_warning_ratio : float
         Above this ratio the result is kept but marked untrusted.
     trusted_inliers, trusted_inlier_ratio, trusted_parallax_deg : int, float, float
@@ -90,6 +108,7 @@ class TwoViewSettings:
     min_point_parallax_deg: float = 0.5
     max_reprojection_px: float = 2.0
     planar_ratio: float = 0.95
+    min_off_plane_matches: int = 10
     planar_warning_ratio: float = 0.85
     trusted_inliers: int = 50
     trusted_inlier_ratio: float = 0.25
@@ -215,23 +234,49 @@ def is_rotation_homography(H: FloatArray, K: FloatArray, tolerance: float = 0.02
     return bool(singular[0] / singular[2] - 1.0 < tolerance)
 
 
-def _refuse_homography_pairs(H: FloatArray, h_ratio: float, K: FloatArray, num_inliers: int,
-                             s: TwoViewSettings) -> None:
-    """Raise when one homography explains the inliers: a pure rotation or a plane."""
-    if h_ratio <= s.planar_ratio:
-        return
-    if is_rotation_homography(H, K):
-        raise ReconstructionError(
-            "no_parallax",
-            "the images are related by a pure rotation (no baseline): depth cannot be "
-            "recovered", inliers=num_inliers, homography_inlier_ratio=h_ratio,
-        )
-    raise ReconstructionError(
-        "planar_scene",
-        "one homography explains the matches (a planar scene): the relative pose is "
-        "ambiguous; add depth to the view", inliers=num_inliers,
-        homography_inlier_ratio=h_ratio,
-    )
+def off_plane_evidence(H: FloatArray, K: FloatArray, R: FloatArray, t: FloatArray,
+                       pts1: FloatArray, pts2: FloatArray, on_plane: np.ndarray,
+                       threshold_px: float) -> int:
+    """How many matches off the plane rule out every other pose the plane allows.
+
+    Two views of a plane admit two physically valid poses (the decompositions of
+    ``H``, Faugeras & Lustman 1988): the plane's points cannot choose between them.
+    Matches off the plane can: this counts those among ``pts1, pts2`` (inliers of
+    the chosen pose ``(R, t)``) that are not ``on_plane`` and whose Sampson
+    distance to the other valid pose exceeds ``threshold_px``; with several other
+    poses, the smallest count. A large count means the pose is not ambiguous.
+
+    Parameters
+    ----------
+    H : (3, 3)
+        Homography of the plane, ``x2 ~ H x1``.
+    R, t : (3, 3), (3,)
+        The chosen pose.
+    pts1, pts2 : (N, 2)
+        Inlier pixels of the chosen pose.
+    on_plane : (N,) bool
+        The matches ``H`` explains.
+    """
+    _, rotations, translations, _ = cv2.decomposeHomographyMat(H, K)
+    candidates = []
+    for R_other, t_other in zip(rotations, translations):
+        t_other = t_other.ravel()
+        if np.linalg.norm(t_other) < 1e-12:
+            continue
+        t_other = t_other / np.linalg.norm(t_other)
+        points = triangulate_points(pts1[on_plane], pts2[on_plane], K, R_other, t_other)
+        if in_front_mask(points, R_other, t_other).mean() < 0.5:
+            continue  # the "opposite" solution: the plane would be behind a camera
+        distance = rotation_error_deg(R_other, R) + angle_between_deg(t_other, t)
+        candidates.append((distance, R_other, t_other))
+    candidates.sort(key=lambda c: c[0])
+    off = ~on_plane
+    evidence = len(pts1)
+    for _, R_other, t_other in candidates[1:]:  # the nearest one is the chosen pose
+        F = fundamental_from_essential(essential_from_pose(R_other, t_other), K)
+        rejected = np.abs(sampson_residuals(F, pts1[off], pts2[off])) > threshold_px
+        evidence = min(evidence, int(rejected.sum()))
+    return evidence
 
 
 def trust_warnings(num_matches: int, num_inliers: int, median_parallax_deg: float,
@@ -314,8 +359,23 @@ def reconstruct_from_matches(
     H, h_inliers = estimate_homography(in1, in2, s.threshold_px)
     h_ratio = float(h_inliers.sum()) / num_inliers
 
-    _refuse_homography_pairs(H, h_ratio, K, num_inliers, s)
+    if h_ratio > s.planar_ratio and is_rotation_homography(H, K):
+        raise ReconstructionError(
+            "no_parallax",
+            "the images are related by a pure rotation (no baseline): depth cannot be "
+            "recovered", inliers=num_inliers, homography_inlier_ratio=h_ratio,
+        )
     R, t, points, front = choose_pose(E, in1, in2, K)
+    if h_ratio > s.planar_ratio:
+        evidence = off_plane_evidence(H, K, R, t, in1, in2, h_inliers, s.threshold_px)
+        if evidence < s.min_off_plane_matches:
+            raise ReconstructionError(
+                "planar_scene",
+                "one homography explains the matches (a planar scene): the relative pose is "
+                "ambiguous; add depth to the view", inliers=num_inliers,
+                homography_inlier_ratio=h_ratio, off_plane_evidence=evidence,
+                required=s.min_off_plane_matches,
+            )
     parallax = np.where(front, parallax_angles_deg(np.nan_to_num(points), R, t), 0.0)
     median_parallax = _median(parallax)
     if median_parallax < s.min_median_parallax_deg:

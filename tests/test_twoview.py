@@ -1,11 +1,18 @@
 import numpy as np
 import pytest
 
+from scene3D.epipolar import estimate_homography
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import find_matches
 from scene3D.geometry import project
-from scene3D.twoview import TwoViewSettings, reconstruct_from_matches, reconstruct_two_view
+from scene3D.synthetic import random_points
+from scene3D.twoview import (
+    TwoViewSettings,
+    off_plane_evidence,
+    reconstruct_from_matches,
+    reconstruct_two_view,
+)
 
 from .helpers import correspondences
 
@@ -82,6 +89,45 @@ def test_planar_scene_is_refused(camera, true_pose):
     with pytest.raises(ReconstructionError, match="planar") as info:
         reconstruct_from_matches(pts1, pts2, camera)
     assert info.value.reason == "planar_scene"
+
+
+def _plane_and_points(camera, R, t, n_plane, n_off, noise_px, seed=0):
+    """``n_plane`` points on one plane and ``n_off`` spread in depth, seen from both views."""
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(-3, 3, (n_plane, 2))
+    points = np.vstack([np.column_stack([xy, 7.0 + 0.2 * xy[:, 0]]),
+                        random_points(n_off, seed + 1).reshape(-1, 3)])
+    pts1 = project(points, camera, np.eye(3), np.zeros(3))
+    pts2 = project(points, camera, R, t)
+    return (pts1 + rng.normal(0, noise_px, pts1.shape),
+            pts2 + rng.normal(0, noise_px, pts2.shape))
+
+
+def test_a_dominant_plane_with_depth_off_it_is_kept_but_untrusted(camera, true_pose):
+    """96 % of the matches on one plane, 16 spread in depth: the pose is not ambiguous."""
+    R, t = true_pose
+    pts1, pts2 = _plane_and_points(camera, R, t, 400, 16, noise_px=0.2)
+    result = reconstruct_from_matches(pts1, pts2, camera)
+    assert result.homography_inlier_ratio > TwoViewSettings().planar_ratio
+    err = relative_pose_error(result.R, result.t, R, t)
+    assert max(err.rotation_deg, err.translation_deg) < 0.5
+    assert not result.trusted and any("homography" in w for w in result.warnings)
+
+
+def test_off_plane_evidence_counts_the_matches_that_settle_the_ambiguity(camera, true_pose):
+    R, t = true_pose
+    pts1, pts2 = _plane_and_points(camera, R, t, 300, 12, noise_px=0.0)
+    H, on_plane = estimate_homography(pts1, pts2)
+    assert on_plane[:300].all() and not on_plane[300:].any()
+    # Most of the 12 points off the plane rule the other pose out (one may happen to
+    # lie near its epipolar lines too).
+    assert 10 <= off_plane_evidence(H, camera, R, t, pts1, pts2, on_plane, 1.0) <= 12
+    flat1, flat2 = pts1[:300], pts2[:300]
+    assert off_plane_evidence(H, camera, R, t, flat1, flat2, on_plane[:300], 1.0) == 0
+    few1, few2 = _plane_and_points(camera, R, t, 300, 3, noise_px=0.0)
+    with pytest.raises(ReconstructionError, match="planar") as info:
+        reconstruct_from_matches(few1, few2, camera)
+    assert info.value.counts["off_plane_evidence"] < 10
 
 
 def test_rendered_pair_end_to_end(rendered_pair):
