@@ -28,10 +28,12 @@ from numpy.typing import ArrayLike
 
 from .epipolar import (
     LOSS_SCALE_OF_THRESHOLD,
+    essential_cost,
     essential_from_pose,
     estimate_homography,
     fit_essential,
     fundamental_from_essential,
+    refine_essential,
 )
 from .errors import ReconstructionError
 from .features import Matches
@@ -234,17 +236,37 @@ def is_rotation_homography(H: FloatArray, K: FloatArray, tolerance: float = 0.02
     return bool(singular[0] / singular[2] - 1.0 < tolerance)
 
 
+def plane_poses(H: FloatArray, K: FloatArray, pts1: FloatArray,
+                pts2: FloatArray) -> list[tuple[FloatArray, FloatArray]]:
+    """The physically valid poses ``(R, t)`` (``|t| = 1``) of a plane's homography.
+
+    ``cv2.decomposeHomographyMat`` gives up to four; those that put the plane's
+    points ``pts1, pts2`` ``(N, 2)`` in front of both cameras remain (two for a
+    plane seen with a baseline, Faugeras & Lustman 1988).
+    """
+    _, rotations, translations, _ = cv2.decomposeHomographyMat(H, K)
+    poses = []
+    for R, t in zip(rotations, translations):
+        t = t.ravel()
+        if np.linalg.norm(t) < 1e-12:
+            continue
+        t = t / np.linalg.norm(t)
+        if in_front_mask(triangulate_points(pts1, pts2, K, R, t), R, t).mean() >= 0.5:
+            poses.append((R, t))
+    return poses
+
+
 def off_plane_evidence(H: FloatArray, K: FloatArray, R: FloatArray, t: FloatArray,
                        pts1: FloatArray, pts2: FloatArray, on_plane: np.ndarray,
                        threshold_px: float) -> int:
     """How many matches off the plane rule out every other pose the plane allows.
 
-    Two views of a plane admit two physically valid poses (the decompositions of
-    ``H``, Faugeras & Lustman 1988): the plane's points cannot choose between them.
-    Matches off the plane can: this counts those among ``pts1, pts2`` (inliers of
-    the chosen pose ``(R, t)``) that are not ``on_plane`` and whose Sampson
-    distance to the other valid pose exceeds ``threshold_px``; with several other
-    poses, the smallest count. A large count means the pose is not ambiguous.
+    Two views of a plane admit two physically valid poses (:func:`plane_poses`):
+    the plane's points cannot choose between them. Matches off the plane can: this
+    counts those among ``pts1, pts2`` (inliers of the chosen pose ``(R, t)``) that
+    are not ``on_plane`` and whose Sampson distance to the other valid pose
+    exceeds ``threshold_px``; with several other poses, the smallest count. A
+    large count means the pose is not ambiguous.
 
     Parameters
     ----------
@@ -257,26 +279,42 @@ def off_plane_evidence(H: FloatArray, K: FloatArray, R: FloatArray, t: FloatArra
     on_plane : (N,) bool
         The matches ``H`` explains.
     """
-    _, rotations, translations, _ = cv2.decomposeHomographyMat(H, K)
-    candidates = []
-    for R_other, t_other in zip(rotations, translations):
-        t_other = t_other.ravel()
-        if np.linalg.norm(t_other) < 1e-12:
-            continue
-        t_other = t_other / np.linalg.norm(t_other)
-        points = triangulate_points(pts1[on_plane], pts2[on_plane], K, R_other, t_other)
-        if in_front_mask(points, R_other, t_other).mean() < 0.5:
-            continue  # the "opposite" solution: the plane would be behind a camera
-        distance = rotation_error_deg(R_other, R) + angle_between_deg(t_other, t)
-        candidates.append((distance, R_other, t_other))
-    candidates.sort(key=lambda c: c[0])
+    poses = plane_poses(H, K, pts1[on_plane], pts2[on_plane])
+    # The plane's pose nearest to the chosen one is that pose; the others are the doubt.
+    poses.sort(key=lambda pose: rotation_error_deg(pose[0], R) + angle_between_deg(pose[1], t))
     off = ~on_plane
     evidence = len(pts1)
-    for _, R_other, t_other in candidates[1:]:  # the nearest one is the chosen pose
+    for R_other, t_other in poses[1:]:
         F = fundamental_from_essential(essential_from_pose(R_other, t_other), K)
         rejected = np.abs(sampson_residuals(F, pts1[off], pts2[off])) > threshold_px
         evidence = min(evidence, int(rejected.sum()))
     return evidence
+
+
+def _lowest_cost_plane_pose(E: FloatArray, inliers: np.ndarray, H: FloatArray,
+                            on_plane: np.ndarray, p1: FloatArray, p2: FloatArray,
+                            K: FloatArray, threshold_px: float) -> tuple[FloatArray, np.ndarray]:
+    """``E`` and its inliers, or a pose of the plane refined on all matches if it costs less.
+
+    When one plane holds most matches, USAC's random samples come from the plane
+    and its models may fit the plane alone, dropping the matches off it as
+    outliers; starting the local optimisation from the plane's own poses lets those
+    matches count (:func:`scene3D.epipolar.essential_cost` decides).
+    """
+    in1, in2 = p1[inliers], p2[inliers]
+    best = (essential_cost(E, p1, p2, K, threshold_px), E, inliers)
+    for R, t in plane_poses(H, K, in1[on_plane], in2[on_plane]):
+        E_plane = essential_from_pose(R, t)
+        F = fundamental_from_essential(E_plane, K)
+        plane_inliers = np.abs(sampson_residuals(F, p1, p2)) <= threshold_px
+        if plane_inliers.sum() >= 6:
+            E_plane, plane_inliers = refine_essential(E_plane, p1, p2, K, plane_inliers,
+                                                      threshold_px)
+        E_plane = E_plane / np.linalg.norm(E_plane)
+        cost = essential_cost(E_plane, p1, p2, K, threshold_px)
+        if cost < best[0]:
+            best = (cost, E_plane, plane_inliers)
+    return best[1], best[2]
 
 
 def trust_warnings(num_matches: int, num_inliers: int, median_parallax_deg: float,
@@ -354,7 +392,6 @@ def reconstruct_from_matches(
             matches=n, inliers=num_inliers, required=s.min_inliers,
         )
     E = E / np.linalg.norm(E)
-    F = fundamental_from_essential(E, K)  # the epipolar geometry the pose obeys
     in1, in2 = p1[inliers], p2[inliers]
     H, h_inliers = estimate_homography(in1, in2, s.threshold_px)
     h_ratio = float(h_inliers.sum()) / num_inliers
@@ -365,6 +402,16 @@ def reconstruct_from_matches(
             "the images are related by a pure rotation (no baseline): depth cannot be "
             "recovered", inliers=num_inliers, homography_inlier_ratio=h_ratio,
         )
+    if h_ratio > s.planar_ratio:
+        E_plane, plane_inliers = _lowest_cost_plane_pose(E, inliers, H, h_inliers, p1, p2, K,
+                                                         s.threshold_px)
+        if E_plane is not E:
+            E, inliers = E_plane, plane_inliers
+            num_inliers = int(inliers.sum())
+            in1, in2 = p1[inliers], p2[inliers]
+            H, h_inliers = estimate_homography(in1, in2, s.threshold_px)
+            h_ratio = float(h_inliers.sum()) / num_inliers
+    F = fundamental_from_essential(E, K)  # the epipolar geometry the pose obeys
     R, t, points, front = choose_pose(E, in1, in2, K)
     if h_ratio > s.planar_ratio:
         evidence = off_plane_evidence(H, K, R, t, in1, in2, h_inliers, s.threshold_px)

@@ -10,6 +10,7 @@ from scene3D.synthetic import random_points
 from scene3D.twoview import (
     TwoViewSettings,
     off_plane_evidence,
+    plane_poses,
     reconstruct_from_matches,
     reconstruct_two_view,
 )
@@ -112,6 +113,28 @@ def test_a_dominant_plane_with_depth_off_it_is_kept_but_untrusted(camera, true_p
     err = relative_pose_error(result.R, result.t, R, t)
     assert max(err.rotation_deg, err.translation_deg) < 0.5
     assert not result.trusted and any("homography" in w for w in result.warnings)
+
+
+def test_plane_poses_are_two_and_one_is_the_truth(camera, true_pose):
+    R, t = true_pose
+    pts1, pts2 = _plane_and_points(camera, R, t, 300, 0, noise_px=0.0)
+    H, _ = estimate_homography(pts1, pts2)
+    poses = plane_poses(H, camera, pts1, pts2)
+    assert len(poses) == 2
+    errors = [relative_pose_error(R_p, t_p, R, t) for R_p, t_p in poses]
+    assert min(e.rotation_deg + e.translation_deg for e in errors) < 1e-4
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_matches_off_a_dominant_plane_get_their_vote(camera, true_pose, seed):
+    """12 of 312 matches off the plane: whatever model USAC's plane-bound samples give,
+    the plane's own poses refined on all matches recover the true one."""
+    R, t = true_pose
+    pts1, pts2 = _plane_and_points(camera, R, t, 300, 12, noise_px=0.3, seed=seed)
+    result = reconstruct_from_matches(pts1, pts2, camera)
+    err = relative_pose_error(result.R, result.t, R, t)
+    assert max(err.rotation_deg, err.translation_deg) < 0.5
+    assert result.num_inliers >= 310 and not result.trusted
 
 
 def test_off_plane_evidence_counts_the_matches_that_settle_the_ambiguity(camera, true_pose):
