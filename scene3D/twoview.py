@@ -411,7 +411,6 @@ def reconstruct_from_matches(
             in1, in2 = p1[inliers], p2[inliers]
             H, h_inliers = estimate_homography(in1, in2, s.threshold_px)
             h_ratio = float(h_inliers.sum()) / num_inliers
-    F = fundamental_from_essential(E, K)  # the epipolar geometry the pose obeys
     R, t, points, front = choose_pose(E, in1, in2, K)
     if h_ratio > s.planar_ratio:
         evidence = off_plane_evidence(H, K, R, t, in1, in2, h_inliers, s.threshold_px)
@@ -461,6 +460,7 @@ def reconstruct_from_matches(
         E = E / np.linalg.norm(E)
         kept_errors = reprojection_errors(points, pts1_kept, pts2_kept, K, R, t)
         refine_s += time.perf_counter() - t_ba
+    F = fundamental_from_essential(E, K)  # the epipolar geometry the final pose obeys
     return TwoViewGeometry(
         R=R, t=t, points3d=points, pts1=pts1_kept, pts2=pts2_kept, K=K, F=F, E=E,
         num_matches=n, num_inliers=num_inliers,

@@ -1,6 +1,7 @@
 import numpy as np
 import pytest
 
+from scene3D.epipolar import fundamental_from_essential
 from scene3D.evaluation import relative_pose_error
 from scene3D.geometry import rotation_about_axis, skew, to_homogeneous
 from scene3D.refinement import (
@@ -98,6 +99,9 @@ def test_bundle_adjustment_does_not_worsen_noisy_pairs(camera, true_pose):
         plain_errors.append(relative_pose_error(plain.R, plain.t, R, t).max_deg)
         adjusted_errors.append(relative_pose_error(adjusted.R, adjusted.t, R, t).max_deg)
         assert np.linalg.norm(adjusted.t) == pytest.approx(1.0)
+        # F is the epipolar geometry of the adjusted pose, not of the pose before it.
+        F = fundamental_from_essential(adjusted.E, camera)
+        assert min(np.abs(F - adjusted.F).max(), np.abs(F + adjusted.F).max()) < 1e-12
     assert np.mean(adjusted_errors) <= np.mean(plain_errors) + 0.005
     assert max(adjusted_errors) < 2.0
 
