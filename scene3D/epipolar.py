@@ -176,12 +176,9 @@ def fit_essential(
         E, inliers = _robust_essential(p1, p2, K, threshold_px, confidence, max_iters, order)
         if not np.all(np.isfinite(E)):
             continue
-        if inliers.sum() >= 6:
-            t0 = time.perf_counter()
-            E, inliers = refine_essential(E, p1, p2, K, inliers, threshold_px)
-            refinement_s += time.perf_counter() - t0
-        E = E / np.linalg.norm(E)
-        fits.append((essential_cost(E, p1, p2, K, threshold_px), E, inliers))
+        t0 = time.perf_counter()
+        fits.append(polish_essential(E, p1, p2, K, threshold_px, inliers))
+        refinement_s += time.perf_counter() - t0
         best_E = min(fits, key=lambda fit: fit[0])[1]
         confirmed = sum(_same_essential(E_, best_E) for _, E_, _ in fits) >= 2
         if confirmed:
@@ -247,6 +244,15 @@ def _robust_essential(p1: FloatArray, p2: FloatArray, K: FloatArray, threshold_p
     return E / np.linalg.norm(E), inliers
 
 
+def essential_distances(E: ArrayLike, pts1: ArrayLike, pts2: ArrayLike,
+                        K: ArrayLike) -> FloatArray:
+    """Sampson distances ``(N,)`` in pixels of correspondences to the epipolar geometry of ``E``.
+
+    A correspondence is an inlier of ``E`` when its distance is at most the threshold.
+    """
+    return np.abs(sampson_residuals(fundamental_from_essential(E, K), pts1, pts2))
+
+
 def essential_cost(E: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: ArrayLike,
                    threshold_px: float) -> float:
     """Robust cost of an essential matrix over all correspondences (lower is better).
@@ -256,10 +262,27 @@ def essential_cost(E: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: ArrayLike,
     costs the same whatever its distance (an MSAC-style score): it compares
     models that were refined on different inlier sets.
     """
-    F = fundamental_from_essential(E, K)
-    distances = np.minimum(np.abs(sampson_residuals(F, pts1, pts2)), threshold_px)
+    distances = np.minimum(essential_distances(E, pts1, pts2, K), threshold_px)
     scale = LOSS_SCALE_OF_THRESHOLD * threshold_px
     return float(np.sum(np.log1p((distances / scale) ** 2)))
+
+
+def polish_essential(E: FloatArray, p1: FloatArray, p2: FloatArray, K: FloatArray,
+                     threshold_px: float,
+                     inliers: np.ndarray | None = None) -> tuple[float, FloatArray, np.ndarray]:
+    """Local optimisation from ``E`` (:func:`refine_essential`), and the result's robust cost.
+
+    ``inliers`` ``(N,) bool`` are the starting inliers among all the correspondences
+    ``p1, p2`` (default: those of ``E`` within the threshold). Returns
+    ``(cost, E, inliers)`` with ``E`` of unit norm and the cost of :func:`essential_cost`,
+    so that models polished from different starts can be compared.
+    """
+    if inliers is None:
+        inliers = essential_distances(E, p1, p2, K) <= threshold_px
+    if inliers.sum() >= 6:
+        E, inliers = refine_essential(E, p1, p2, K, inliers, threshold_px)
+    E = E / np.linalg.norm(E)
+    return essential_cost(E, p1, p2, K, threshold_px), E, inliers
 
 
 def _same_essential(E1: FloatArray, E2: FloatArray, tolerance: float = 1e-4) -> bool:
@@ -285,8 +308,7 @@ def refine_essential(
         R, t = refine_relative_pose(R, t, p1[inliers], p2[inliers], K, loss="cauchy",
                                     scale_px=LOSS_SCALE_OF_THRESHOLD * threshold_px)
         E_new = essential_from_pose(R, t)
-        F = fundamental_from_essential(E_new, K)
-        new_inliers = np.abs(sampson_residuals(F, p1, p2)) <= threshold_px
+        new_inliers = essential_distances(E_new, p1, p2, K) <= threshold_px
         if new_inliers.sum() < 6:
             break
         E = E_new

@@ -28,12 +28,14 @@ from numpy.typing import ArrayLike
 
 from .epipolar import (
     LOSS_SCALE_OF_THRESHOLD,
+    EssentialFit,
     essential_cost,
+    essential_distances,
     essential_from_pose,
     estimate_homography,
     fit_essential,
     fundamental_from_essential,
-    refine_essential,
+    polish_essential,
 )
 from .errors import ReconstructionError
 from .features import Matches
@@ -46,7 +48,7 @@ from .geometry import (
     rotation_error_deg,
 )
 from .pose import choose_pose
-from .refinement import bundle_adjust_two_view, sampson_residuals
+from .refinement import bundle_adjust_two_view
 from .triangulation import (
     in_front_mask,
     parallax_angles_deg,
@@ -285,42 +287,46 @@ def off_plane_evidence(H: FloatArray, K: FloatArray, R: FloatArray, t: FloatArra
     off = ~on_plane
     evidence = len(pts1)
     for R_other, t_other in poses[1:]:
-        F = fundamental_from_essential(essential_from_pose(R_other, t_other), K)
-        rejected = np.abs(sampson_residuals(F, pts1[off], pts2[off])) > threshold_px
-        evidence = min(evidence, int(rejected.sum()))
+        distances = essential_distances(essential_from_pose(R_other, t_other), pts1[off],
+                                        pts2[off], K)
+        evidence = min(evidence, int(np.sum(distances > threshold_px)))
     return evidence
 
 
-def _lowest_cost_plane_pose(E: FloatArray, inliers: np.ndarray, H: FloatArray,
-                            on_plane: np.ndarray, p1: FloatArray, p2: FloatArray,
-                            K: FloatArray, threshold_px: float) -> tuple[FloatArray, np.ndarray]:
-    """``E`` and its inliers, or a pose of the plane refined on all matches if it costs less.
+def _lower_cost_plane_pose(E: FloatArray, inliers: np.ndarray, on_plane: np.ndarray,
+                           H: FloatArray, p1: FloatArray, p2: FloatArray, K: FloatArray,
+                           threshold_px: float) -> tuple[FloatArray, np.ndarray] | None:
+    """A pose of the plane, polished on all matches, that costs less than ``E``; else None.
 
     When one plane holds most matches, USAC's random samples come from the plane
     and its models may fit the plane alone, dropping the matches off it as
     outliers; starting the local optimisation from the plane's own poses lets those
-    matches count (:func:`scene3D.epipolar.essential_cost` decides).
+    matches count (:func:`scene3D.epipolar.polish_essential` gives the costs).
+    ``inliers`` are those of ``E`` among ``p1, p2``; ``on_plane`` those of ``H``
+    among them.
     """
+    best_cost, better = essential_cost(E, p1, p2, K, threshold_px), None
     in1, in2 = p1[inliers], p2[inliers]
-    best = (essential_cost(E, p1, p2, K, threshold_px), E, inliers)
     for R, t in plane_poses(H, K, in1[on_plane], in2[on_plane]):
-        E_plane = essential_from_pose(R, t)
-        F = fundamental_from_essential(E_plane, K)
-        plane_inliers = np.abs(sampson_residuals(F, p1, p2)) <= threshold_px
-        if plane_inliers.sum() >= 6:
-            E_plane, plane_inliers = refine_essential(E_plane, p1, p2, K, plane_inliers,
-                                                      threshold_px)
-        E_plane = E_plane / np.linalg.norm(E_plane)
-        cost = essential_cost(E_plane, p1, p2, K, threshold_px)
-        if cost < best[0]:
-            best = (cost, E_plane, plane_inliers)
-    return best[1], best[2]
+        cost, E_plane, plane_inliers = polish_essential(essential_from_pose(R, t), p1, p2, K,
+                                                        threshold_px)
+        if cost < best_cost:
+            best_cost, better = cost, (E_plane, plane_inliers)
+    return better
 
 
 def trust_warnings(num_matches: int, num_inliers: int, median_parallax_deg: float,
-                   homography_ratio: float, s: TwoViewSettings) -> list[str]:
-    """Reasons to doubt a pose that passed every hard check (empty: trusted)."""
+                   homography_ratio: float, s: TwoViewSettings,
+                   fit: EssentialFit | None = None) -> list[str]:
+    """Reasons to doubt a pose that passed every hard check (empty: trusted).
+
+    ``fit``: the robust estimate the pose came from; doubtful when its restarts
+    never reached the best pose twice.
+    """
     warnings = []
+    if fit is not None and s.max_starts > 1 and not fit.confirmed:
+        warnings.append(f"no pose was found twice in {fit.starts} robust starts: several "
+                        "poses fit the matches about equally well")
     if num_inliers < s.trusted_inliers:
         warnings.append(f"only {num_inliers} inliers: the pose rests on few matches")
     if num_inliers < s.trusted_inlier_ratio * num_matches:
@@ -391,7 +397,6 @@ def reconstruct_from_matches(
             "too_few_inliers", "too few matches agree on an essential matrix",
             matches=n, inliers=num_inliers, required=s.min_inliers,
         )
-    E = E / np.linalg.norm(E)
     in1, in2 = p1[inliers], p2[inliers]
     H, h_inliers = estimate_homography(in1, in2, s.threshold_px)
     h_ratio = float(h_inliers.sum()) / num_inliers
@@ -403,10 +408,9 @@ def reconstruct_from_matches(
             "recovered", inliers=num_inliers, homography_inlier_ratio=h_ratio,
         )
     if h_ratio > s.planar_ratio:
-        E_plane, plane_inliers = _lowest_cost_plane_pose(E, inliers, H, h_inliers, p1, p2, K,
-                                                         s.threshold_px)
-        if E_plane is not E:
-            E, inliers = E_plane, plane_inliers
+        better = _lower_cost_plane_pose(E, inliers, h_inliers, H, p1, p2, K, s.threshold_px)
+        if better is not None:
+            E, inliers = better
             num_inliers = int(inliers.sum())
             in1, in2 = p1[inliers], p2[inliers]
             H, h_inliers = estimate_homography(in1, in2, s.threshold_px)
@@ -445,10 +449,7 @@ def reconstruct_from_matches(
             required=s.min_points,
         )
     median_kept_parallax = _median(parallax[keep])
-    warnings = trust_warnings(n, num_inliers, median_kept_parallax, h_ratio, s)
-    if s.max_starts > 1 and not fit.confirmed:
-        warnings.append(f"no pose was found twice in {fit.starts} robust starts: several "
-                        "poses fit the matches about equally well")
+    warnings = trust_warnings(n, num_inliers, median_kept_parallax, h_ratio, s, fit)
     points, pts1_kept, pts2_kept = points[keep], in1[keep], in2[keep]
     kept_errors = errors[keep]
     if s.bundle_adjust:
