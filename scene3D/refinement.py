@@ -89,10 +89,29 @@ def _sampson_jacobian(F: FloatArray, dF: FloatArray, h1: FloatArray,
     return grad.reshape(-1, 9) @ dF.reshape(5, 9).T
 
 
+def _loss(z: FloatArray, loss: str) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """scipy's robust losses ``rho(z)`` and their derivatives ``rho'``, ``rho''`` at ``z = r^2``."""
+    if loss == "linear":
+        return z, np.ones_like(z), np.zeros_like(z)
+    if loss == "cauchy":
+        rho1 = 1.0 / (1.0 + z)
+        return np.log1p(z), rho1, -(rho1**2)
+    if loss == "soft_l1":
+        rho1 = 1.0 / np.sqrt(1.0 + z)
+        return 2.0 * (np.sqrt(1.0 + z) - 1.0), rho1, -0.5 * rho1**3
+    if loss == "huber":
+        big = z > 1.0
+        zs = np.maximum(z, 1e-300)
+        return (np.where(big, 2.0 * np.sqrt(zs) - 1.0, z),
+                np.where(big, 1.0 / np.sqrt(zs), 1.0),
+                np.where(big, -0.5 / (zs * np.sqrt(zs)), 0.0))
+    raise ValueError(f"unknown loss {loss!r}; use linear, huber, soft_l1 or cauchy")
+
+
 def _robust_scaling(r: FloatArray, loss: str, scale: float) -> tuple[FloatArray, FloatArray]:
     """Row scales of the Jacobian and scaled residuals for a robust Gauss-Newton step.
 
-    With ``z = (r / scale)^2`` and the loss ``rho(z)`` (scipy's losses), the rows of
+    With ``z = (r / scale)^2`` and the loss ``rho(z)`` (:func:`_loss`), the rows of
     ``J`` are scaled by ``sqrt(rho' + 2 rho'' z)`` and the residuals become
     ``rho' r / sqrt(rho' + 2 rho'' z)`` (Triggs et al., "Bundle adjustment: a modern
     synthesis", section 4.3, as in scipy's ``least_squares``): the normal equations
@@ -100,34 +119,14 @@ def _robust_scaling(r: FloatArray, loss: str, scale: float) -> tuple[FloatArray,
     of the loss, which converges in fewer steps than plain reweighting.
     """
     z = (r / scale) ** 2
-    if loss == "linear":
-        rho1, rho2 = np.ones_like(z), np.zeros_like(z)
-    elif loss == "cauchy":
-        rho1 = 1.0 / (1.0 + z)
-        rho2 = -(rho1**2)
-    elif loss == "soft_l1":
-        rho1 = 1.0 / np.sqrt(1.0 + z)
-        rho2 = -0.5 * rho1**3
-    elif loss == "huber":
-        big = z > 1.0
-        zs = np.maximum(z, 1e-300)
-        rho1 = np.where(big, 1.0 / np.sqrt(zs), 1.0)
-        rho2 = np.where(big, -0.5 / (zs * np.sqrt(zs)), 0.0)
-    else:
-        raise ValueError(f"unknown loss {loss!r}; use linear, huber, soft_l1 or cauchy")
+    _, rho1, rho2 = _loss(z, loss)
     row_scale = np.sqrt(np.maximum(rho1 + 2.0 * rho2 * z, np.finfo(float).eps))
     return row_scale, rho1 * r / row_scale
 
 
 def _robust_cost(r: FloatArray, loss: str, scale: float) -> float:
-    z = (r / scale) ** 2
-    rho = {
-        "linear": lambda: z,
-        "cauchy": lambda: np.log1p(z),
-        "soft_l1": lambda: 2.0 * (np.sqrt(1.0 + z) - 1.0),
-        "huber": lambda: np.where(z <= 1.0, z, 2.0 * np.sqrt(z) - 1.0),
-    }[loss]()
-    return float(scale**2 * np.sum(rho))
+    """``scale^2 * sum rho((r / scale)^2)``, the cost the refinement minimises."""
+    return float(scale**2 * np.sum(_loss((r / scale) ** 2, loss)[0]))
 
 
 def refine_relative_pose(
@@ -172,25 +171,26 @@ def refine_relative_pose(
     def fundamental(R_: FloatArray, t_: FloatArray) -> FloatArray:
         return K_inv.T @ skew(t_) @ R_ @ K_inv  # F = K^-T [t]x R K^-1
 
-    r = _sampson(fundamental(R, t), h1, h2)
+    F = fundamental(R, t)
+    r = _sampson(F, h1, h2)
     cost = _robust_cost(r, loss, scale_px)
     damping = 1e-3
     for _ in range(max_iterations):
         row_scale, rw = _robust_scaling(r, loss, scale_px)
         basis = _tangent_basis(t)
-        J = _sampson_jacobian(fundamental(R, t), _fundamental_derivatives(R, t, basis, K_inv),
-                              h1, h2)
+        J = _sampson_jacobian(F, _fundamental_derivatives(R, t, basis, K_inv), h1, h2)
         Jw = J * row_scale[:, None]
         H, g = Jw.T @ Jw, Jw.T @ rw
         improved = False
         while damping < 1e8:
             dx = np.linalg.solve(H + damping * np.diag(np.diag(H) + 1e-12), -g)
             R_new, t_new = _update_pose(R, t, dx, basis)
-            r_new = _sampson(fundamental(R_new, t_new), h1, h2)
+            F_new = fundamental(R_new, t_new)
+            r_new = _sampson(F_new, h1, h2)
             cost_new = _robust_cost(r_new, loss, scale_px)
             if cost_new < cost:
                 improved = cost - cost_new > 1e-8 * max(cost, 1e-30)
-                R, t, r, cost = R_new, t_new, r_new, cost_new
+                R, t, F, r, cost = R_new, t_new, F_new, r_new, cost_new
                 damping = max(damping / 10.0, 1e-9)
                 break
             damping *= 10.0
