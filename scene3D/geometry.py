@@ -125,23 +125,23 @@ def rotations_from_vectors(w: FloatArray) -> FloatArray:
     """Rodrigues' formula for ``(M, 3)`` rotation vectors: ``(M, 3, 3)`` rotations."""
     theta = np.linalg.norm(w, axis=1)
     safe = np.where(theta < 1e-12, 1.0, theta)
-    k = w / safe[:, None]
-    K = np.zeros((len(w), 3, 3))
-    K[:, 0, 1], K[:, 0, 2] = -k[:, 2], k[:, 1]
-    K[:, 1, 0], K[:, 1, 2] = k[:, 2], -k[:, 0]
-    K[:, 2, 0], K[:, 2, 1] = -k[:, 1], k[:, 0]
+    K = _skews(w / safe[:, None])
     s = np.sin(theta)[:, None, None]
     c = (1.0 - np.cos(theta))[:, None, None]
     R = np.eye(3)[None] + s * K + c * (K @ K)
     small = theta < 1e-12
     if small.any():  # first order for tiny angles
-        Ws = np.zeros((small.sum(), 3, 3))
-        ws = w[small]
-        Ws[:, 0, 1], Ws[:, 0, 2] = -ws[:, 2], ws[:, 1]
-        Ws[:, 1, 0], Ws[:, 1, 2] = ws[:, 2], -ws[:, 0]
-        Ws[:, 2, 0], Ws[:, 2, 1] = -ws[:, 1], ws[:, 0]
-        R[small] = np.eye(3)[None] + Ws
+        R[small] = np.eye(3)[None] + _skews(w[small])
     return R
+
+
+def _skews(v: FloatArray) -> FloatArray:
+    """:func:`skew` of each row of ``v (M, 3)``: ``(M, 3, 3)``."""
+    S = np.zeros((len(v), 3, 3))
+    S[:, 0, 1], S[:, 0, 2] = -v[:, 2], v[:, 1]
+    S[:, 1, 0], S[:, 1, 2] = v[:, 2], -v[:, 0]
+    S[:, 2, 0], S[:, 2, 1] = -v[:, 1], v[:, 0]
+    return S
 
 
 def quaternion_from_rotation(R: ArrayLike) -> FloatArray:

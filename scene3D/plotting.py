@@ -12,7 +12,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from .epipolar import epipolar_lines
-from .geometry import FloatArray
+from .geometry import FloatArray, camera_centers
 from .rectification import RectifiedPair
 
 
@@ -211,10 +211,9 @@ def plot_cameras_and_points(
     corners = np.array([[0, 0, 1], [w, 0, 1], [w, h, 1], [0, h, 1]], dtype=float)
     rays = corners @ np.linalg.inv(K).T * depth  # camera frame, at the chosen depth
     drawn = 0
-    for R_v, t_v in zip(R, t):
+    for R_v, center in zip(R, camera_centers(R, t)):
         if not np.all(np.isfinite(R_v)):
             continue
-        center = -R_v.T @ t_v
         world = rays @ R_v + center  # R^T (x - t) for each corner
         for corner in world:
             ax.plot(*_display_axes(np.array([center, corner])), color="tab:red", linewidth=0.8)
