@@ -33,6 +33,13 @@ IMAGE_SUFFIXES = frozenset({".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".
 BOOK_MAX_WIDTH_PX = 1200
 
 
+#: ``cv2.imdecode`` flags keeping depth (16-bit stays 16-bit) and grey or colour as stored.
+_AS_STORED = cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR
+
+#: Bytes searched for a JPEG/PNG size header (EXIF, ICC etc. come first; 256 KiB is plenty).
+_HEADER_BYTES = 1 << 18
+
+
 def _read_bytes(path: str | os.PathLike) -> np.ndarray:
     """The bytes of an image file ``(n,) uint8``; checks that it exists and is not empty."""
     path = Path(path)
@@ -64,8 +71,7 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     ValueError
         If the file is empty or not an image OpenCV can decode.
     """
-    # Any depth (16-bit stays 16-bit) and grey or colour as stored; alpha is dropped.
-    return _decode(_read_bytes(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR, path)
+    return _decode(_read_bytes(path), _AS_STORED, path)
 
 
 def header_size(head: bytes | np.ndarray) -> tuple[int, int] | None:
@@ -107,7 +113,7 @@ def read_image_size(path: str | os.PathLike) -> tuple[int, int]:
     path = Path(path)
     if path.is_file():
         with open(path, "rb") as f:
-            size = header_size(f.read(1 << 18))  # EXIF, ICC etc. come first; 256 KiB is plenty
+            size = header_size(f.read(_HEADER_BYTES))
         if size is not None:
             return size
     return image_size(read_image(path))
@@ -200,7 +206,7 @@ def load_working_image(
     """
     if isinstance(source, (str, os.PathLike)):
         data = _read_bytes(source)
-        size = header_size(data[:1 << 18])
+        size = header_size(data[:_HEADER_BYTES])
         levels = halving_levels(size[0], max_width) if size is not None else 0
         if levels and not has_distortion(dist) and bytes(data[:2]) == b"\xff\xd8":
             direct = min(levels, 3)
@@ -211,8 +217,7 @@ def load_working_image(
                 img = img[:size[1] >> direct, :size[0] >> direct]
                 return halve(img, levels - direct), size, levels
             # The header did not describe the image: decode it whole below.
-        img = to_bgr8(_decode(data, cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR, source),
-                      str(source))
+        img = to_bgr8(_decode(data, _AS_STORED, source), str(source))
     else:
         img = to_bgr8(source, name=name)
     native = image_size(img)
