@@ -102,6 +102,61 @@ def detect_features(gray: np.ndarray, detector: cv2.Feature2D) -> tuple[FloatArr
     return np.asarray(pixels, dtype=np.float64).reshape(-1, 2), descriptors
 
 
+@dataclass(frozen=True)
+class ImageFeatures:
+    """Keypoints and descriptors of one image, computed once to match with others.
+
+    Attributes
+    ----------
+    pixels : (N, 2) float64
+        Keypoint positions in the image.
+    descriptors : (N, D) array or None
+        float32 for SIFT/SURF, uint8 for ORB/AKAZE; None when nothing was found.
+    feature : str
+        The detector that ran (``"SIFT"`` for an unavailable SURF).
+    norm : int
+        The descriptor distance, ``cv2.NORM_L2`` or ``cv2.NORM_HAMMING``.
+    seconds : float
+        Time spent detecting and describing.
+    """
+
+    pixels: FloatArray
+    descriptors: np.ndarray | None
+    feature: str
+    norm: int
+    seconds: float
+
+
+def image_features(img: np.ndarray, mode: str = "SIFT", max_features: int = 8000
+                   ) -> ImageFeatures:
+    """Detect and describe the keypoints of one BGR or grey ``uint8`` image.
+
+    ``mode`` is a descriptor mode of :data:`FEATURE_MODES` (not ``"flow"``, which
+    tracks between two images); ``max_features`` is the budget of SIFT and ORB.
+    """
+    t0 = time.perf_counter()
+    detector, norm, name = create_detector(mode, max_features)
+    pixels, descriptors = detect_features(to_gray(img), detector)
+    return ImageFeatures(pixels, descriptors, name, norm, time.perf_counter() - t0)
+
+
+def match_features(f1: ImageFeatures, f2: ImageFeatures, ratio: float = 0.8) -> Matches:
+    """Correspondences between two images' features (:func:`match_descriptors`).
+
+    ``timings_s["features"]`` is the detection time of both images, whether or not
+    it was spent for this pair alone.
+    """
+    if (f1.feature, f1.norm) != (f2.feature, f2.norm):
+        raise ValueError(f"cannot match {f1.feature} features with {f2.feature} features")
+    t0 = time.perf_counter()
+    idx1, idx2 = match_descriptors(f1.descriptors, f2.descriptors, f1.norm, ratio)
+    elapsed = time.perf_counter() - t0
+    n1, n2 = len(f1.pixels), len(f2.pixels)
+    logger.debug("%s: %d + %d keypoints, %d matches", f1.feature, n1, n2, len(idx1))
+    return Matches(f1.pixels[idx1], f2.pixels[idx2], f1.feature, (n1, n2),
+                   {"features": f1.seconds + f2.seconds, "matching": elapsed})
+
+
 def match_descriptors(
     desc1: np.ndarray, desc2: np.ndarray, norm: int, ratio: float = 0.8
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -257,14 +312,6 @@ def find_matches(
     # One image after the other: OpenCV parallelises inside detectAndCompute, and that
     # beats running the two images in two Python threads (measured: 97 vs 133 ms for
     # SIFT at 768 px on 2 cores; the threads oversubscribe the cores).
-    detector, norm, name = create_detector(mode, max_features)
-    all1, desc1 = detect_features(gray1, detector)
-    all2, desc2 = detect_features(gray2, detector)
-    t1 = time.perf_counter()
-    idx1, idx2 = match_descriptors(desc1, desc2, norm, ratio)
-    t2 = time.perf_counter()
-    pts1, pts2 = all1[idx1], all2[idx2]
-    logger.debug("%s: %d + %d keypoints, %d matches", name, len(all1), len(all2), len(pts1))
-    return Matches(pts1, pts2, name, (len(all1), len(all2)),
-                   {"features": t1 - t0, "matching": t2 - t1})
+    return match_features(image_features(gray1, mode, max_features),
+                          image_features(gray2, mode, max_features), ratio)
 

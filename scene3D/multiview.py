@@ -35,7 +35,7 @@ from .bundle import Observations, bundle_adjust, reprojection_residuals
 from .camera import scale_intrinsics_halved, validate_distortion, validate_intrinsics
 from .epipolar import estimate_essential
 from .errors import ReconstructionError
-from .features import create_detector, detect_features, match_descriptors, to_gray
+from .features import create_detector, image_features, match_descriptors
 from .geometry import FloatArray, camera_centers
 from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, load_working_images
 from .twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches, sample_colors
@@ -161,9 +161,8 @@ class MultiViewReconstruction:
 def extract_features(img: np.ndarray, feature: str = "SIFT",
                      max_features: int = 8000) -> ViewFeatures:
     """Keypoints, descriptors and colours of one BGR image."""
-    detector, _, _ = create_detector(feature, max_features)
-    pts, desc = detect_features(to_gray(img), detector)
-    return ViewFeatures(pts, desc, sample_colors(img, pts))
+    found = image_features(img, feature, max_features)
+    return ViewFeatures(found.pixels, found.descriptors, sample_colors(img, found.pixels))
 
 
 def select_pairs(num_views: int, mode: str = "auto", neighbours: int = 3

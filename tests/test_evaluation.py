@@ -1,3 +1,5 @@
+import csv
+
 import numpy as np
 import pytest
 
@@ -37,10 +39,47 @@ def test_evaluate_command_on_fountain(fountain, tmp_path, capsys):
     assert code == 0
     assert "| 0004.jpg-0005.jpg |" in out and "| 0002.jpg-0004.jpg |" in out
     assert "2 pairs at 768 px" in out and "wrong and unflagged 0" in out
-    rows = csv_path.read_text().splitlines()
-    assert len(rows) == 3
-    rot, tdir = (float(v) for v in rows[1].split(",")[1:3])
-    assert rot < 1.0 and tdir < 3.0
+    with open(csv_path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["pair"] for r in rows] == ["0004.jpg-0005.jpg", "0002.jpg-0004.jpg"]
+    for r in rows:
+        assert r["width"] == "768"
+        assert float(r["rotation_deg"]) < 1.0 and float(r["translation_deg"]) < 3.0
+
+
+def test_evaluate_refuses_a_pair_of_two_cameras(fountain, tmp_path, capsys):
+    # The same two photos, but the second view's camera file claims another focal length:
+    # one K for both would be a silent wrong answer, so the pair is refused and flagged.
+    for sub in ("images", "gt_dense_cameras"):
+        (tmp_path / sub).mkdir()
+    for name in ("0004.jpg", "0005.jpg"):
+        (tmp_path / "images" / name).symlink_to(fountain / "images" / name)
+        text = (fountain / "gt_dense_cameras" / f"{name}.camera").read_text()
+        if name == "0005.jpg":
+            text = text.replace("2759.48", "2900", 1)
+        (tmp_path / "gt_dense_cameras" / f"{name}.camera").write_text(text)
+    assert main([str(tmp_path), "-q"]) == 0
+    out = capsys.readouterr().out
+    assert "| 0004.jpg-0005.jpg | inf | inf | 0 | 0 | no |" in out
+    assert "flagged 1, wrong and unflagged 0" in out
+
+
+def test_evaluate_views_are_computed_once_and_dropped_after_their_last_pair(fountain):
+    from scene3D.cli.evaluate import _Views, _views
+    from scene3D.datasets import read_strecha_camera
+
+    views = _views(fountain)[:3]
+    pairs = [(0, 1), (0, 2)]
+    data = _Views(views, [read_strecha_camera(c) for _, c in views], 400, "SIFT", pairs)
+    first = data.matches(0, 1)
+    data.done(0)
+    assert sorted(data.features) == [0]  # view 1 had no pair left
+    features_0 = data.features[0]
+    data.matches(0, 2)
+    assert data.features[0] is features_0  # view 0 was not detected again
+    data.done(1)
+    assert not data.features and not data.images
+    assert len(first) > 50 and first.feature == "SIFT"
 
 
 def test_evaluate_pair_specs():

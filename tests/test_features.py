@@ -5,7 +5,13 @@ import numpy as np
 import pytest
 
 from scene3D import features
-from scene3D.features import find_matches, match_descriptors, normalize_feature_mode
+from scene3D.features import (
+    find_matches,
+    image_features,
+    match_descriptors,
+    match_features,
+    normalize_feature_mode,
+)
 
 
 def test_modes_are_case_insensitive_and_unknown_modes_are_listed():
@@ -70,3 +76,9 @@ def test_surf_falls_back_to_sift_with_one_warning(rendered_pair, caplog, monkeyp
     assert m.feature == "SIFT"
     assert len(m) > 100
     assert sum("SURF" in r.message for r in caplog.records) == 1
+
+
+def test_features_of_different_detectors_do_not_match():
+    img = np.random.default_rng(0).integers(0, 255, (120, 160), dtype=np.uint8)
+    with pytest.raises(ValueError, match="cannot match ORB features with SIFT features"):
+        match_features(image_features(img, "ORB"), image_features(img, "SIFT"))

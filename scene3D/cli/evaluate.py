@@ -11,12 +11,21 @@ from pathlib import Path
 
 import numpy as np
 
-from ..datasets import read_strecha_camera, relative_pose
+from ..camera import scale_intrinsics_halved
+from ..datasets import StrechaCamera, read_strecha_camera, relative_pose
 from ..errors import ReconstructionError
 from ..evaluation import relative_pose_error, summarize_pose_errors
-from ..features import FEATURE_MODES
-from ..imageio import BOOK_MAX_WIDTH_PX, IMAGE_SUFFIXES
-from ..scene import SceneReconstruction3D
+from ..features import (
+    FEATURE_MODES,
+    ImageFeatures,
+    Matches,
+    find_matches,
+    image_features,
+    match_features,
+    normalize_feature_mode,
+)
+from ..imageio import BOOK_MAX_WIDTH_PX, IMAGE_SUFFIXES, load_working_image
+from ..twoview import TwoViewSettings, reconstruct_two_view
 from .common import (
     EXIT_CODES_HELP,
     EXIT_OK,
@@ -83,27 +92,81 @@ def _pairs(specs: list[str], count: int) -> list[tuple[int, int]]:
     return pairs
 
 
+class _Views:
+    """Working images and features of a dataset's views, each computed once.
+
+    A view is dropped after the last pair that uses it, so memory holds the views
+    of the pairs in flight, not the whole dataset.
+    """
+
+    def __init__(self, views: list[tuple[Path, Path]], cameras: list[StrechaCamera],
+                 max_width: int | None, feature: str, pairs: list[tuple[int, int]]) -> None:
+        self.paths = [image for image, _ in views]
+        self.cameras, self.max_width, self.feature = cameras, max_width, feature
+        self.last_use = {i: k for k, pair in enumerate(pairs) for i in pair}
+        self.images: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self.features: dict[int, ImageFeatures] = {}
+
+    def image(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """The working image of view ``i`` (BGR) and its intrinsics."""
+        if i not in self.images:
+            cam = self.cameras[i]
+            img, _, levels = load_working_image(self.paths[i], cam.K, cam.dist, self.max_width)
+            self.images[i] = img, scale_intrinsics_halved(cam.K, levels)
+        return self.images[i]
+
+    def matches(self, a: int, b: int) -> Matches:
+        (img_a, _), (img_b, _) = self.image(a), self.image(b)
+        if self.feature == "flow":  # tracks belong to the pair
+            return find_matches(img_a, img_b, "flow")
+        for i, img in ((a, img_a), (b, img_b)):
+            if i not in self.features:
+                self.features[i] = image_features(img, self.feature)
+        return match_features(self.features[a], self.features[b])
+
+    def done(self, k: int) -> None:
+        """Forget the views whose last pair was pair ``k``."""
+        for i in [i for i, last in self.last_use.items() if last == k]:
+            self.images.pop(i, None)
+            self.features.pop(i, None)
+
+
+def _evaluate_pair(data: _Views, a: int, b: int, settings: TwoViewSettings) -> dict:
+    """One row of the table: the pose errors of pair (a, b), or why it was refused."""
+    row = {"pair": f"{data.paths[a].name}-{data.paths[b].name}", "width": 0,
+           "rotation_deg": np.inf, "translation_deg": np.inf, "inliers": 0, "points": 0,
+           "flagged": True, "note": ""}
+    (img_a, K_a), (img_b, K_b) = data.image(a), data.image(b)
+    row["width"] = img_a.shape[1]
+    if img_a.shape != img_b.shape or not np.allclose(K_a, K_b, rtol=1e-6, atol=1e-6):
+        row["note"] = "refused: the two views have different intrinsics or sizes " \
+                      "(the two-view pipeline assumes one camera)"
+        return row
+    try:
+        result = reconstruct_two_view(img_a, data.matches(a, b), K_a, settings)
+    except ReconstructionError as exc:
+        row["note"] = f"refused: {exc.reason}"
+        return row
+    err = relative_pose_error(result.R, result.t,
+                              *relative_pose(data.cameras[a], data.cameras[b]))
+    row.update(rotation_deg=err.rotation_deg, translation_deg=err.translation_deg,
+               inliers=result.num_inliers, points=result.num_points,
+               flagged=not result.trusted, note="; ".join(result.warnings))
+    return row
+
+
 def run(args: argparse.Namespace) -> int:
     views = _views(args.dataset)
     pairs = _pairs(args.pairs, len(views))
     cameras = [read_strecha_camera(cam) for _, cam in views]
+    data = _Views(views, cameras, None if args.no_pyr_down else args.max_width,
+                  normalize_feature_mode(args.feature), pairs)
+    settings = TwoViewSettings()
     rows = []
-    for a, b in pairs:
+    for k, (a, b) in enumerate(pairs):
         t0 = time.perf_counter()
-        scene = SceneReconstruction3D(cameras[a].K, cameras[a].dist)
-        scene.load_image_pair(views[a][0], views[b][0], use_pyr_down=not args.no_pyr_down,
-                              max_width=args.max_width)
-        row = {"pair": f"{views[a][0].name}-{views[b][0].name}", "rotation_deg": np.inf,
-               "translation_deg": np.inf, "inliers": 0, "points": 0, "flagged": True,
-               "note": ""}
-        try:
-            result = scene.reconstruct(args.feature)
-            err = relative_pose_error(result.R, result.t, *relative_pose(cameras[a], cameras[b]))
-            row.update(rotation_deg=err.rotation_deg, translation_deg=err.translation_deg,
-                       inliers=result.num_inliers, points=result.num_points,
-                       flagged=not result.trusted, note="; ".join(result.warnings))
-        except ReconstructionError as exc:
-            row["note"] = f"refused: {exc.reason}"
+        row = _evaluate_pair(data, a, b, settings)
+        data.done(k)
         row["seconds"] = time.perf_counter() - t0
         rows.append(row)
         if not args.quiet:
@@ -113,14 +176,14 @@ def run(args: argparse.Namespace) -> int:
     stats = summarize_pose_errors([r["rotation_deg"] for r in rows],
                                   [r["translation_deg"] for r in rows],
                                   [r["flagged"] for r in rows])
-    width = scene.img1.shape[1]
+    widths = "/".join(str(w) for w in sorted({r["width"] for r in rows}))
     print("| pair | rotation err (deg) | t-dir err (deg) | inliers | points | trusted | s |")
     print("|---|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r['pair']} | {r['rotation_deg']:.3f} | {r['translation_deg']:.3f} | "
               f"{r['inliers']} | {r['points']} | {'no' if r['flagged'] else 'yes'} | "
               f"{r['seconds']:.2f} |")
-    print(f"\n{len(rows)} pairs at {width} px, {args.feature}: median rotation "
+    print(f"\n{len(rows)} pairs at {widths} px, {args.feature}: median rotation "
           f"{stats['median_rotation_deg']:.3f} deg (p90 {stats['p90_rotation_deg']:.3f}), "
           f"median t-dir {stats['median_translation_deg']:.3f} deg "
           f"(p90 {stats['p90_translation_deg']:.3f}), both < 2 deg {stats['within_2deg']:.0%}, "
