@@ -34,7 +34,9 @@ def test_auc_and_summary():
 
 def test_evaluate_command_on_fountain(fountain, tmp_path, capsys):
     csv_path = tmp_path / "rows.csv"
-    code = main([str(fountain), "--pairs", "4-5", "2-4", "--csv", str(csv_path), "-q"])
+    csv_path.write_text("an earlier run's rows")  # replaced: --force
+    code = main([str(fountain), "--pairs", "4-5", "2-4", "--csv", str(csv_path), "--force",
+                 "-q"])
     out = capsys.readouterr().out
     assert code == 0
     assert "| 0004.jpg-0005.jpg |" in out and "| 0002.jpg-0004.jpg |" in out
@@ -43,7 +45,7 @@ def test_evaluate_command_on_fountain(fountain, tmp_path, capsys):
         rows = list(csv.DictReader(f))
     assert [r["pair"] for r in rows] == ["0004.jpg-0005.jpg", "0002.jpg-0004.jpg"]
     for r in rows:
-        assert r["width"] == "768"
+        assert r["width"] == "768" and r["flagged"] == "False"
         assert float(r["rotation_deg"]) < 1.0 and float(r["translation_deg"]) < 3.0
 
 
@@ -61,6 +63,7 @@ def test_evaluate_refuses_a_pair_of_two_cameras(fountain, tmp_path, capsys):
     assert main([str(tmp_path), "-q"]) == 0
     out = capsys.readouterr().out
     assert "| 0004.jpg-0005.jpg | inf | inf | 0 | 0 | no |" in out
+    assert "refused: the two views have different intrinsics" in out
     assert "flagged 1, wrong and unflagged 0" in out
 
 
@@ -95,11 +98,17 @@ def test_evaluate_pair_specs():
     (["{fountain}", "--pairs", "3-99"], "out of range"),
     (["{fountain}", "--pairs", "first"], "bad pair 'first'"),
     (["{fountain}", "--pairs", "skip10"], "no image pairs"),
+    (["{fountain}", "--csv", "{tmp}/kept.csv"], "kept.csv' exists; use --force"),
+    (["{fountain}", "--csv", "{tmp}"], "is a folder"),
+    (["{fountain}", "--csv", "{tmp}/no/rows.csv"], "does not exist"),
 ])
 def test_evaluate_bad_input(fountain, tmp_path, capsys, argv, message):
     argv = [a.format(tmp=tmp_path, fountain=fountain) for a in argv]
+    (tmp_path / "kept.csv").write_text("the user's rows")
     assert main(argv) == 2
-    assert message in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
+    assert (tmp_path / "kept.csv").read_text() == "the user's rows"
 
 
 def test_paired_auc_difference_is_the_auc_difference_with_an_interval():

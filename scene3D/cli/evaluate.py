@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
 import re
 import sys
 import time
@@ -15,6 +16,7 @@ from ..camera import scale_intrinsics_halved
 from ..datasets import StrechaCamera, read_strecha_camera, relative_pose
 from ..errors import ReconstructionError
 from ..evaluation import relative_pose_error, summarize_pose_errors
+from ..export import atomic_write_bytes
 from ..features import (
     FEATURE_MODES,
     ImageFeatures,
@@ -56,7 +58,10 @@ def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
     add_size_args(parser, BOOK_MAX_WIDTH_PX, "the book's rule, 3072 -> 768")
     parser.add_argument("--feature", default="sift", type=str.lower,
                         choices=[m.lower() for m in FEATURE_MODES])
-    parser.add_argument("--csv", type=Path, metavar="FILE", help="also write per-pair rows")
+    parser.add_argument("--csv", type=Path, metavar="FILE",
+                        help="also write the per-pair rows (with notes) to this CSV file")
+    parser.add_argument("--force", action="store_true",
+                        help="overwrite an existing --csv file")
     add_common_args(parser)
     return parser
 
@@ -155,7 +160,27 @@ def _evaluate_pair(data: _Views, a: int, b: int, settings: TwoViewSettings) -> d
     return row
 
 
+def _check_csv_target(path: Path | None, force: bool) -> None:
+    """Refuse, before any work, a --csv file that could not or should not be written."""
+    if path is None:
+        return
+    if path.exists() and (path.is_dir() or not force):
+        raise UsageError(f"--csv '{path}' exists; use --force to overwrite it"
+                         if not path.is_dir() else f"--csv '{path}' is a folder")
+    if not path.parent.is_dir():
+        raise UsageError(f"--csv '{path}': folder '{path.parent}' does not exist")
+
+
+def _csv_text(rows: list[dict]) -> str:
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    return buffer.getvalue()
+
+
 def run(args: argparse.Namespace) -> int:
+    _check_csv_target(args.csv, args.force)
     views = _views(args.dataset)
     pairs = _pairs(args.pairs, len(views))
     cameras = [read_strecha_camera(cam) for _, cam in views]
@@ -177,12 +202,12 @@ def run(args: argparse.Namespace) -> int:
                                   [r["translation_deg"] for r in rows],
                                   [r["flagged"] for r in rows])
     widths = "/".join(str(w) for w in sorted({r["width"] for r in rows}))
-    print("| pair | rotation err (deg) | t-dir err (deg) | inliers | points | trusted | s |")
-    print("|---|---|---|---|---|---|---|")
+    print("| pair | rotation err (deg) | t-dir err (deg) | inliers | points | trusted | s | note |")
+    print("|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r['pair']} | {r['rotation_deg']:.3f} | {r['translation_deg']:.3f} | "
               f"{r['inliers']} | {r['points']} | {'no' if r['flagged'] else 'yes'} | "
-              f"{r['seconds']:.2f} |")
+              f"{r['seconds']:.2f} | {r['note']} |")
     print(f"\n{len(rows)} pairs at {widths} px, {args.feature}: median rotation "
           f"{stats['median_rotation_deg']:.3f} deg (p90 {stats['p90_rotation_deg']:.3f}), "
           f"median t-dir {stats['median_translation_deg']:.3f} deg "
@@ -190,10 +215,7 @@ def run(args: argparse.Namespace) -> int:
           f"< 5 deg {stats['within_5deg']:.0%}, AUC@5deg {stats['auc_5deg']:.1f}, "
           f"flagged {int(stats['flagged'])}, wrong and unflagged {int(stats['wrong_unflagged'])}")
     if args.csv is not None:
-        with open(args.csv, "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-            writer.writeheader()
-            writer.writerows(rows)
+        atomic_write_bytes(args.csv, _csv_text(rows).encode())
         print(f"Wrote '{args.csv}'")
     return EXIT_OK
 
