@@ -26,7 +26,7 @@ from ..calibration import (
 )
 from ..camera import undistort_image
 from ..export import atomic_write_bytes, save_figure
-from ..imageio import IMAGE_SUFFIXES, image_size, load_bgr
+from ..imageio import IMAGE_SUFFIXES, image_size, load_bgr, read_image_size
 from .common import (
     EXIT_CODES_HELP,
     EXIT_OK,
@@ -124,19 +124,23 @@ def _image_files(spec: str) -> list[Path]:
 
 
 def _photos(args: argparse.Namespace) -> Iterator[tuple[str, np.ndarray]]:
-    images = [(p.name, load_bgr(p)) for p in _image_files(args.images)]
-    sizes = Counter(image_size(img) for _, img in images)
-    if len(sizes) > 1:
-        listing = ", ".join(f"{w}x{h} ({n})" for (w, h), n in sizes.most_common())
+    """The photos, one at a time: sizes come from the file headers first, so that a
+    folder of large photos is never held in memory at once."""
+    files = _image_files(args.images)
+    sizes = {path: read_image_size(path) for path in files}
+    counts = Counter(sizes.values())
+    if len(counts) > 1:
+        listing = ", ".join(f"{w}x{h} ({n})" for (w, h), n in counts.most_common())
         if not args.skip_other_sizes:
             raise UsageError(f"the images have different sizes: {listing}; one calibration "
                              "holds for one size (--skip-other-sizes keeps the most common)")
-        keep = sizes.most_common(1)[0][0]
-        skipped = [name for name, img in images if image_size(img) != keep]
+        keep = counts.most_common(1)[0][0]
+        skipped = [path.name for path in files if sizes[path] != keep]
         logger.warning("skipping %d image(s) not %dx%d: %s", len(skipped), *keep,
                        ", ".join(skipped))
-        images = [(n, img) for n, img in images if image_size(img) == keep]
-    yield from images
+        files = [path for path in files if sizes[path] == keep]
+    for path in files:
+        yield path.name, load_bgr(path)
 
 
 def _frames(args: argparse.Namespace) -> Iterator[tuple[str, np.ndarray]]:
@@ -169,9 +173,14 @@ def _is_distinct(det: Detection, kept: list[Detection], min_motion_px: float) ->
     return True
 
 
-def collect_views(args: argparse.Namespace, board: BoardSpec
+def collect_views(args: argparse.Namespace, board: BoardSpec, keep_images: bool = False
                   ) -> tuple[list[Detection], list[np.ndarray], tuple[int, int], int]:
-    """Detect the board in every photo, or in video frames until ``--frames`` distinct views."""
+    """Detect the board in every photo, or in video frames until ``--frames`` distinct views.
+
+    Returns the detections, the images they came from (only with ``keep_images``;
+    otherwise an empty list, and one image at a time is in memory), the image size
+    and the number of images or frames seen.
+    """
     from_stream = args.images is None
     source = _frames(args) if from_stream else _photos(args)
     views: list[Detection] = []
@@ -195,7 +204,8 @@ def collect_views(args: argparse.Namespace, board: BoardSpec
         else:
             logger.info("%s: %d corners (%s)", name, len(det.image_points), det.method)
         views.append(det)
-        images.append(img)
+        if keep_images:
+            images.append(img)
         if from_stream and len(views) >= args.frames:
             break
     if size is None:
@@ -238,7 +248,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.out.parent.is_dir():
         raise UsageError(f"output folder '{args.out.parent}' does not exist")
 
-    views, images, size, seen = collect_views(args, board)
+    views, images, size, seen = collect_views(args, board,
+                                              keep_images=args.save_undistorted is not None)
     if not views:
         hint = ("check --board: it counts inner corners (a board of 10x7 squares has 9x6)"
                 if board.pattern == "chessboard" else
@@ -268,20 +279,21 @@ def run(args: argparse.Namespace) -> int:
     }
     undistorted = []
     if args.save_undistorted is not None:
+        undistorted = [args.save_undistorted / f"{Path(v.name).stem.replace(' ', '_')}.png"
+                       for v in views]
+        existing = [target for target in undistorted if target.exists()]
+        if existing and not args.force:
+            raise UsageError(f"'{existing[0]}' exists; use --force to overwrite it")
         args.save_undistorted.mkdir(parents=True, exist_ok=True)
-        for view, img in zip(views, images):
-            target = args.save_undistorted / f"{Path(view.name).stem.replace(' ', '_')}.png"
-            if target.exists() and not args.force:
-                raise UsageError(f"'{target}' exists; use --force to overwrite it")
-            undistorted.append((target, undistort_image(img, result.K, result.dist)))
 
     written = [save_calibration(args.out, result.as_camera(), extras, overwrite=args.force)]
     written.append(save_figure(
         plot_calibration_coverage([v.image_points for v in kept], size, counts), outputs[1]))
     written.append(save_figure(plot_view_errors(result.per_view_errors_px,
                                                 result.rejected_views), outputs[2]))
-    for target, img in undistorted:
-        written.append(atomic_write_bytes(target, cv2.imencode(".png", img)[1].tobytes()))
+    for target, img in zip(undistorted, images):  # one undistorted image in memory at a time
+        png = cv2.imencode(".png", undistort_image(img, result.K, result.dist))[1]
+        written.append(atomic_write_bytes(target, png.tobytes()))
     if not args.quiet:
         print(_report(result))
     for path in written:
