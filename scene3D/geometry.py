@@ -125,17 +125,17 @@ def rotations_from_vectors(w: FloatArray) -> FloatArray:
     """Rodrigues' formula for ``(M, 3)`` rotation vectors: ``(M, 3, 3)`` rotations."""
     theta = np.linalg.norm(w, axis=1)
     safe = np.where(theta < 1e-12, 1.0, theta)
-    K = _skews(w / safe[:, None])
+    K = skews(w / safe[:, None])
     s = np.sin(theta)[:, None, None]
     c = (1.0 - np.cos(theta))[:, None, None]
     R = np.eye(3)[None] + s * K + c * (K @ K)
     small = theta < 1e-12
     if small.any():  # first order for tiny angles
-        R[small] = np.eye(3)[None] + _skews(w[small])
+        R[small] = np.eye(3)[None] + skews(w[small])
     return R
 
 
-def _skews(v: FloatArray) -> FloatArray:
+def skews(v: FloatArray) -> FloatArray:
     """:func:`skew` of each row of ``v (M, 3)``: ``(M, 3, 3)``."""
     S = np.zeros((len(v), 3, 3))
     S[:, 0, 1], S[:, 0, 2] = -v[:, 2], v[:, 1]
