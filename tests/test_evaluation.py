@@ -85,6 +85,13 @@ def test_evaluate_views_are_computed_once_and_dropped_after_their_last_pair(foun
     assert len(first) > 50 and first.feature == "SIFT"
 
 
+def test_evaluate_names_the_detector_that_ran(fountain, capsys):
+    assert main([str(fountain), "--pairs", "4-5", "--feature", "surf", "-q"]) == 0
+    out = capsys.readouterr().out
+    # SURF is not in the pip wheels: the summary says what actually ran.
+    assert "1 pair at 768 px, SIFT:" in out or "1 pair at 768 px, SURF:" in out
+
+
 def test_evaluate_pair_specs():
     from scene3D.cli.evaluate import _pairs
 

@@ -138,7 +138,7 @@ class _Views:
 
 def _evaluate_pair(data: _Views, a: int, b: int, settings: TwoViewSettings) -> dict:
     """One row of the table: the pose errors of pair (a, b), or why it was refused."""
-    row = {"pair": f"{data.paths[a].name}-{data.paths[b].name}", "width": 0,
+    row = {"pair": f"{data.paths[a].name}-{data.paths[b].name}", "width": 0, "feature": "",
            "rotation_deg": np.inf, "translation_deg": np.inf, "inliers": 0, "points": 0,
            "flagged": True, "note": ""}
     (img_a, K_a), (img_b, K_b) = data.image(a), data.image(b)
@@ -147,8 +147,10 @@ def _evaluate_pair(data: _Views, a: int, b: int, settings: TwoViewSettings) -> d
         row["note"] = "refused: the two views have different intrinsics or sizes " \
                       "(the two-view pipeline assumes one camera)"
         return row
+    matches = data.matches(a, b)
+    row["feature"] = matches.feature
     try:
-        result = reconstruct_two_view(img_a, data.matches(a, b), K_a, settings)
+        result = reconstruct_two_view(img_a, matches, K_a, settings)
     except ReconstructionError as exc:
         row["note"] = f"refused: {exc.reason}"
         return row
@@ -202,13 +204,15 @@ def run(args: argparse.Namespace) -> int:
                                   [r["translation_deg"] for r in rows],
                                   [r["flagged"] for r in rows])
     widths = "/".join(str(w) for w in sorted({r["width"] for r in rows}))
+    # The detector that ran (SIFT when SURF is not in this OpenCV build).
+    feature = "/".join(sorted({r["feature"] for r in rows if r["feature"]})) or args.feature
     print("| pair | rotation err (deg) | t-dir err (deg) | inliers | points | trusted | s | note |")
     print("|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r['pair']} | {r['rotation_deg']:.3f} | {r['translation_deg']:.3f} | "
               f"{r['inliers']} | {r['points']} | {'no' if r['flagged'] else 'yes'} | "
               f"{r['seconds']:.2f} | {r['note']} |")
-    print(f"\n{len(rows)} pairs at {widths} px, {args.feature}: median rotation "
+    print(f"\n{len(rows)} pair{'s' * (len(rows) != 1)} at {widths} px, {feature}: median rotation "
           f"{stats['median_rotation_deg']:.3f} deg (p90 {stats['p90_rotation_deg']:.3f}), "
           f"median t-dir {stats['median_translation_deg']:.3f} deg "
           f"(p90 {stats['p90_translation_deg']:.3f}), both < 2 deg {stats['within_2deg']:.0%}, "
