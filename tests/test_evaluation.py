@@ -92,6 +92,20 @@ def test_evaluate_names_the_detector_that_ran(fountain, capsys):
     assert "1 pair at 768 px, SIFT:" in out or "1 pair at 768 px, SURF:" in out
 
 
+def test_evaluate_bundle_adjusts_when_asked(fountain, capsys, monkeypatch):
+    from scene3D import twoview
+
+    calls = []
+    adjust = twoview.bundle_adjust_two_view
+    monkeypatch.setattr(twoview, "bundle_adjust_two_view",
+                        lambda *a, **k: calls.append(len(a[2])) or adjust(*a, **k))
+    assert main([str(fountain), "--pairs", "4-5", "-q"]) == 0
+    assert calls == []
+    assert main([str(fountain), "--pairs", "4-5", "--bundle-adjust", "-q"]) == 0
+    assert len(calls) == 1 and calls[0] > 500  # the pair's triangulated points
+    assert "wrong and unflagged 0" in capsys.readouterr().out
+
+
 def test_evaluate_pair_specs():
     from scene3D.cli.evaluate import _pairs
 

@@ -24,6 +24,7 @@ from .common import (
     EXIT_CODES_HELP,
     EXIT_OK,
     UsageError,
+    add_bundle_adjust_arg,
     add_common_args,
     add_size_args,
     prepare_output_dir,
@@ -65,10 +66,7 @@ def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
                         help="features: sift (default), surf (the book's; falls back to sift "
                              "when OpenCV lacks it), orb, akaze, or flow (tracked corners)")
     add_size_args(parser, BOOK_MAX_WIDTH_PX, "the book's rule, 3072 -> 768")
-    parser.add_argument("--bundle-adjust", action="store_true",
-                        help="finish with a two-view bundle adjustment of pose and points "
-                             "(20-100 ms more a pair; on our benchmark no more accurate than "
-                             "the default refinement)")
+    add_bundle_adjust_arg(parser)
     parser.add_argument("--dense", action="store_true",
                         help="also match every pixel of the rectified pair (SGBM) and write "
                              "dense.ply and disparity.png")

@@ -69,6 +69,14 @@ def add_size_args(parser: argparse.ArgumentParser, default_width: int, note: str
                            "the name is the book's, which halves with cv2.pyrDown)")
 
 
+def add_bundle_adjust_arg(parser: argparse.ArgumentParser) -> None:
+    """``--bundle-adjust``: finish the two-view pose with a bundle adjustment."""
+    parser.add_argument("--bundle-adjust", action="store_true",
+                        help="finish with a two-view bundle adjustment of pose and points "
+                             "(20-100 ms more a pair; on our benchmark no more accurate than "
+                             "the default refinement)")
+
+
 def configure_logging(args: argparse.Namespace) -> None:
     if args.quiet:
         level = logging.ERROR

@@ -32,6 +32,7 @@ from .common import (
     EXIT_CODES_HELP,
     EXIT_OK,
     UsageError,
+    add_bundle_adjust_arg,
     add_common_args,
     add_size_args,
     run_command,
@@ -58,6 +59,7 @@ def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
     add_size_args(parser, BOOK_MAX_WIDTH_PX, "the book's rule, 3072 -> 768")
     parser.add_argument("--feature", default="sift", type=str.lower,
                         choices=[m.lower() for m in FEATURE_MODES])
+    add_bundle_adjust_arg(parser)
     parser.add_argument("--csv", type=Path, metavar="FILE",
                         help="also write the per-pair rows (with notes) to this CSV file")
     parser.add_argument("--force", action="store_true",
@@ -188,7 +190,7 @@ def run(args: argparse.Namespace) -> int:
     cameras = [read_strecha_camera(cam) for _, cam in views]
     data = _Views(views, cameras, None if args.no_pyr_down else args.max_width,
                   normalize_feature_mode(args.feature), pairs)
-    settings = TwoViewSettings()
+    settings = TwoViewSettings(bundle_adjust=args.bundle_adjust)
     rows = []
     for k, (a, b) in enumerate(pairs):
         t0 = time.perf_counter()
