@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
+from collections import deque
+from collections.abc import Iterator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
 import cv2
@@ -227,35 +228,60 @@ def load_working_image(
     return halve(img, levels), native, levels
 
 
-def load_working_images(
+def iter_working_images(
     sources: Sequence[ImageSource], K: np.ndarray, dist: np.ndarray,
     max_width: int | None = BOOK_MAX_WIDTH_PX, names: Sequence[str] | None = None,
-) -> tuple[list[np.ndarray], tuple[int, int] | None, int]:
-    """:func:`load_working_image` of photos of one camera, two at a time (decoding
-    releases the GIL).
+) -> Iterator[tuple[np.ndarray, tuple[int, int], int]]:
+    """:func:`load_working_image` of photos of one camera, in order, two decoding at once
+    (decoding releases the GIL) and no more than two held ahead of the consumer.
 
-    Returns the working images, their common native ``(width, height)`` (None for
-    no sources) and the number of halvings.
+    Yields ``(image, native_size, levels)`` per source.
 
     Raises
     ------
     ValueError
-        Also when the sources differ in size: one calibration holds for one size.
+        At the first source whose size differs from the first's: one calibration
+        holds for one size.
     """
     names = list(names) if names is not None else [f"image {i}" for i in range(len(sources))]
-    with ThreadPoolExecutor(max_workers=2) as pool:
-        loaded = list(pool.map(
-            lambda src, name: load_working_image(src, K, dist, max_width, name), sources, names))
-    if not loaded:
-        return [], None, 0
-    first = loaded[0][1]
-    for src, name, (_, size, _) in zip(sources, names, loaded):
+    first: tuple[int, int] | None = None
+
+    def checked(src: ImageSource, name: str, job: Future
+                ) -> tuple[np.ndarray, tuple[int, int], int]:
+        nonlocal first
+        img, size, levels = job.result()
+        first = first or size
         if size != first:
             label = src if isinstance(src, (str, os.PathLike)) else name
             raise ValueError(f"'{label}' is {size[0]}x{size[1]}, not {first[0]}x{first[1]} "
                              "like the first image: the images must have the same size "
                              "(one camera, one size)")
-    return [img for img, _, _ in loaded], first, loaded[0][2]
+        return img, size, levels
+
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        pending: deque[tuple[ImageSource, str, Future]] = deque()
+        for src, name in zip(sources, names):
+            pending.append((src, name, pool.submit(load_working_image, src, K, dist,
+                                                   max_width, name)))
+            if len(pending) == 2:
+                yield checked(*pending.popleft())
+        while pending:
+            yield checked(*pending.popleft())
+
+
+def load_working_images(
+    sources: Sequence[ImageSource], K: np.ndarray, dist: np.ndarray,
+    max_width: int | None = BOOK_MAX_WIDTH_PX, names: Sequence[str] | None = None,
+) -> tuple[list[np.ndarray], tuple[int, int] | None, int]:
+    """All of :func:`iter_working_images` at once: the working images, their common
+    native ``(width, height)`` (None for no sources) and the number of halvings.
+
+    Raises ``ValueError`` when the sources differ in size.
+    """
+    loaded = list(iter_working_images(sources, K, dist, max_width, names))
+    if not loaded:
+        return [], None, 0
+    return [img for img, _, _ in loaded], loaded[0][1], loaded[0][2]
 
 
 def image_size(img: np.ndarray) -> tuple[int, int]:

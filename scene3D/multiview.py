@@ -37,7 +37,7 @@ from .epipolar import estimate_essential
 from .errors import ReconstructionError
 from .features import create_detector, image_features, match_descriptors
 from .geometry import FloatArray, camera_centers
-from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, load_working_images
+from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, image_size, iter_working_images
 from .twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches, sample_colors
 
 logger = logging.getLogger(__name__)
@@ -463,26 +463,6 @@ def incremental_reconstruction(
     return state, timings
 
 
-def load_views(
-    sources: Sequence[ImageSource], K: ArrayLike, dist: ArrayLike | None = None,
-    max_width: int | None = 2 * BOOK_MAX_WIDTH_PX,
-) -> tuple[list[np.ndarray], FloatArray]:
-    """Load images of one camera, undistort them and halve them while wider than ``max_width``.
-
-    ``K`` and ``dist`` describe the native images; returns the working images and
-    their ``K``. ``max_width=None`` keeps the native size. See
-    :func:`scene3D.imageio.load_working_images`.
-
-    Raises
-    ------
-    FileNotFoundError, ValueError
-        A missing or unreadable image, or images of different sizes.
-    """
-    K = validate_intrinsics(K)
-    images, _, levels = load_working_images(sources, K, validate_distortion(dist), max_width)
-    return images, scale_intrinsics_halved(K, levels)
-
-
 def reconstruct_views(
     images: Sequence[ImageSource],
     K: ArrayLike,
@@ -531,17 +511,24 @@ def reconstruct_views(
     if len(images) < 2:
         raise ReconstructionError("too_few_views", "need at least two images",
                                   views=len(images))
-    timings: dict[str, float] = {}
+    timings: dict[str, float] = {"features": 0.0}
     t0 = time.perf_counter()
-    images, K = load_views(images, K, dist, max_width)
-    timings["load"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    features = [extract_features(img, feature) for img in images]
-    timings["features"] = time.perf_counter() - t0
+    K = validate_intrinsics(K)
+    features: list[ViewFeatures] = []
+    # One image after the other (two decoding ahead): each is needed only for its features
+    # and their colours, so a long sequence of large photos is never in memory at once.
+    loaded = iter_working_images(images, K, validate_distortion(dist), max_width, names)
+    for img, _, levels in loaded:
+        t1 = time.perf_counter()
+        features.append(extract_features(img, feature))
+        timings["features"] += time.perf_counter() - t1
+        working_size, halvings = image_size(img), levels  # the same for every image
+    K = scale_intrinsics_halved(K, halvings)
+    timings["load"] = time.perf_counter() - t0 - timings["features"]
     say(f"features: {', '.join(str(len(f.keypoints)) for f in features)} keypoints")
 
     t0 = time.perf_counter()
-    pair_list, selection = select_pairs(len(images), pairs, s.neighbours)
+    pair_list, selection = select_pairs(len(features), pairs, s.neighbours)
     _, norm, _ = create_detector(feature)
     pair_matches = {}
     for i, j in pair_list:
@@ -563,7 +550,7 @@ def reconstruct_views(
     timings["total"] = sum(timings.values())
     return MultiViewReconstruction(
         names=names, K=np.asarray(K, np.float64),
-        image_size=(images[0].shape[1], images[0].shape[0]),
+        image_size=working_size,
         registered=state.registered.copy(), R=state.R, t=state.t, points3d=X, colors=colors,
         observations=obs, reprojection_rmse_px=float(np.sqrt(np.mean(res**2))),
         pair_selection=selection, verified_pairs=len(pair_matches), timings_s=timings,
