@@ -7,6 +7,7 @@ from scene3D.imageio import (
     halve,
     halving_levels,
     header_size,
+    iter_working_images,
     load_bgr,
     load_working_image,
     read_image,
@@ -146,3 +147,17 @@ def test_distorted_jpeg_is_undistorted_at_full_size(tmp_path):
     img, _, levels = load_working_image(path, K, dist, 400)
     expected = halve(cv2.undistort(read_image(path), K, dist, None, K), 1)
     assert levels == 1 and np.array_equal(img, expected)
+
+
+def test_working_images_stream_in_order_and_stop_at_another_size(tmp_path):
+    paths = []
+    for i, width in enumerate((64, 64, 64, 80, 64)):
+        img = np.full((48, width, 3), 40 * i, np.uint8)
+        paths.append(tmp_path / f"{i}.png")
+        cv2.imwrite(str(paths[-1]), img)
+    stream = iter_working_images(paths, np.eye(3), np.zeros(5), max_width=None)
+    for i in range(3):
+        img, size, levels = next(stream)
+        assert img[0, 0, 0] == 40 * i and size == (64, 48) and levels == 0
+    with pytest.raises(ValueError, match=r"3.png' is 80x48, not 64x48"):
+        next(stream)
