@@ -1,20 +1,24 @@
-"""Multi-view bundle adjustment (H&Z section 18.1) with scipy ``least_squares``.
+"""Multi-view bundle adjustment (H&Z section 18.1).
 
 Cameras are world-to-camera poses ``x_cam = R X + t`` sharing one ``K``. The
-unknowns are a rotation-vector update and a translation per free camera and the
-3D points; the reference camera stays fixed (it fixes the frame; the overall
-scale is left to the damping of the trust region). Every residual (one
-observation, 2 rows) depends on one camera and one point, so the Jacobian is
-sparse and scipy computes it with few function evaluations.
+unknowns are a rotation-vector update (``R <- exp([w]x) R``) and a translation
+step per free camera, and the 3D points; the reference camera stays fixed (it
+fixes the frame; the overall scale is held by the damping). Every observation
+depends on one camera and one point, so Levenberg-Marquardt solves its normal
+equations with the points eliminated (:mod:`scene3D.schur`): one system of six
+unknowns per camera, then a 3x3 solve per point.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import FloatArray, rotations_from_vectors
+from .geometry import FloatArray, project_with_jacobian, rotations_from_vectors, skews
+from .refinement import _levenberg_marquardt, _robust_cost, _robust_scaling
+from .schur import normal_equations, solve_damped
 
 
 @dataclass(frozen=True)
@@ -52,7 +56,7 @@ def bundle_adjust(
     fixed_view: int,
     loss: str = "soft_l1",
     scale_px: float = 1.0,
-    max_evaluations: int = 50,
+    max_iterations: int = 50,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Refine all cameras but ``fixed_view`` and all points.
 
@@ -67,52 +71,50 @@ def bundle_adjust(
     K : (3, 3)
         Intrinsics shared by every view.
     loss, scale_px : str, float
-        scipy robust loss and its scale in pixels.
+        Robust loss (``"linear"``, ``"huber"``, ``"soft_l1"``, ``"cauchy"``, as in
+        scipy, applied to each pixel coordinate) and its scale in pixels.
+    max_iterations : int
+        Levenberg-Marquardt iterations at most; it stops earlier once a step
+        gains less than 1e-10 of the cost.
 
     Returns
     -------
     R, t, points3d
         Refined copies.
     """
-    from scipy.optimize import least_squares
-    from scipy.sparse import csr_matrix
-
-    num_views, num_points = len(R), len(points3d)
+    num_points = len(points3d)
     free = np.array([v for v in np.unique(obs.view) if v != fixed_view], dtype=int)
-    slot = np.full(num_views, -1, dtype=int)
+    slot = np.full(len(R), -1, dtype=int)
     slot[free] = np.arange(len(free))
-    n_cam = 6 * len(free)
+    camera = slot[obs.view]
 
-    def unpack(x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        R_x, t_x = R.copy(), t.copy()
-        if len(free):
-            params = x[:n_cam].reshape(-1, 6)
-            R_x[free] = rotations_from_vectors(params[:, :3]) @ R[free]
-            t_x[free] = t[free] + params[:, 3:]
-        return R_x, t_x, x[n_cam:].reshape(num_points, 3)
+    def evaluate(R_: FloatArray, t_: FloatArray, X_: FloatArray) -> tuple[tuple, float]:
+        r_ = reprojection_residuals(R_, t_, X_, obs, K)
+        return (R_, t_, X_, r_), _robust_cost(r_, loss, scale_px)
 
-    def residuals(x: FloatArray) -> FloatArray:
-        R_x, t_x, X = unpack(x)
-        return reprojection_residuals(R_x, t_x, X, obs, K).ravel()
+    def linearize(state: tuple) -> Callable[[float], tuple]:
+        R_, t_, X_, r_ = state
+        R_obs = R_[obs.view]
+        rotated = np.einsum("oij,oj->oi", R_obs, X_[obs.point])
+        _, J = project_with_jacobian(rotated + t_[obs.view], K)
+        # d(R X + t) / d(w, dt) = [-[R X]x | I]; d(R X + t) / dX = R.
+        J_camera = np.concatenate([J @ -skews(rotated), J], axis=2)  # (O, 2, 6)
+        J_point = J @ R_obs
+        row_scale, rw = _robust_scaling(r_, loss, scale_px)
+        ne = normal_equations(J_camera * row_scale[:, :, None], camera,
+                              J_point * row_scale[:, :, None], obs.point, rw, len(free),
+                              num_points)
 
-    # Sparsity: rows 2k, 2k+1 depend on the observing camera (6) and the point (3).
-    num_obs = len(obs.view)
-    rows, cols = [], []
-    obs_rows = np.repeat(np.arange(num_obs) * 2, 2) + np.tile([0, 1], num_obs)
-    cam_slot = np.repeat(slot[obs.view], 2)
-    has_cam = cam_slot >= 0
-    for k in range(6):
-        rows.append(obs_rows[has_cam])
-        cols.append(6 * cam_slot[has_cam] + k)
-    point_col = n_cam + 3 * np.repeat(obs.point, 2)
-    for k in range(3):
-        rows.append(obs_rows)
-        cols.append(point_col + k)
-    rows_all, cols_all = np.concatenate(rows), np.concatenate(cols)
-    sparsity = csr_matrix((np.ones(len(rows_all), dtype=np.int8), (rows_all, cols_all)),
-                          shape=(2 * num_obs, n_cam + 3 * num_points))
-    x0 = np.concatenate([np.zeros(n_cam), points3d.ravel()])
-    result = least_squares(residuals, x0, jac_sparsity=sparsity, loss=loss, f_scale=scale_px,
-                           max_nfev=max_evaluations, x_scale="jac", method="trf",
-                           tr_solver="lsmr")
-    return unpack(result.x)
+        def try_step(damping: float) -> tuple[tuple, float]:
+            step_camera, step_point = solve_damped(ne, damping)
+            R_new, t_new = R_.copy(), t_.copy()
+            R_new[free] = rotations_from_vectors(step_camera[:, :3]) @ R_[free]
+            t_new[free] = t_[free] + step_camera[:, 3:]
+            return evaluate(R_new, t_new, X_ + step_point)
+
+        return try_step
+
+    state, cost = evaluate(np.array(R, np.float64), np.array(t, np.float64),
+                           np.asarray(points3d, np.float64))
+    R, t, X, _ = _levenberg_marquardt(state, cost, linearize, max_iterations, 1e-10)
+    return R, t, X

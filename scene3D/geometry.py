@@ -89,6 +89,18 @@ def project(points3d: FloatArray, K: FloatArray, R: FloatArray, t: FloatArray) -
     return pix[:, :2] / pix[:, 2:3]
 
 
+def project_with_jacobian(points_cam: FloatArray, K: FloatArray
+                          ) -> tuple[FloatArray, FloatArray]:
+    """Pixels ``(N, 2)`` of camera-frame points ``(N, 3)`` and their derivatives ``(N, 2, 3)``.
+
+    With ``q = K X``, pixel ``= q[:2] / q[2]`` and its derivative by ``X`` is
+    ``(K[:2] - pixel K[2]) / q[2]``.
+    """
+    q = points_cam @ K.T
+    pix = q[:, :2] / q[:, 2:3]
+    return pix, (K[None, :2, :] - pix[:, :, None] * K[None, 2:3, :]) / q[:, 2, None, None]
+
+
 def camera_centers(R: ArrayLike, t: ArrayLike) -> FloatArray:
     """Centres ``C = -R^T t`` ``(V, 3)`` of world-to-camera poses ``R (V, 3, 3)``, ``t (V, 3)``."""
     return -np.einsum("vji,vj->vi", np.asarray(R, np.float64), np.asarray(t, np.float64))

@@ -10,7 +10,7 @@ bundle adjustment as the missing step; this module does both, small and readable
 4. initialisation from the pair with the most well-triangulated points;
 5. registration of further views by PnP (RANSAC + Levenberg-Marquardt), always
    the view that sees most reconstructed points next;
-6. triangulation of new tracks, then bundle adjustment (scipy, sparse Jacobian,
+6. triangulation of new tracks, then bundle adjustment (:mod:`scene3D.bundle`,
    robust loss) after each registration and at the end, with outlier removal.
 
 Frames: world = the camera frame of the first view of the initial pair, poses
@@ -320,13 +320,13 @@ class _State:
         return Observations(np.array(view, int), np.array(point, int),
                             np.array(xy, np.float64).reshape(-1, 2))
 
-    def adjust(self, fixed_view: int, max_evaluations: int = 30) -> None:
+    def adjust(self, fixed_view: int, max_iterations: int = 30) -> None:
         """Bundle adjustment, then removal of bad observations and points."""
         if not self.points:
             return
         obs = self.observations()
         R, t, X = bundle_adjust(self.R, self.t, np.array(self.points), obs, self.K,
-                                fixed_view, max_evaluations=max_evaluations)
+                                fixed_view, max_iterations=max_iterations)
         self.R[self.registered], self.t[self.registered] = R[self.registered], t[
             self.registered]
         err = np.linalg.norm(reprojection_residuals(R, t, X, obs, self.K), axis=1)
@@ -455,9 +455,9 @@ def incremental_reconstruction(
             f"+{added} points, {len(state.points)} in all")
         failed.clear()  # new points may let a failed view register now
     t1 = time.perf_counter()
-    state.adjust(fixed_view=i, max_evaluations=100)
+    state.adjust(fixed_view=i, max_iterations=100)
     state.triangulate_new()
-    state.adjust(fixed_view=i, max_evaluations=100)
+    state.adjust(fixed_view=i, max_iterations=100)
     timings["registration"] = t_reg
     timings["bundle_adjustment"] = t_ba + time.perf_counter() - t1
     return state, timings

@@ -22,7 +22,15 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .geometry import FloatArray, rotations_from_vectors, skew, skews, to_homogeneous
+from .geometry import (
+    FloatArray,
+    project_with_jacobian,
+    rotations_from_vectors,
+    skew,
+    skews,
+    to_homogeneous,
+)
+from .schur import normal_equations, solve_damped
 
 
 def sampson_residuals(F: FloatArray, pts1: FloatArray, pts2: FloatArray) -> FloatArray:
@@ -224,13 +232,6 @@ def refine_relative_pose(
     return R, t
 
 
-def _projection_jacobian(points_cam: FloatArray, K: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Pixels ``(N, 2)`` of camera-frame points ``(N, 3)`` and their derivatives ``(N, 2, 3)``."""
-    q = points_cam @ K.T
-    pix = q[:, :2] / q[:, 2:3]
-    return pix, (K[None, :2, :] - pix[:, :, None] * K[None, 2:3, :]) / q[:, 2, None, None]
-
-
 def bundle_adjust_two_view(
     R: ArrayLike,
     t: ArrayLike,
@@ -274,13 +275,18 @@ def bundle_adjust_two_view(
     norm = np.linalg.norm(t)
     t = t / norm
     X = np.asarray(points3d, dtype=np.float64).reshape(-1, 3) / norm
-    observed = np.hstack([np.asarray(pts1, np.float64), np.asarray(pts2, np.float64)])
+    observed = np.vstack([np.asarray(pts1, np.float64), np.asarray(pts2, np.float64)])
     K = np.asarray(K, dtype=np.float64)
 
+    n = len(X)
+    # Observations: the N pixels of image 1 (camera 1 fixed: no unknowns), then image 2's.
+    camera = np.repeat([-1, 0], n)
+    point = np.tile(np.arange(n), 2)
+
     def residuals(R_: FloatArray, t_: FloatArray, X_: FloatArray) -> FloatArray:
-        """``(N, 4)``: projection minus observation in image 1, then image 2."""
-        return np.hstack([_projection_jacobian(X_, K)[0],
-                          _projection_jacobian(X_ @ R_.T + t_, K)[0]]) - observed
+        """``(2N, 2)``: projection minus observation, image 1 then image 2."""
+        return np.vstack([project_with_jacobian(X_, K)[0],
+                          project_with_jacobian(X_ @ R_.T + t_, K)[0]]) - observed
 
     def evaluate(R_: FloatArray, t_: FloatArray, X_: FloatArray) -> tuple[tuple, float]:
         r_ = residuals(R_, t_, X_)
@@ -289,35 +295,21 @@ def bundle_adjust_two_view(
     def linearize(state: tuple) -> Callable[[float], tuple]:
         R_, t_, X_, r_ = state
         rotated = X_ @ R_.T
-        _, J1 = _projection_jacobian(X_, K)
-        _, J2 = _projection_jacobian(rotated + t_, K)
+        _, J1 = project_with_jacobian(X_, K)
+        _, J2 = project_with_jacobian(rotated + t_, K)
         basis = _tangent_basis(t_)
-        # Image-2 rows only: R <- exp([w]x) R moves R X by -[R X]x w; t moves along basis.
+        # R <- exp([w]x) R moves R X by -[R X]x w; t moves along the tangent basis.
         dY_dpose = np.concatenate(
-            [-skews(rotated), np.broadcast_to(basis.T, (len(X_), 3, 2))], axis=2)  # (N, 3, 5)
-        J_pose = np.zeros((len(X_), 4, 5))
-        J_pose[:, 2:] = J2 @ dY_dpose
-        J_point = np.concatenate([J1, J2 @ R_], axis=1)  # (N, 4, 3)
+            [-skews(rotated), np.broadcast_to(basis.T, (n, 3, 2))], axis=2)  # (N, 3, 5)
+        J_pose = np.concatenate([np.zeros((n, 2, 5)), J2 @ dY_dpose])
+        J_point = np.concatenate([J1, J2 @ R_])
         row_scale, rw = _robust_scaling(r_, loss, scale_px)
-        J_pose *= row_scale[:, :, None]
-        J_point *= row_scale[:, :, None]
-        A = np.einsum("nki,nkj->ij", J_pose, J_pose)
-        B = np.einsum("nki,nkj->nij", J_pose, J_point)
-        C = np.einsum("nki,nkj->nij", J_point, J_point)
-        g_pose = np.einsum("nki,nk->i", J_pose, rw)
-        g_point = np.einsum("nki,nk->ni", J_point, rw)
-        diag_A = np.diag(np.diag(A) + 1e-12)
-        diag_C = (np.einsum("nii->ni", C) + 1e-12)[:, :, None] * np.eye(3)
+        ne = normal_equations(J_pose * row_scale[:, :, None], camera,
+                              J_point * row_scale[:, :, None], point, rw, 1, n)
 
         def try_step(damping: float) -> tuple[tuple, float]:
-            # [A B; B^T C] [dp; dX] = -[g_pose; g_point], the points eliminated first.
-            C_inv = np.linalg.inv(C + damping * diag_C)
-            BC = B @ C_inv  # (N, 5, 3)
-            schur = A + damping * diag_A - np.einsum("nij,nkj->ik", BC, B)
-            step_pose = np.linalg.solve(schur, -g_pose + np.einsum("nij,nj->i", BC, g_point))
-            step_points = -np.einsum("nij,nj->ni", C_inv,
-                                     g_point + np.einsum("nji,j->ni", B, step_pose))
-            return evaluate(*_update_pose(R_, t_, step_pose, basis), X_ + step_points)
+            step_pose, step_points = solve_damped(ne, damping)
+            return evaluate(*_update_pose(R_, t_, step_pose[0], basis), X_ + step_points)
 
         return try_step
 

@@ -18,3 +18,55 @@ def correspondences(K, R, t, n=200, noise_px=0.0, seed=0):
         pts1 = pts1 + rng.normal(0, noise_px, pts1.shape)
         pts2 = pts2 + rng.normal(0, noise_px, pts2.shape)
     return points, pts1, pts2
+
+
+def scipy_bundle_adjust(R, t, points3d, obs, K, fixed_view, loss, scale_px, max_evaluations):
+    """Reference bundle adjustment with scipy's ``least_squares`` (sparse Jacobian, trust
+    region): what scene3D used before its own solver. Same residuals, loss and camera
+    update (rotation vector applied on the left, translation added); the scale is left free.
+    """
+    from scipy.optimize import least_squares
+    from scipy.sparse import csr_matrix
+
+    from scene3D.bundle import reprojection_residuals
+    from scene3D.geometry import rotations_from_vectors
+
+    num_views, num_points = len(R), len(points3d)
+    free = np.array([v for v in np.unique(obs.view) if v != fixed_view], dtype=int)
+    slot = np.full(num_views, -1, dtype=int)
+    slot[free] = np.arange(len(free))
+    n_cam = 6 * len(free)
+
+    def unpack(x):
+        R_x, t_x = R.copy(), t.copy()
+        if len(free):
+            params = x[:n_cam].reshape(-1, 6)
+            R_x[free] = rotations_from_vectors(params[:, :3]) @ R[free]
+            t_x[free] = t[free] + params[:, 3:]
+        return R_x, t_x, x[n_cam:].reshape(num_points, 3)
+
+    def residuals(x):
+        R_x, t_x, X = unpack(x)
+        return reprojection_residuals(R_x, t_x, X, obs, K).ravel()
+
+    # Sparsity: rows 2k, 2k+1 depend on the observing camera (6) and the point (3).
+    num_obs = len(obs.view)
+    rows, cols = [], []
+    obs_rows = np.repeat(np.arange(num_obs) * 2, 2) + np.tile([0, 1], num_obs)
+    cam_slot = np.repeat(slot[obs.view], 2)
+    has_cam = cam_slot >= 0
+    for k in range(6):
+        rows.append(obs_rows[has_cam])
+        cols.append(6 * cam_slot[has_cam] + k)
+    point_col = n_cam + 3 * np.repeat(obs.point, 2)
+    for k in range(3):
+        rows.append(obs_rows)
+        cols.append(point_col + k)
+    rows_all, cols_all = np.concatenate(rows), np.concatenate(cols)
+    sparsity = csr_matrix((np.ones(len(rows_all), dtype=np.int8), (rows_all, cols_all)),
+                          shape=(2 * num_obs, n_cam + 3 * num_points))
+    x0 = np.concatenate([np.zeros(n_cam), points3d.ravel()])
+    result = least_squares(residuals, x0, jac_sparsity=sparsity, loss=loss, f_scale=scale_px,
+                           max_nfev=max_evaluations, x_scale="jac", method="trf",
+                           tr_solver="lsmr")
+    return unpack(result.x)

@@ -26,6 +26,7 @@ from scene3D.multiview import (
 )
 
 from .conftest import REPO
+from .helpers import scipy_bundle_adjust
 
 K = np.array([[800.0, 0, 330], [0, 780, 245], [0, 0, 1]])
 
@@ -119,6 +120,16 @@ def test_bundle_adjustment_reduces_error_and_fixes_the_reference():
     after = np.sqrt(np.mean(reprojection_residuals(R1, t1, X1, obs, K) ** 2))
     assert before > 3.0 and after < 0.35
     np.testing.assert_allclose(R1[0], Rs[0])
+    # scipy's least_squares on the same problem reaches the same cameras and points (up
+    # to the free scale, which both leave near where it started).
+    Rs_, ts_, Xs_ = scipy_bundle_adjust(R0, ts.copy(), X0, obs, K, fixed_view=0,
+                                        loss="linear", scale_px=1.0, max_evaluations=500)
+    ours = np.sqrt(np.mean(reprojection_residuals(R1, t1, X1, obs, K) ** 2))
+    theirs = np.sqrt(np.mean(reprojection_residuals(Rs_, ts_, Xs_, obs, K) ** 2))
+    assert ours <= theirs * (1 + 1e-6)
+    scale = np.linalg.norm(ts_[1:]) / np.linalg.norm(t1[1:])
+    np.testing.assert_allclose(R1, Rs_, atol=1e-6)
+    np.testing.assert_allclose(t1 * scale, ts_, atol=1e-5 * np.linalg.norm(ts_))
 
 
 def test_similarity_and_quaternions():

@@ -1,0 +1,146 @@
+"""The damped normal equations of bundle adjustment, solved with the points eliminated.
+
+Every observation ``o`` (a pixel, 2 residual rows) depends on at most one camera,
+``camera[o]`` (``-1``: a fixed camera, no unknowns), and on one point,
+``point[o]``. With the Jacobian blocks ``J_cam[o]`` ``(2, c)`` and ``J_point[o]``
+``(2, 3)`` the normal equations are
+
+    [ U   W ] [dc]     [g_c]
+    [ W^T V ] [dp] = - [g_p]
+
+with ``U`` block-diagonal over cameras and ``V`` block-diagonal over points
+(3x3 each). Eliminating the points (Schur complement, Triggs et al. 2000,
+section 6.1) leaves one ``(C c) x (C c)`` system for the cameras, then each
+point's step is a 3x3 solve: the cost grows with the observations and the
+cameras, not with the square of the points.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import FloatArray
+
+#: Added to the diagonals so that an unconstrained direction cannot make them singular.
+_TINY = 1e-12
+
+
+@dataclass(frozen=True)
+class NormalEquations:
+    """The blocks of ``J^T J`` and ``J^T r`` (see the module docstring).
+
+    Attributes
+    ----------
+    U : (C, c, c)
+    V : (P, 3, 3)
+    W : (O', c, 3)
+        One block per observation of a free camera (``observed`` selects them).
+    g_camera : (C, c)
+    g_point : (P, 3)
+    camera, point : (O',) int
+        The camera and point of each block of ``W``.
+    """
+
+    U: FloatArray
+    V: FloatArray
+    W: FloatArray
+    g_camera: FloatArray
+    g_point: FloatArray
+    camera: np.ndarray
+    point: np.ndarray
+
+
+def _sum_by(index: np.ndarray, values: FloatArray, count: int) -> FloatArray:
+    """``out[i] = sum of values[k] where index[k] == i``, for ``i < count`` (fast ``np.add.at``)."""
+    flat = values.reshape(len(values), -1)
+    out = np.empty((count, flat.shape[1]))
+    for k in range(flat.shape[1]):
+        out[:, k] = np.bincount(index, weights=flat[:, k], minlength=count)
+    return out.reshape((count,) + values.shape[1:])
+
+
+def _gram(A: FloatArray, B: FloatArray) -> FloatArray:
+    """``A[o]^T B[o]`` for each ``o``: ``(O, k, i), (O, k, j) -> (O, i, j)``."""
+    return A.transpose(0, 2, 1) @ B
+
+
+def normal_equations(
+    J_camera: FloatArray, camera: np.ndarray, J_point: FloatArray, point: np.ndarray,
+    residuals: FloatArray, num_cameras: int, num_points: int,
+) -> NormalEquations:
+    """Accumulate the normal equations of row-scaled Jacobians and residuals.
+
+    Parameters
+    ----------
+    J_camera : (O, 2, c)
+        Derivatives by the observing camera's unknowns (ignored where ``camera < 0``).
+    camera, point : (O,) int
+    J_point : (O, 2, 3)
+    residuals : (O, 2)
+    """
+    free = camera >= 0
+    Jc, cam = J_camera[free], camera[free]
+    r = residuals[:, :, None]
+    return NormalEquations(
+        U=_sum_by(cam, _gram(Jc, Jc), num_cameras),
+        V=_sum_by(point, _gram(J_point, J_point), num_points),
+        W=_gram(Jc, J_point[free]),
+        g_camera=_sum_by(cam, _gram(Jc, r[free])[:, :, 0], num_cameras),
+        g_point=_sum_by(point, _gram(J_point, r)[:, :, 0], num_points),
+        camera=cam, point=point[free])
+
+
+def _schur_product(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
+                   num_cameras: int, chunk_entries: int = 1 << 22) -> FloatArray:
+    """``sum over points p of Y_p W_p^T``, ``(C c, C c)``, where ``Y_p`` stacks the
+    ``(c, 3)`` blocks ``Y[o]`` of the observations of ``p`` by camera (zero where a camera
+    does not see ``p``), and likewise ``W_p``.
+
+    A chunk of points at a time is laid out densely as ``(C c, 3 points)`` matrices
+    (at most ``chunk_entries`` numbers each), so the sum is one matrix product per
+    chunk; a camera sees a point at most once, so the blocks never collide.
+    """
+    c = Y.shape[1]
+    size = num_cameras * c
+    order = np.argsort(point, kind="stable")
+    cam, pt, Y, W = camera[order], point[order], Y[order], W[order]
+    per_chunk = max(1, chunk_entries // (3 * size))
+    rows = (cam * c)[:, None, None] + np.arange(c)[None, :, None]
+    S = np.zeros((size, size))
+    bounds = np.searchsorted(pt, np.arange(0, pt[-1] + per_chunk + 1, per_chunk)) if len(pt) else []
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        if lo == hi:
+            continue
+        first = pt[lo]
+        cols = ((pt[lo:hi] - first) * 3)[:, None, None] + np.arange(3)[None, None, :]
+        width = 3 * (pt[hi - 1] - first + 1)
+        Yd, Wd = np.zeros((size, width)), np.zeros((size, width))
+        Yd[rows[lo:hi], cols] = Y[lo:hi]
+        Wd[rows[lo:hi], cols] = W[lo:hi]
+        S += Yd @ Wd.T
+    return S
+
+
+def solve_damped(ne: NormalEquations, damping: float) -> tuple[FloatArray, FloatArray]:
+    """Steps ``(C, c)`` for the cameras and ``(P, 3)`` for the points.
+
+    Levenberg-Marquardt's damping scales the diagonals: ``U + damping diag(U)``
+    and likewise ``V``.
+    """
+    num_cameras, c = ne.g_camera.shape
+    eye_c, eye_3 = np.eye(c), np.eye(3)
+    U = ne.U + damping * (np.einsum("nii->ni", ne.U) + _TINY)[:, :, None] * eye_c
+    V_inv = np.linalg.inv(ne.V + damping * (np.einsum("nii->ni", ne.V) + _TINY)[:, :, None]
+                          * eye_3)
+    Y = ne.W @ V_inv[ne.point]  # (O', c, 3): W V^-1 per observation
+    S = -_schur_product(Y, ne.W, ne.camera, ne.point, num_cameras)  # U - W V^-1 W^T
+    for k in range(num_cameras):
+        S[k * c:(k + 1) * c, k * c:(k + 1) * c] += U[k]
+    rhs = _sum_by(ne.camera, (Y @ ne.g_point[ne.point][:, :, None])[:, :, 0], num_cameras)
+    step_camera = np.linalg.solve(S, (rhs - ne.g_camera).ravel()).reshape(num_cameras, c)
+    back = ne.g_point + _sum_by(
+        ne.point, _gram(ne.W, step_camera[ne.camera][:, :, None])[:, :, 0], len(ne.g_point))
+    step_point = -(V_inv @ back[:, :, None])[:, :, 0]
+    return step_camera, step_point
