@@ -11,8 +11,8 @@ Every observation ``o`` (a pixel, 2 residual rows) depends on at most one camera
 with ``U`` block-diagonal over cameras and ``V`` block-diagonal over points
 (3x3 each). Eliminating the points (Schur complement, Triggs et al. 2000,
 section 6.1) leaves one ``(C c) x (C c)`` system for the cameras, then each
-point's step is a 3x3 solve: the cost grows with the observations and the
-cameras, not with the square of the points.
+point's step is a 3x3 solve: the cost grows linearly with the points (times the
+square of the cameras), not with the cube of all unknowns as a dense solve would.
 """
 
 from __future__ import annotations
@@ -53,7 +53,7 @@ class NormalEquations:
 
 
 def _sum_by(index: np.ndarray, values: FloatArray, count: int) -> FloatArray:
-    """``out[i] = sum of values[k] where index[k] == i``, for ``i < count`` (fast ``np.add.at``)."""
+    """``out[i] = sum of values[k] where index[k] == i``, ``i < count`` (a fast ``np.add.at``)."""
     flat = values.reshape(len(values), -1)
     out = np.empty((count, flat.shape[1]))
     for k in range(flat.shape[1]):
