@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .geometry import FloatArray, project_with_jacobian, rotations_from_vectors, skews
-from .refinement import _levenberg_marquardt, _robust_cost, _robust_scaling
+from .refinement import _levenberg_marquardt, _reweighting, _robust_cost
 from .schur import normal_equations, solve_damped
 
 
@@ -100,7 +100,7 @@ def bundle_adjust(
         # d(R X + t) / d(w, dt) = [-[R X]x | I]; d(R X + t) / dX = R.
         J_camera = np.concatenate([J @ -skews(rotated), J], axis=2)  # (O, 2, 6)
         J_point = J @ R_obs
-        row_scale, rw = _robust_scaling(r_, loss, scale_px)
+        row_scale, rw = _reweighting(r_, loss, scale_px)
         ne = normal_equations(J_camera * row_scale[:, :, None], camera,
                               J_point * row_scale[:, :, None], obs.point, rw, len(free),
                               num_points)

@@ -101,7 +101,7 @@ class TwoViewSettings:
         benchmark pairs it moves the poses by thousandths of a degree, closer to
         the truth on some pairs and further on others (AUC@5deg up by 0.01-0.1,
         medians at 1536 px and the wider baselines at 768 px slightly worse), for
-        about 20-100 ms a pair.
+        about 70-160 ms a pair (768-1536 px).
     """
 
     threshold_px: float = 1.0

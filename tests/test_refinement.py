@@ -3,7 +3,7 @@ import pytest
 
 from scene3D.epipolar import fundamental_from_essential
 from scene3D.evaluation import relative_pose_error
-from scene3D.geometry import rotation_about_axis, skew, to_homogeneous
+from scene3D.geometry import project, rotation_about_axis, skew, to_homogeneous
 from scene3D.refinement import (
     _fundamental_derivatives,
     _robust_cost,
@@ -88,29 +88,48 @@ def test_two_view_bundle_adjustment_is_exact_without_noise(camera, true_pose):
     np.testing.assert_allclose(X1 * np.linalg.norm(t), points, rtol=1e-5)
 
 
-def test_two_view_bundle_adjustment_reaches_scipys_optimum(camera, true_pose):
-    """The Schur-complement solver against scipy's least_squares (same residuals and
-    loss, run to convergence) on noisy matches with outliers."""
+@pytest.mark.parametrize("loss", ["linear", "soft_l1", "cauchy"])
+def test_two_view_bundle_adjustment_reaches_a_minimum_scipy_does_not_beat(camera, true_pose,
+                                                                          loss):
+    """Against scipy's least_squares run to convergence, on noisy matches with outliers.
+    With convex losses both reach the same optimum. Under Cauchy, scipy's clamped
+    curvature correction leaves the outliers' points with singular blocks and it stops
+    where it started; scene3D's solver must reach a lower cost."""
     from scene3D.bundle import Observations
 
     R, t = true_pose
     t = t / np.linalg.norm(t)
     _, pts1, pts2 = correspondences(camera, R, t, n=40, noise_px=0.5, seed=3)
-    pts2[:4] += 6.0  # outliers, so that the Cauchy loss matters
+    pts2[:4] += 6.0  # outliers
     X0 = triangulate_points(pts1, pts2, camera, R, t)
-    R1, t1, X1 = bundle_adjust_two_view(R, t, X0, pts1, pts2, camera, loss="cauchy",
-                                        scale_px=0.5)
+
+    def cost(R_, t_, X_):
+        r = np.vstack([project(X_, camera, np.eye(3), np.zeros(3)) - pts1,
+                       project(X_, camera, R_, t_) - pts2])
+        return _robust_cost(r, loss, 0.5)
+
+    R1, t1, X1 = bundle_adjust_two_view(R, t, X0, pts1, pts2, camera, loss=loss, scale_px=0.5)
+    assert np.linalg.norm(t1) == pytest.approx(1.0)
+    # A minimum: moving the pose or the points a little costs more.
+    at_result = cost(R1, t1, X1)
+    basis = _tangent_basis(t1)
+    for e in np.vstack([np.eye(5), -np.eye(5)]):
+        assert cost(*_update_pose(R1, t1, 1e-5 * e, basis), X1) > at_result
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        assert cost(R1, t1, X1 + rng.normal(0, 1e-5, X1.shape)) > at_result
     obs = Observations(np.repeat([0, 1], 40), np.tile(np.arange(40), 2),
                        np.vstack([pts1, pts2]))
     Rs, ts, Xs = scipy_bundle_adjust(np.stack([np.eye(3), R]), np.stack([np.zeros(3), t]), X0,
-                                     obs, camera, fixed_view=0, loss="cauchy", scale_px=0.5,
-                                     max_evaluations=1000)
+                                     obs, camera, fixed_view=0, loss=loss, scale_px=0.5,
+                                     max_evaluations=3000)
     scale = np.linalg.norm(ts[1])  # scipy's solution keeps the scale gauge free
-    assert np.linalg.norm(t1) == pytest.approx(1.0)
-    assert relative_pose_error(R1, t1, Rs[1], ts[1]).max_deg < 1e-6
-    # The inliers' points agree; an outlier's point can settle in another local minimum of
-    # its non-convex (Cauchy) cost, which does not move the pose.
-    np.testing.assert_allclose(X1[4:], Xs[4:] / scale, rtol=1e-6)
+    theirs = cost(Rs[1], ts[1] / scale, Xs / scale)
+    if loss == "cauchy":
+        assert at_result < 0.8 * theirs  # measured: 10.3 against 14.5
+    else:
+        assert at_result == pytest.approx(theirs, rel=1e-6)
+        assert relative_pose_error(R1, t1, Rs[1], ts[1]).max_deg < 0.01
 
 
 def test_bundle_adjustment_does_not_worsen_noisy_pairs(camera, true_pose):

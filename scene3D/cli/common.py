@@ -73,7 +73,7 @@ def add_bundle_adjust_arg(parser: argparse.ArgumentParser) -> None:
     """``--bundle-adjust``: finish the two-view pose with a bundle adjustment."""
     parser.add_argument("--bundle-adjust", action="store_true",
                         help="finish with a two-view bundle adjustment of pose and points "
-                             "(20-100 ms more a pair; on our benchmark no more accurate than "
+                             "(70-160 ms more a pair; on our benchmark no more accurate than "
                              "the default refinement)")
 
 
