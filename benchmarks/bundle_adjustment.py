@@ -32,17 +32,13 @@ from scene3D.bundle import Observations  # noqa: E402
 from scene3D.datasets import fetch_fountain_p11, read_strecha_camera  # noqa: E402
 from scene3D.epipolar import LOSS_SCALE_OF_THRESHOLD  # noqa: E402
 from scene3D.evaluation import relative_pose_error  # noqa: E402
-from scene3D.refinement import _robust_cost, bundle_adjust_two_view  # noqa: E402
+from scene3D.refinement import _robust_cost, _two_view_residuals, bundle_adjust_two_view  # noqa: E402
 from scene3D.twoview import TwoViewSettings  # noqa: E402
 from tests.helpers import scipy_bundle_adjust  # noqa: E402
 
 
 def cost(R, t, X, pts1, pts2, K, scale):
-    def pixels(P):
-        q = P @ K.T
-        return q[:, :2] / q[:, 2:3]
-    r = np.vstack([pixels(X) - pts1, pixels(X @ R.T + t) - pts2])
-    return _robust_cost(r, "cauchy", scale)
+    return _robust_cost(_two_view_residuals(R, t, X, pts1, pts2, K), "cauchy", scale)
 
 
 def main() -> int:
@@ -63,7 +59,7 @@ def main() -> int:
         cam = read_strecha_camera(folder / "gt_dense_cameras" / f"{a:04d}.jpg.camera")
         scene = SceneReconstruction3D(cam.K)
         scene.load_image_pair(folder / "images" / f"{a:04d}.jpg",
-                              folder / "images" / f"{b:04d}.jpg", max_width=args.width + 1)
+                              folder / "images" / f"{b:04d}.jpg", max_width=args.width)
         g = scene.reconstruct()
         K, n = scene.K, len(g.points3d)
         t0 = time.perf_counter()

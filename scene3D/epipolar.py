@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike
 
 from .geometry import FloatArray, as_matrix, as_points2d, check_same_length, skew, to_homogeneous
 from .pose import decompose_essential
-from .refinement import refine_relative_pose, sampson_residuals
+from .refinement import _loss, refine_relative_pose, sampson_residuals
 
 #: Robust estimator used for F, E and H (OpenCV's USAC family, MAGSAC++ scoring).
 ROBUST_METHOD = cv2.USAC_MAGSAC
@@ -264,7 +264,7 @@ def essential_cost(E: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: ArrayLike,
     """
     distances = np.minimum(essential_distances(E, pts1, pts2, K), threshold_px)
     scale = LOSS_SCALE_OF_THRESHOLD * threshold_px
-    return float(np.sum(np.log1p((distances / scale) ** 2)))
+    return float(np.sum(_loss((distances / scale) ** 2, "cauchy")[0]))
 
 
 def polish_essential(E: FloatArray, p1: FloatArray, p2: FloatArray, K: FloatArray,

@@ -247,6 +247,13 @@ def refine_relative_pose(
     return R, t
 
 
+def _two_view_residuals(R: FloatArray, t: FloatArray, X: FloatArray, pts1: FloatArray,
+                        pts2: FloatArray, K: FloatArray) -> FloatArray:
+    """Reprojection errors ``(N, 4)`` of camera-1 points ``X``: image 1's (x, y), then image 2's."""
+    return np.hstack([project_with_jacobian(X, K)[0] - pts1,
+                      project_with_jacobian(X @ R.T + t, K)[0] - pts2])
+
+
 def _settle_points(R: FloatArray, t: FloatArray, X: FloatArray, pts1: FloatArray,
                    pts2: FloatArray, K: FloatArray, loss: str, scale: float) -> FloatArray:
     """Each point ``(N, 3)`` moved to the cheapest of three basins of its robust cost.
@@ -266,11 +273,9 @@ def _settle_points(R: FloatArray, t: FloatArray, X: FloatArray, pts1: FloatArray
     candidates = np.stack([X, on_ray1, on_ray2])  # (3, N, 3)
     costs = np.empty((3, len(X)))
     for k, C in enumerate(candidates):
-        in_cam2 = C @ R.T + t
-        r = np.hstack([project_with_jacobian(C, K)[0] - pts1,
-                       project_with_jacobian(in_cam2, K)[0] - pts2])
+        r = _two_view_residuals(R, t, C, pts1, pts2, K)
         costs[k] = np.sum(_loss((r / scale) ** 2, loss)[0], axis=1)
-        costs[k][(C[:, 2] <= 0) | (in_cam2[:, 2] <= 0)] = np.inf
+        costs[k][(C[:, 2] <= 0) | ((C @ R.T + t)[:, 2] <= 0)] = np.inf
     return candidates[np.argmin(costs, axis=0), np.arange(len(X))]
 
 
@@ -320,7 +325,7 @@ def bundle_adjust_two_view(
     norm = np.linalg.norm(t)
     t = t / norm
     X = np.asarray(points3d, dtype=np.float64).reshape(-1, 3) / norm
-    observed = np.vstack([np.asarray(pts1, np.float64), np.asarray(pts2, np.float64)])
+    p1, p2 = np.asarray(pts1, np.float64), np.asarray(pts2, np.float64)
     K = np.asarray(K, dtype=np.float64)
 
     n = len(X)
@@ -328,13 +333,9 @@ def bundle_adjust_two_view(
     camera = np.repeat([-1, 0], n)
     point = np.tile(np.arange(n), 2)
 
-    def residuals(R_: FloatArray, t_: FloatArray, X_: FloatArray) -> FloatArray:
-        """``(2N, 2)``: projection minus observation, image 1 then image 2."""
-        return np.vstack([project_with_jacobian(X_, K)[0],
-                          project_with_jacobian(X_ @ R_.T + t_, K)[0]]) - observed
-
     def evaluate(R_: FloatArray, t_: FloatArray, X_: FloatArray) -> tuple[tuple, float]:
-        r_ = residuals(R_, t_, X_)
+        r = _two_view_residuals(R_, t_, X_, p1, p2, K)
+        r_ = np.vstack([r[:, :2], r[:, 2:]])  # (2N, 2): the observations above
         return (R_, t_, X_, r_), _robust_cost(r_, loss, scale_px)
 
     def linearize(state: tuple) -> Callable[[float], tuple]:
@@ -358,7 +359,6 @@ def bundle_adjust_two_view(
 
         return try_step
 
-    p1, p2 = observed[:n], observed[n:]
     X = _settle_points(R, t, X, p1, p2, K, loss, scale_px)
     for _ in range(3):  # refine; again while a point finds a cheaper basin at the optimum
         state, cost = evaluate(R, t, X)
