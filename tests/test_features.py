@@ -82,3 +82,33 @@ def test_features_of_different_detectors_do_not_match():
     img = np.random.default_rng(0).integers(0, 255, (120, 160), dtype=np.uint8)
     with pytest.raises(ValueError, match="cannot match ORB features with SIFT features"):
         match_features(image_features(img, "ORB"), image_features(img, "SIFT"))
+
+
+def _mirror_bias_px(gray, detector):
+    """Median (bias_x, bias_y) of keypoints against their twins in the mirrored images.
+
+    A keypoint at x in an image of width W has its twin at W - 1 - x in the image
+    flipped left-right; a detector that reports x + b puts the twin at W - 1 - x + b,
+    so half the disagreement is the bias b (the same for y with an up-down flip).
+    """
+    bias = []
+    for flip, axis in ((1, 0), (0, 1)):
+        p = cv2.KeyPoint_convert(detector.detect(gray, None)).astype(np.float64)
+        q = cv2.KeyPoint_convert(detector.detect(cv2.flip(gray, flip), None)).astype(np.float64)
+        q[:, axis] = gray.shape[1 - axis] - 1 - q[:, axis]
+        dist = np.linalg.norm(p[:, None, :] - q[None, :, :], axis=2)
+        nearest = dist.argmin(axis=1)
+        twins = dist[np.arange(len(p)), nearest] < 1.0
+        assert twins.sum() > 100
+        bias.append(np.median(p[twins, axis] - q[nearest[twins], axis]) / 2)
+    return np.array(bias)
+
+
+def test_sift_keypoints_have_no_quarter_pixel_bias(rendered_pair):
+    gray = cv2.cvtColor(rendered_pair[0], cv2.COLOR_BGR2GRAY)
+    # OpenCV's default SIFT reports keypoints 0.25 px right and down of where they are ...
+    np.testing.assert_allclose(_mirror_bias_px(gray, cv2.SIFT_create()), 0.25, atol=0.02)
+    # ... and scene3D's does not.
+    detector, _, name = features.create_detector("SIFT")
+    assert name == "SIFT"
+    np.testing.assert_allclose(_mirror_bias_px(gray, detector), 0.0, atol=0.02)

@@ -1,5 +1,6 @@
 """Real data with ground truth: fountain-P11 through the book's API at 768 px."""
 
+import cv2
 import numpy as np
 import pytest
 
@@ -8,7 +9,7 @@ from scene3D.camera import scale_intrinsics
 from scene3D.datasets import read_strecha_camera, relative_pose
 from scene3D.epipolar import essential_cost, fit_essential
 from scene3D.evaluation import relative_pose_error
-from scene3D.features import find_matches
+from scene3D.features import Matches, detect_features, match_descriptors, to_gray
 from scene3D.geometry import project
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches
 
@@ -82,15 +83,20 @@ def test_flow_mode_on_the_book_pair(fountain):
 def test_restarts_escape_a_poor_optimum_on_a_wide_pair(fountain):
     """Images 5 and 10 at 768 px: few inliers, a robust cost with several minima.
 
-    A single robust start may stop in a poor one (2.2 deg off with OpenCV 5.0's
-    USAC); the restarts must end at least as low in cost and near the truth, and
+    On the matches of OpenCV's default SIFT (with its 0.25 px bias, see
+    scene3D.features) a single robust start stops in a poor one (2.2 deg off with
+    OpenCV 5.0's USAC); the restarts must end at least as low in cost and near the
+    truth. scene3D's own bias-free matches must give a pose near the truth too, and
     the pipeline must still call such a pair untrusted (few inliers). With too few
     starts to find any pose twice, it says so.
     """
     cams = _cameras(fountain)
     scene = SceneReconstruction3D(cams[5].K, cams[5].dist)
     scene.load_image_pair(fountain / "images" / "0005.jpg", fountain / "images" / "0010.jpg")
-    matches = find_matches(scene.img1, scene.img2, "SIFT")
+    (px1, d1), (px2, d2) = (detect_features(to_gray(img), cv2.SIFT_create(8000))
+                            for img in (scene.img1, scene.img2))
+    idx1, idx2 = match_descriptors(d1, d2, cv2.NORM_L2)
+    matches = Matches(px1[idx1], px2[idx2], "SIFT", (len(px1), len(px2)))
     single = fit_essential(matches.pts1, matches.pts2, scene.K, max_starts=1)
     restarted = fit_essential(matches.pts1, matches.pts2, scene.K, max_starts=8)
     assert restarted.starts > 2 and restarted.confirmed  # the first two starts disagree
@@ -99,7 +105,7 @@ def test_restarts_escape_a_poor_optimum_on_a_wide_pair(fountain):
     result = scene.reconstruct("SIFT")
     err = relative_pose_error(result.R, result.t, *relative_pose(cams[5], cams[10]))
     assert max(err.rotation_deg, err.translation_deg) < 1.0
-    assert not result.trusted and result.robust_starts == restarted.starts
+    assert not result.trusted and result.robust_starts >= 2
     hurried = reconstruct_from_matches(matches.pts1, matches.pts2, scene.K,
                                        TwoViewSettings(max_starts=2))
     assert any("no pose was found twice in 2 robust starts" in w for w in hurried.warnings)
