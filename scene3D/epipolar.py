@@ -14,7 +14,16 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .geometry import FloatArray, as_matrix, as_points2d, check_same_length, skew, to_homogeneous
+from .geometry import (
+    FloatArray,
+    angle_between_deg,
+    as_matrix,
+    as_points2d,
+    check_same_length,
+    rotation_error_deg,
+    skew,
+    to_homogeneous,
+)
 from .pose import decompose_essential
 from .refinement import _loss, refine_relative_pose, sampson_residuals
 
@@ -116,7 +125,12 @@ class EssentialFit(NamedTuple):
     confirmed : bool
         The returned fit was reached from at least two starts (False with one start,
         or when ``max_starts`` ran out first: then several models fit about equally
-        well and the pose is doubtful).
+        well).
+    spread_deg : float
+        How far the other starts' optima lie from the returned one: the largest
+        :func:`essential_angle_deg` between them (0 with one start). Unconfirmed
+        with a small spread, the optima are distinct but the pose is still known to
+        that angle; with a large one, it is doubtful.
     """
 
     E: FloatArray
@@ -124,6 +138,7 @@ class EssentialFit(NamedTuple):
     starts: int
     refinement_s: float
     confirmed: bool = False
+    spread_deg: float = 0.0
 
 
 def fit_essential(
@@ -187,7 +202,8 @@ def fit_essential(
         return EssentialFit(np.full((3, 3), np.nan), np.zeros(len(p1), dtype=bool),
                             max_starts, refinement_s)
     _, E, inliers = min(fits, key=lambda fit: fit[0])
-    return EssentialFit(E, inliers, len(fits), refinement_s, confirmed)
+    spread = max(essential_angle_deg(E, E_other) for _, E_other, _ in fits)
+    return EssentialFit(E, inliers, len(fits), refinement_s, confirmed, spread)
 
 
 def estimate_essential(
@@ -288,6 +304,24 @@ def polish_essential(E: FloatArray, p1: FloatArray, p2: FloatArray, K: FloatArra
 def _same_essential(E1: FloatArray, E2: FloatArray, tolerance: float = 1e-4) -> bool:
     """True when two unit-norm essential matrices agree up to sign (the same local optimum)."""
     return bool(min(np.abs(E1 - E2).max(), np.abs(E1 + E2).max()) < tolerance)
+
+
+def essential_angle_deg(E1: ArrayLike, E2: ArrayLike) -> float:
+    """How far apart the poses of two essential matrices are, in degrees.
+
+    The larger of the rotation angle and the translation-direction angle (up to
+    sign) between the nearest of their decompositions
+    (:func:`scene3D.pose.decompose_essential`); 0 for the same matrix up to scale.
+    Both rotations of each are tried: the pose and its twisted pair (turned 180 deg
+    about the baseline) lie about 180 deg apart, so the minimum pairs like with like.
+    """
+    poses1, poses2 = decompose_essential(E1), decompose_essential(E2)
+    t1 = poses1[0][1]
+    return min(
+        max(rotation_error_deg(R2, R1), angle_between_deg(t2, t1))
+        for R1, _ in poses1[::2]
+        for R2, t2 in poses2
+    )
 
 
 def refine_essential(

@@ -71,6 +71,10 @@ class TwoViewSettings:
         Most robust estimations of E (each locally optimised); the best is kept
         once two starts agree on it (:func:`scene3D.epipolar.fit_essential`).
         1 gives a single start, as plain OpenCV does.
+    restart_agreement_deg : float
+        When no pose was found twice, the result is still trusted if every start's
+        optimum lies within this angle of the best (distinct optima, one pose to
+        that accuracy); beyond it the result is marked untrusted.
     min_matches, min_inliers, min_points : int
         Below these counts the pair is refused.
     min_median_parallax_deg : float
@@ -105,6 +109,7 @@ class TwoViewSettings:
 
     threshold_px: float = 1.0
     max_starts: int = 8
+    restart_agreement_deg: float = 0.5
     min_matches: int = 20
     min_inliers: int = 15
     min_points: int = 10
@@ -156,8 +161,9 @@ class TwoViewGeometry:
         Seconds spent refining the pose (and bundle adjusting, if asked).
     robust_starts : int
         Robust estimations of E run (:func:`scene3D.epipolar.fit_essential`); when
-        the best pose was not found twice in ``TwoViewSettings.max_starts`` of them,
-        the result is untrusted.
+        the best pose was not found twice in ``TwoViewSettings.max_starts`` of them
+        and their optima lie more than ``TwoViewSettings.restart_agreement_deg``
+        apart, the result is untrusted.
     """
 
     R: FloatArray
@@ -321,12 +327,15 @@ def trust_warnings(num_matches: int, num_inliers: int, median_parallax_deg: floa
     """Reasons to doubt a pose that passed every hard check (empty: trusted).
 
     ``fit``: the robust estimate the pose came from; doubtful when its restarts
-    never reached the best pose twice.
+    never reached the best pose twice and their optima lie further apart than
+    ``s.restart_agreement_deg``.
     """
     warnings = []
-    if fit is not None and s.max_starts > 1 and not fit.confirmed:
-        warnings.append(f"no pose was found twice in {fit.starts} robust starts: several "
-                        "poses fit the matches about equally well")
+    if (fit is not None and s.max_starts > 1 and not fit.confirmed
+            and fit.spread_deg > s.restart_agreement_deg):
+        warnings.append(f"no pose was found twice in {fit.starts} robust starts: poses "
+                        f"up to {fit.spread_deg:.1f} deg apart fit the matches about "
+                        "equally well")
     if num_inliers < s.trusted_inliers:
         warnings.append(f"only {num_inliers} inliers: the pose rests on few matches")
     if num_inliers < s.trusted_inlier_ratio * num_matches:

@@ -4,6 +4,7 @@ import pytest
 from scene3D.epipolar import (
     epipolar_lines,
     epipolar_residuals,
+    essential_angle_deg,
     essential_cost,
     essential_from_pose,
     estimate_essential,
@@ -12,7 +13,7 @@ from scene3D.epipolar import (
     fundamental_from_essential,
 )
 from scene3D.evaluation import relative_pose_error
-from scene3D.geometry import normalize_points, to_homogeneous
+from scene3D.geometry import normalize_points, rotation_about_axis, to_homogeneous
 from scene3D.pose import choose_pose
 
 from .helpers import correspondences
@@ -136,3 +137,14 @@ def test_fit_essential_needs_at_least_one_start(camera, true_pose):
     _, pts1, pts2 = correspondences(camera, R, t, n=20)
     with pytest.raises(ValueError, match="max_starts must be >= 1"):
         fit_essential(pts1, pts2, camera, max_starts=0)
+
+
+def test_essential_angle_is_the_pose_difference_whatever_the_scale_and_sign(true_pose):
+    R, t = true_pose
+    E = essential_from_pose(R, t)
+    assert essential_angle_deg(E, -3.0 * E) == pytest.approx(0.0, abs=1e-5)
+    assert essential_angle_deg(E, essential_from_pose(R, -t)) == pytest.approx(0.0, abs=1e-5)
+    turned = essential_from_pose(rotation_about_axis([0.0, 1.0, 0.2], 0.3) @ R, t)
+    assert essential_angle_deg(E, turned) == pytest.approx(0.3, abs=1e-6)
+    t_off = rotation_about_axis(np.cross(t, [0.0, 0.0, 1.0]), 2.0) @ t
+    assert essential_angle_deg(E, essential_from_pose(R, t_off)) == pytest.approx(2.0, abs=1e-6)

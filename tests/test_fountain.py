@@ -109,3 +109,23 @@ def test_restarts_escape_a_poor_optimum_on_a_wide_pair(fountain):
     hurried = reconstruct_from_matches(matches.pts1, matches.pts2, scene.K,
                                        TwoViewSettings(max_starts=2))
     assert any("no pose was found twice in 2 robust starts" in w for w in hurried.warnings)
+
+
+def test_restarts_that_end_close_together_leave_the_pose_trusted(fountain):
+    """Pair 1-3 at 768 px: one start finds the best optimum and seven a neighbour.
+
+    The best is never reached twice, but the neighbour lies within 0.5 deg
+    (TwoViewSettings.restart_agreement_deg): the pose is known to that accuracy,
+    so the result is trusted, and it is accurate.
+    """
+    cams = _cameras(fountain)
+    scene = SceneReconstruction3D(cams[1].K, cams[1].dist)
+    scene.load_image_pair(fountain / "images" / "0001.jpg", fountain / "images" / "0003.jpg")
+    result = scene.reconstruct("SIFT")
+    matches = scene.matches("SIFT")
+    fit = fit_essential(matches.pts1, matches.pts2, scene.K)
+    assert fit.starts == 8 and not fit.confirmed
+    assert 0.05 < fit.spread_deg < TwoViewSettings().restart_agreement_deg
+    assert result.trusted, result.warnings
+    err = relative_pose_error(result.R, result.t, *relative_pose(cams[1], cams[3]))
+    assert max(err.rotation_deg, err.translation_deg) < 0.2
