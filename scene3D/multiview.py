@@ -35,7 +35,7 @@ from .bundle import Observations, bundle_adjust, reprojection_residuals
 from .camera import scale_intrinsics_halved, validate_distortion, validate_intrinsics
 from .epipolar import estimate_essential
 from .errors import ReconstructionError
-from .features import create_detector, image_features, match_descriptors
+from .features import image_features, match_descriptors
 from .geometry import FloatArray, camera_centers
 from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, image_size, iter_working_images
 from .twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches, sample_colors
@@ -54,11 +54,14 @@ class ViewFeatures:
     descriptors : (N, D)
     colors : (N, 3) uint8
         RGB at each keypoint.
+    norm : int
+        The descriptor distance, ``cv2.NORM_L2`` or ``cv2.NORM_HAMMING``.
     """
 
     keypoints: FloatArray
     descriptors: np.ndarray
     colors: np.ndarray
+    norm: int = cv2.NORM_L2
 
 
 @dataclass(frozen=True)
@@ -162,7 +165,8 @@ def extract_features(img: np.ndarray, feature: str = "SIFT",
                      max_features: int = 8000) -> ViewFeatures:
     """Keypoints, descriptors and colours of one BGR image."""
     found = image_features(img, feature, max_features)
-    return ViewFeatures(found.pixels, found.descriptors, sample_colors(img, found.pixels))
+    return ViewFeatures(found.pixels, found.descriptors, sample_colors(img, found.pixels),
+                        found.norm)
 
 
 def select_pairs(num_views: int, mode: str = "auto", neighbours: int = 3
@@ -185,10 +189,10 @@ def select_pairs(num_views: int, mode: str = "auto", neighbours: int = 3
     raise ValueError(f"`pairs` must be 'auto', 'all' or 'sequential', got {mode!r}")
 
 
-def verify_pair(f1: ViewFeatures, f2: ViewFeatures, K: FloatArray, norm: int,
+def verify_pair(f1: ViewFeatures, f2: ViewFeatures, K: FloatArray,
                 settings: SfMSettings) -> tuple[np.ndarray, np.ndarray] | None:
     """Indices of matches consistent with one essential matrix, or None."""
-    idx1, idx2 = match_descriptors(f1.descriptors, f2.descriptors, norm)
+    idx1, idx2 = match_descriptors(f1.descriptors, f2.descriptors, f1.norm)
     if len(idx1) < settings.min_pair_inliers:
         return None
     _, inliers = estimate_essential(f1.keypoints[idx1], f2.keypoints[idx2], K,
@@ -529,10 +533,9 @@ def reconstruct_views(
 
     t0 = time.perf_counter()
     pair_list, selection = select_pairs(len(features), pairs, s.neighbours)
-    _, norm, _ = create_detector(feature)
     pair_matches = {}
     for i, j in pair_list:
-        verified = verify_pair(features[i], features[j], K, norm, s)
+        verified = verify_pair(features[i], features[j], K, s)
         if verified is not None:
             pair_matches[(i, j)] = verified
     timings["matching"] = time.perf_counter() - t0

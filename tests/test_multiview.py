@@ -16,13 +16,17 @@ from scene3D.geometry import (
     quaternion_from_rotation,
     rotation_about_axis,
     rotation_from_quaternion,
+    skew,
+    to_homogeneous,
 )
 from scene3D.multiview import (
     SfMSettings,
     ViewFeatures,
     build_tracks,
+    extract_features,
     incremental_reconstruction,
     select_pairs,
+    verify_pair,
 )
 
 from .conftest import REPO
@@ -92,6 +96,19 @@ def test_tracks_chain_matches_and_drop_inconsistent_ones():
     tracks = build_tracks([3, 7, 10], {(0, 1): (np.array([0]), np.array([5])),
                                        (1, 2): (np.array([5]), np.array([9]))})
     assert tracks == [{0: 0, 1: 5, 2: 9}]
+
+
+@pytest.mark.parametrize("feature, norm", [("SIFT", cv2.NORM_L2), ("ORB", cv2.NORM_HAMMING)])
+def test_views_carry_their_descriptor_norm_into_matching(rendered_pair, feature, norm):
+    img1, img2, K, R, t = rendered_pair
+    f1, f2 = extract_features(img1, feature), extract_features(img2, feature)
+    assert f1.norm == f2.norm == norm
+    idx1, idx2 = verify_pair(f1, f2, K, SfMSettings())
+    E = skew(t) @ R
+    x1 = to_homogeneous(f1.keypoints[idx1]) @ np.linalg.inv(K).T
+    x2 = to_homogeneous(f2.keypoints[idx2]) @ np.linalg.inv(K).T
+    algebraic = np.abs(np.einsum("ij,jk,ik->i", x2, E, x1))
+    assert len(idx1) >= 50 and np.median(algebraic) * K[0, 0] < 1.0  # within ~1 px of the truth
 
 
 def test_pair_selection():
