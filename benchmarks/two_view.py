@@ -1,9 +1,11 @@
 """Two-view accuracy and speed: scene3D against the book, plain OpenCV, PoseLib and pycolmap.
 
-    python benchmarks/two_view.py [--sizes 1536 768] [--methods ...] [--gaps 1 2] [--quick]
+    python benchmarks/two_view.py [--scene DIR] [--sizes 1536 768] [--methods ...] [--gaps 1 2]
+                                  [--quick]
 
-Runs fountain-P11 pairs (i, i+1) and (i, i+2) (``--gaps 3 4 5``: wider baselines) at each
-working width, compares every
+Runs fountain-P11 pairs (i, i+1) and (i, i+2) (``--gaps 3 4 5``: wider baselines; ``--scene``:
+any other Strecha-format scene, images/ + gt_dense_cameras/) at each working width, compares
+every
 estimated relative pose with the Strecha ground truth and prints a markdown table
 (rows per method and size) plus the whole-process time of ``chapter4.py --no-plots``
 against a hand-written plain-OpenCV script. Per-pair rows go to a CSV.
@@ -39,7 +41,13 @@ import cv2
 import numpy as np
 
 from scene3D.camera import scale_intrinsics_halved
-from scene3D.datasets import FOUNTAIN_P11, default_data_root, read_strecha_camera, relative_pose
+from scene3D.datasets import (
+    FOUNTAIN_P11,
+    default_data_root,
+    read_strecha_camera,
+    relative_pose,
+    strecha_views,
+)
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import (
     paired_auc_difference,
@@ -142,19 +150,18 @@ def run_pycolmap(img1, img2, K):
     return pose.rotation.matrix(), np.asarray(pose.translation), len(geom.inlier_matches), timings
 
 
-def load_pair(folder: Path, a: int, b: int, width: int):
-    """Both working images as scene3D makes them (halved by area averaging); every method
-    gets these same pixels."""
-    cam1 = read_strecha_camera(folder / "gt_dense_cameras" / f"{a:04d}.jpg.camera")
-    cam2 = read_strecha_camera(folder / "gt_dense_cameras" / f"{b:04d}.jpg.camera")
-    img1, _, levels = load_working_image(folder / "images" / f"{a:04d}.jpg", cam1.K, cam1.dist,
-                                         width)
-    img2, _, _ = load_working_image(folder / "images" / f"{b:04d}.jpg", cam2.K, cam2.dist, width)
+def load_pair(views: list[tuple[Path, Path]], a: int, b: int, width: int):
+    """Views ``a`` and ``b`` of a scene (:func:`scene3D.datasets.strecha_views`) as scene3D
+    loads them (halved by area averaging); every method gets these same pixels."""
+    (path1, camera1), (path2, camera2) = views[a], views[b]
+    cam1, cam2 = read_strecha_camera(camera1), read_strecha_camera(camera2)
+    img1, _, levels = load_working_image(path1, cam1.K, cam1.dist, width)
+    img2, _, _ = load_working_image(path2, cam2.K, cam2.dist, width)
     return img1, img2, scale_intrinsics_halved(cam1.K, levels), relative_pose(cam1, cam2)
 
 
-def evaluate_pair(folder, a, b, width, methods) -> list[Outcome]:
-    img1, img2, K, (R_true, t_true) = load_pair(folder, a, b, width)
+def evaluate_pair(views, a, b, width, methods) -> list[Outcome]:
+    img1, img2, K, (R_true, t_true) = load_pair(views, a, b, width)
     size = (img1.shape[1], img1.shape[0])
     outcomes = []
     shared = shared_sift(img1, img2) if {"book", "opencv", "poselib"} & set(methods) else None
@@ -233,6 +240,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", type=Path, default=None,
                         help="folder holding fountain-P11/ (default: $SCENE3D_DATA)")
+    parser.add_argument("--scene", type=Path, default=None, metavar="DIR",
+                        help="a Strecha-format scene (images/ + gt_dense_cameras/, e.g. "
+                             "Herz-Jesus-P8) to run instead of fountain-P11; the "
+                             "whole-process comparison still uses fountain-P11's book pair")
     parser.add_argument("--sizes", type=int, nargs="+", default=[1536, 768])
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
     parser.add_argument("--gaps", type=int, nargs="+", default=[1, 2],
@@ -244,21 +255,31 @@ def main(argv: list[str] | None = None) -> int:
                         help="only the whole-process comparison with the plain-OpenCV script")
     args = parser.parse_args(argv)
     root = args.data or default_data_root()
-    folder = root / FOUNTAIN_P11
+    fountain = root / FOUNTAIN_P11 if root is not None else None
     if args.process_only:
-        _print_process_ratio(folder)
+        _print_process_ratio(fountain)
         return 0
+    scene = args.scene or fountain
+    if scene is None:
+        parser.error("no data: set SCENE3D_DATA or pass --data or --scene")
+    try:
+        views = strecha_views(scene)
+    except (FileNotFoundError, ValueError) as exc:
+        parser.error(str(exc))
     cv2.setNumThreads(1)
     methods = [m for m in args.methods if m in ("book", "opencv", "scene3D") or _has(m)]
     if min(args.gaps) < 1:
         parser.error("--gaps must be whole numbers >= 1")
-    pairs = [(i, i + gap) for gap in args.gaps for i in range(11 - gap)]
+    n = len(views)
+    pairs = [(i, i + gap) for gap in args.gaps for i in range(n - gap)]
     if args.quick:
-        pairs = [(i, i + 1) for i in range(0, 10, 2)]
+        pairs = [(i, i + 1) for i in range(0, n - 1, 2)]
+    if not pairs:
+        parser.error(f"--gaps {' '.join(map(str, args.gaps))} selects no pair of the {n} views")
     outcomes: list[Outcome] = []
     for width in args.sizes:
         for a, b in pairs:
-            outcomes += evaluate_pair(folder, a, b, width, methods)
+            outcomes += evaluate_pair(views, a, b, width, methods)
             print(f"width {width} pair {a}-{b} done", file=sys.stderr)
     args.csv.parent.mkdir(parents=True, exist_ok=True)
     with open(args.csv, "w", newline="") as f:
@@ -271,8 +292,8 @@ def main(argv: list[str] | None = None) -> int:
                              o.translation_deg, o.inliers, o.flagged, o.error,
                              *(o.timings_s.get(s, 0.0) for s in
                                ("features", "matching", "geometry", "refinement", "total"))])
-    print(f"fountain-P11, {len(pairs)} pairs per size; errors in degrees against the Strecha "
-          "cameras; a failed pair counts as 180 deg (zero for AUC).\n")
+    print(f"{scene.resolve().name}, {len(pairs)} pairs per size; errors in degrees against the "
+          "Strecha cameras; a failed pair counts as 180 deg (zero for AUC).\n")
     print("| method | width | median rot | p90 rot | median t-dir | p90 t-dir | both < 2 deg "
           "| both < 5 deg | AUC@5deg | inliers | flagged | wrong & unflagged | features s "
           "| matching s | geometry s | refinement s | total s |")
@@ -289,7 +310,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"{s['t_total']:.2f} |")
     if "scene3D" in methods:
         _print_auc_differences(outcomes, [m for m in methods if m != "scene3D"])
-    _print_process_ratio(folder)
+    _print_process_ratio(fountain)
     print(f"Per-pair rows: {args.csv}")
     return 0
 
@@ -311,8 +332,11 @@ def _print_auc_differences(outcomes: list[Outcome], peers: list[str]) -> None:
         print(f"- {width} px: " + "; ".join(cells))
 
 
-def _print_process_ratio(folder: Path) -> None:
-    t = process_times(folder)
+def _print_process_ratio(fountain: Path | None) -> None:
+    if fountain is None or not (fountain / "images" / "0004.jpg").is_file():
+        print("\nWhole process: skipped (it runs on fountain-P11's book pair, not found)")
+        return
+    t = process_times(fountain)
     print(f"\nWhole process, book pair at 768 px (median of 7): chapter4.py --no-plots "
           f"{t['ours']:.2f} s, plain-OpenCV script {t['plain']:.2f} s, ratio "
           f"{t['ours'] / t['plain']:.2f} (against the plain script with "

@@ -1,5 +1,8 @@
 """Datasets: finding, downloading and reading the Strecha fountain-P11 benchmark.
 
+Any scene of the Strecha benchmark in the same layout (``images/NAME`` and
+``gt_dense_cameras/NAME.camera``) is listed by :func:`strecha_views`.
+
 Where files are looked for, in order:
 
 1. ``$SCENE3D_DATA/fountain-P11/`` (``SCENE3D_DATA`` defaults to the
@@ -27,6 +30,7 @@ import numpy as np
 
 from .errors import DatasetError
 from .geometry import FloatArray
+from .imageio import IMAGE_SUFFIXES
 
 logger = logging.getLogger(__name__)
 
@@ -212,6 +216,29 @@ class StrechaCamera:
     t: FloatArray
     center: FloatArray
     image_size: tuple[int, int]
+
+
+def strecha_views(dataset: str | os.PathLike) -> list[tuple[Path, Path]]:
+    """The views of a Strecha-format dataset: ``(image, camera file)`` paths, by image name.
+
+    An image counts when ``gt_dense_cameras/`` holds its ``NAME.camera``.
+
+    Raises
+    ------
+    FileNotFoundError
+        ``images/`` or ``gt_dense_cameras/`` is missing.
+    ValueError
+        Fewer than two images have a camera file.
+    """
+    dataset = Path(dataset)
+    images, cameras = dataset / "images", dataset / "gt_dense_cameras"
+    if not images.is_dir() or not cameras.is_dir():
+        raise FileNotFoundError(f"'{dataset}' needs images/ and gt_dense_cameras/ folders")
+    views = [(p, cameras / f"{p.name}.camera") for p in sorted(images.iterdir())
+             if p.suffix.lower() in IMAGE_SUFFIXES and (cameras / f"{p.name}.camera").is_file()]
+    if len(views) < 2:
+        raise ValueError(f"'{dataset}' has fewer than two images with a .camera file")
+    return views
 
 
 def read_strecha_camera(path: str | os.PathLike) -> StrechaCamera:

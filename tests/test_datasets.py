@@ -7,7 +7,7 @@ import threading
 
 import pytest
 
-from scene3D.datasets import FOUNTAIN_P11_SHA256, fetch_fountain_p11, sha256_of
+from scene3D.datasets import FOUNTAIN_P11_SHA256, fetch_fountain_p11, sha256_of, strecha_views
 from scene3D.errors import DatasetError
 
 FILES = ("images/K.txt", "gt_dense_cameras/0004.jpg.camera", "images/0004.jpg")
@@ -85,3 +85,20 @@ def test_offline_error_says_what_to_do(tmp_path):
 def test_unknown_file_is_refused(tmp_path):
     with pytest.raises(ValueError, match="not a fountain-P11 file"):
         fetch_fountain_p11(("images/9999.jpg",), data_root=tmp_path)
+
+
+def test_strecha_views_pair_each_image_with_its_camera_file(tmp_path):
+    images, cameras = tmp_path / "images", tmp_path / "gt_dense_cameras"
+    images.mkdir()
+    cameras.mkdir()
+    for name in ("b.jpg", "a.JPG", "c.png", "K.txt"):
+        (images / name).write_bytes(b"")
+    for name in ("a.JPG", "b.jpg"):  # c.png has no camera file: not a view
+        (cameras / f"{name}.camera").write_text("")
+    assert strecha_views(tmp_path) == [(images / "a.JPG", cameras / "a.JPG.camera"),
+                                       (images / "b.jpg", cameras / "b.jpg.camera")]
+    (cameras / "b.jpg.camera").unlink()
+    with pytest.raises(ValueError, match="fewer than two images with a .camera file"):
+        strecha_views(tmp_path)
+    with pytest.raises(FileNotFoundError, match="needs images/ and gt_dense_cameras/"):
+        strecha_views(images)

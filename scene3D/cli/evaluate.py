@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..camera import scale_intrinsics_halved
-from ..datasets import StrechaCamera, read_strecha_camera, relative_pose
+from ..datasets import StrechaCamera, read_strecha_camera, relative_pose, strecha_views
 from ..errors import ReconstructionError
 from ..evaluation import relative_pose_error, summarize_pose_errors
 from ..export import atomic_write_bytes
@@ -26,7 +26,7 @@ from ..features import (
     match_features,
     normalize_feature_mode,
 )
-from ..imageio import BOOK_MAX_WIDTH_PX, IMAGE_SUFFIXES, load_working_image
+from ..imageio import BOOK_MAX_WIDTH_PX, load_working_image
 from ..twoview import TwoViewSettings, reconstruct_two_view
 from .common import (
     EXIT_CODES_HELP,
@@ -69,14 +69,10 @@ def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
 
 
 def _views(dataset: Path) -> list[tuple[Path, Path]]:
-    images, cameras = dataset / "images", dataset / "gt_dense_cameras"
-    if not images.is_dir() or not cameras.is_dir():
-        raise UsageError(f"'{dataset}' needs images/ and gt_dense_cameras/ folders")
-    views = [(p, cameras / f"{p.name}.camera") for p in sorted(images.iterdir())
-             if p.suffix.lower() in IMAGE_SUFFIXES and (cameras / f"{p.name}.camera").is_file()]
-    if len(views) < 2:
-        raise UsageError(f"'{dataset}' has fewer than two images with a .camera file")
-    return views
+    try:
+        return strecha_views(dataset)
+    except (FileNotFoundError, ValueError) as exc:
+        raise UsageError(str(exc)) from None
 
 
 def _pairs(specs: list[str], count: int) -> list[tuple[int, int]]:
