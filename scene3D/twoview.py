@@ -164,6 +164,9 @@ class TwoViewGeometry:
         the best pose was not found twice in ``TwoViewSettings.max_starts`` of them
         and their optima lie more than ``TwoViewSettings.restart_agreement_deg``
         apart, the result is untrusted.
+    robust_spread_deg : float
+        How far the other starts' optima lie from the chosen one
+        (:attr:`scene3D.epipolar.EssentialFit.spread_deg`; 0 when they all agree).
     """
 
     R: FloatArray
@@ -185,6 +188,7 @@ class TwoViewGeometry:
     inlier_pts2: FloatArray
     refinement_s: float = 0.0
     robust_starts: int = 1
+    robust_spread_deg: float = 0.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -478,6 +482,7 @@ def reconstruct_from_matches(
         median_parallax_deg=median_kept_parallax,
         homography_inlier_ratio=h_ratio, trusted=not warnings, warnings=tuple(warnings),
         inlier_pts1=in1, inlier_pts2=in2, refinement_s=refine_s, robust_starts=fit.starts,
+        robust_spread_deg=fit.spread_deg,
     )
 
 

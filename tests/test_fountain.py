@@ -127,5 +127,6 @@ def test_restarts_that_end_close_together_leave_the_pose_trusted(fountain):
     assert fit.starts == 8 and not fit.confirmed
     assert 0.05 < fit.spread_deg < TwoViewSettings().restart_agreement_deg
     assert result.trusted, result.warnings
+    assert result.robust_spread_deg == pytest.approx(fit.spread_deg)
     err = relative_pose_error(result.R, result.t, *relative_pose(cams[1], cams[3]))
     assert max(err.rotation_deg, err.translation_deg) < 0.2

@@ -118,7 +118,7 @@ def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path], cal
         "reprojection_rmse_px": result.reprojection_rmse_px,
         "median_parallax_deg": result.median_parallax_deg,
         "homography_inlier_ratio": result.homography_inlier_ratio,
-        "robust_starts": result.robust_starts,
+        "robust_starts": result.robust_starts, "robust_spread_deg": result.robust_spread_deg,
         "trusted": result.trusted, "warnings": list(result.warnings),
         "timings_s": timings,
     }
