@@ -42,6 +42,7 @@ import numpy as np
 
 from scene3D.camera import scale_intrinsics_halved
 from scene3D.datasets import (
+    BOOK_PAIR,
     FOUNTAIN_P11,
     default_data_root,
     read_strecha_camera,
@@ -219,7 +220,7 @@ def process_times(folder: Path, runs: int = PROCESS_RUNS) -> dict[str, list[floa
     command-line tools make for themselves (OPENBLAS_THREAD_TIMEOUT=4), to show how much
     of the difference that setting alone accounts for.
     """
-    img1, img2 = folder / "images" / "0004.jpg", folder / "images" / "0005.jpg"
+    img1, img2 = (folder / name for name in BOOK_PAIR)
     ours = [sys.executable, str(REPO / "chapter4.py"), str(img1), str(img2), "--calib",
             str(REPO / "data" / "fountain_P11_intrinsics.yaml"), "--no-plots", "-q"]
     plain = [sys.executable, str(REPO / "benchmarks" / "plain_opencv.py"), str(img1), str(img2),
@@ -336,7 +337,7 @@ def _print_auc_differences(outcomes: list[Outcome], peers: list[str]) -> None:
 
 
 def _print_process_ratio(fountain: Path | None) -> None:
-    if fountain is None or not (fountain / "images" / "0004.jpg").is_file():
+    if fountain is None or not all((fountain / name).is_file() for name in BOOK_PAIR):
         print("\nWhole process: skipped (it runs on fountain-P11's book pair, not found)")
         return
     times = process_times(fountain)
