@@ -241,3 +241,14 @@ def test_startup_imports_nothing_heavy_before_the_cli_sets_up_blas():
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
                          text=True, check=True).stdout.split()
     assert out == ["[]", "10"]
+
+
+@pytest.mark.parametrize("module", ["chapter4", "calibrate", "evaluate", "multiview"])
+def test_every_argument_of_every_command_has_help(module):
+    import argparse
+    import importlib
+
+    parser = importlib.import_module(f"scene3D.cli.{module}").build_parser()
+    silent = [action.dest for action in parser._actions
+              if not action.help and not isinstance(action, argparse._HelpAction)]
+    assert silent == []

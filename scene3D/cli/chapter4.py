@@ -26,6 +26,7 @@ from .common import (
     UsageError,
     add_bundle_adjust_arg,
     add_common_args,
+    add_feature_arg,
     add_size_args,
     prepare_output_dir,
     run_command,
@@ -61,10 +62,7 @@ def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
                         help="camera calibration (OpenCV YAML/XML as calibrate.py writes it); "
                              "required with your own images; scaled when the images have the "
                              "same aspect ratio but another size")
-    parser.add_argument("--feature", default="sift", type=str.lower,
-                        choices=[m.lower() for m in FEATURE_MODES],
-                        help="features: sift (default), surf (the book's; falls back to sift "
-                             "when OpenCV lacks it), orb, akaze, or flow (tracked corners)")
+    add_feature_arg(parser, [m.lower() for m in FEATURE_MODES])
     add_size_args(parser, BOOK_MAX_WIDTH_PX, "the book's rule, 3072 -> 768")
     add_bundle_adjust_arg(parser)
     parser.add_argument("--dense", action="store_true",

@@ -69,6 +69,22 @@ def add_size_args(parser: argparse.ArgumentParser, default_width: int, note: str
                            "the name is the book's, which halves with cv2.pyrDown)")
 
 
+_FEATURE_HELP = {
+    "sift": "sift (default)",
+    "surf": "surf (the book's; falls back to sift when OpenCV lacks it)",
+    "orb": "orb",
+    "akaze": "akaze",
+    "flow": "flow (tracked corners)",
+}
+
+
+def add_feature_arg(parser: argparse.ArgumentParser, modes: list[str]) -> None:
+    """``--feature``: one of ``modes`` (lower-case names of
+    :data:`scene3D.features.FEATURE_MODES`), SIFT by default."""
+    parser.add_argument("--feature", default="sift", type=str.lower, choices=modes,
+                        help="features: " + ", ".join(_FEATURE_HELP.get(m, m) for m in modes))
+
+
 def add_bundle_adjust_arg(parser: argparse.ArgumentParser) -> None:
     """``--bundle-adjust``: finish the two-view pose with a bundle adjustment."""
     parser.add_argument("--bundle-adjust", action="store_true",

@@ -34,6 +34,7 @@ from .common import (
     UsageError,
     add_bundle_adjust_arg,
     add_common_args,
+    add_feature_arg,
     add_size_args,
     run_command,
 )
@@ -51,14 +52,14 @@ def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
                 "between translation directions; failed pairs count as infinite error. "
                 f"{EXIT_CODES_HELP}."),
     )
-    parser.add_argument("dataset", type=Path, metavar="DATASET_DIR")
+    parser.add_argument("dataset", type=Path, metavar="DATASET_DIR",
+                        help="a scene in the Strecha layout, such as fountain-P11")
     parser.add_argument("--pairs", nargs="+", default=["consecutive"], metavar="SPEC",
                         help="'consecutive' (i, i+1; default), 'skipN' (i, i+1+N: skip1 for "
                              "i, i+2, larger N for wider baselines), or explicit index pairs "
                              "such as 4-5 0-2 (indices into the sorted images)")
     add_size_args(parser, BOOK_MAX_WIDTH_PX, "the book's rule, 3072 -> 768")
-    parser.add_argument("--feature", default="sift", type=str.lower,
-                        choices=[m.lower() for m in FEATURE_MODES])
+    add_feature_arg(parser, [m.lower() for m in FEATURE_MODES])
     add_bundle_adjust_arg(parser)
     parser.add_argument("--csv", type=Path, metavar="FILE",
                         help="also write the per-pair rows (with notes) to this CSV file")

@@ -24,6 +24,7 @@ from .common import (
     EXIT_OK,
     UsageError,
     add_common_args,
+    add_feature_arg,
     add_size_args,
     positive_int,
     prepare_output_dir,
@@ -59,8 +60,7 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
     parser.add_argument("--neighbours", type=positive_int, default=3, metavar="N",
                         help="with --pairs sequential (or auto beyond 20 views): how many "
                              "following views each view is matched with (default 3)")
-    parser.add_argument("--feature", default="sift", type=str.lower,
-                        choices=[m.lower() for m in FEATURE_MODES if m != "flow"])
+    add_feature_arg(parser, [m.lower() for m in FEATURE_MODES if m != "flow"])
     parser.add_argument("--ground-truth", type=Path, metavar="DIR",
                         help="Strecha .camera files (NAME.camera per image): report camera "
                              "errors after a similarity alignment")
