@@ -129,6 +129,7 @@ def test_console_script_reconstruct(tmp_path, synthetic_files):
     ("out_is_file", 2, "is not a folder"),
     ("no_calib", 2, "--calib"),
     ("one_image", 2, "exactly two images"),
+    ("same_image", 2, "image given twice"),
     ("rotation", 1, "pure rotation"),
 ])
 def test_bad_inputs_exit_codes_and_messages(tmp_path, synthetic_files, case, code, message):
@@ -150,6 +151,7 @@ def test_bad_inputs_exit_codes_and_messages(tmp_path, synthetic_files, case, cod
         "out_is_file": [f / "a.png", f / "b.png", "--calib", calib, "--out", tmp_path / "file"],
         "no_calib": [f / "a.png", f / "b.png"],
         "one_image": [f / "a.png", "--calib", calib],
+        "same_image": [f / "a.png", f / ".." / f.name / "a.png", "--calib", calib],
         "rotation": [f / "a.png", f / "rot.png", "--calib", calib],
     }[case]
     if "--out" not in args:

@@ -117,6 +117,7 @@ def test_evaluate_pair_specs():
 @pytest.mark.parametrize("argv, message", [
     (["{tmp}"], "needs images/ and gt_dense_cameras/"),
     (["{fountain}", "--pairs", "3-99"], "out of range"),
+    (["{fountain}", "--pairs", "3-3"], "pairs an image with itself"),
     (["{fountain}", "--pairs", "first"], "bad pair 'first'"),
     (["{fountain}", "--pairs", "skip10"], "no image pairs"),
     (["{fountain}", "--csv", "{tmp}/kept.csv"], "kept.csv' exists; use --force"),

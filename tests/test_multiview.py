@@ -254,6 +254,12 @@ def test_reconstruct_views_bad_input(tmp_path, fountain):
     missing = subprocess.run(base + [str(tmp_path / "*.jpg"), "--calib", calib],
                              capture_output=True, text=True)
     assert missing.returncode == 2 and "no image matches" in missing.stderr
+    # A folder and one of its files: that view would be paired with itself.
+    twice = subprocess.run(base + [str(fountain / "images"), str(fountain / "images" / "0004.jpg"),
+                                   "--calib", calib, "--out", str(tmp_path)],
+                           capture_output=True, text=True)
+    assert twice.returncode == 2 and "image given twice" in twice.stderr
+    assert len(twice.stderr.strip().splitlines()) == 1
 
 
 def test_sequential_pairs_through_the_api(fountain):

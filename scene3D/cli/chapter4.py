@@ -28,6 +28,7 @@ from .common import (
     add_common_args,
     add_feature_arg,
     add_size_args,
+    check_distinct_images,
     prepare_output_dir,
     run_command,
     show_images,
@@ -86,7 +87,9 @@ def _resolve_inputs(args: argparse.Namespace) -> tuple[Path, Path, Path]:
     if args.images:
         if args.calib is None:
             raise UsageError("your own images need --calib FILE (make one with calibrate.py)")
-        return Path(args.images[0]), Path(args.images[1]), args.calib
+        path1, path2 = Path(args.images[0]), Path(args.images[1])
+        check_distinct_images([path1, path2])
+        return path1, path2, args.calib
     folder = fetch_fountain_p11(BOOK_PAIR)
     calib = args.calib if args.calib is not None else DEFAULT_CALIB
     return folder / BOOK_PAIR[0], folder / BOOK_PAIR[1], calib

@@ -47,6 +47,17 @@ def positive_int(text: str) -> int:
     return value
 
 
+def check_distinct_images(paths: list[Path]) -> None:
+    """Raise :class:`UsageError` when one file is given twice (a view cannot pair with itself)."""
+    seen: dict[Path, Path] = {}
+    for path in paths:
+        key = path.resolve()
+        if key in seen:
+            raise UsageError(f"image given twice: '{path}'"
+                             + (f" (also as '{seen[key]}')" if str(seen[key]) != str(path) else ""))
+        seen[key] = path
+
+
 def add_common_args(parser: argparse.ArgumentParser) -> None:
     """``-v/--verbose``, ``-q/--quiet`` and ``--debug``."""
     group = parser.add_argument_group("output and diagnostics")

@@ -88,8 +88,10 @@ def _pairs(specs: list[str], count: int) -> list[tuple[int, int]]:
                 a, b = (int(v) for v in spec.split("-"))
             except ValueError:
                 raise UsageError(f"bad pair {spec!r}: use consecutive, skipN or A-B") from None
-            if not (0 <= a < count and 0 <= b < count) or a == b:
+            if not (0 <= a < count and 0 <= b < count):
                 raise UsageError(f"pair {spec!r} is out of range 0..{count - 1}")
+            if a == b:
+                raise UsageError(f"pair {spec!r} pairs an image with itself")
             pairs.append((a, b))
     if not pairs:
         raise UsageError(f"no image pairs: {' '.join(specs)} selects none of the {count} images")

@@ -26,6 +26,7 @@ from .common import (
     add_common_args,
     add_feature_arg,
     add_size_args,
+    check_distinct_images,
     positive_int,
     prepare_output_dir,
     run_command,
@@ -87,6 +88,7 @@ def image_paths(specs: list[str]) -> list[Path]:
             paths += matched
     if len(paths) < 2:
         raise UsageError(f"need at least two images, got {len(paths)}")
+    check_distinct_images(paths)
     return paths
 
 
