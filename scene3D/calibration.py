@@ -189,6 +189,12 @@ def detect_board(gray: np.ndarray, board: BoardSpec, name: str = "") -> Detectio
     return Detection(name, found[0], found[1], "charuco")
 
 
+#: Largest RMS reprojection error (px) that :func:`calibrate` accepts. Good boards give
+#: 0.2 px (OpenCV's left*.jpg) to 0.9 px (a 1280x720 car camera with motion blur); a
+#: wrong ``--board`` size gives 6-13 px on the same photos.
+MAX_RMS_PX = 2.0
+
+
 @dataclass(frozen=True)
 class CalibrationResult:
     """Intrinsics estimated from several views, with their quality.
@@ -246,6 +252,7 @@ def calibrate(
     reject_outliers: bool = True,
     outlier_factor: float = 3.0,
     min_views: int = 3,
+    max_rms_px: float | None = MAX_RMS_PX,
 ) -> CalibrationResult:
     """Calibrate a camera from board detections.
 
@@ -260,11 +267,15 @@ def calibrate(
     reject_outliers : bool
         Drop views whose RMS error exceeds ``outlier_factor`` x the median, then
         solve again (once), keeping at least ``min_views``.
+    max_rms_px : float or None
+        Refuse a result whose RMS reprojection error exceeds this (None: no limit).
 
     Raises
     ------
     CalibrationError
-        Too few views, or the solver fails or diverges.
+        Too few views, the solver fails or diverges, or the corners do not fit one
+        camera (RMS above ``max_rms_px``: typically a wrong board size, whose
+        detections are not the board's corners).
     """
     views = [d for d in detections if len(d.image_points) >= 6]
     if len(views) < min_views:
@@ -287,6 +298,11 @@ def calibrate(
             errors = per_view.ravel()
     if not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0 or not np.isfinite(rms):
         raise CalibrationError(f"the calibration diverged (rms={rms})")
+    if max_rms_px is not None and rms > max_rms_px:
+        raise CalibrationError(
+            f"the corners do not fit one camera: RMS reprojection error {rms:.2f} px over "
+            f"{len(views)} views, above the limit of {max_rms_px:g} px"
+        )
     dist = dist.ravel().astype(np.float64)
     std = std_int.ravel()
     std_names = ("fx", "fy", "cx", "cy") + DISTORTION_NAMES

@@ -108,6 +108,32 @@ def test_too_few_views_fail(board_views):
         calibrate(dets, (640, 480), board)
 
 
+def test_corners_that_fit_no_camera_are_refused(board_views):
+    from scene3D.errors import CalibrationError
+
+    board = BoardSpec()
+    dets = [detect_board(img, board, f"v{i}") for i, img in enumerate(board_views)]
+    rng = np.random.default_rng(1)
+    noisy = [Detection(d.name, d.image_points + rng.normal(0, 4.0, d.image_points.shape),
+                       d.object_points, d.method) for d in dets]
+    with pytest.raises(CalibrationError, match="do not fit one camera"):
+        calibrate(noisy, (640, 480), board)
+    assert calibrate(noisy, (640, 480), board, max_rms_px=None).rms_px > 2.0
+    assert calibrate(dets, (640, 480), board).rms_px < 0.2
+
+
+def test_cli_refuses_a_wrong_board_size(tmp_path, chessboards, capsys):
+    # On the 9x6 board, a 5x5 search finds corner sets that are not a 5x5 grid.
+    argv = ["--images", str(chessboards / "opencv-left"), "--board", "5x5",
+            "--out", str(tmp_path / "c.yaml")]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert "do not fit one camera" in err and "check --board" in err
+    assert len(err.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
+    assert main(argv + ["--max-rms", "50", "-q"]) == 0  # the user can insist
+
+
 def test_coverage_grid_and_warnings():
     centre = [np.array([[320.0, 240.0], [330.0, 250.0]])]
     counts = corner_coverage(centre, (640, 480), grid=(8, 6))

@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 from ..calibration import (
+    MAX_RMS_PX,
     BoardSpec,
     CalibrationResult,
     Detection,
@@ -25,6 +26,7 @@ from ..calibration import (
     save_calibration,
 )
 from ..camera import undistort_image
+from ..errors import CalibrationError
 from ..export import atomic_write_bytes, save_figure
 from ..imageio import IMAGE_SUFFIXES, image_size, load_bgr, read_image_size
 from .common import (
@@ -94,6 +96,9 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
     parser.add_argument("--no-reject", action="store_true",
                         help="keep every view (default: drop views with > 3x the median error "
                              "and solve again)")
+    parser.add_argument("--max-rms", type=positive_float, default=MAX_RMS_PX, metavar="PX",
+                        help="refuse a calibration whose RMS reprojection error exceeds this "
+                             f"(default {MAX_RMS_PX:g} px; a wrong --board gives far more)")
     parser.add_argument("--out", type=Path, default=Path("camera.yaml"), metavar="FILE",
                         help="output calibration (default camera.yaml)")
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
@@ -258,7 +263,15 @@ def run(args: argparse.Namespace) -> int:
     if len(views) < 3:
         raise UsageError(f"the board was found in only {len(views)} of {seen} views; "
                          "calibration needs at least 3")
-    result = calibrate(views, size, board, reject_outliers=not args.no_reject)
+    result = calibrate(views, size, board, reject_outliers=not args.no_reject,
+                       max_rms_px=None)
+    if result.rms_px > args.max_rms:  # the library's check, with the flags to change
+        hint = ("check --board: it counts inner corners" if board.pattern == "chessboard"
+                else "check --board, --marker-size and --dictionary")
+        raise CalibrationError(
+            f"the corners do not fit one camera: RMS reprojection error {result.rms_px:.2f} px "
+            f"over {len(result.per_view_errors_px)} views, above --max-rms {args.max_rms:g}; "
+            f"{hint}")
     kept = [v for v in views if v.name in result.per_view_errors_px]
     counts = corner_coverage([v.image_points for v in kept], size)
     warnings = coverage_warnings(counts)
