@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import os
 import time
 from pathlib import Path
@@ -92,10 +93,14 @@ def read_ply(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _jsonable(value: Any) -> Any:
+    """``value`` with numpy types made Python ones, and NaN / infinity made None (null):
+    JSON has no such numbers, and other readers reject the ``NaN`` Python would write."""
     if isinstance(value, np.ndarray):
-        return value.tolist()
+        return _jsonable(value.tolist())
     if isinstance(value, (np.floating, np.integer, np.bool_)):
-        return value.item()
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
     if isinstance(value, dict):
         return {str(k): _jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -106,8 +111,8 @@ def _jsonable(value: Any) -> Any:
 
 
 def write_json(path: str | os.PathLike, obj: dict) -> Path:
-    """Write ``obj`` (numpy arrays allowed) as indented JSON."""
-    text = json.dumps(_jsonable(obj), indent=2) + "\n"
+    """Write ``obj`` (numpy arrays allowed; NaN and infinity as null) as indented JSON."""
+    text = json.dumps(_jsonable(obj), indent=2, allow_nan=False) + "\n"
     return atomic_write_bytes(path, text.encode("utf-8"))
 
 

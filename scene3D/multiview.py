@@ -388,9 +388,14 @@ def _initial_pair(features: list[ViewFeatures],
                   pair_matches: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]],
                   K: FloatArray, candidates: int = 6
                   ) -> tuple[tuple[int, int], TwoViewGeometry]:
-    """The verified pair (among those with most matches) giving most reliable points."""
+    """The verified pair (among those with most matches) giving most reliable points.
+
+    Raises ``ReconstructionError`` when no candidate is trusted, quoting the doubt
+    about the best-scoring one (e.g. a calibration that does not fit).
+    """
     ranked = sorted(pair_matches, key=lambda p: len(pair_matches[p][0]), reverse=True)
     best, best_score = None, -1.0
+    doubt, doubt_score = "", -1.0
     for i, j in ranked[:candidates]:
         a, b = pair_matches[(i, j)]
         try:
@@ -402,9 +407,11 @@ def _initial_pair(features: list[ViewFeatures],
         score = r.points3d.shape[0] * min(r.median_parallax_deg, 8.0)
         if r.trusted and score > best_score:
             best, best_score = ((i, j), r), score
+        elif not r.trusted and score > doubt_score:
+            doubt, doubt_score = f"; the best candidate pair: {r.warnings[0]}", score
     if best is None:
         raise ReconstructionError("no_initial_pair",
-                                  "no pair of views gives a trustworthy two-view start",
+                                  "no pair of views gives a trustworthy two-view start" + doubt,
                                   verified_pairs=len(pair_matches))
     return best
 

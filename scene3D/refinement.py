@@ -10,14 +10,17 @@
   standard) under a robust loss, with Levenberg-Marquardt on the sparse normal
   equations, the points eliminated by the Schur complement (tested against scipy's
   ``least_squares``: the same optimum for convex losses, a lower cost under Cauchy).
+- :func:`fit_focal_scale` refines the pose with a common factor on the focal
+  lengths, to tell whether the calibration fits the matches.
 
-In both, ``t`` ends on the unit sphere, since a two-view translation has no scale. Frames as in
+In all, ``t`` ends on the unit sphere, since a two-view translation has no scale. Frames as in
 :mod:`scene3D.geometry`: ``x_cam2 = R x_cam1 + t``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -79,7 +82,7 @@ def _fundamental_derivatives(R: FloatArray, t: FloatArray, basis: FloatArray,
 
 def _sampson_jacobian(F: FloatArray, dF: FloatArray, h1: FloatArray,
                       h2: FloatArray) -> FloatArray:
-    """Jacobian ``(N, 5)`` of :func:`_sampson` for ``F`` moving along ``dF`` ``(5, 3, 3)``.
+    """Jacobian ``(N, k)`` of :func:`_sampson` for ``F`` moving along ``dF`` ``(k, 3, 3)``.
 
     With ``a = x2^T F x1``, ``l = F x1``, ``m = F^T x2`` and
     ``n^2 = l_1^2 + l_2^2 + m_1^2 + m_2^2``, the distance ``a / n`` changes by
@@ -97,7 +100,7 @@ def _sampson_jacobian(F: FloatArray, dF: FloatArray, h1: FloatArray,
     c = (a / n**3)[:, None, None]
     grad = (h2 / n[:, None])[:, :, None] * h1[:, None, :]
     grad -= c * (Fx1[:, :, None] * h1[:, None, :] + h2[:, :, None] * Ftx2[:, None, :])
-    return grad.reshape(-1, 9) @ dF.reshape(5, 9).T
+    return grad.reshape(-1, 9) @ dF.reshape(len(dF), 9).T
 
 
 def _loss(z: FloatArray, loss: str) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -245,6 +248,132 @@ def refine_relative_pose(
     state, cost = evaluate(R, t)
     R, t, _, _ = _levenberg_marquardt(state, cost, linearize, max_iterations, 1e-8)
     return R, t
+
+
+def _scaled_fundamental(R: FloatArray, t: FloatArray, log_s: float,
+                        K_inv: FloatArray) -> FloatArray:
+    """``F = K_s^-T [t]x R K_s^-1`` for ``K_s = K diag(s, s, 1)``, ``s = exp(log_s)``."""
+    Ks_inv = np.diag([np.exp(-log_s), np.exp(-log_s), 1.0]) @ K_inv
+    return Ks_inv.T @ skew(t) @ R @ Ks_inv
+
+
+def _focal_fundamental_derivatives(R: FloatArray, t: FloatArray, log_s: float,
+                                   basis: FloatArray, K_inv: FloatArray) -> FloatArray:
+    """``dF / dx`` ``(6, 3, 3)`` of :func:`_scaled_fundamental`: the pose step of
+    :func:`_update_pose` (5), then ``log s``.
+
+    ``d(K_s^-1) / d(log s) = -P K_s^-1`` with ``P = diag(1, 1, 0)``.
+    """
+    Ks_inv = np.diag([np.exp(-log_s), np.exp(-log_s), 1.0]) @ K_inv
+    E = skew(t) @ R
+    P = np.diag([1.0, 1.0, 0.0])
+    d_log_s = -Ks_inv.T @ (P @ E + E @ P) @ Ks_inv
+    return np.concatenate([_fundamental_derivatives(R, t, basis, Ks_inv), d_log_s[None]])
+
+
+class FocalFit(NamedTuple):
+    """What :func:`fit_focal_scale` found.
+
+    Attributes
+    ----------
+    scale : float
+        The focal length that best explains the matches, as a multiple of the
+        calibration's (1: the calibration fits).
+    sigma_log : float
+        First-order standard deviation of ``log(scale)`` (inf when the matches do
+        not determine the focal length, e.g. without rotation).
+    R, t : (3, 3), (3,) float64
+        The pose refined with it (``|t| = 1``).
+    """
+
+    scale: float
+    sigma_log: float
+    R: FloatArray
+    t: FloatArray
+
+
+def fit_focal_scale(
+    R: ArrayLike,
+    t: ArrayLike,
+    pts1: ArrayLike,
+    pts2: ArrayLike,
+    K: ArrayLike,
+    loss: str = "cauchy",
+    scale_px: float = 0.5,
+    max_iterations: int = 30,
+    initial_scale: float = 1.0,
+) -> FocalFit:
+    """Check a calibration against the matches: the focal length they call for.
+
+    Refines the pose together with a common factor ``s`` on both focal lengths
+    (``K_s = K diag(s, s, 1)``: the principal point and aspect kept), minimising
+    the robust Sampson distances of the inlier correspondences as
+    :func:`refine_relative_pose` does, from ``s = initial_scale``. Two views with rotation
+    and depth determine ``s``; a calibration for another camera, lens or zoom
+    shows as ``s`` far from 1 with a small ``sigma_log``.
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array_like
+        Pose found with ``K``, ``x_cam2 = R x_cam1 + t``.
+    pts1, pts2 : (N, 2) array_like
+        Inlier pixels (N >= 6).
+    K : (3, 3) array_like
+        The calibration's intrinsics (both views).
+    loss, scale_px : str, float
+        Robust loss and its scale in pixels, as for :func:`refine_relative_pose`.
+
+    Returns
+    -------
+    FocalFit
+    """
+    R = np.asarray(R, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64).reshape(3)
+    t = t / np.linalg.norm(t)
+    h1 = to_homogeneous(np.asarray(pts1, dtype=np.float64))
+    h2 = to_homogeneous(np.asarray(pts2, dtype=np.float64))
+    K_inv = np.linalg.inv(np.asarray(K, dtype=np.float64))
+
+    def evaluate(R_: FloatArray, t_: FloatArray, log_s: float) -> tuple[tuple, float]:
+        F_ = _scaled_fundamental(R_, t_, log_s, K_inv)
+        r_ = _sampson(F_, h1, h2)
+        return (R_, t_, log_s, F_, r_), _robust_cost(r_, loss, scale_px)
+
+    def jacobian(state: tuple) -> tuple[FloatArray, FloatArray]:
+        R_, t_, log_s, F_, _ = state
+        basis = _tangent_basis(t_)
+        dF = _focal_fundamental_derivatives(R_, t_, log_s, basis, K_inv)
+        return _sampson_jacobian(F_, dF, h1, h2), basis
+
+    def linearize(state: tuple) -> Callable[[float], tuple]:
+        R_, t_, log_s, _, r_ = state
+        J, basis = jacobian(state)
+        row_scale, rw = _robust_scaling(r_, loss, scale_px)
+        Jw = J * row_scale[:, None]
+        H, g = Jw.T @ Jw, Jw.T @ rw
+        damped = np.diag(np.diag(H) + 1e-12)
+
+        def try_step(damping: float) -> tuple[tuple, float]:
+            dx = np.linalg.solve(H + damping * damped, -g)
+            return evaluate(*_update_pose(R_, t_, dx[:5], basis), log_s + dx[5])
+        return try_step
+
+    state, cost = evaluate(R, t, float(np.log(initial_scale)))
+    state = _levenberg_marquardt(state, cost, linearize, max_iterations, 1e-10)
+    log_s, r = state[2], state[4]
+    # Covariance sigma^2 (J^T W J)^-1 with the loss's weights W and sigma^2 their
+    # weighted residual variance (Gauss-Newton, first order).
+    J, _ = jacobian(state)
+    weight_sqrt, rw = _reweighting(r, loss, scale_px)
+    Jw = J * weight_sqrt[:, None]
+    dof = max(len(r) - 6, 1)
+    try:
+        cov = np.linalg.inv(Jw.T @ Jw) * float(rw @ rw) / dof
+        sigma_log = float(np.sqrt(cov[5, 5])) if cov[5, 5] > 0 else np.inf
+    except np.linalg.LinAlgError:
+        sigma_log = np.inf
+    return FocalFit(float(np.exp(log_s)), sigma_log if np.isfinite(sigma_log) else np.inf,
+                    state[0], state[1])
 
 
 def _two_view_residuals(R: FloatArray, t: FloatArray, X: FloatArray, pts1: FloatArray,

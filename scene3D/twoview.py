@@ -10,7 +10,10 @@ The pipeline (book chapter 4, done right):
 3. pose by cheirality over all inliers; ``F = K^-T E K^-1`` for epipolar lines,
 4. triangulation, keeping points in front of both cameras with small
    reprojection error and enough parallax,
-5. checks that refuse degenerate pairs instead of returning a wrong pose.
+5. checks that refuse degenerate pairs instead of returning a wrong pose, and
+   doubts that mark a result untrusted (few inliers, weak parallax, a nearly
+   planar scene, restarts that disagree, a focal length that does not fit the
+   calibration: :func:`check_focal_length`).
 
 Frames: points are in the camera-1 frame, ``x_cam2 = R x_cam1 + t``, ``|t| = 1``
 (the scale is unknown).
@@ -48,7 +51,7 @@ from .geometry import (
     rotation_error_deg,
 )
 from .pose import choose_pose
-from .refinement import bundle_adjust_two_view
+from .refinement import FocalFit, bundle_adjust_two_view, fit_focal_scale
 from .triangulation import (
     in_front_mask,
     parallax_angles_deg,
@@ -93,6 +96,12 @@ class TwoViewSettings:
         plane rule out the other pose that the plane allows.
     planar_warning_ratio : float
         Above this ratio the result is kept but marked untrusted.
+    max_focal_mismatch, focal_mismatch_sigmas : float, float
+        The result is marked untrusted when the matches call for a focal length more
+        than ``1 + max_focal_mismatch`` times larger or smaller than the
+        calibration's, by more than ``focal_mismatch_sigmas`` standard deviations
+        (:func:`scene3D.refinement.fit_focal_scale`): the calibration is probably
+        for another camera, lens or zoom, and the pose is off by degrees.
     trusted_inliers, trusted_inlier_ratio, trusted_parallax_deg : int, float, float
         A result with fewer inliers, a smaller inlier fraction of the matches or
         a smaller median parallax is kept but marked untrusted: such pairs (wide
@@ -122,6 +131,8 @@ class TwoViewSettings:
     trusted_inliers: int = 50
     trusted_inlier_ratio: float = 0.25
     trusted_parallax_deg: float = 2.0
+    max_focal_mismatch: float = 0.15
+    focal_mismatch_sigmas: float = 5.0
     bundle_adjust: bool = False
 
 
@@ -167,6 +178,11 @@ class TwoViewGeometry:
     robust_spread_deg : float
         How far the other starts' optima lie from the chosen one
         (:attr:`scene3D.epipolar.EssentialFit.spread_deg`; 0 when they all agree).
+    focal_scale, focal_scale_sigma : float
+        The focal length the inliers call for, as a multiple of the calibration's,
+        and its standard deviation (:func:`scene3D.refinement.fit_focal_scale`;
+        near 1 when the calibration fits, the sigma infinite when the pair cannot
+        tell).
     """
 
     R: FloatArray
@@ -189,6 +205,8 @@ class TwoViewGeometry:
     refinement_s: float = 0.0
     robust_starts: int = 1
     robust_spread_deg: float = 0.0
+    focal_scale: float = 1.0
+    focal_scale_sigma: float = float("inf")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -327,12 +345,16 @@ def _lower_cost_plane_pose(E: FloatArray, inliers: np.ndarray, on_plane: np.ndar
 
 def trust_warnings(num_matches: int, num_inliers: int, median_parallax_deg: float,
                    homography_ratio: float, s: TwoViewSettings,
-                   fit: EssentialFit | None = None) -> list[str]:
+                   fit: EssentialFit | None = None,
+                   focal: FocalFit | None = None) -> list[str]:
     """Reasons to doubt a pose that passed every hard check (empty: trusted).
 
     ``fit``: the robust estimate the pose came from; doubtful when its restarts
     never reached the best pose twice and their optima lie further apart than
-    ``s.restart_agreement_deg``.
+    ``s.restart_agreement_deg``. ``focal``: the focal length the matches call for
+    (:func:`scene3D.refinement.fit_focal_scale`); doubtful when it differs from the
+    calibration's by more than ``s.max_focal_mismatch`` and
+    ``s.focal_mismatch_sigmas`` standard deviations.
     """
     warnings = []
     if (fit is not None and s.max_starts > 1 and not fit.confirmed
@@ -340,6 +362,14 @@ def trust_warnings(num_matches: int, num_inliers: int, median_parallax_deg: floa
         warnings.append(f"no pose was found twice in {fit.starts} robust starts: poses "
                         f"up to {fit.spread_deg:.1f} deg apart fit the matches about "
                         "equally well")
+    if focal is not None:
+        log_scale = abs(np.log(focal.scale))
+        if (log_scale > np.log1p(s.max_focal_mismatch)
+                and log_scale > s.focal_mismatch_sigmas * focal.sigma_log):
+            warnings.append(
+                f"the matches fit a focal length {focal.scale:.2f} times the calibration's "
+                f"(+-{focal.scale * focal.sigma_log:.2f}): is the calibration for this camera, "
+                "lens and zoom? The pose may be off by degrees")
     if num_inliers < s.trusted_inliers:
         warnings.append(f"only {num_inliers} inliers: the pose rests on few matches")
     if num_inliers < s.trusted_inlier_ratio * num_matches:
@@ -354,6 +384,31 @@ def trust_warnings(num_matches: int, num_inliers: int, median_parallax_deg: floa
             "scene or weak baseline): the pose may be inaccurate"
         )
     return warnings
+
+
+def check_focal_length(R: FloatArray, t: FloatArray, p1: FloatArray, p2: FloatArray,
+                       inliers: np.ndarray, K: FloatArray, threshold_px: float,
+                       rounds: int = 3) -> FocalFit:
+    """The focal length the matches call for (:func:`scene3D.refinement.fit_focal_scale`).
+
+    ``p1, p2`` are all the correspondences ``(N, 2)``, ``inliers`` the ``(N,) bool``
+    inliers of the pose ``R, t`` found with ``K``. Those inliers were chosen under
+    ``K``: with a wrong focal length they favour the matches that fit it, so they
+    are re-selected under the fitted focal length and the fit repeated (as
+    :func:`scene3D.epipolar.refine_essential` does for the pose).
+    """
+    scale_px = LOSS_SCALE_OF_THRESHOLD * threshold_px
+    focal = fit_focal_scale(R, t, p1[inliers], p2[inliers], K, "cauchy", scale_px)
+    for _ in range(rounds - 1):
+        K_s = K @ np.diag([focal.scale, focal.scale, 1.0])
+        new = essential_distances(essential_from_pose(focal.R, focal.t), p1, p2, K_s) \
+            <= threshold_px
+        if new.sum() < 6 or np.array_equal(new, inliers):
+            break
+        inliers = new
+        focal = fit_focal_scale(focal.R, focal.t, p1[inliers], p2[inliers], K, "cauchy",
+                                scale_px, initial_scale=focal.scale)
+    return focal
 
 
 def _median(values: FloatArray) -> float:
@@ -462,7 +517,10 @@ def reconstruct_from_matches(
             required=s.min_points,
         )
     median_kept_parallax = _median(parallax[keep])
-    warnings = trust_warnings(n, num_inliers, median_kept_parallax, h_ratio, s, fit)
+    t_focal = time.perf_counter()
+    focal = check_focal_length(R, t, p1, p2, inliers, K, s.threshold_px)
+    refine_s += time.perf_counter() - t_focal
+    warnings = trust_warnings(n, num_inliers, median_kept_parallax, h_ratio, s, fit, focal)
     points, pts1_kept, pts2_kept = points[keep], in1[keep], in2[keep]
     kept_errors = errors[keep]
     if s.bundle_adjust:
@@ -482,7 +540,8 @@ def reconstruct_from_matches(
         median_parallax_deg=median_kept_parallax,
         homography_inlier_ratio=h_ratio, trusted=not warnings, warnings=tuple(warnings),
         inlier_pts1=in1, inlier_pts2=in2, refinement_s=refine_s, robust_starts=fit.starts,
-        robust_spread_deg=fit.spread_deg,
+        robust_spread_deg=fit.spread_deg, focal_scale=focal.scale,
+        focal_scale_sigma=focal.scale * focal.sigma_log,
     )
 
 

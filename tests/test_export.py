@@ -27,6 +27,12 @@ def test_ply_round_trip_and_header(tmp_path):
 def test_writes_are_atomic_and_leave_no_temporaries(tmp_path):
     write_json(tmp_path / "a.json", {"R": np.eye(3), "n": np.int64(3), "ok": np.bool_(True)})
     assert json.loads((tmp_path / "a.json").read_text())["R"][1] == [0.0, 1.0, 0.0]
+    # JSON has no NaN or infinity (Python would write them, other readers refuse them).
+    write_json(tmp_path / "b.json", {"sigma": float("inf"), "v": np.array([1.0, np.nan])})
+    text = (tmp_path / "b.json").read_text()
+    assert "Infinity" not in text and "NaN" not in text
+    assert json.loads(text) == {"sigma": None, "v": [1.0, None]}
+    (tmp_path / "b.json").unlink()
     fig = Figure()
     fig.add_subplot().plot([0, 1])
     save_figure(fig, tmp_path / "f.png")

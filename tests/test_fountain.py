@@ -69,6 +69,23 @@ def test_book_pair_and_others_against_ground_truth(fountain, pair):
     assert result.num_points > 200
     assert result.reprojection_rmse_px < 0.5
     assert result.trusted
+    assert abs(result.focal_scale - 1.0) < 0.05  # the calibration fits
+
+
+@pytest.mark.parametrize("factor", [0.8, 1.25])
+def test_a_calibration_with_another_focal_length_is_caught(fountain, factor):
+    """The book pair with the true K's focal lengths times `factor` (another zoom)."""
+    cams = _cameras(fountain)
+    K = cams[4].K.copy()
+    K[:2, :2] *= factor
+    scene = SceneReconstruction3D(K, cams[4].dist)
+    scene.load_image_pair(fountain / "images" / "0004.jpg", fountain / "images" / "0005.jpg")
+    result = scene.reconstruct("SIFT")
+    assert result.focal_scale == pytest.approx(1.0 / factor, rel=0.03)
+    assert not result.trusted
+    assert any("focal length" in w and "calibration" in w for w in result.warnings)
+    err = relative_pose_error(result.R, result.t, *relative_pose(cams[4], cams[5]))
+    assert max(err.rotation_deg, err.translation_deg) > 2.0  # why it matters
 
 
 def test_flow_mode_on_the_book_pair(fountain):

@@ -11,6 +11,7 @@ import pytest
 
 from scene3D.bundle import Observations, bundle_adjust, reprojection_residuals
 from scene3D.epipolar import essential_distances, essential_from_pose
+from scene3D.errors import ReconstructionError
 from scene3D.evaluation import camera_set_error, similarity_transform
 from scene3D.geometry import (
     project,
@@ -280,3 +281,15 @@ def test_sequential_pairs_through_the_api(fountain):
                            np.array([c.center for c in cams]))
     assert err.center_errors.max() < 0.02 and err.rotation_errors_deg.max() < 0.5
     assert any("registered view" in m for m in messages)
+
+
+def test_a_calibration_that_does_not_fit_stops_with_the_reason(fountain):
+    from scene3D import reconstruct_views
+    from scene3D.datasets import read_strecha_camera
+
+    K = read_strecha_camera(fountain / "gt_dense_cameras" / "0003.jpg.camera").K.copy()
+    K[:2, :2] *= 0.8  # a calibration for another zoom
+    paths = [fountain / "images" / f"{i:04d}.jpg" for i in range(3, 6)]
+    with pytest.raises(ReconstructionError, match="focal length 1.2") as info:
+        reconstruct_views(paths, K, np.zeros(5), max_width=800)
+    assert info.value.reason == "no_initial_pair"

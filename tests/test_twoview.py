@@ -192,3 +192,28 @@ def test_short_baseline_is_marked_untrusted(camera, true_pose):
     r = reconstruct_from_matches(pts1, pts2, camera)
     assert 1.0 <= r.median_parallax_deg < 2.0
     assert not r.trusted and "weak parallax" in " ".join(r.warnings)
+
+
+@pytest.mark.parametrize("factor", [0.6, 1.6])
+def test_a_calibration_for_another_focal_length_is_flagged(camera, true_pose, factor):
+    """Photos from `camera`, calibration with its focal lengths times `factor`."""
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, t, n=300, noise_px=0.3)
+    wrong = camera.copy()
+    wrong[:2, :2] *= factor
+    r = reconstruct_from_matches(pts1, pts2, wrong)
+    assert r.focal_scale == pytest.approx(1.0 / factor, rel=0.03)
+    assert not r.trusted and "focal length" in " ".join(r.warnings)
+    right = reconstruct_from_matches(pts1, pts2, camera)
+    assert right.focal_scale == pytest.approx(1.0, abs=0.03) and right.trusted
+    assert right.focal_scale_sigma < 0.02
+
+
+def test_a_near_miss_of_the_focal_length_is_not_flagged(camera, true_pose):
+    # 10 % off: within TwoViewSettings.max_focal_mismatch, reported but trusted.
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, t, n=300, noise_px=0.3)
+    near = camera.copy()
+    near[:2, :2] *= 1.1
+    r = reconstruct_from_matches(pts1, pts2, near)
+    assert r.focal_scale == pytest.approx(1 / 1.1, rel=0.03) and r.trusted

@@ -120,6 +120,7 @@ def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path], cal
         "median_parallax_deg": result.median_parallax_deg,
         "homography_inlier_ratio": result.homography_inlier_ratio,
         "robust_starts": result.robust_starts, "robust_spread_deg": result.robust_spread_deg,
+        "focal_scale": result.focal_scale, "focal_scale_sigma": result.focal_scale_sigma,
         "trusted": result.trusted, "warnings": list(result.warnings),
         "timings_s": timings,
     }
