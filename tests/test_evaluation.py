@@ -1,4 +1,5 @@
 import csv
+import re
 
 import numpy as np
 import pytest
@@ -47,6 +48,9 @@ def test_evaluate_command_on_fountain(fountain, tmp_path, capsys):
     for r in rows:
         assert r["width"] == "768" and r["flagged"] == "False"
         assert float(r["rotation_deg"]) < 1.0 and float(r["translation_deg"]) < 3.0
+        assert abs(float(r["focal_scale"]) - 1.0) < 0.05  # the Strecha K fits the photos
+    median_focal = float(re.search(r"focal length: median ([0-9.]+) times", out).group(1))
+    assert abs(median_focal - 1.0) < 0.05
 
 
 def test_evaluate_refuses_a_pair_of_two_cameras(fountain, tmp_path, capsys):
@@ -62,7 +66,7 @@ def test_evaluate_refuses_a_pair_of_two_cameras(fountain, tmp_path, capsys):
         (tmp_path / "gt_dense_cameras" / f"{name}.camera").write_text(text)
     assert main([str(tmp_path), "-q"]) == 0
     out = capsys.readouterr().out
-    assert "| 0004.jpg-0005.jpg | inf | inf | 0 | 0 | no |" in out
+    assert "| 0004.jpg-0005.jpg | inf | inf | 0 | 0 | - | no |" in out
     assert "refused: the two views have different intrinsics" in out
     assert "flagged 1, wrong and unflagged 0" in out
 

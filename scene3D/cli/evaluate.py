@@ -141,7 +141,7 @@ def _evaluate_pair(data: _Views, a: int, b: int, settings: TwoViewSettings) -> d
     """One row of the table: the pose errors of pair (a, b), or why it was refused."""
     row = {"pair": f"{data.paths[a].name}-{data.paths[b].name}", "width": 0, "feature": "",
            "rotation_deg": np.inf, "translation_deg": np.inf, "inliers": 0, "points": 0,
-           "flagged": True, "note": ""}
+           "focal_scale": np.nan, "flagged": True, "note": ""}
     (img_a, K_a), (img_b, K_b) = data.image(a), data.image(b)
     row["width"] = img_a.shape[1]
     if img_a.shape != img_b.shape or not np.allclose(K_a, K_b, rtol=1e-6, atol=1e-6):
@@ -159,7 +159,8 @@ def _evaluate_pair(data: _Views, a: int, b: int, settings: TwoViewSettings) -> d
                               *relative_pose(data.cameras[a], data.cameras[b]))
     row.update(rotation_deg=err.rotation_deg, translation_deg=err.translation_deg,
                inliers=result.num_inliers, points=result.num_points,
-               flagged=not result.trusted, note="; ".join(result.warnings))
+               focal_scale=result.focal_scale, flagged=not result.trusted,
+               note="; ".join(result.warnings))
     return row
 
 
@@ -201,24 +202,29 @@ def run(args: argparse.Namespace) -> int:
             print(f"{row['pair']}: rot {row['rotation_deg']:.3f} deg, t-dir "
                   f"{row['translation_deg']:.3f} deg, {row['inliers']} inliers, "
                   f"{row['seconds']:.2f} s {row['note']}", file=sys.stderr)
+    fitted = [r["focal_scale"] for r in rows if np.isfinite(r["focal_scale"])]
     stats = summarize_pose_errors([r["rotation_deg"] for r in rows],
                                   [r["translation_deg"] for r in rows],
                                   [r["flagged"] for r in rows])
     widths = "/".join(str(w) for w in sorted({r["width"] for r in rows}))
     # The detector that ran (SIFT when SURF is not in this OpenCV build).
     feature = "/".join(sorted({r["feature"] for r in rows if r["feature"]})) or args.feature
-    print("| pair | rotation err (deg) | t-dir err (deg) | inliers | points | trusted | s | note |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| pair | rotation err (deg) | t-dir err (deg) | inliers | points | focal fit | "
+          "trusted | s | note |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
+        focal = f"{r['focal_scale']:.3f}" if np.isfinite(r["focal_scale"]) else "-"
         print(f"| {r['pair']} | {r['rotation_deg']:.3f} | {r['translation_deg']:.3f} | "
-              f"{r['inliers']} | {r['points']} | {'no' if r['flagged'] else 'yes'} | "
-              f"{r['seconds']:.2f} | {r['note']} |")
+              f"{r['inliers']} | {r['points']} | {focal} | "
+              f"{'no' if r['flagged'] else 'yes'} | {r['seconds']:.2f} | {r['note']} |")
     print(f"\n{len(rows)} pair{'s' * (len(rows) != 1)} at {widths} px, {feature}: median rotation "
           f"{stats['median_rotation_deg']:.3f} deg (p90 {stats['p90_rotation_deg']:.3f}), "
           f"median t-dir {stats['median_translation_deg']:.3f} deg "
           f"(p90 {stats['p90_translation_deg']:.3f}), both < 2 deg {stats['within_2deg']:.0%}, "
           f"< 5 deg {stats['within_5deg']:.0%}, AUC@5deg {stats['auc_5deg']:.1f}, "
-          f"flagged {int(stats['flagged'])}, wrong and unflagged {int(stats['wrong_unflagged'])}")
+          f"flagged {int(stats['flagged'])}, wrong and unflagged {int(stats['wrong_unflagged'])}"
+          + (f"; the matches' focal length: median {float(np.median(fitted)):.3f} times the "
+             "calibration's" if fitted else ""))
     if args.csv is not None:
         atomic_write_bytes(args.csv, _csv_text(rows).encode())
         print(f"Wrote '{args.csv}'")
