@@ -301,7 +301,8 @@ def calibrate(
     if max_rms_px is not None and rms > max_rms_px:
         raise CalibrationError(
             f"the corners do not fit one camera: RMS reprojection error {rms:.2f} px over "
-            f"{len(views)} views, above the limit of {max_rms_px:g} px"
+            f"{len(views)} views, above the limit of {max_rms_px:g} px",
+            reason="corners_do_not_fit",
         )
     dist = dist.ravel().astype(np.float64)
     std = std_int.ravel()

@@ -29,7 +29,18 @@ class ReconstructionError(RuntimeError):
 
 
 class CalibrationError(RuntimeError):
-    """Camera calibration ran on readable data but failed (e.g. too few usable views)."""
+    """Camera calibration ran on readable data but failed (e.g. too few usable views).
+
+    Attributes
+    ----------
+    reason : str
+        Short machine-readable cause: ``"failed"``, or ``"corners_do_not_fit"`` when
+        the result's RMS error is above the accepted limit (typically a wrong board).
+    """
+
+    def __init__(self, message: str, reason: str = "failed") -> None:
+        self.reason = reason
+        super().__init__(message)
 
 
 class DatasetError(RuntimeError):

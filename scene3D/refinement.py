@@ -372,8 +372,7 @@ def fit_focal_scale(
         sigma_log = float(np.sqrt(cov[5, 5])) if cov[5, 5] > 0 else np.inf
     except np.linalg.LinAlgError:
         sigma_log = np.inf
-    return FocalFit(float(np.exp(log_s)), sigma_log if np.isfinite(sigma_log) else np.inf,
-                    state[0], state[1])
+    return FocalFit(float(np.exp(log_s)), sigma_log, state[0], state[1])
 
 
 def _two_view_residuals(R: FloatArray, t: FloatArray, X: FloatArray, pts1: FloatArray,

@@ -263,15 +263,15 @@ def run(args: argparse.Namespace) -> int:
     if len(views) < 3:
         raise UsageError(f"the board was found in only {len(views)} of {seen} views; "
                          "calibration needs at least 3")
-    result = calibrate(views, size, board, reject_outliers=not args.no_reject,
-                       max_rms_px=None)
-    if result.rms_px > args.max_rms:  # the library's check, with the flags to change
+    try:
+        result = calibrate(views, size, board, reject_outliers=not args.no_reject,
+                           max_rms_px=args.max_rms)
+    except CalibrationError as exc:
+        if exc.reason != "corners_do_not_fit":
+            raise
         hint = ("check --board: it counts inner corners" if board.pattern == "chessboard"
                 else "check --board, --marker-size and --dictionary")
-        raise CalibrationError(
-            f"the corners do not fit one camera: RMS reprojection error {result.rms_px:.2f} px "
-            f"over {len(result.per_view_errors_px)} views, above --max-rms {args.max_rms:g}; "
-            f"{hint}")
+        raise CalibrationError(f"{exc} (--max-rms); {hint}", exc.reason) from None
     kept = [v for v in views if v.name in result.per_view_errors_px]
     counts = corner_coverage([v.image_points for v in kept], size)
     warnings = coverage_warnings(counts)
