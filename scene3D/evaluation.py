@@ -68,9 +68,11 @@ def paired_auc_difference(
 
     Parameters
     ----------
-    max_errors_a, max_errors_b : (N,) array_like
+    max_errors_a, max_errors_b : (N,) or (N, D) array_like
         Per-pair ``max(rotation, translation)`` errors in degrees, pair ``i`` the same
-        in both; failed pairs as ``inf``.
+        in both; failed pairs as ``inf``. With ``D`` columns, row ``i`` holds ``D``
+        draws of one pair (e.g. noise draws): the pairs are resampled, each with all
+        its draws, since draws of one pair are not independent.
 
     Returns
     -------
@@ -79,11 +81,12 @@ def paired_auc_difference(
     """
     a = np.asarray(max_errors_a, dtype=np.float64)
     b = np.asarray(max_errors_b, dtype=np.float64)
-    if a.shape != b.shape or a.ndim != 1 or len(a) == 0:
-        raise ValueError(f"need two equally long, non-empty error lists, got {a.shape} and "
-                         f"{b.shape}")
-    per_pair = 100.0 * (np.clip(1.0 - a / threshold_deg, 0.0, None)
+    if a.shape != b.shape or a.ndim not in (1, 2) or a.size == 0:
+        raise ValueError(f"need two equally shaped, non-empty (N,) or (N, D) error arrays, "
+                         f"got {a.shape} and {b.shape}")
+    per_draw = 100.0 * (np.clip(1.0 - a / threshold_deg, 0.0, None)
                         - np.clip(1.0 - b / threshold_deg, 0.0, None))
+    per_pair = per_draw.reshape(len(a), -1).mean(axis=1)
     resampled = np.random.default_rng(seed).integers(0, len(a), (samples, len(a)))
     means = per_pair[resampled].mean(axis=1)
     tail = 100.0 * (1.0 - confidence) / 2.0

@@ -152,5 +152,13 @@ def test_paired_auc_difference_is_the_auc_difference_with_an_interval():
     c[1::2] -= 0.05
     _, low, high = paired_auc_difference(np.abs(c), a)
     assert low < 0.0 < high
-    with pytest.raises(ValueError, match="equally long"):
+    with pytest.raises(ValueError, match="equally shaped"):
         paired_auc_difference(a, a[:-1])
+    # Repeated draws of each pair are resampled together: three identical draws per pair
+    # say no more than one, whereas taken as 120 independent pairs they would narrow
+    # the interval.
+    a3, b3 = np.repeat(a[:, None], 3, axis=1), np.repeat(b[:, None], 3, axis=1)
+    by_pair = paired_auc_difference(a3, b3)
+    assert by_pair == pytest.approx(paired_auc_difference(a, b))
+    _, low_flat, high_flat = paired_auc_difference(a3.ravel(), b3.ravel())
+    assert high_flat - low_flat < 0.7 * (by_pair[2] - by_pair[1])
