@@ -20,6 +20,7 @@ from .geometry import (
     as_matrix,
     as_points2d,
     check_same_length,
+    median,
     rotation_error_deg,
     skew,
     to_homogeneous,
@@ -30,9 +31,20 @@ from .refinement import _loss, refine_relative_pose, sampson_residuals
 #: Robust estimator used for F, E and H (OpenCV's USAC family, MAGSAC++ scoring).
 ROBUST_METHOD = cv2.USAC_MAGSAC
 
-#: Scale of the Cauchy loss of the local optimisation, as a fraction of the inlier
-#: threshold (the threshold taken as about three standard deviations of keypoint noise).
+#: Scale of the Cauchy loss of the MSAC-style cost that compares models, as a fraction
+#: of the inlier threshold (the threshold taken as about three standard deviations of
+#: keypoint noise): one fixed scale, so that models fitted to different inliers compare.
 LOSS_SCALE_OF_THRESHOLD = 1.0 / 3.0
+
+#: Scale of the local optimisation's Cauchy loss in standard deviations of the noise:
+#: 2.385 sigma keeps 95 % of least squares' efficiency under Gaussian noise (Holland
+#: and Welsch, 1977) and still discounts the heavy tail of real matches.
+CAUCHY_SCALE_OF_SIGMA = 2.385
+
+#: Inlier threshold in standard deviations of the noise, when the noise is larger than
+#: the given threshold assumes, and how far it may be raised (times the given one).
+THRESHOLD_OF_SIGMA = 3.0
+MAX_THRESHOLD_GROWTH = 2.0
 
 
 def _check_pair(pts1: ArrayLike, pts2: ArrayLike, minimum: int) -> tuple[FloatArray, FloatArray]:
@@ -273,10 +285,10 @@ def essential_cost(E: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: ArrayLike,
                    threshold_px: float) -> float:
     """Robust cost of an essential matrix over all correspondences (lower is better).
 
-    The Cauchy loss of :func:`refine_essential` (scale a third of the threshold)
-    on the Sampson distances, each capped at the threshold, so that an outlier
-    costs the same whatever its distance (an MSAC-style score): it compares
-    models that were refined on different inlier sets.
+    A Cauchy loss (scale :data:`LOSS_SCALE_OF_THRESHOLD` of the threshold, the same
+    for every model) on the Sampson distances, each capped at the threshold, so
+    that an outlier costs the same whatever its distance (an MSAC-style score): it
+    compares models that were refined on different inlier sets.
     """
     distances = np.minimum(essential_distances(E, pts1, pts2, K), threshold_px)
     scale = LOSS_SCALE_OF_THRESHOLD * threshold_px
@@ -324,6 +336,43 @@ def essential_angle_deg(E1: ArrayLike, E2: ArrayLike) -> float:
     )
 
 
+def noise_sigma_px(distances: FloatArray) -> float:
+    """Robust standard deviation of the keypoint noise behind inliers' Sampson distances.
+
+    ``distances`` ``(N,)`` are Sampson distances in pixels (:func:`essential_distances`).
+    With Gaussian noise of ``sigma`` px on each coordinate of both images, a Sampson
+    distance is ``|N(0, sigma^2)|`` to first order, so ``1.4826`` times their median
+    estimates ``sigma`` and ignores the outliers' tail.
+    """
+    return 1.4826 * median(np.abs(distances))
+
+
+def loss_scale_px(distances: FloatArray, threshold_px: float) -> float:
+    """Cauchy scale (pixels) for refining a model on inliers with these Sampson distances.
+
+    :data:`CAUCHY_SCALE_OF_SIGMA` times :func:`noise_sigma_px`: the loss follows the
+    noise of the images at hand (sharp or blurred, large or small) instead of a fixed
+    fraction of the threshold. It is capped at the threshold, and floored at a
+    thousandth of it so that noise-free data keep the loss defined.
+    """
+    sigma = noise_sigma_px(distances)
+    return float(np.clip(CAUCHY_SCALE_OF_SIGMA * sigma, 1e-3 * threshold_px, threshold_px))
+
+
+def inlier_threshold_px(distances: FloatArray, threshold_px: float) -> float:
+    """Inlier threshold (pixels) for re-selecting inliers whose Sampson distances are these.
+
+    The given threshold, raised to :data:`THRESHOLD_OF_SIGMA` times
+    :func:`noise_sigma_px` when the images are noisier than it assumes (a 1 px
+    threshold cuts Gaussian noise of 0.5 px at two sigma, and the cut biases the
+    fit), and never beyond :data:`MAX_THRESHOLD_GROWTH` times it, so that a set
+    of outliers, whose distances spread up to the threshold, cannot widen it
+    round after round.
+    """
+    raised = THRESHOLD_OF_SIGMA * noise_sigma_px(distances)
+    return float(np.clip(raised, threshold_px, MAX_THRESHOLD_GROWTH * threshold_px))
+
+
 def refine_essential(
     E: FloatArray, p1: FloatArray, p2: FloatArray, K: FloatArray, inliers: np.ndarray,
     threshold_px: float, rounds: int = 3,
@@ -333,16 +382,20 @@ def refine_essential(
     ``p1, p2`` are all the correspondences ``(N, 2)`` and ``inliers`` their
     current ``(N,) bool`` mask; returns the refined ``E`` and the new mask.
 
-    The refinement uses a Cauchy loss whose scale is a third of the inlier
-    threshold (:data:`LOSS_SCALE_OF_THRESHOLD`), so that near-threshold matches
-    weigh little.
+    Each round refines under a Cauchy loss whose scale follows the inliers' noise
+    under the current model (:func:`loss_scale_px`), so that matches far out in
+    the noise's tail weigh little, however noisy the images are; the inliers are
+    then re-selected at :func:`inlier_threshold_px`, ``threshold_px`` unless the
+    noise calls for more.
     """
     R, t = decompose_essential(E)[0]  # any of the four gives the same E up to sign
     for _ in range(rounds):
+        distances = essential_distances(E, p1[inliers], p2[inliers], K)
         R, t = refine_relative_pose(R, t, p1[inliers], p2[inliers], K, loss="cauchy",
-                                    scale_px=LOSS_SCALE_OF_THRESHOLD * threshold_px)
+                                    scale_px=loss_scale_px(distances, threshold_px))
         E_new = essential_from_pose(R, t)
-        new_inliers = essential_distances(E_new, p1, p2, K) <= threshold_px
+        threshold = inlier_threshold_px(distances, threshold_px)
+        new_inliers = essential_distances(E_new, p1, p2, K) <= threshold
         if new_inliers.sum() < 6:
             break
         E = E_new

@@ -185,3 +185,13 @@ def rotation_from_quaternion(q: ArrayLike) -> FloatArray:
         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
     ])
+
+
+def median(values: FloatArray) -> float:
+    """``np.median`` of a non-empty ``(N,)`` array without NaNs.
+
+    ``np.median`` imports ``numpy.ma`` on its first call, 8 ms of a 0.4 s run.
+    """
+    n = len(values)
+    part = np.partition(values, [(n - 1) // 2, n // 2])
+    return float(0.5 * (part[(n - 1) // 2] + part[n // 2]))

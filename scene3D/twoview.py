@@ -30,7 +30,6 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .epipolar import (
-    LOSS_SCALE_OF_THRESHOLD,
     EssentialFit,
     essential_cost,
     essential_distances,
@@ -38,6 +37,8 @@ from .epipolar import (
     estimate_homography,
     fit_essential,
     fundamental_from_essential,
+    inlier_threshold_px,
+    loss_scale_px,
     polish_essential,
 )
 from .errors import ReconstructionError
@@ -48,6 +49,7 @@ from .geometry import (
     as_matrix,
     as_points2d,
     check_same_length,
+    median,
     rotation_error_deg,
 )
 from .pose import choose_pose
@@ -69,7 +71,9 @@ class TwoViewSettings:
     Attributes
     ----------
     threshold_px : float
-        Robust-estimation inlier threshold for F, E and H, in pixels.
+        Robust-estimation inlier threshold for F, E and H, in pixels. The local
+        optimisation of E raises it, at most twofold, when the matches are noisier
+        than it assumes (:func:`scene3D.epipolar.inlier_threshold_px`).
     max_starts : int
         Most robust estimations of E (each locally optimised); the best is kept
         once two starts agree on it (:func:`scene3D.epipolar.fit_essential`).
@@ -388,16 +392,16 @@ def trust_warnings(num_matches: int, num_inliers: int, median_parallax_deg: floa
 
 def check_focal_length(R: FloatArray, t: FloatArray, p1: FloatArray, p2: FloatArray,
                        inliers: np.ndarray, K: FloatArray, threshold_px: float,
-                       rounds: int = 3) -> FocalFit:
+                       scale_px: float, rounds: int = 3) -> FocalFit:
     """The focal length the matches call for (:func:`scene3D.refinement.fit_focal_scale`).
 
     ``p1, p2`` are all the correspondences ``(N, 2)``, ``inliers`` the ``(N,) bool``
     inliers of the pose ``R, t`` found with ``K``. Those inliers were chosen under
     ``K``: with a wrong focal length they favour the matches that fit it, so they
-    are re-selected under the fitted focal length and the fit repeated (as
-    :func:`scene3D.epipolar.refine_essential` does for the pose).
+    are re-selected under the fitted focal length (at ``threshold_px``) and the fit
+    repeated (as :func:`scene3D.epipolar.refine_essential` does for the pose), under
+    a Cauchy loss of scale ``scale_px``.
     """
-    scale_px = LOSS_SCALE_OF_THRESHOLD * threshold_px
     focal = fit_focal_scale(R, t, p1[inliers], p2[inliers], K, "cauchy", scale_px)
     for _ in range(rounds - 1):
         K_s = K @ np.diag([focal.scale, focal.scale, 1.0])
@@ -409,16 +413,6 @@ def check_focal_length(R: FloatArray, t: FloatArray, p1: FloatArray, p2: FloatAr
         focal = fit_focal_scale(focal.R, focal.t, p1[inliers], p2[inliers], K, "cauchy",
                                 scale_px, initial_scale=focal.scale)
     return focal
-
-
-def _median(values: FloatArray) -> float:
-    """``np.median`` of a non-empty ``(N,)`` array without NaNs.
-
-    ``np.median`` imports ``numpy.ma`` on its first call, 8 ms of a 0.4 s run.
-    """
-    n = len(values)
-    part = np.partition(values, [(n - 1) // 2, n // 2])
-    return float(0.5 * (part[(n - 1) // 2] + part[n // 2]))
 
 
 def reconstruct_from_matches(
@@ -495,7 +489,7 @@ def reconstruct_from_matches(
                 required=s.min_off_plane_matches,
             )
     parallax = np.where(front, parallax_angles_deg(np.nan_to_num(points), R, t), 0.0)
-    median_parallax = _median(parallax)
+    median_parallax = median(parallax)
     if median_parallax < s.min_median_parallax_deg:
         raise ReconstructionError(
             "no_parallax",
@@ -516,9 +510,14 @@ def reconstruct_from_matches(
             inliers=num_inliers, in_front=int(front.sum()), kept=int(keep.sum()),
             required=s.min_points,
         )
-    median_kept_parallax = _median(parallax[keep])
+    median_kept_parallax = median(parallax[keep])
     t_focal = time.perf_counter()
-    focal = check_focal_length(R, t, p1, p2, inliers, K, s.threshold_px)
+    # The noise of these inliers sets the losses of the focal check and the adjustment,
+    # as it does the local optimisation's (scene3D.epipolar.refine_essential).
+    distances = essential_distances(E, in1, in2, K)
+    loss_scale = loss_scale_px(distances, s.threshold_px)
+    focal = check_focal_length(R, t, p1, p2, inliers, K,
+                               inlier_threshold_px(distances, s.threshold_px), loss_scale)
     refine_s += time.perf_counter() - t_focal
     warnings = trust_warnings(n, num_inliers, median_kept_parallax, h_ratio, s, fit, focal)
     points, pts1_kept, pts2_kept = points[keep], in1[keep], in2[keep]
@@ -526,8 +525,7 @@ def reconstruct_from_matches(
     if s.bundle_adjust:
         t_ba = time.perf_counter()
         R, t, points = bundle_adjust_two_view(R, t, points, pts1_kept, pts2_kept, K,
-                                              loss="cauchy",
-                                              scale_px=LOSS_SCALE_OF_THRESHOLD * s.threshold_px)
+                                              loss="cauchy", scale_px=loss_scale)
         E = essential_from_pose(R, t)
         E = E / np.linalg.norm(E)
         kept_errors = reprojection_errors(points, pts1_kept, pts2_kept, K, R, t)

@@ -63,7 +63,8 @@ def test_default_run_is_the_book_pair_against_ground_truth(tmp_path, data_root):
     assert summary["feature"] == "SIFT"
     assert summary["num_inliers"] <= summary["num_matches"]
     assert summary["robust_starts"] == 2 and summary["trusted"]  # confirmed at once
-    assert summary["robust_spread_deg"] < 1e-3  # both starts reached the same optimum
+    # Both starts reached the same optimum (confirmation: unit-norm E entries within 1e-4).
+    assert summary["robust_spread_deg"] < 5e-3
     assert abs(summary["focal_scale"] - 1.0) < 0.05 and 0 < summary["focal_scale_sigma"] < 0.05
     assert summary["reprojection_rmse_px"] < 0.5
     assert {"features", "matching", "geometry", "plots", "total"} <= set(summary["timings_s"])

@@ -1,16 +1,22 @@
 import numpy as np
 import pytest
 
+from scene3D import epipolar
 from scene3D.epipolar import (
     epipolar_lines,
     epipolar_residuals,
     essential_angle_deg,
     essential_cost,
+    essential_distances,
     essential_from_pose,
     estimate_essential,
     estimate_fundamental,
     fit_essential,
     fundamental_from_essential,
+    inlier_threshold_px,
+    loss_scale_px,
+    noise_sigma_px,
+    refine_essential,
 )
 from scene3D.evaluation import relative_pose_error
 from scene3D.geometry import normalize_points, rotation_about_axis, to_homogeneous
@@ -148,3 +154,58 @@ def test_essential_angle_is_the_pose_difference_whatever_the_scale_and_sign(true
     assert essential_angle_deg(E, turned) == pytest.approx(0.3, abs=1e-6)
     t_off = rotation_about_axis(np.cross(t, [0.0, 0.0, 1.0]), 2.0) @ t
     assert essential_angle_deg(E, essential_from_pose(R, t_off)) == pytest.approx(2.0, abs=1e-6)
+
+
+def test_noise_sigma_is_recovered_from_the_inliers_distances(camera, true_pose):
+    R, t = true_pose
+    E = essential_from_pose(R, t)
+    for sigma in (0.1, 0.4):
+        _, pts1, pts2 = correspondences(camera, R, t, n=2000, noise_px=sigma, seed=5)
+        distances = essential_distances(E, pts1, pts2, camera)
+        assert noise_sigma_px(distances) == pytest.approx(sigma, rel=0.08)
+        assert loss_scale_px(distances, 1.0) == pytest.approx(2.385 * sigma, rel=0.08)
+
+
+def test_loss_scale_is_kept_within_the_threshold():
+    assert loss_scale_px(np.zeros(50), 2.0) == pytest.approx(2e-3)  # noise-free: floor
+    assert loss_scale_px(np.full(50, 5.0), 2.0) == pytest.approx(2.0)  # noisier than the threshold
+
+
+def test_inlier_threshold_rises_with_the_noise_within_bounds():
+    rng = np.random.default_rng(4)
+    sharp = np.abs(rng.normal(0.0, 0.1, 500))
+    assert inlier_threshold_px(sharp, 1.0) == 1.0  # 3 sigma is well inside: unchanged
+    noisy = np.abs(rng.normal(0.0, 0.5, 500))
+    assert inlier_threshold_px(noisy, 1.0) == pytest.approx(1.5, rel=0.1)  # 3 sigma
+    # Outliers spread evenly up to the threshold must not widen it without end.
+    assert inlier_threshold_px(rng.uniform(0.0, 1.0, 500), 1.0) == 2.0
+
+
+def _refined_errors(camera, R, t, noise_px, seeds):
+    """Worst of rotation and translation-direction error (deg) of refine_essential
+    started at the true E, on noisy matches with 20 % outliers, one per seed."""
+    errors = []
+    for seed in seeds:
+        _, pts1, pts2 = correspondences(camera, R, t, n=300, noise_px=noise_px, seed=seed)
+        rng = np.random.default_rng(seed + 7)
+        pts2[rng.choice(300, 60, replace=False)] = rng.uniform(0, 640, (60, 2))
+        E_true = essential_from_pose(R, t)
+        inliers = essential_distances(E_true, pts1, pts2, camera) <= 1.0
+        E, inliers = refine_essential(E_true, pts1, pts2, camera, inliers, 1.0)
+        R_est, t_est, _, _ = choose_pose(E, pts1[inliers], pts2[inliers], camera)
+        err = relative_pose_error(R_est, t_est, R, t)
+        errors.append(max(err.rotation_deg, err.translation_deg))
+    return np.array(errors)
+
+
+def test_noise_adaptive_loss_beats_a_fixed_third_of_the_threshold(camera, true_pose, monkeypatch):
+    R, t = true_pose
+    seeds = range(16)
+    adaptive = {s: _refined_errors(camera, R, t, s, seeds) for s in (0.5, 0.1)}
+    monkeypatch.setattr(epipolar, "loss_scale_px", lambda distances, threshold_px: threshold_px / 3)
+    fixed = {s: _refined_errors(camera, R, t, s, seeds) for s in (0.5, 0.1)}
+    # Noise of half the threshold: a third of the threshold is too tight a loss.
+    assert adaptive[0.5].mean() < 0.9 * fixed[0.5].mean()
+    # Sharp matches: the fixed scale is nearly least squares; adaptive costs at most
+    # its 5 % of efficiency.
+    assert adaptive[0.1].mean() < 1.1 * fixed[0.1].mean()

@@ -129,21 +129,21 @@ def test_restarts_escape_a_poor_optimum_on_a_wide_pair(fountain):
 
 
 def test_restarts_that_end_close_together_leave_the_pose_trusted(fountain):
-    """Pair 1-3 at 768 px: one start finds the best optimum and seven a neighbour.
+    """Pair 4-8 at 768 px: in eight starts no optimum is reached twice.
 
-    The best is never reached twice, but the neighbour lies within 0.5 deg
+    But the optima lie within 0.05 deg of each other, well inside 0.5 deg
     (TwoViewSettings.restart_agreement_deg): the pose is known to that accuracy,
     so the result is trusted, and it is accurate.
     """
     cams = _cameras(fountain)
-    scene = SceneReconstruction3D(cams[1].K, cams[1].dist)
-    scene.load_image_pair(fountain / "images" / "0001.jpg", fountain / "images" / "0003.jpg")
+    scene = SceneReconstruction3D(cams[4].K, cams[4].dist)
+    scene.load_image_pair(fountain / "images" / "0004.jpg", fountain / "images" / "0008.jpg")
     result = scene.reconstruct("SIFT")
     matches = scene.matches("SIFT")
     fit = fit_essential(matches.pts1, matches.pts2, scene.K)
     assert fit.starts == 8 and not fit.confirmed
-    assert 0.05 < fit.spread_deg < TwoViewSettings().restart_agreement_deg
+    assert 0.01 < fit.spread_deg < 0.05 < TwoViewSettings().restart_agreement_deg
     assert result.trusted, result.warnings
     assert result.robust_spread_deg == pytest.approx(fit.spread_deg)
-    err = relative_pose_error(result.R, result.t, *relative_pose(cams[1], cams[3]))
-    assert max(err.rotation_deg, err.translation_deg) < 0.2
+    err = relative_pose_error(result.R, result.t, *relative_pose(cams[4], cams[8]))
+    assert max(err.rotation_deg, err.translation_deg) < 0.3
