@@ -115,19 +115,24 @@ def estimate(method: str, q1, q2, K, size):
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     epilog=__doc__.split("\n\n", 2)[2],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--data", type=Path, default=None,
                         help="folder holding fountain-P11/ (default: $SCENE3D_DATA)")
-    parser.add_argument("--sizes", type=int, nargs="+", default=[1536, 768])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[1536, 768],
+                        help="working widths in px (default: 1536 768)")
     parser.add_argument("--gaps", type=int, nargs="+", default=[1, 2],
                         help="pair each image i with i + gap (default: 1 2)")
-    parser.add_argument("--noise", nargs="+", default=list(NOISE_MODELS), choices=NOISE_MODELS)
+    parser.add_argument("--noise", nargs="+", default=list(NOISE_MODELS), choices=NOISE_MODELS,
+                        help="noise models (default: all; see the description below)")
     parser.add_argument("--draws", type=int, default=5, help="noise draws per pair (default: 5)")
     parser.add_argument("--outliers", type=float, default=0.05,
                         help="fraction of image-2 points replaced by uniform outliers")
     parser.add_argument("--fixed-scale", action="store_true",
                         help="also run scene3D with its previous, fixed loss scale")
-    parser.add_argument("--csv", type=Path, default=REPO / "out" / "bench" / "exact_truth.csv")
+    parser.add_argument("--csv", type=Path, default=REPO / "out" / "bench" / "exact_truth.csv",
+                        help="per-draw rows (default: out/bench/exact_truth.csv)")
     args = parser.parse_args(argv)
     root = args.data or default_data_root()
     if root is None:
@@ -142,6 +147,9 @@ def main(argv: list[str] | None = None) -> int:
     methods = [m for m in METHODS if (m != "poselib" or _has("poselib"))
                and (m != "scene3D-fixed" or args.fixed_scale)]
     pairs = [(i, i + gap) for gap in args.gaps for i in range(len(views) - gap)]
+    if not pairs:
+        parser.error(f"--gaps {' '.join(map(str, args.gaps))} selects no pair of the "
+                     f"{len(views)} views")
     rows = []  # (noise, width, pair, draw, method, rot_deg, t_deg)
     for width in args.sizes:
         for a, b in pairs:
