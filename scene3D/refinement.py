@@ -153,6 +153,20 @@ def _reweighting(r: FloatArray, loss: str, scale: float) -> tuple[FloatArray, Fl
     return row_scale, row_scale * r
 
 
+def _damped_steps(J: FloatArray, r: FloatArray, loss: str,
+                  scale: float) -> Callable[[float], FloatArray]:
+    """Steps of robust Gauss-Newton on residuals ``r`` ``(N,)`` with Jacobian ``J`` ``(N, k)``.
+
+    Builds the normal equations once, with the rows of :func:`_robust_scaling`, and
+    returns ``step(damping) -> dx`` ``(k,)`` with Marquardt's damping of their diagonal.
+    """
+    row_scale, rw = _robust_scaling(r, loss, scale)
+    Jw = J * row_scale[:, None]
+    H, g = Jw.T @ Jw, Jw.T @ rw
+    damped = np.diag(np.diag(H) + 1e-12)
+    return lambda damping: np.linalg.solve(H + damping * damped, -g)
+
+
 def _robust_cost(r: FloatArray, loss: str, scale: float) -> float:
     """``scale^2 * sum rho((r / scale)^2)``, the cost the refinement minimises."""
     return float(scale**2 * np.sum(_loss((r / scale) ** 2, loss)[0]))
@@ -236,14 +250,10 @@ def refine_relative_pose(
 
     def linearize(state: tuple) -> Callable[[float], tuple]:
         R_, t_, F_, r_ = state
-        row_scale, rw = _robust_scaling(r_, loss, scale_px)
         basis = _tangent_basis(t_)
-        Jw = _sampson_jacobian(F_, _fundamental_derivatives(R_, t_, basis, K_inv), h1, h2)
-        Jw *= row_scale[:, None]
-        H, g = Jw.T @ Jw, Jw.T @ rw
-        damped = np.diag(np.diag(H) + 1e-12)
-        return lambda damping: evaluate(
-            *_update_pose(R_, t_, np.linalg.solve(H + damping * damped, -g), basis))
+        J = _sampson_jacobian(F_, _fundamental_derivatives(R_, t_, basis, K_inv), h1, h2)
+        step = _damped_steps(J, r_, loss, scale_px)
+        return lambda damping: evaluate(*_update_pose(R_, t_, step(damping), basis))
 
     state, cost = evaluate(R, t)
     R, t, _, _ = _levenberg_marquardt(state, cost, linearize, max_iterations, 1e-8)
@@ -348,13 +358,10 @@ def fit_focal_scale(
     def linearize(state: tuple) -> Callable[[float], tuple]:
         R_, t_, log_s, _, r_ = state
         J, basis = jacobian(state)
-        row_scale, rw = _robust_scaling(r_, loss, scale_px)
-        Jw = J * row_scale[:, None]
-        H, g = Jw.T @ Jw, Jw.T @ rw
-        damped = np.diag(np.diag(H) + 1e-12)
+        step = _damped_steps(J, r_, loss, scale_px)
 
         def try_step(damping: float) -> tuple[tuple, float]:
-            dx = np.linalg.solve(H + damping * damped, -g)
+            dx = step(damping)
             return evaluate(*_update_pose(R_, t_, dx[:5], basis), log_s + dx[5])
         return try_step
 
