@@ -33,7 +33,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import argparse
 import csv
 import sys
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from pathlib import Path
 
 import cv2
@@ -98,11 +98,8 @@ def fixed_loss():
 def estimate(method: str, q1, q2, K, size):
     """``(R, t)`` of one method, or ``None`` when it refuses or fails."""
     try:
-        if method == "scene3D":
-            result = reconstruct_from_matches(q1, q2, K)
-            return result.R, result.t
-        if method == "scene3D-fixed":
-            with fixed_loss():
+        if method.startswith("scene3D"):
+            with fixed_loss() if method == "scene3D-fixed" else nullcontext():
                 result = reconstruct_from_matches(q1, q2, K)
             return result.R, result.t
         if method == "poselib":
@@ -163,10 +160,10 @@ def main(argv: list[str] | None = None) -> int:
                     q2[bad] = rng.random((len(bad), 2)) * np.array(size)
                     for method in methods:
                         pose = estimate(method, q1, q2, K, size)
-                        err = (relative_pose_error(*pose, R, t) if pose is not None else None)
+                        err = relative_pose_error(*pose, R, t) if pose is not None else None
                         rows.append((model, size[0], f"{a}-{b}", draw, method,
-                                     err.rotation_deg if err else np.inf,
-                                     err.translation_deg if err else np.inf))
+                                     *((err.rotation_deg, err.translation_deg) if err
+                                       else (np.inf, np.inf))))
             print(f"width {width} pair {a}-{b} done ({len(x1)} points)", file=sys.stderr)
     args.csv.parent.mkdir(parents=True, exist_ok=True)
     with open(args.csv, "w", newline="") as f:
