@@ -22,6 +22,7 @@ import pytest
 if os.environ.get("CI") is None:
     pytest.importorskip("distributed", reason="the 'distributed' extra is not installed")
 
+import dask  # noqa: E402
 import distributed  # noqa: E402
 
 from scene3D.cli import main as scene3d_main  # noqa: E402
@@ -30,7 +31,7 @@ from scene3D.cli.evaluate import main as evaluate_main  # noqa: E402
 from scene3D.datasets import read_strecha_camera, strecha_views  # noqa: E402
 from scene3D.engines import LocalEngine  # noqa: E402
 from scene3D.engines.dask_engine import DaskEngine  # noqa: E402
-from scene3D.errors import ReconstructionError  # noqa: E402
+from scene3D.errors import EngineError, ReconstructionError  # noqa: E402
 from scene3D.twoview import TwoViewSettings  # noqa: E402
 
 # A few small pairs of fountain-P11 at the book's 768 px: quick, and enough for two workers.
@@ -79,6 +80,10 @@ def _seen_by_worker(path: Path) -> tuple[str, str, str]:
 
 def _refuse(count: int) -> None:
     raise ReconstructionError("too_few_matches", "too few matches", matches=count)
+
+
+def _die() -> None:
+    os._exit(3)  # the worker process ends, as when it is killed
 
 
 def _squares(n: int) -> np.ndarray:
@@ -192,9 +197,17 @@ def test_a_worker_killed_mid_run_does_not_lose_the_run(fountain_views, local_row
         # The worker really died with tasks on it, and the scheduler ran them again
         # (its nanny starts a new worker process, under a new address).
         assert killed and killed[0] not in engine.workers()
-        with pytest.raises(ProcessLookupError):
-            os.kill(pids[killed[0]], 0)
         assert cluster.scheduler.task_prefixes["pairs"].suspicious >= 1
+
+
+def test_a_task_whose_workers_keep_dying_is_given_up_with_an_engine_error():
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
+            distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                     host="127.0.0.1", dashboard_address=":0") as cluster, \
+            distributed.Client(cluster, set_as_default=False) as client:
+        with pytest.raises(EngineError, match="tasks task 0 was given up: the worker running "
+                                              "it died 1 time "):
+            list(DaskEngine(client).map(_die, [()]))
 
 
 # -- the command ------------------------------------------------------------------------

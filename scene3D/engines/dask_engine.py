@@ -50,6 +50,7 @@ import uuid
 import weakref
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import CancelledError
 from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path, PurePath
@@ -297,8 +298,7 @@ class DaskEngine:
 
     def workers(self) -> dict[str, int]:
         """The workers now connected: ``{address: threads}``."""
-        info = self._client.scheduler_info(n_workers=-1)["workers"]
-        return {address: w["nthreads"] for address, w in info.items()}
+        return dict(self._client.nthreads())
 
     def describe(self) -> str:
         """The engine's name with its workers and threads."""
@@ -366,7 +366,7 @@ class DaskEngine:
                     yield value
         finally:
             left = [f for f in futures if f is not None and not f.done()]
-            if left:
+            if left and self._client.status == "running":
                 self._client.cancel(left)
 
     def _result(self, future: Any, label: str, index: int) -> Any:
@@ -374,10 +374,11 @@ class DaskEngine:
         try:
             return future.result()
         except distributed.KilledWorker as exc:
-            raise EngineError(f"{label} task {index} was given up: {exc.allowed_failures + 1} "
-                              "workers died while running it (the last: "
+            deaths = exc.allowed_failures + 1
+            raise EngineError(f"{label} task {index} was given up: the worker running it died "
+                              f"{deaths} time{'s' * (deaths > 1)} (the last: "
                               f"{exc.last_worker.address})") from None
-        except distributed.client.FutureCancelledError as exc:
+        except CancelledError as exc:  # distributed's FutureCancelledError and older ones
             raise EngineError(f"{label} task {index} was cancelled: {exc}") from None
 
     def _remember(self, value: Any, future: Any) -> None:
