@@ -194,6 +194,7 @@ def main() -> int:
             t0 = time.perf_counter()
             incremental_reconstruction(features, matches, K_working, settings)
             mapper[name] = time.perf_counter() - t0
+            print(f"{name}: mapper {mapper[name]:.1f} s", file=sys.stderr)
     finally:
         for engine in engines.values():
             if isinstance(engine, DaskEngine):
@@ -232,7 +233,7 @@ def main() -> int:
           f"on {os.cpu_count()} cores")
     top = f"{args.workers[-1]} worker{'s' * (args.workers[-1] > 1)}"
     for name in datasets:
-        parallel = statistics.median(f + m for f, m in times[(name, top)])
+        parallel = statistics.median(f + m for f, m, _ in times[(name, top)])
         share = 100 * mapper[name] / (mapper[name] + parallel)
         print(f"{name}: the sequential mapper (tracks, registration, bundle adjustment, on "
               f"the client) took {mapper[name]:.1f} s, {share:.0f} % of features + matching + "
