@@ -189,11 +189,14 @@ class DaskEngine:
         work); None leaves OpenCV's setting alone.
     owns : bool
         Close the client (and its local cluster) on :meth:`close`.
+    name : str, optional
+        How the engine is described (default: "dask" and the scheduler's address).
 
     Examples
     --------
+    >>> from scene3D.imageio import read_image_size
     >>> with DaskEngine.connect("tcp://10.0.0.5:8786") as engine:   # doctest: +SKIP
-    ...     views = reconstruct_views(paths, K, engine=engine)
+    ...     sizes = list(engine.map(read_image_size, [(p,) for p in paths], label="sizes"))
     """
 
     def __init__(self, client: Any, *, files: FileMode = "auto", opencv_threads: int | None = 1,
@@ -269,7 +272,11 @@ class DaskEngine:
         cluster = distributed.LocalCluster(
             n_workers=workers, threads_per_worker=threads_per_worker, processes=True,
             host="127.0.0.1", dashboard_address=":0", silence_logs=logging.ERROR)
-        client = distributed.Client(cluster, set_as_default=False)
+        try:
+            client = distributed.Client(cluster, set_as_default=False)
+        except BaseException:
+            cluster.close()
+            raise
         engine = cls(client, owns=True,
                      name=f"dask local ({workers} worker process{'es' * (workers > 1)})",
                      **options)
