@@ -20,9 +20,10 @@ once per dataset, to give its share of the whole on 2 workers.
 The machine's load average is printed before and after, with its ceiling: the CPU
 that 2 busy processes get over what 1 gets (2.0 when two cores are free; near 1 when
 the machine is busy and the kernel shares it out by session). Every row also says how
-many cores its worker processes kept busy (their CPU seconds over the wall time). On a
-shared machine the 1-vs-2-worker ratio measures the cores this run got as much as the
-engine.
+many cores its worker processes kept busy (their CPU seconds over the wall time), the
+CPU seconds of the tasks (the same work on 1 and 2 workers, when nothing is done twice)
+and of the client with its scheduler (this process). On a shared machine the
+1-vs-2-worker ratio measures the cores this run got as much as the engine.
 
 (Not named ``distributed.py``: run as a script, its folder comes first on
 ``sys.path`` and the file would shadow the ``distributed`` package.)
@@ -171,22 +172,28 @@ def main() -> int:
         datasets[name] = (paths, cam, scale_intrinsics_halved(cam.K, levels), pairs, width)
 
     times: dict[tuple[str, str], list[tuple[float, float, float]]] = {}
+    cpu_used: dict[tuple[str, str], list[tuple[float, float]]] = {}
     last: dict[str, tuple] = {}
     try:
         for rep in range(args.repeats):
             for name, (paths, cam, K_working, pairs, _) in datasets.items():
                 for label, engine in engines.items():
-                    cpu = cpu_seconds(engine)
+                    cpu, here = cpu_seconds(engine), time.process_time()
                     feat_s, match_s, features, verified = run_stages(
                         engine, paths, cam.K, cam.dist, args.max_width, pairs, K_working,
                         settings)
-                    cores = (cpu_seconds(engine) - cpu) / (feat_s + match_s)
+                    work = cpu_seconds(engine) - cpu
+                    cores = work / (feat_s + match_s)
+                    client_cpu = time.process_time() - here if label != "in-process" else 0.0
                     if name in last and not _same(last[name][1], verified):
                         raise AssertionError(f"{name}: {label} verified other matches")
                     last[name] = (features, verified)
                     times.setdefault((name, label), []).append((feat_s, match_s, cores))
+                    cpu_used.setdefault((name, label), []).append((work, client_cpu))
                     print(f"repeat {rep + 1}, {name}, {label}: features {feat_s:.1f} s, "
-                          f"matching {match_s:.1f} s, {cores:.2f} cores busy", file=sys.stderr)
+                          f"matching {match_s:.1f} s, {cores:.2f} cores busy, task CPU "
+                          f"{work:.1f} s, client and scheduler CPU {client_cpu:.1f} s",
+                          file=sys.stderr)
         mapper = {}
         for name, (_, _, K_working, pairs, _) in datasets.items():
             features, verified = last[name]
@@ -208,8 +215,8 @@ def main() -> int:
 
     base = f"{args.workers[0]} worker{'s' * (args.workers[0] > 1)}"
     print("| dataset | views | pairs | engine | features s | matching s | features + matching s "
-          f"| cores busy | speedup vs {base} (median) | per repeat |")
-    print("|---" * 10 + "|")
+          f"| cores busy | task CPU s | client CPU s | speedup vs {base} (median) | per repeat |")
+    print("|---" * 12 + "|")
     for name, (paths, _, _, pairs, _) in datasets.items():
         reference = [f + m for f, m, _ in times[(name, base)]]
         for label in engines:
@@ -221,6 +228,8 @@ def main() -> int:
                   f"{statistics.median(m for _, m, _ in runs):.1f} | "
                   f"{statistics.median(totals):.1f} | "
                   f"{statistics.median(c for _, _, c in runs):.2f} | "
+                  f"{statistics.median(w for w, _ in cpu_used[(name, label)]):.1f} | "
+                  f"{statistics.median(c for _, c in cpu_used[(name, label)]):.1f} | "
                   f"{statistics.median(ratios):.2f}x | "
                   f"{', '.join(f'{r:.2f}' for r in ratios)} |")
     widths = "/".join(sorted({str(d[4]) for d in datasets.values()}))
