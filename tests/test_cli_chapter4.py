@@ -48,7 +48,7 @@ def test_default_run_is_the_book_pair_against_ground_truth(tmp_path, data_root):
     assert proc.returncode == 0, proc.stderr
     out = tmp_path / "out"
     names = {"optic_flow.png", "epipolar_lines.png", "rectified.png", "point_cloud.png",
-             "point_cloud.ply", "reconstruction.json"}
+             "point_cloud.ply", "reconstruction.json", "report.html"}
     assert {p.name for p in out.iterdir()} == names
     for name in names:
         assert f"Wrote '{out / name}'" in proc.stdout
@@ -187,8 +187,8 @@ def test_help_explains_the_outputs():
                           capture_output=True, text=True)
     assert proc.returncode == 0
     for word in ("--calib", "--feature", "--no-pyr-down", "--max-width", "--out", "--no-plots",
-                 "--show", "reconstruction.json", "exit codes"):
-        assert word in proc.stdout
+                 "--no-report", "report.html", "--show", "reconstruction.json", "exit codes"):
+        assert word in " ".join(proc.stdout.split())
 
 
 def test_dense_outputs(tmp_path, synthetic_files):
