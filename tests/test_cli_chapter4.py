@@ -201,6 +201,10 @@ def test_dense_outputs(tmp_path, synthetic_files):
     assert len(points) == summary["dense"]["num_points"] > 50_000
     assert (tmp_path / "disparity.png").read_bytes().startswith(b"\x89PNG")
     assert "dense" in summary["timings_s"]
+    # The report's 3D view holds both clouds.
+    report = (tmp_path / "report.html").read_text()
+    assert f'"name":"dense ({summary["dense"]["num_points"]:,})"' in report
+    assert f'"name":"sparse ({summary["num_points"]:,})"' in report
 
 
 def test_show_without_a_display_warns_and_still_writes(tmp_path, synthetic_files):
