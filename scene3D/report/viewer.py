@@ -239,7 +239,7 @@ def scene_figure_json(layers: list[CloudLayer], cameras: CameraLayer | None = No
         "scene": {
             "aspectmode": "manual",
             "aspectratio": {"x": float(ratio[0]), "y": float(ratio[1]), "z": float(ratio[2])},
-            "camera": {"up": {"x": 0, "y": -1, "z": 0}, "eye": {"x": -0.6, "y": -0.9, "z": -1.6},
+            "camera": {"up": {"x": 0, "y": -1, "z": 0}, "eye": {"x": -0.45, "y": -0.65, "z": -1.2},
                        "center": {"x": 0, "y": 0, "z": 0}},
             **{f"{a}axis": {"title": {"text": t}, "range": [float(lo[i]), float(hi[i])],
                             "backgroundcolor": "#f4f4f4", "showbackground": True}
