@@ -48,7 +48,7 @@ def test_default_run_is_the_book_pair_against_ground_truth(tmp_path, data_root):
     assert proc.returncode == 0, proc.stderr
     out = tmp_path / "out"
     names = {"optic_flow.png", "epipolar_lines.png", "rectified.png", "point_cloud.png",
-             "point_cloud.ply", "reconstruction.json"}
+             "point_cloud.ply", "reconstruction.json", "report.html"}
     assert {p.name for p in out.iterdir()} == names
     for name in names:
         assert f"Wrote '{out / name}'" in proc.stdout
@@ -187,8 +187,8 @@ def test_help_explains_the_outputs():
                           capture_output=True, text=True)
     assert proc.returncode == 0
     for word in ("--calib", "--feature", "--no-pyr-down", "--max-width", "--out", "--no-plots",
-                 "--show", "reconstruction.json", "exit codes"):
-        assert word in proc.stdout
+                 "--no-report", "report.html", "--show", "reconstruction.json", "exit codes"):
+        assert word in " ".join(proc.stdout.split())
 
 
 def test_dense_outputs(tmp_path, synthetic_files):
@@ -201,6 +201,10 @@ def test_dense_outputs(tmp_path, synthetic_files):
     assert len(points) == summary["dense"]["num_points"] > 50_000
     assert (tmp_path / "disparity.png").read_bytes().startswith(b"\x89PNG")
     assert "dense" in summary["timings_s"]
+    # The report's 3D view holds both clouds.
+    report = (tmp_path / "report.html").read_text()
+    assert f'"name":"dense ({summary["dense"]["num_points"]:,})"' in report
+    assert f'"name":"sparse ({summary["num_points"]:,})"' in report
 
 
 def test_show_without_a_display_warns_and_still_writes(tmp_path, synthetic_files):
