@@ -2,6 +2,7 @@
 
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -15,6 +16,7 @@ from scene3D.camera import scale_intrinsics
 from scene3D.datasets import read_strecha_camera, relative_pose
 from scene3D.evaluation import relative_pose_error
 from scene3D.export import read_ply
+from scene3D.geometry import angle_between_deg
 
 from .conftest import REPO
 
@@ -73,6 +75,11 @@ def test_default_run_is_the_book_pair_against_ground_truth(tmp_path, data_root):
     assert len(points) == summary["num_points"] > 200
     assert colors.shape == (len(points), 3)
     assert np.all(points[:, 2] > 0)  # in front of camera 1
+    # The printed centre of camera 2 is where the truth puts it, in camera 1's frame.
+    printed = re.search(r"centre at \(([-+.\d]+), ([-+.\d]+), ([-+.\d]+)\) in camera 1's frame",
+                        proc.stdout)
+    R_true, t_true = relative_pose(cam4, cam5)
+    assert angle_between_deg([float(v) for v in printed.groups()], -R_true.T @ t_true) < 3.0
 
 
 def test_synthetic_pair_with_calibration_file(tmp_path, synthetic_files, rendered_pair):

@@ -17,7 +17,7 @@ from ..camera import adapt_intrinsics_to_size
 from ..datasets import BOOK_PAIR, fetch_fountain_p11
 from ..export import atomic_write_bytes, write_json, write_ply
 from ..features import FEATURE_MODES, normalize_feature_mode
-from ..geometry import rotation_angle_deg
+from ..geometry import camera_centers, rotation_angle_deg
 from ..imageio import BOOK_MAX_WIDTH_PX, image_size, read_image_size
 from ..scene import SceneReconstruction3D
 from ..twoview import TwoViewSettings
@@ -148,8 +148,10 @@ def _result_lines(scene: SceneReconstruction3D, result, paths: tuple[Path, Path]
     if dense is not None:
         lines.append(f"dense: {dense.num_points} points from disparities in "
                      f"[{dense.disparity_range[0]}, {dense.disparity_range[1]}) px")
-    lines.append(f"camera 2: rotated {rotation_angle_deg(result.R):.2f} deg, moved towards "
-                 f"({result.t[0]:+.3f}, {result.t[1]:+.3f}, {result.t[2]:+.3f}) (unit baseline)")
+    center = camera_centers(result.R[None], result.t[None])[0]  # camera 2 in camera 1's frame
+    lines.append(f"camera 2: rotated {rotation_angle_deg(result.R):.2f} deg, centre at "
+                 f"({center[0]:+.3f}, {center[1]:+.3f}, {center[2]:+.3f}) in camera 1's frame "
+                 "(x right, y down, z forward; unit baseline)")
     if not result.trusted:
         lines.append("warning: the pose may not be trustworthy: " + "; ".join(result.warnings))
     return lines
