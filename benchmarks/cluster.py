@@ -1,7 +1,7 @@
 """Features and matching on 1 and 2 Dask worker processes, side by side.
 
     python benchmarks/cluster.py [--datasets fountain-P11 castle-P19] [--workers 1 2]
-                                 [--repeats 3] [--max-width 2400] [--in-process]
+                                 [--repeats 3] [--max-width 2400] [--in-process] [--no-mapper]
 
 The stages of ``scene3d reconstruct-views`` that run as tasks: one task per image
 (decoding at the working size, SIFT, colours: ``multiview.extract_features``) and
@@ -123,6 +123,8 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--max-width", type=int, default=2400,
                         help="halve while wider (default 2400, reconstruct-views': 1536 px)")
+    parser.add_argument("--no-mapper", action="store_true",
+                        help="skip timing the sequential mapper (minutes at 1536 px)")
     parser.add_argument("--in-process", action="store_true",
                         help="also time today's default, the in-process LocalEngine")
     args = parser.parse_args()
@@ -195,7 +197,7 @@ def main() -> int:
                           f"{work:.1f} s, client and scheduler CPU {client_cpu:.1f} s",
                           file=sys.stderr)
         mapper = {}
-        for name, (_, _, K_working, pairs, _) in datasets.items():
+        for name, (_, _, K_working, pairs, _) in ([] if args.no_mapper else datasets.items()):
             features, verified = last[name]
             matches = {pair: v for pair, v in zip(pairs, verified) if v is not None}
             t0 = time.perf_counter()
@@ -241,7 +243,7 @@ def main() -> int:
           f"{ceiling[0]:.2f} before, {ceiling[1]:.2f} after; load average at the end {load} "
           f"on {os.cpu_count()} cores")
     top = f"{args.workers[-1]} worker{'s' * (args.workers[-1] > 1)}"
-    for name in datasets:
+    for name in mapper:
         parallel = statistics.median(f + m for f, m, _ in times[(name, top)])
         share = 100 * mapper[name] / (mapper[name] + parallel)
         print(f"{name}: the sequential mapper (tracks, registration, bundle adjustment, on "
