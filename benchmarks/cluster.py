@@ -7,11 +7,12 @@ The stages of ``scene3d reconstruct-views`` that run as tasks: one task per imag
 (decoding at the working size, SIFT, colours: ``multiview.extract_features``) and
 one per pair (ratio + mutual matching and the essential-matrix check:
 ``multiview.verify_pair``, all pairs as ``--pairs auto`` picks them up to 20 views),
-through :class:`scene3D.engines.dask_engine.DaskEngine` on a ``LocalCluster`` of N
-single-threaded worker processes on 127.0.0.1. The clusters are started (and warmed
-up) before timing; the configurations then alternate within every repeat, so that
-each ratio compares runs made side by side under the same load. Every run's verified
-matches are checked to be identical to the first configuration's.
+through :class:`scene3D.engines.dask_engine.DaskEngine` on N single-threaded worker
+processes on 127.0.0.1, built as ``--workers N`` builds them (``DaskEngine.local``).
+The clusters are started (and warmed up) before timing; the configurations then
+alternate within every repeat, so that each ratio compares runs made side by side under
+the same load. Every run's verified matches are checked to be identical to the first
+configuration's.
 
 Last, the sequential rest of the pipeline (tracks, registration, triangulation and
 bundle adjustment: ``multiview.incremental_reconstruction``, on the client) is timed
@@ -129,7 +130,7 @@ def main() -> int:
                         help="also time today's default, the in-process LocalEngine")
     args = parser.parse_args()
 
-    import distributed
+    import distributed  # noqa: F401  (configures its loggers; quietened next)
 
     logging.getLogger("distributed").setLevel(logging.WARNING)
 
@@ -149,16 +150,13 @@ def main() -> int:
           f"({os.cpu_count()} cores); CPU of 2 busy processes / 1: {ceiling[0]:.2f}",
           file=sys.stderr)
 
-    clusters, engines, startup = {}, {}, {}
-    for n in args.workers:
+    engines, startup = {}, {}
+    for n in args.workers:  # as --workers N builds them
         t0 = time.perf_counter()
-        clusters[n] = distributed.LocalCluster(
-            n_workers=n, threads_per_worker=args.threads, processes=True, host="127.0.0.1",
-            dashboard_address=":0", silence_logs=logging.ERROR)
-        client = distributed.Client(clusters[n], set_as_default=False)
-        client.run(_warm_up)
+        engine = DaskEngine.local(n, threads_per_worker=args.threads)
+        engine.client.run(_warm_up)
         startup[n] = time.perf_counter() - t0
-        engines[f"{n} worker{'s' * (n > 1)}"] = DaskEngine(client)
+        engines[f"{n} worker{'s' * (n > 1)}"] = engine
     if args.in_process:
         engines["in-process"] = LocalEngine()
 
@@ -207,9 +205,7 @@ def main() -> int:
     finally:
         for engine in engines.values():
             if isinstance(engine, DaskEngine):
-                engine.client.close()
-        for cluster in clusters.values():
-            cluster.close()
+                engine.close()
     ceiling.append(cpu_ceiling())
     load = " ".join(f"{x:.2f}" for x in os.getloadavg())
     print(f"load average after: {load}; CPU of 2 busy processes / 1: {ceiling[1]:.2f}",
