@@ -39,9 +39,12 @@ And a delete-a-cell jackknife over the inliers in image 1 measures how much the
 estimate rests on one part of the scene.
 
 The result is combined with the prior (inverse-variance, in ``log f``): with the
-default prior the photos decide; with EXIF both count. When the photos know the
-focal length less well than the prior (little rotation, optical axes that meet in
-one point: a large sigma), the prior's value is kept and the result says so. A
+default prior the photos decide; with EXIF both count, unless they contradict each
+other by more than three sigmas (an EXIF value can be plain wrong: a crop, a resized
+copy, digital zoom): then photos that know the focal length to 10 % overrule it, and
+the result is untrusted. When the photos know the focal length less well than the
+prior (little rotation, optical axes that meet in one point: a large sigma), the
+prior's value is kept and the result says so. A
 focal length known to worse than
 :attr:`SelfCalibrationSettings.max_trusted_sigma_log` (10 %), as when it rests on
 the default prior, leaves the result untrusted; so does another basin that fits
@@ -215,7 +218,9 @@ class SelfCalibration:
         ``"exif"`` / ``"prior"`` (they did not; the value is the start's).
     determined : bool
         The photos determined the focal length at least as well as the prior did
-        (``data_sigma_log <= start_sigma_log``); when not, ``K`` keeps the prior's.
+        (``data_sigma_log <= start_sigma_log``), or well enough
+        (``SelfCalibrationSettings.max_trusted_sigma_log``) to overrule an EXIF value
+        they contradict by more than three sigmas; when not, ``K`` keeps the prior's.
     data_focal_px, data_sigma_log : float
         What the photos alone call for, and its standard deviation in ``log f``
         (``uncertainty.total``; inf when the fit could not tell).
@@ -495,17 +500,22 @@ def self_calibrate_pair(
     determined = sigma_data <= prior_sigma_log
     ambiguous = [g for c, g in runs[1:] if c - best_cost < s.ambiguity_cost
                  and abs(math.log(g.K[0, 0] / f_data)) > 3.0 * sigma_data]
-    # Photos and EXIF that disagree beyond their sigmas: one of them is wrong.
+    # Photos and EXIF that disagree beyond their sigmas: one of them is wrong. An EXIF
+    # value can be wrong outright (a cropped or resized copy, digital zoom), so beyond
+    # three sigmas photos that know the focal length well enough overrule it (the
+    # Gaussian combination assumes neither is); the result is doubted either way.
     disagree = prior_source == "exif" and abs(math.log(f_data / f0)) > 3.0 * math.hypot(
         sigma_data, prior_sigma_log)
-    if determined:
+    if disagree and sigma_data <= s.max_trusted_sigma_log:
+        determined = True
+        focal, sigma, source = f_data, sigma_data, "exif+refined"
+        warnings.append(
+            f"the photos call for a focal length {f_data / f0:.2f} times the EXIF one "
+            f"(+-{sigma_data:.0%}): cropped or resized photos, digital zoom, or matches that "
+            f"mislead? Using the photos' {focal:.1f} px")
+    elif determined:
         focal, sigma = combine_log_normal(f_data, sigma_data, f0, prior_sigma_log)
         source = f"{prior_source}+refined"
-        if disagree:
-            warnings.append(
-                f"the photos call for a focal length {f_data / f0:.2f} times the EXIF one "
-                f"(+-{sigma_data:.0%}): cropped or resized photos, digital zoom, or matches "
-                f"that mislead? Using {focal:.1f} px")
     else:
         focal, sigma, source = f0, prior_sigma_log, prior_source
         rests_on = ("the EXIF value" if prior_source == "exif" else
@@ -513,6 +523,9 @@ def self_calibrate_pair(
         warnings.append(f"the photos do not determine the focal length better than "
                         f"{rests_on} (they fit {f_data:.1f} px +-{min(sigma_data, 9.99):.0%}, "
                         f"{_main_doubt(uncertainty)}): kept it")
+        if disagree:
+            warnings.append(f"the photos call for a focal length {f_data / f0:.2f} times the "
+                            "EXIF one: the EXIF value may be wrong")
     if sigma > s.max_trusted_sigma_log:
         warnings.append(f"the focal length ({focal:.1f} px) is known only to +-{sigma:.0%}: "
                         "the pose may be off by degrees")

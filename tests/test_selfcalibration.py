@@ -86,21 +86,34 @@ def test_noise_and_an_off_centre_principal_point_stay_within_the_sigma():
     assert err.rotation_deg < 0.5 and err.translation_deg < 2.0
 
 
-def test_a_wrong_exif_value_is_outvoted_and_reported():
+def test_a_wrong_exif_value_is_overruled_and_reported():
     K = intrinsics_from_focal(F_TRUE, SIZE)
     R, t = asymmetric_pose(angle_deg=10.0)
     pts1, pts2 = pair(K, R, t)
     exif = prior_K(0.65 * F_TRUE)  # say a crop of the photo the EXIF describes
     result = self_calibrate_pair(pts1, pts2, exif, EXIF_SIGMA_LOG, "exif")
     assert result.data_focal_px == pytest.approx(F_TRUE, rel=1e-3)
-    assert result.source == "exif+refined"
-    # Combined with the EXIF value by their sigmas: between the two, nearer the photos'.
-    focal, _ = combine_log_normal(result.data_focal_px, result.data_sigma_log,
-                                  0.65 * F_TRUE, EXIF_SIGMA_LOG)
-    assert result.focal_px == pytest.approx(focal, rel=1e-3)
-    assert 0.65 * F_TRUE < result.focal_px < F_TRUE
+    # 43 % apart, far beyond three sigmas: not averaged, the photos' value is used.
+    assert result.source == "exif+refined" and result.focal_px == pytest.approx(F_TRUE, rel=1e-3)
     assert any("times the EXIF one" in w for w in result.warnings)
     assert not result.trusted  # the photos or the EXIF value is wrong
+
+
+def test_an_exif_value_within_its_sigma_is_combined():
+    K = intrinsics_from_focal(F_TRUE, SIZE)
+    R, t = asymmetric_pose(angle_deg=10.0)
+    pts1, pts2 = pair(K, R, t, noise_px=0.3)
+    result = self_calibrate_pair(pts1, pts2, prior_K(1.04 * F_TRUE), EXIF_SIGMA_LOG, "exif")
+    # The photos know it to 0.7 %, better than EXIF's 3 %: combined, mostly theirs.
+    assert result.determined and result.source == "exif+refined"
+    assert result.data_sigma_log < EXIF_SIGMA_LOG
+    focal, sigma = combine_log_normal(result.data_focal_px, result.data_sigma_log,
+                                      1.04 * F_TRUE, EXIF_SIGMA_LOG)
+    assert result.focal_px == pytest.approx(focal, rel=1e-6)
+    assert result.focal_sigma_px == pytest.approx(focal * sigma, rel=1e-6)
+    assert result.data_focal_px < result.focal_px < 1.04 * F_TRUE
+    assert result.trusted and not any("EXIF one" in w for w in result.warnings)
+    assert abs(result.focal_px / F_TRUE - 1) < 0.01
 
 
 def fixating_pose(angle_deg=12.0, depth=6.0):
