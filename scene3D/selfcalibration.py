@@ -100,10 +100,6 @@ class SelfCalibrationSettings:
         Ratio between neighbouring focal lengths of the profile.
     max_candidates : int
         Basins of the profile (lowest first) from which the iteration is run.
-    candidate_outliers : float
-        Only basins whose profile cost exceeds the lowest by less than this share of
-        the matches counted as outliers (each costs ``log(10)``), or by less than
-        ``ambiguity_cost``, are iterated from.
     max_iterations, tolerance_log : int, float
         The iteration stops when the focal length changes by less than
         ``tolerance_log`` (in ``log f``), or after ``max_iterations``.
@@ -130,7 +126,6 @@ class SelfCalibrationSettings:
     min_search_factor: float = 2.0
     search_step: float = 1.15
     max_candidates: int = 3
-    candidate_outliers: float = 0.05
     max_iterations: int = 8
     tolerance_log: float = 1e-3
     min_noise_threshold: float = 0.1
@@ -458,10 +453,7 @@ def self_calibrate_pair(
 
     profile = focal_profile(p1, p2, K0, _search_factors(prior_sigma_log, s), tv.threshold_px,
                             s.min_noise_threshold * tv.threshold_px, tv.min_inliers)
-    basins = profile.basins()[:s.max_candidates]
-    margin = max(s.ambiguity_cost, s.candidate_outliers * len(p1) * math.log(10.0))
-    starts = [float(profile.focal_px[i]) for i in basins
-              if profile.cost[i] - profile.cost[basins[0]] <= margin]
+    starts = [float(profile.focal_px[i]) for i in profile.basins()[:s.max_candidates]]
     if prior_source == "exif" or not starts:
         starts.append(f0)
     # Converge from each basin; basins that end at the same focal length count once.
