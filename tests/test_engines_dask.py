@@ -174,6 +174,15 @@ def test_evaluate_on_the_cluster_gives_the_local_rows(client, fountain_views, lo
     assert sum(c.get("pairs", 0) for c in counts.values()) == len(PAIRS)
 
 
+def test_evaluate_no_calib_on_the_cluster_gives_the_local_rows(client, fountain_views):
+    args = (fountain_views[0], fountain_views[1], PAIRS[:2], MAX_WIDTH, "SIFT",
+            TwoViewSettings())
+    local = list(evaluate_pairs(LocalEngine(), *args, no_calib=True))
+    rows = list(evaluate_pairs(DaskEngine(client), *args, no_calib=True))
+    np.testing.assert_equal(_without_seconds(rows), _without_seconds(local))
+    assert [r["calibration_source"] for r in rows] == ["prior+refined"] * 2
+
+
 def test_a_worker_killed_mid_run_does_not_lose_the_run(fountain_views, local_rows):
     pairs = PAIRS + [(3, 4), (4, 5), (1, 3), (2, 4)]  # enough to keep both workers busy
     expected = _without_seconds(local_rows) + _without_seconds(

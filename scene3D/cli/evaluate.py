@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import csv
 import io
+import logging
+import math
 import re
 import sys
 import time
@@ -23,6 +25,7 @@ from ..export import atomic_write_bytes
 from ..features import (
     FEATURE_MODES,
     ImageFeatures,
+    Matches,
     find_matches,
     image_features,
     match_features,
@@ -43,6 +46,8 @@ from .common import (
     open_engine,
     run_command,
 )
+
+logger = logging.getLogger(__name__)
 
 
 def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
@@ -66,6 +71,13 @@ def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
     add_size_args(parser, BOOK_MAX_WIDTH_PX, "the book's rule, 3072 -> 768")
     add_feature_arg(parser, [m.lower() for m in FEATURE_MODES])
     add_bundle_adjust_arg(parser)
+    parser.add_argument("--no-calib", action="store_true",
+                        help="ignore the camera files' intrinsics and distortion: each pair "
+                             "starts from its photos' EXIF focal length (or 1.2 x the longer "
+                             "side), principal point at the centre, and self-calibrates its "
+                             "focal length, as chapter4.py does without --calib; the 'focal "
+                             "fit' column is then the focal length found over the camera "
+                             "file's, and the summary gives the median focal error")
     parser.add_argument("--csv", type=Path, metavar="FILE",
                         help="also write the per-pair rows (with notes) to this CSV file")
     parser.add_argument("--force", action="store_true",
@@ -113,28 +125,50 @@ class _View:
     shape : tuple[int, ...]
         ``(h, w, 3)`` of the working image.
     K : (3, 3) float64
-        Intrinsics of the working image.
+        Intrinsics of the working image, from the view's camera file.
     features : ImageFeatures or None
         Keypoints and descriptors; None with ``--feature flow``.
     image : (h, w, 3) uint8 or None
         The working image, kept only for ``--feature flow`` (the tracks belong to
         the pair); otherwise dropped once its features are taken.
+    photo : (name, ExifCamera or None, (width, height)) or None
+        With ``--no-calib``: what :func:`scene3D.intrinsics_prior.camera_prior`
+        needs of the photo (its EXIF and stored size).
     """
 
     shape: tuple[int, ...]
     K: np.ndarray
     features: ImageFeatures | None
     image: np.ndarray | None
+    photo: tuple | None = None
 
 
 def _load_view(path: Path, K: np.ndarray, dist: np.ndarray, max_width: int | None,
-               feature: str) -> _View:
-    """The working image of one view and its features (a task: see :func:`evaluate_pairs`)."""
+               feature: str, no_calib: bool = False) -> _View:
+    """The working image of one view and its features (a task: see :func:`evaluate_pairs`).
+
+    With ``no_calib`` the camera file's distortion is not removed and the photo's EXIF
+    and size are kept for the pair's focal-length prior.
+    """
+    if no_calib:
+        from ..exif import read_exif
+        from ..imageio import read_image_size
+
+        dist = np.zeros(5)
+        photo = (path.name, read_exif(path), read_image_size(path))
+    else:
+        photo = None
     img, _, levels = load_working_image(path, K, dist, max_width)
     K_working = scale_intrinsics_halved(K, levels)
     if feature == "flow":
-        return _View(img.shape, K_working, None, img)
-    return _View(img.shape, K_working, image_features(img, feature), None)
+        return _View(img.shape, K_working, None, img, photo)
+    return _View(img.shape, K_working, image_features(img, feature), None, photo)
+
+
+def _matches(view_a: _View, view_b: _View) -> Matches:
+    if view_a.features is None:  # flow: tracks belong to the pair
+        return find_matches(view_a.image, view_b.image, "flow")
+    return match_features(view_a.features, view_b.features)
 
 
 def _evaluate_pair(name: str, view_a: _View, view_b: _View,
@@ -151,10 +185,7 @@ def _evaluate_pair(name: str, view_a: _View, view_b: _View,
             row["note"] = "refused: the two views have different intrinsics or sizes " \
                           "(the two-view pipeline assumes one camera)"
             return row
-        if view_a.features is None:  # flow: tracks belong to the pair
-            matches = find_matches(view_a.image, view_b.image, "flow")
-        else:
-            matches = match_features(view_a.features, view_b.features)
+        matches = _matches(view_a, view_b)
         row["feature"] = matches.feature
         try:
             result = reconstruct_from_matches(matches.pts1, matches.pts2, view_a.K, settings)
@@ -171,27 +202,89 @@ def _evaluate_pair(name: str, view_a: _View, view_b: _View,
         row["seconds"] = time.perf_counter() - t0
 
 
+def _evaluate_pair_no_calib(name: str, view_a: _View, view_b: _View,
+                            truth: tuple[np.ndarray, np.ndarray],
+                            settings: TwoViewSettings) -> dict:
+    """One row without the camera files' intrinsics: the pair self-calibrates its focal length
+    from its photos' EXIF or the default prior (:mod:`scene3D.selfcalibration`), and
+    ``focal_scale`` is the focal length found over the camera file's (a task: see
+    :func:`evaluate_pairs`)."""
+    from ..intrinsics_prior import camera_prior
+    from ..selfcalibration import self_calibrate_pair
+
+    t0 = time.perf_counter()
+    row = {"pair": name, "width": view_a.shape[1], "feature": "",
+           "rotation_deg": np.inf, "translation_deg": np.inf, "inliers": 0, "points": 0,
+           "focal_scale": np.nan, "flagged": True, "note": "", "focal_error": np.nan,
+           "calibration_source": ""}
+    try:
+        try:
+            prior = camera_prior([view_a.photo, view_b.photo])
+        except ValueError as exc:
+            row["note"] = f"refused: {exc}"
+            return row
+        for message in prior.warnings:
+            logger.warning("%s", message)
+        levels = round(math.log2(prior.image_size[0] / view_a.shape[1]))
+        matches = _matches(view_a, view_b)
+        row["feature"] = matches.feature
+        try:
+            calibration = self_calibrate_pair(matches.pts1, matches.pts2,
+                                              scale_intrinsics_halved(prior.K, levels),
+                                              prior.sigma_log, prior.source, settings)
+        except ReconstructionError as exc:
+            row["note"] = f"refused: {exc.reason}"
+            return row
+        result = calibration.geometry
+        err = relative_pose_error(result.R, result.t, *truth)
+        scale = calibration.focal_px / math.sqrt(view_a.K[0, 0] * view_a.K[1, 1])
+        row.update(rotation_deg=err.rotation_deg, translation_deg=err.translation_deg,
+                   inliers=result.num_inliers, points=len(result.points3d), focal_scale=scale,
+                   flagged=not calibration.trusted, focal_error=scale - 1.0,
+                   calibration_source=calibration.source,
+                   note="; ".join(calibration.warnings + result.warnings))
+        return row
+    finally:  # the row's last column, whichever way it ends
+        row["seconds"] = time.perf_counter() - t0
+
+
 def evaluate_pairs(engine: Engine, images: list[Path], cameras: list[StrechaCamera],
                    pairs: list[tuple[int, int]], max_width: int | None, feature: str,
-                   settings: TwoViewSettings, progress: Progress | None = None
-                   ) -> Iterator[dict]:
+                   settings: TwoViewSettings, progress: Progress | None = None,
+                   no_calib: bool = False) -> Iterator[dict]:
     """The rows of the table, in the order of ``pairs``, computed by ``engine``.
 
     Each view used by a pair is one task (its working image and features), each
-    pair another (matching, two-view reconstruction, errors against the truth);
-    the pairs take their views as shared handles, so a view's features travel to
-    a worker once, not with every pair.
+    pair another (matching, two-view reconstruction or self-calibration with
+    ``no_calib``, errors against the truth); the pairs take their views as shared
+    handles, so a view's features travel to a worker once, not with every pair.
     """
     used = sorted({i for pair in pairs for i in pair})
     views = engine.map(_load_view, [(images[i], cameras[i].K, cameras[i].dist, max_width,
-                                     feature) for i in used], label="views", progress=progress)
+                                     feature, no_calib) for i in used],
+                       label="views", progress=progress)
     shared = {i: engine.share(view) for i, view in zip(used, views)}
-    rows = engine.map(_evaluate_pair,
+    rows = engine.map(_evaluate_pair_no_calib if no_calib else _evaluate_pair,
                       [(f"{images[a].name}-{images[b].name}", shared[a], shared[b],
                         relative_pose(cameras[a], cameras[b]), settings) for a, b in pairs],
                       label="pairs", progress=progress)
     del shared, views  # a view is kept (here or on the cluster) while a pair needs it
     yield from rows
+
+
+def _focal_summary(rows: list[dict]) -> str:
+    """The --no-calib summary line: focal errors against the camera files and their sources."""
+    errors = np.abs([r["focal_error"] for r in rows if np.isfinite(r["focal_error"])])
+    sources = {}
+    for r in rows:
+        if r["calibration_source"]:
+            sources[r["calibration_source"]] = sources.get(r["calibration_source"], 0) + 1
+    if not len(errors):
+        return "without a calibration: no pair gave a focal length"
+    return (f"without a calibration: focal length within {np.median(errors):.2%} of the camera "
+            f"files' (median; p90 {np.percentile(errors, 90):.2%}, max {errors.max():.2%}) "
+            f"on {len(errors)} pair{'s' * (len(errors) != 1)}; "
+            + ", ".join(f"{n} {k}" for k, n in sorted(sources.items())))
 
 
 def _check_csv_target(path: Path | None, force: bool) -> None:
@@ -224,7 +317,7 @@ def run(args: argparse.Namespace) -> int:
                                   None if args.no_pyr_down else args.max_width,
                                   normalize_feature_mode(args.feature),
                                   TwoViewSettings(bundle_adjust=args.bundle_adjust),
-                                  StderrProgress(not args.quiet)):
+                                  StderrProgress(not args.quiet), no_calib=args.no_calib):
             rows.append(row)
             if not args.quiet:
                 print(f"{row['pair']}: rot {row['rotation_deg']:.3f} deg, t-dir "
@@ -253,6 +346,8 @@ def run(args: argparse.Namespace) -> int:
           f"flagged {int(stats['flagged'])}, wrong and unflagged {int(stats['wrong_unflagged'])}"
           + (f"; the matches' focal length: median {float(np.median(fitted)):.3f} times the "
              "calibration's" if fitted else ""))
+    if args.no_calib:
+        print(_focal_summary(rows))
     if args.csv is not None:
         atomic_write_bytes(args.csv, _csv_text(rows).encode())
         print(f"Wrote '{args.csv}'")
