@@ -34,6 +34,7 @@ from .common import (
     add_feature_arg,
     add_size_args,
     check_distinct_images,
+    check_report_viewer,
     positive_int,
     prepare_output_dir,
     run_command,
@@ -55,7 +56,9 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
             "cameras.png (cloud with camera frusta) for the largest model, the same files "
             "in model-1/, model-2/, ... for further models (views that connect among "
             "themselves but not to the first), and reconstruction.json (summary: which "
-            "views are in which model, which are in none and why). A model that fails the "
+            "views are in which model, which are in none and why) and report.html (the "
+            "summary with an interactive 3D view of the largest model; opens offline). "
+            "A model that fails the "
             "consistency check (a view whose pose contradicts its pair geometry, a fold) is "
             "written for inspection, its status 'failed', and the exit code is 1. "
             f"{EXIT_CODES_HELP}."
@@ -86,6 +89,9 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
     parser.add_argument("--out", type=Path, default=Path("out/views"), metavar="DIR",
                         help="output folder (default out/views)")
     parser.add_argument("--no-plots", action="store_true", help="skip cameras.png")
+    parser.add_argument("--no-report", action="store_true",
+                        help="skip report.html (one self-contained page: the numbers, the "
+                             "figure and an interactive 3D view of the points and cameras)")
     add_common_args(parser)
     return parser
 
@@ -138,6 +144,25 @@ def check_summary(model: SfMModel, names: list[str]) -> dict:
     }
 
 
+def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, summary: dict,
+                  plots: bool) -> Path:
+    """report.html: the summary, cameras.png and the interactive 3D view (scene3D.report)
+    of the largest model."""
+    from ..export import atomic_write_bytes
+    from ..report import multi_view_layers, multi_view_report, prepare_view
+
+    lines = [f"{summary['registered']} of {len(names)} views registered, "
+             f"{summary['points']} points, mean track length {recon.mean_track_length:.2f}, "
+             f"reprojection RMSE {recon.reprojection_rmse_px:.3f} px"]
+    figures = {}
+    if plots:
+        figures["cameras.png"] = (out / "cameras.png").read_bytes()
+    view = prepare_view(*multi_view_layers(names, recon.K, recon.image_size, recon.registered,
+                                           recon.R, recon.t, recon.points3d, recon.colors))
+    page = multi_view_report(names, recon.registered, summary, lines, figures, view)
+    return atomic_write_bytes(out / "report.html", page.encode("utf-8"))
+
+
 def write_model(folder: Path, names: list[str], recon: MultiViewReconstruction,
                 model: SfMModel, plots: bool) -> list[Path]:
     """The files of one model: PLY, cameras JSON, COLMAP text model, figure."""
@@ -167,6 +192,8 @@ def run(args: argparse.Namespace) -> int:
     out = prepare_output_dir(args.out)
     if args.ground_truth is not None and not args.ground_truth.is_dir():
         raise UsageError(f"--ground-truth '{args.ground_truth}' is not a folder")
+    if not args.no_report:
+        check_report_viewer()
 
     K_native = adapt_intrinsics_to_size(camera.K, camera.image_size, read_image_size(paths[0]))
 
@@ -218,6 +245,8 @@ def run(args: argparse.Namespace) -> int:
     timings["total"] = time.perf_counter() - t_start
     summary["timings_s"] = timings
     written.append(write_json(out / "reconstruction.json", summary))
+    if not args.no_report:
+        written.append(_write_report(out, names, recon, summary, not args.no_plots))
 
     for name in recon.unregistered:
         logger.warning("view '%s' could not be registered: %s", name,
