@@ -83,6 +83,26 @@ class _Model:
         self._set_tracks(build_tracks([len(f.keypoints) for f in self.features], self.pairs))
         self._relink_tracks()
 
+    def drop_pairs(self, bad: set[tuple[int, int]]) -> None:
+        """Forget pairs that contradict the model (false verifications, e.g. two different
+        windows): rebuild the tracks without them and keep, of each point, only the
+        observations in the track that holds most of them, so that nothing stays attached
+        through a false pair."""
+        self.pairs = [p for p in self.pairs if (p.i, p.j) not in bad]
+        self._set_tracks(build_tracks([len(f.keypoints) for f in self.features], self.pairs))
+        obs = np.flatnonzero(self.node_point >= 0)
+        point, track = self.node_point[obs], self.tracks.node_track[obs]
+        span = self.tracks.num_tracks + 1
+        keys, counts = np.unique(point * span + (track + 1), return_counts=True)
+        # Per point, the track with most of its observations (ties: the lower track).
+        order = np.lexsort((keys, -counts, keys // span))
+        first = order[np.r_[True, np.diff(keys[order] // span) != 0]]
+        owner = np.full(len(self.X), -2, dtype=int)
+        owner[keys[first] // span] = keys[first] % span - 1
+        stray = (track < 0) | (track != owner[point])
+        self._remove_observations(obs[stray])
+        self._relink_tracks()
+
     def _relink_tracks(self) -> None:
         """``track_point`` from the observations (a track gets the point of its nodes)."""
         self.track_point = np.full(self.tracks.num_tracks, -1, dtype=int)
@@ -380,6 +400,8 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
             timings["registration"] += time.perf_counter() - t0
             t0 = time.perf_counter()
             check = model.check()
+            model.drop_pairs({(i, j) for i, j, _ in check.inconsistent_pairs
+                              if i not in check.suspect_views and j not in check.suspect_views})
             timings["checks"] += time.perf_counter() - t0
             for v in check.suspect_views:
                 model.deregister(v)
@@ -399,6 +421,16 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
     t0 = time.perf_counter()
     check = model.check()
     timings["checks"] += time.perf_counter() - t0
+    false_pairs = {(i, j) for i, j, _ in check.inconsistent_pairs
+                   if i not in check.suspect_views and j not in check.suspect_views}
+    if false_pairs and check.ok:  # the model stands; its last false pairs go, then again
+        model.drop_pairs(false_pairs)
+        model.adjust_global(max_iterations=30, tolerance=1e-8)
+        model.retriangulate()
+        model.adjust_global(max_iterations=30, tolerance=1e-8)
+        t0 = time.perf_counter()
+        check = model.check()
+        timings["checks"] += time.perf_counter() - t0
     return model.result(check), reasons
 
 
