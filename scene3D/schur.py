@@ -142,16 +142,21 @@ def _schur_product_sparse(Y: FloatArray, W: FloatArray, camera: np.ndarray, poin
     """:func:`schur_product` for many cameras: one ``(c, 3) x (3, c)`` product per pair of
     observations of the same point, summed into the camera blocks they connect.
 
-    The cost grows with the points times the square of their track lengths, not with the
-    square of the cameras, so hundreds of cameras cost what tens do.
+    ``Y[o] = W[o] V_p^-1`` with ``V_p`` symmetric (as in the Schur complement), so the
+    block of the pair ``(b, a)`` is the transpose of that of ``(a, b)``: only pairs with
+    ``a <= b`` are multiplied. The cost grows with the points times the square of their
+    track lengths, not with the square of the cameras.
     """
     c = Y.shape[1]
+    size = num_cameras * c
+    if len(point) == 0:
+        return np.zeros((size, size))
     order = np.argsort(point, kind="stable")
     cam, Y, W = camera[order], Y[order], W[order]
     starts = np.flatnonzero(np.r_[True, np.diff(point[order]) != 0, True])
-    S4 = np.zeros((num_cameras * num_cameras, c, c))
-    if len(point) == 0:
-        return np.zeros((num_cameras * c, num_cameras * c))
+    off = np.zeros((num_cameras * num_cameras, c, c))  # pairs a < b
+    diagonal = np.zeros((num_cameras, c, c))  # a == b
+    np.add.at(diagonal, cam, Y @ W.transpose(0, 2, 1))
     # Chunks of whole points, each holding about chunk_pairs observation pairs.
     groups = len(starts) - 1
     total = np.cumsum(np.diff(starts) ** 2)
@@ -159,14 +164,21 @@ def _schur_product_sparse(Y: FloatArray, W: FloatArray, camera: np.ndarray, poin
                                                                chunk_pairs)), groups])
     for g0, g1 in zip(cuts[:-1], cuts[1:]):
         a, b = pairs_within_groups(starts[g0:g1 + 1])
+        upper = a < b
+        a, b = a[upper], b[upper]
+        if len(a) == 0:
+            continue
         key = cam[a] * num_cameras + cam[b]
-        blocks = np.einsum("nij,nkj->nik", Y[a], W[b])
+        blocks = Y[a] @ W[b].transpose(0, 2, 1)
         by_key = np.argsort(key, kind="stable")
         key = key[by_key]
         first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-        S4[key[first]] += np.add.reduceat(blocks[by_key], first, axis=0)
-    return S4.reshape(num_cameras, num_cameras, c, c).transpose(0, 2, 1, 3).reshape(
-        num_cameras * c, num_cameras * c)
+        off[key[first]] += np.add.reduceat(blocks[by_key], first, axis=0)
+    S = off.reshape(num_cameras, num_cameras, c, c).transpose(0, 2, 1, 3).reshape(size, size)
+    S = S + S.T
+    for k in range(num_cameras):
+        S[k * c:(k + 1) * c, k * c:(k + 1) * c] += diagonal[k]
+    return S
 
 
 #: Above this many camera unknowns the Schur product is summed over observation pairs.

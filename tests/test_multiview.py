@@ -179,7 +179,11 @@ def test_schur_product_sparse_equals_dense():
     camera, point = np.array(camera), np.array(point)
     shuffle = rng.permutation(len(camera))
     camera, point = camera[shuffle], point[shuffle]
-    Y, W = rng.normal(size=(len(camera), 6, 3)), rng.normal(size=(len(camera), 6, 3))
+    # As in the Schur complement: Y = W V^-1 with one symmetric V per point.
+    A = rng.normal(size=(400, 3, 3))
+    V_inv = A @ A.transpose(0, 2, 1) + np.eye(3)
+    W = rng.normal(size=(len(camera), 6, 3))
+    Y = W @ V_inv[point]
     dense = _schur_product_dense(Y, W, camera, point, 30)
     np.testing.assert_allclose(_schur_product_sparse(Y, W, camera, point, 30, chunk_pairs=500),
                                dense, atol=1e-10)
