@@ -459,3 +459,40 @@ def test_a_broken_reconstruction_is_reported_not_written_as_a_success(fountain, 
     check = summary["models"][0]["check"]
     assert check["status"] == "failed" and len(check["suspect_views"]) == 1
     assert check["suspect_views"][0] in err
+
+
+class _PicklingEngine:
+    """An engine that sends every task's function, arguments and result through pickle,
+    as an engine of worker processes would: what reconstruct_views hands it must survive."""
+
+    name = "pickling"
+
+    def __init__(self):
+        self.tasks: dict[str, int] = {}
+
+    def map(self, fn, arguments, *, label="tasks", progress=None):
+        import pickle
+
+        for args in arguments:
+            fn_, args_ = pickle.loads(pickle.dumps((fn, args)))
+            self.tasks[label] = self.tasks.get(label, 0) + 1
+            yield pickle.loads(pickle.dumps(fn_(*args_)))
+
+    def share(self, value):
+        return value
+
+
+def test_tasks_run_through_the_engine_and_survive_pickling(fountain):
+    from scene3D.datasets import read_strecha_camera
+    from scene3D.engines import LocalEngine
+    from scene3D.multiview import reconstruct_views
+
+    K = read_strecha_camera(fountain / "gt_dense_cameras" / "0003.jpg.camera").K
+    paths = [fountain / "images" / f"{i:04d}.jpg" for i in range(3, 7)]
+    engine = _PicklingEngine()
+    remote = reconstruct_views(paths, K, max_width=800, engine=engine)
+    local = reconstruct_views(paths, K, max_width=800, engine=LocalEngine())
+    assert engine.tasks["features"] == 4 and engine.tasks["pairs"] == 6
+    assert remote.registered.all() and local.registered.all()
+    np.testing.assert_allclose(remote.R, local.R, atol=1e-9)
+    np.testing.assert_allclose(remote.t, local.t, atol=1e-9)
