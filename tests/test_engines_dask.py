@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import hashlib
+import json
 import os
 import signal
 import socket
@@ -28,10 +29,12 @@ import distributed  # noqa: E402
 from scene3D.cli import main as scene3d_main  # noqa: E402
 from scene3D.cli.evaluate import evaluate_pairs  # noqa: E402
 from scene3D.cli.evaluate import main as evaluate_main  # noqa: E402
+from scene3D.cli.multiview import main as views_main  # noqa: E402
 from scene3D.datasets import read_strecha_camera, strecha_views  # noqa: E402
 from scene3D.engines import LocalEngine  # noqa: E402
 from scene3D.engines.dask_engine import DaskEngine  # noqa: E402
 from scene3D.errors import EngineError, ReconstructionError  # noqa: E402
+from scene3D.multiview import reconstruct_views  # noqa: E402
 from scene3D.twoview import TwoViewSettings  # noqa: E402
 
 # A few small pairs of fountain-P11 at the book's 768 px: quick, and enough for two workers.
@@ -115,12 +118,12 @@ def test_share_hands_on_the_task_that_made_a_result(client):
     handle = engine.share(made)
     assert isinstance(handle, distributed.Future) and handle.key.startswith("tasks-")
     assert list(engine.map(_sum_of, [(handle, 1)])) == [1 + 4 + 9 + 1]
-    # A value from elsewhere (or a result that cannot be tracked, such as an int) is
-    # scattered to every worker instead.
+    # A value from elsewhere (or a result that cannot be tracked, such as an int) is sent
+    # once, as a task that returns it (a list as one value, not item by item).
     values = list(range(1000))
-    scattered = engine.share(values)
-    assert isinstance(scattered, distributed.Future) and scattered.key != handle.key
-    assert list(engine.map(_sum_of, [(scattered, 1)])) == [sum(values) + 1]
+    sent = engine.share(values)
+    assert isinstance(sent, distributed.Future) and sent.key.startswith("shared-")
+    assert list(engine.map(_sum_of, [(sent, 1)])) == [sum(values) + 1]
 
 
 def test_a_task_error_is_raised_with_its_type_and_details(client):
@@ -219,6 +222,95 @@ def test_a_task_whose_workers_keep_dying_is_given_up_with_an_engine_error():
             list(DaskEngine(client).map(_die, [()]))
 
 
+# -- reconstruct-views on the cluster -------------------------------------------------
+
+VIEWS = 6  # the first fountain-P11 images, all 15 pairs, at 768 px
+
+
+@pytest.fixture(scope="module")
+def local_model(fountain_views):
+    images, cameras = fountain_views
+    return reconstruct_views(images[:VIEWS], cameras[0].K, np.zeros(5), max_width=MAX_WIDTH,
+                             engine=LocalEngine())
+
+
+def _same_cameras(recon, reference) -> None:
+    """The same views registered, with the same cameras, exactly."""
+    assert recon.names == reference.names and recon.registered.all()
+    np.testing.assert_array_equal(recon.registered, reference.registered)
+    np.testing.assert_array_equal(recon.R, reference.R)
+    np.testing.assert_array_equal(recon.t, reference.t)
+    np.testing.assert_array_equal(recon.points3d, reference.points3d)
+
+
+class _KillAtFirstPair:
+    """An engine that kills a worker running tasks when the first pair is verified."""
+
+    def __init__(self, engine: DaskEngine) -> None:
+        self.engine, self.name = engine, engine.name
+        self.pids = engine.client.run(os.getpid)
+        self.killed: list[str] = []
+
+    def _progress(self, label: str, done: int, total: int) -> None:
+        if label == "pairs" and not self.killed:
+            busy = [w for w, keys in self.engine.client.processing().items() if keys]
+            assert busy, "no task was running when the worker was to be killed"
+            os.kill(self.pids[busy[0]], signal.SIGKILL)
+            self.killed.append(busy[0])
+
+    def map(self, fn, arguments, *, label="tasks", progress=None):
+        return self.engine.map(fn, arguments, label=label, progress=self._progress)
+
+    def share(self, value):
+        return self.engine.share(value)
+
+
+def test_reconstruct_views_on_the_cluster_gives_the_local_cameras(client, fountain_views,
+                                                                   local_model):
+    images, cameras = fountain_views
+    engine = DaskEngine(client)
+    recon = reconstruct_views(images[:VIEWS], cameras[0].K, np.zeros(5), max_width=MAX_WIDTH,
+                              engine=engine)
+    _same_cameras(recon, local_model)
+    counts = engine.task_counts()
+    assert sum(c.get("features", 0) for c in counts.values()) == VIEWS
+    assert sum(c.get("pairs", 0) for c in counts.values()) == VIEWS * (VIEWS - 1) // 2
+    assert all(c.get("pairs", 0) > 0 for c in counts.values())  # both workers matched
+
+
+def test_a_worker_killed_during_reconstruct_views_does_not_lose_the_run(fountain_views,
+                                                                        local_model):
+    images, cameras = fountain_views
+    with _cluster() as cluster, distributed.Client(cluster, set_as_default=False) as client:
+        engine = _KillAtFirstPair(DaskEngine(client))
+        recon = reconstruct_views(images[:VIEWS], cameras[0].K, np.zeros(5),
+                                  max_width=MAX_WIDTH, engine=engine)
+        _same_cameras(recon, local_model)
+        assert engine.killed and engine.killed[0] not in engine.engine.workers()
+        assert cluster.scheduler.task_prefixes["pairs"].suspicious >= 1
+
+
+def test_reconstruct_views_command_with_scheduler(client, fountain_views,
+                                                  local_model, tmp_path, capsys):
+    images, _ = fountain_views
+    for image in images[:VIEWS]:
+        (tmp_path / image.name).symlink_to(image)
+    calib = Path(__file__).resolve().parents[1] / "data" / "fountain_P11_intrinsics.yaml"
+    code = views_main([str(tmp_path), "--calib", str(calib), "--max-width", str(MAX_WIDTH),
+                       "--no-plots", "--no-report", "--out", str(tmp_path / "out"),
+                       "--scheduler", client.scheduler.address, "-v"])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    cameras = json.loads((tmp_path / "out" / "cameras.json").read_text())
+    assert sorted(cameras) == sorted(local_model.names)
+    for v, name in enumerate(local_model.names):
+        np.testing.assert_array_equal(cameras[name]["R"], local_model.R[v])
+        np.testing.assert_array_equal(cameras[name]["t"], local_model.t[v])
+    assert f"tasks on dask {client.scheduler.address}: 2 workers" in err
+    assert f"features: {VIEWS} of {VIEWS} done" in err and "pairs: 15 of 15 done" in err
+    assert len([line for line in err.splitlines() if line.startswith("INFO: worker tcp://")]) == 2
+
+
 # -- the command ------------------------------------------------------------------------
 
 def _csv_rows(path: Path) -> list[dict]:
@@ -277,13 +369,23 @@ def test_evaluate_command_bad_engine_options(fountain, capsys, argv, message):
     assert "Traceback" not in err
 
 
-@pytest.mark.parametrize("option", [["--workers", "2"], ["--scheduler", "tcp://127.0.0.1:1"]])
-def test_without_the_extra_the_options_say_how_to_install_it(fountain, option):
+@pytest.mark.parametrize("command, option", [
+    ("evaluate", ["--workers", "2"]),
+    ("evaluate", ["--scheduler", "tcp://127.0.0.1:1"]),
+    ("reconstruct-views", ["--workers", "2"]),
+])
+def test_without_the_extra_the_options_say_how_to_install_it(fountain, tmp_path, command,
+                                                             option):
     # Dask missing: an import of distributed fails, as in a core install.
+    calib = Path(__file__).resolve().parents[1] / "data" / "fountain_P11_intrinsics.yaml"
+    inputs = ([str(fountain), "--pairs", "4-5"] if command == "evaluate" else
+              [str(fountain / "images"), "--calib", str(calib), "--no-report", "--out",
+               str(tmp_path / "out")])
     code = ("import sys; sys.modules['distributed'] = None\n"
             "from scene3D.cli import main\n"
-            f"sys.exit(main(['evaluate', {str(fountain)!r}, '--pairs', '4-5', *{option!r}]))")
+            f"sys.exit(main([{command!r}, *{inputs!r}, *{option!r}]))")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert proc.returncode == 2
     assert proc.stderr.strip() == (f"error: {option[0]} needs Dask: pip install "
                                    "'scene3D[distributed]' (dask.distributed)")
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())

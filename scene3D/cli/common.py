@@ -7,11 +7,12 @@ import logging
 import os
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
-from ..engines import Engine, LocalEngine
+from ..engines import Engine, LocalEngine, Progress
 from ..errors import CalibrationError, DatasetError, EngineError, ReconstructionError
 
 EXIT_OK = 0
@@ -133,16 +134,34 @@ def add_engine_args(parser: argparse.ArgumentParser) -> None:
                             "LocalCluster, one thread each); needs the extra 'distributed'")
 
 
+class _Reporting:
+    """An engine whose tasks report their progress (``StderrProgress``) unless a caller
+    passes its own ``progress``: the pipelines map without one."""
+
+    def __init__(self, engine: Engine, progress: Progress) -> None:
+        self._engine, self._progress = engine, progress
+        self.name = engine.name
+
+    def map(self, fn: Callable[..., Any], arguments: Iterable[tuple], *, label: str = "tasks",
+            progress: Progress | None = None) -> Iterator[Any]:
+        return self._engine.map(fn, arguments, label=label, progress=progress or self._progress)
+
+    def share(self, value: Any) -> Any:
+        return self._engine.share(value)
+
+
 @contextmanager
 def open_engine(args: argparse.Namespace) -> Iterator[Engine]:
     """The engine that ``--scheduler`` / ``--workers`` ask for (in this process without
-    either), closed (with the workers it started) when the block ends.
+    either), its tasks' progress on stderr ("pairs: 12 of 40 done", not with ``-q``),
+    closed (with the workers it started) when the block ends.
 
     Raises :class:`UsageError` in one line when Dask is not installed.
     """
     scheduler, workers = getattr(args, "scheduler", None), getattr(args, "workers", None)
+    progress = StderrProgress(not args.quiet)
     if scheduler is None and workers is None:
-        yield LocalEngine()
+        yield _Reporting(LocalEngine(), progress)
         return
     from ..engines.dask_engine import (
         INSTALL_HINT,
@@ -165,7 +184,7 @@ def open_engine(args: argparse.Namespace) -> Iterator[Engine]:
     try:
         if not args.quiet:
             print(f"tasks on {engine.describe()}", file=sys.stderr)
-        yield engine
+        yield _Reporting(engine, progress)
         for worker, counts in sorted(engine.task_counts().items()):
             log.info("worker %s ran %s", worker,
                      ", ".join(f"{n} {label} tasks" for label, n in sorted(counts.items()))

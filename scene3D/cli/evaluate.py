@@ -36,7 +36,6 @@ from ..twoview import TwoViewSettings, reconstruct_from_matches
 from .common import (
     EXIT_CODES_HELP,
     EXIT_OK,
-    StderrProgress,
     UsageError,
     add_bundle_adjust_arg,
     add_common_args,
@@ -317,7 +316,7 @@ def run(args: argparse.Namespace) -> int:
                                   None if args.no_pyr_down else args.max_width,
                                   normalize_feature_mode(args.feature),
                                   TwoViewSettings(bundle_adjust=args.bundle_adjust),
-                                  StderrProgress(not args.quiet), no_calib=args.no_calib):
+                                  no_calib=args.no_calib):
             rows.append(row)
             if not args.quiet:
                 print(f"{row['pair']}: rot {row['rotation_deg']:.3f} deg, t-dir "

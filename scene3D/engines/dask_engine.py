@@ -32,8 +32,10 @@ Failures
     A worker that dies (killed, out of memory, its machine gone) takes its
     running tasks and the results it held with it. The scheduler runs those
     tasks again on the other workers, and recomputes lost results that later
-    tasks still need: :meth:`~DaskEngine.share` of a :meth:`~DaskEngine.map`
-    result hands on the task that made it, not a copy of its data. A task that
+    tasks still need: :meth:`~DaskEngine.share` hands on the task that made a
+    :meth:`~DaskEngine.map` result, and sends any other value as a task that
+    returns it (the scheduler keeps it), never as scattered data, which would be
+    lost with its last worker. A task that
     was running on ``distributed.scheduler.allowed-failures`` + 1 dying workers
     (3 + 1 by default) is given up (:class:`scene3D.errors.EngineError`). An
     exception raised by the task itself is not retried: the tasks are
@@ -153,6 +155,11 @@ def _run_task(fn: Callable[..., R], tag: str, opencv_threads: int | None, *args:
             raise located from None
     _TASK_COUNTS[tag] += 1
     return result
+
+
+def _shared_value(value: Any) -> Any:
+    """The task of a value shared from the client: the value itself."""
+    return value
 
 
 def _file_sizes(paths: list[str]) -> list[int | None]:
@@ -347,14 +354,19 @@ class DaskEngine:
         """A handle to ``value`` on the cluster, for later tasks' arguments.
 
         A result of :meth:`map` is handed on as the task that made it (nothing is
-        sent, and a worker's death only means that the task runs again); any other
-        value is scattered to every worker. Shared values are taken as immutable.
+        sent, and a worker's death only means that the task runs again). Any other
+        value (a map result's part, or one built on the client) is sent once, as a
+        task that returns it: the scheduler keeps it, so that it too can be made
+        again after a worker's death. Shared values are taken as immutable.
         """
         origin = self._origins.get(id(value))
         if origin is not None and origin[0]() is value:
             return origin[1]
-        # In a list of one: scatter() would send a list's or a dict's items one by one.
-        return self._client.scatter([value], hash=False, broadcast=True)[0]
+        # A task that returns the value, rather than scatter(): the scheduler keeps the
+        # task and runs it again if the worker holding the value dies, where scattered
+        # data would be lost with its last worker.
+        return self._client.submit(_shared_value, value, key=f"shared-{uuid.uuid4().hex}",
+                                   pure=False)
 
     # -- internals ----------------------------------------------------------------------
 
