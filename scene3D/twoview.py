@@ -10,7 +10,9 @@ The pipeline (book chapter 4, done right):
 3. pose by cheirality over all inliers; ``F = K^-T E K^-1`` for epipolar lines,
 4. triangulation, keeping points in front of both cameras with small
    reprojection error and enough parallax,
-5. checks that refuse degenerate pairs instead of returning a wrong pose, and
+5. the pose's first-order covariance (:func:`scene3D.refinement.relative_pose_covariance`,
+   parametrisation in :mod:`scene3D.uncertainty`) and each point's depth uncertainty,
+6. checks that refuse degenerate pairs instead of returning a wrong pose, and
    doubts that mark a result untrusted (few inliers, weak parallax, a nearly
    planar scene, restarts that disagree, a focal length that does not fit the
    calibration: :func:`check_focal_length`).
@@ -39,6 +41,7 @@ from .epipolar import (
     fundamental_from_essential,
     inlier_threshold_px,
     loss_scale_px,
+    noise_sigma_px,
     polish_essential,
 )
 from .errors import ReconstructionError
@@ -53,13 +56,19 @@ from .geometry import (
     rotation_error_deg,
 )
 from .pose import choose_pose
-from .refinement import FocalFit, bundle_adjust_two_view, fit_focal_scale
+from .refinement import (
+    FocalFit,
+    bundle_adjust_two_view,
+    fit_focal_scale,
+    relative_pose_covariance,
+)
 from .triangulation import (
     in_front_mask,
     parallax_angles_deg,
     reprojection_errors,
     triangulate_points,
 )
+from .uncertainty import PoseUncertainty, depth_sigmas, tangent_basis
 
 logger = logging.getLogger(__name__)
 
@@ -187,6 +196,23 @@ class TwoViewGeometry:
         and its standard deviation (:func:`scene3D.refinement.fit_focal_scale`;
         near 1 when the calibration fits, the sigma infinite when the pair cannot
         tell).
+    pose_covariance : (5, 5) float64
+        First-order covariance of the pose (radians^2) in the parametrisation of
+        :mod:`scene3D.uncertainty`: rows 0-2 the rotation vector ``w`` of
+        ``R <- exp([w]x) R`` (camera-2 frame), rows 3-4 the step of ``t`` along the
+        rows of ``tangent_basis(t)`` (:attr:`pose_uncertainty` has both). Infinite
+        when the matches do not determine the pose.
+    rotation_sigma_deg, translation_sigma_deg : float
+        1-sigma angles of the rotation and of the translation direction along their
+        worst axes (square roots of the largest eigenvalues of the covariance's
+        rotation and direction blocks), in degrees.
+    noise_sigma_px : float
+        Robust standard deviation of the keypoint noise, per coordinate, measured on
+        the inliers (:func:`scene3D.epipolar.noise_sigma_px`).
+    depth_sigmas : (N,) float64
+        1-sigma depth of each point in camera 1, in units of the baseline, from the
+        pose covariance and the keypoint noise (:func:`scene3D.uncertainty.depth_sigmas`);
+        divide by ``points3d[:, 2]`` for a relative uncertainty.
     """
 
     R: FloatArray
@@ -211,6 +237,16 @@ class TwoViewGeometry:
     robust_spread_deg: float = 0.0
     focal_scale: float = 1.0
     focal_scale_sigma: float = float("inf")
+    pose_covariance: FloatArray = field(default_factory=lambda: np.full((5, 5), np.inf))
+    rotation_sigma_deg: float = float("inf")
+    translation_sigma_deg: float = float("inf")
+    noise_sigma_px: float = float("nan")
+    depth_sigmas: FloatArray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def pose_uncertainty(self) -> PoseUncertainty:
+        """The covariance with the tangent basis of ``t`` it refers to."""
+        return PoseUncertainty(self.pose_covariance, tangent_basis(self.t), self.noise_sigma_px)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -530,6 +566,11 @@ def reconstruct_from_matches(
         E = E / np.linalg.norm(E)
         kept_errors = reprojection_errors(points, pts1_kept, pts2_kept, K, R, t)
         refine_s += time.perf_counter() - t_ba
+    # The covariance at the final pose: the Sampson cost is the bundle adjustment's with
+    # the points eliminated, to first order, so it serves after an adjustment too.
+    uncertainty = PoseUncertainty(
+        relative_pose_covariance(R, t, in1, in2, K, "cauchy", loss_scale), tangent_basis(t),
+        noise_sigma_px(distances))
     F = fundamental_from_essential(E, K)  # the epipolar geometry the final pose obeys
     return TwoViewGeometry(
         R=R, t=t, points3d=points, pts1=pts1_kept, pts2=pts2_kept, K=K, F=F, E=E,
@@ -540,6 +581,12 @@ def reconstruct_from_matches(
         inlier_pts1=in1, inlier_pts2=in2, refinement_s=refine_s, robust_starts=fit.starts,
         robust_spread_deg=fit.spread_deg, focal_scale=focal.scale,
         focal_scale_sigma=focal.scale * focal.sigma_log,
+        pose_covariance=uncertainty.covariance,
+        rotation_sigma_deg=uncertainty.rotation_sigma_deg,
+        translation_sigma_deg=uncertainty.translation_sigma_deg,
+        noise_sigma_px=uncertainty.noise_sigma_px,
+        depth_sigmas=depth_sigmas(points, K, R, t, uncertainty.covariance,
+                                  uncertainty.noise_sigma_px),
     )
 
 
