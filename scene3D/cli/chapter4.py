@@ -38,6 +38,11 @@ logger = logging.getLogger("scene3D.cli")
 
 REPO_DATA = Path(__file__).resolve().parents[2] / "data"
 DEFAULT_CALIB = REPO_DATA / "fountain_P11_intrinsics.yaml"
+POSE_COVARIANCE_DOC = (
+    "radians^2 of (w, d): R_true = exp([w]x) R with w in the camera-2 frame (rows 0-2); "
+    "t_true = (t + d @ pose_covariance_basis) / |...| (rows 3-4); rotation_sigma_deg and "
+    "translation_sigma_deg are the square roots of the largest eigenvalues of the two "
+    "blocks; null when the matches do not determine the pose")
 PLOT_FILES = ("optic_flow.png", "epipolar_lines.png", "rectified.png", "point_cloud.png")
 
 
@@ -121,6 +126,12 @@ def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path], cal
         "homography_inlier_ratio": result.homography_inlier_ratio,
         "robust_starts": result.robust_starts, "robust_spread_deg": result.robust_spread_deg,
         "focal_scale": result.focal_scale, "focal_scale_sigma": result.focal_scale_sigma,
+        "rotation_sigma_deg": result.rotation_sigma_deg,
+        "translation_sigma_deg": result.translation_sigma_deg,
+        "pose_covariance": result.pose_covariance,
+        "pose_covariance_basis": result.pose_uncertainty.basis,
+        "pose_covariance_parametrisation": POSE_COVARIANCE_DOC,
+        "noise_sigma_px": result.noise_sigma_px,
         "trusted": result.trusted, "warnings": list(result.warnings),
         "timings_s": timings,
     }
