@@ -28,9 +28,9 @@ freedom (:func:`pose_error_chi2`); the angle of such an error is at most
 ``sqrt(quantile) * sigma`` (:func:`angular_bound_deg`).
 
 The covariance itself is the M-estimator's sandwich (Huber, *Robust Statistics*,
-1981, section 7.6), computed from the Jacobian of the residuals at the optimum,
-the robust loss's weights and the residuals themselves
-(:func:`sandwich_covariance`); :mod:`scene3D.refinement` builds it for the
+1981, section 7.6) with a leverage correction (HC3), computed from the Jacobian of
+the residuals at the optimum, the robust loss's weights and the residuals
+themselves (:func:`sandwich_covariance`); :mod:`scene3D.refinement` builds it for the
 robust Sampson refinement (:func:`scene3D.refinement.relative_pose_covariance`)
 and the focal-length fit.
 """
@@ -68,15 +68,19 @@ def sandwich_covariance(J: FloatArray, influence: FloatArray,
     """Covariance ``(k, k)`` of an M-estimate from its Jacobian and robust residuals.
 
     For a cost ``sum rho(r_i)`` minimised over ``k`` parameters, with ``psi`` the
-    loss's influence function (``rho' `` by ``r``) and ``psi'`` its slope, the
-    first-order covariance is ``H^-1 M H^-1`` with ``H = sum psi'_i J_i^T J_i`` (the
-    cost's Gauss-Newton Hessian, the loss's curvature included) and
-    ``M = sum psi_i^2 J_i^T J_i`` (the spread of the gradient), times ``n / (n - k)``
-    for the degrees of freedom the fit used (Huber 1981, section 7.6). It needs no
-    noise model: the residuals measure the noise, outliers are discounted by the
-    loss, and noise that differs between rows is allowed for. Least squares
-    (``psi = r``, ``psi' = 1``) gives the familiar ``(J^T J)^-1 sum r^2 / (n - k)``
-    when the residuals are alike.
+    loss's influence function (``rho'`` by ``r``) and ``psi'`` its slope, the
+    first-order covariance is the sandwich ``H^-1 M H^-1`` with
+    ``H = sum psi'_i J_i^T J_i`` (the cost's Gauss-Newton Hessian, the loss's curvature
+    included) and ``M = sum psi_i^2 J_i^T J_i`` (the spread of the gradient; Huber,
+    *Robust Statistics*, 1981, section 7.6). It needs no noise model: the residuals
+    measure the noise, outliers are discounted by the loss, and noise that differs
+    between rows is allowed for. Each row's term is divided by ``(1 - h_i)^2``, its
+    leverage ``h_i = psi'_i J_i H^-1 J_i^T`` (clipped to [0, 0.9]): the jackknife-like
+    correction HC3 (MacKinnon and White, 1985), which accounts for the degrees of
+    freedom the fit used (the leverages sum to ``k``) and for rows that pull the fit
+    towards themselves, such as an outlier that passed as an inlier. Least squares
+    (``psi = r``, ``psi' = 1``) with alike residuals gives about
+    ``(J^T J)^-1 sum r^2 / (n - k)``.
 
     Parameters
     ----------
@@ -95,13 +99,14 @@ def sandwich_covariance(J: FloatArray, influence: FloatArray,
     if n <= k:
         return np.full((k, k), np.inf)
     H = J.T @ (slope[:, None] * J)
-    M = J.T @ ((influence**2)[:, None] * J)
     try:
         np.linalg.cholesky(H)
         H_inv = np.linalg.inv(H)
     except np.linalg.LinAlgError:
         return np.full((k, k), np.inf)
-    cov = n / (n - k) * H_inv @ M @ H_inv
+    leverage = np.maximum(slope, 0.0) * np.einsum("ij,jk,ik->i", J, H_inv, J)
+    weights = influence**2 / (1.0 - np.clip(leverage, 0.0, 0.9)) ** 2
+    cov = H_inv @ (J.T @ (weights[:, None] * J)) @ H_inv
     return 0.5 * (cov + cov.T)
 
 
@@ -266,9 +271,10 @@ def point_covariances(points3d: ArrayLike, K: ArrayLike, R: ArrayLike, t: ArrayL
     dY = np.concatenate([-skews(rotated), np.broadcast_to(tangent_basis(t).T, (n, 3, 2))],
                         axis=2)  # (N, 3, 5)
     J_p = np.concatenate([np.zeros((n, 2, 5)), J2 @ dY], axis=1)  # (N, 4, 5)
-    A = np.linalg.solve(np.swapaxes(J_X, 1, 2) @ J_X, np.swapaxes(J_X, 1, 2))  # (N, 3, 4)
-    inner = noise_px**2 * np.eye(4) + J_p @ C @ np.swapaxes(J_p, 1, 2)
-    return A @ inner @ np.swapaxes(A, 1, 2)
+    # With G = J_X^T J_X: A A^T = G^-1, so cov X = noise^2 G^-1 + B C B^T with B = A J_p.
+    G_inv = np.linalg.inv(np.swapaxes(J_X, 1, 2) @ J_X)
+    B = G_inv @ (np.swapaxes(J_X, 1, 2) @ J_p)  # (N, 3, 5)
+    return noise_px**2 * G_inv + B @ C @ np.swapaxes(B, 1, 2)
 
 
 def depth_sigmas(points3d: ArrayLike, K: ArrayLike, R: ArrayLike, t: ArrayLike,

@@ -72,7 +72,8 @@ def test_chi2_of_an_error_under_its_covariance():
 
 
 def test_sandwich_of_least_squares_is_the_textbook_covariance():
-    """Linear model, homoscedastic residuals: H^-1 M H^-1 n/(n-k) ~ (J^T J)^-1 s^2."""
+    """Linear model, homoscedastic residuals: the leverage-corrected sandwich is about
+    (J^T J)^-1 s^2 with s^2 the residual variance over n - k."""
     rng = np.random.default_rng(1)
     J = rng.normal(size=(400, 3))
     r = rng.normal(0, 0.5, 400)
