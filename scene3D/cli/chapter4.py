@@ -6,6 +6,7 @@ import argparse
 import logging
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -14,9 +15,9 @@ from .. import __version__
 from ..calibration_io import CameraCalibration, load_calibration
 from ..camera import adapt_intrinsics_to_size
 from ..datasets import BOOK_PAIR, fetch_fountain_p11
-from ..export import save_figure, write_json, write_ply
+from ..export import atomic_write_bytes, write_json, write_ply
 from ..features import FEATURE_MODES, normalize_feature_mode
-from ..geometry import rotation_angle_deg
+from ..geometry import camera_centers, rotation_angle_deg
 from ..imageio import BOOK_MAX_WIDTH_PX, image_size, read_image_size
 from ..scene import SceneReconstruction3D
 from ..twoview import TwoViewSettings
@@ -29,6 +30,7 @@ from .common import (
     add_feature_arg,
     add_size_args,
     check_distinct_images,
+    check_report_viewer,
     prepare_output_dir,
     run_command,
     show_images,
@@ -44,6 +46,7 @@ POSE_COVARIANCE_DOC = (
     "translation_sigma_deg are the square roots of the largest eigenvalues of the two "
     "blocks; null when the matches do not determine the pose")
 PLOT_FILES = ("optic_flow.png", "epipolar_lines.png", "rectified.png", "point_cloud.png")
+REPORT_FILE = "report.html"
 
 
 def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
@@ -58,7 +61,9 @@ def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
         epilog=(
             f"Outputs in --out: {', '.join(PLOT_FILES)}, point_cloud.ply (binary, RGB), "
             "with --dense dense.ply and disparity.png, and reconstruction.json (R, t with "
-            "x_cam2 = R x_cam1 + t and |t| = 1: the scale is unknown). Files are replaced "
+            "x_cam2 = R x_cam1 + t and |t| = 1: the scale is unknown), and report.html (one "
+            "self-contained page: the numbers, the figures and an interactive 3D view of the "
+            "cloud and the cameras; it opens offline). Files are replaced "
             f"only once the run has succeeded. {EXIT_CODES_HELP}."
         ),
     )
@@ -77,7 +82,9 @@ def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, default=Path("out"), metavar="DIR",
                         help="output folder (default: out/)")
     parser.add_argument("--no-plots", action="store_true",
-                        help="skip the PNG figures (faster; matplotlib is not imported)")
+                        help="skip the PNG figures")
+    parser.add_argument("--no-report", action="store_true",
+                        help=f"skip {REPORT_FILE}")
     parser.add_argument("--show", action="store_true",
                         help="also open the figures in windows when a display exists")
     add_common_args(parser)
@@ -137,12 +144,106 @@ def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path], cal
     }
 
 
+def _dense_summary(dense) -> dict:
+    return {"num_points": dense.num_points, "disparity_range_px": list(dense.disparity_range)}
+
+
+def _result_lines(scene: SceneReconstruction3D, result, paths: tuple[Path, Path],
+                  dense) -> list[str]:
+    """What the command prints about the result (also the head of the report)."""
+    w, h = image_size(scene.img1)
+    lines = [f"{paths[0].name} + {paths[1].name} at {w}x{h}, {result.feature}: "
+             f"{result.num_matches} matches, {result.num_inliers} inliers, "
+             f"{result.num_points} points, reprojection RMSE "
+             f"{result.reprojection_rmse_px:.3f} px"]
+    if dense is not None:
+        lines.append(f"dense: {dense.num_points} points from disparities in "
+                     f"[{dense.disparity_range[0]}, {dense.disparity_range[1]}) px")
+    center = camera_centers(result.R[None], result.t[None])[0]  # camera 2 in camera 1's frame
+    lines.append(f"camera 2: rotated {rotation_angle_deg(result.R):.2f} deg, centre at "
+                 f"({center[0]:+.3f}, {center[1]:+.3f}, {center[2]:+.3f}) in camera 1's frame "
+                 "(x right, y down, z forward; unit baseline)")
+    if not result.trusted:
+        lines.append("warning: the pose may not be trustworthy: " + "; ".join(result.warnings))
+    return lines
+
+
+def _figure_jobs(scene: SceneReconstruction3D, result, dense) -> dict[str, Callable]:
+    """The figures to write, each a function drawing it with OpenCV (pure functions of the
+    images and the result, so that they can run in threads; cv2 releases the GIL)."""
+    from ..drawing import (
+        draw_disparity,
+        draw_epipolar_lines,
+        draw_optic_flow,
+        draw_rectified,
+        frustum_corners,
+        render_point_cloud,
+        robust_extent,
+    )
+    from ..features import find_matches
+    from ..rectification import rectify_pair
+
+    img1, img2, K = scene.img1, scene.img2, scene.K
+
+    def optic_flow():
+        flow = find_matches(img1, img2, "flow")  # the book's figure tracks corners
+        return draw_optic_flow(img1, flow.pts1, flow.pts2)
+
+    def point_cloud():
+        lo, hi = robust_extent(result.points3d)
+        frusta = frustum_corners(np.stack([np.eye(3), result.R]),
+                                 np.stack([np.zeros(3), result.t]), K, image_size(img1),
+                                 0.08 * float(np.linalg.norm(hi - lo)))
+        return render_point_cloud(result.points3d, result.colors, frusta, title=(
+            f"Point cloud: {result.num_points} points, 2 cameras (red), unit baseline"))
+
+    jobs = {
+        "optic_flow.png": optic_flow,
+        "epipolar_lines.png": lambda: draw_epipolar_lines(
+            img1, img2, result.F, result.inlier_pts1, result.inlier_pts2),
+        "rectified.png": lambda: draw_rectified(rectify_pair(img1, img2, K, result.R, result.t)),
+        "point_cloud.png": point_cloud,
+    }
+    if dense is not None:
+        jobs["disparity.png"] = lambda: draw_disparity(dense.disparity)
+    return jobs
+
+
+def _encode(job: Callable) -> tuple[bytes, bytes]:
+    """A figure's PNG (the file) and JPEG (for the report) bytes."""
+    from ..drawing import encode_jpeg, encode_png, titled
+
+    image = titled(job())
+    return encode_png(image), encode_jpeg(image)
+
+
+def _figures_and_view(scene: SceneReconstruction3D, result, dense, plots: bool, report: bool
+                      ) -> tuple[dict[str, tuple[bytes, bytes]], object]:
+    """Figures encoded in two threads while this one prepares the report's 3D view."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        futures = {name: pool.submit(_encode, job)
+                   for name, job in (_figure_jobs(scene, result, dense) if plots else {}).items()}
+        view = None
+        if report:
+            from ..report import prepare_view, two_view_layers
+
+            view = prepare_view(*two_view_layers(
+                result.points3d, result.colors, result.R, result.t, scene.K,
+                image_size(scene.img1), None if dense is None else dense.points3d,
+                None if dense is None else dense.colors))
+        return {name: future.result() for name, future in futures.items()}, view
+
+
 def run(args: argparse.Namespace) -> int:
     t_start = time.perf_counter()
     mode = normalize_feature_mode(args.feature)
     path1, path2, calib_path = _resolve_inputs(args)
     camera = _load_camera(calib_path)
     out = prepare_output_dir(args.out)
+    if not args.no_report:
+        check_report_viewer()
 
     t0 = time.perf_counter()
     K = adapt_intrinsics_to_size(camera.K, camera.image_size, read_image_size(path1))
@@ -155,53 +256,48 @@ def run(args: argparse.Namespace) -> int:
     result = scene.reconstruct(mode)
     timings = {"load": load_s, **{k: v for k, v in result.timings_s.items() if k != "total"}}
 
-    figures = {}
-    if not args.no_plots:
-        t0 = time.perf_counter()
-        figures = {
-            "optic_flow.png": scene.plot_optic_flow(),
-            "epipolar_lines.png": scene.draw_epipolar_lines(mode),
-            "rectified.png": scene.plot_rectified_images(mode),
-            "point_cloud.png": scene.plot_point_cloud(mode),
-        }
-        timings["plots"] = time.perf_counter() - t0
     dense = None
     if args.dense:
         t0 = time.perf_counter()
         dense = scene.dense_point_cloud(mode)
         timings["dense"] = time.perf_counter() - t0
-        if not args.no_plots:
-            from ..plotting import plot_disparity
 
-            figures["disparity.png"] = plot_disparity(dense.disparity)
-
-    # Everything is computed: only now touch the output folder.
+    # Figures and report are made in memory first; files are written only once all is done.
     t0 = time.perf_counter()
-    written = [save_figure(fig, out / name) for name, fig in figures.items()]
+    encoded, view = _figures_and_view(scene, result, dense, not args.no_plots,
+                                      not args.no_report)
+    timings["plots"] = time.perf_counter() - t0  # figures, and the 3D view's data alongside
+    figures = {name: png for name, (png, _) in encoded.items()}
+    lines = _result_lines(scene, result, (path1, path2), dense)
+    report = None
+    if view is not None:
+        from ..report import two_view_report
+
+        t0 = time.perf_counter()
+        partial = _summary(scene, result, (path1, path2), calib_path, dict(timings), args.feature)
+        if dense is not None:
+            partial["dense"] = _dense_summary(dense)
+        report = two_view_report(partial, lines, {n: jpg for n, (_, jpg) in encoded.items()},
+                                 view)
+        timings["report"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    written = [atomic_write_bytes(out / name, png) for name, png in figures.items()]
     written.append(write_ply(out / "point_cloud.ply", result.points3d, result.colors))
     if dense is not None:
         written.append(write_ply(out / "dense.ply", dense.points3d, dense.colors))
+    if report is not None:
+        written.append(atomic_write_bytes(out / REPORT_FILE, report.encode("utf-8")))
     timings["write"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     summary = _summary(scene, result, (path1, path2), calib_path, timings, args.feature)
     if dense is not None:
-        summary["dense"] = {"num_points": dense.num_points,
-                            "disparity_range_px": list(dense.disparity_range)}
+        summary["dense"] = _dense_summary(dense)
     written.append(write_json(out / "reconstruction.json", summary))
 
     if not args.quiet:
-        w, h = image_size(scene.img1)
-        print(f"{path1.name} + {path2.name} at {w}x{h}, {result.feature}: "
-              f"{result.num_matches} matches, {result.num_inliers} inliers, "
-              f"{result.num_points} points, reprojection RMSE "
-              f"{result.reprojection_rmse_px:.3f} px, {timings['total']:.2f} s")
-        if dense is not None:
-            print(f"dense: {dense.num_points} points from disparities in "
-                  f"[{dense.disparity_range[0]}, {dense.disparity_range[1]}) px")
-        print(f"camera 2: rotated {rotation_angle_deg(result.R):.2f} deg, moved towards "
-              f"({result.t[0]:+.3f}, {result.t[1]:+.3f}, {result.t[2]:+.3f}) (unit baseline)")
-        if not result.trusted:
-            print("warning: the pose may not be trustworthy: " + "; ".join(result.warnings))
+        lines[0] += f", {timings['total']:.2f} s"
+        print("\n".join(lines))
     for path in written:
         print(f"Wrote '{path}'")
     if args.show and figures:
