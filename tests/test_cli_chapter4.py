@@ -82,7 +82,7 @@ def test_default_run_is_the_book_pair_against_ground_truth(tmp_path, data_root):
         np.degrees(np.sqrt(np.linalg.eigvalsh(cov[3:, 3:])[-1])))
     assert 0 < summary["rotation_sigma_deg"] < 0.1 and 0 < summary["translation_sigma_deg"] < 0.2
     assert err.translation_deg < 3 * summary["translation_sigma_deg"] + 0.05
-    assert "camera-2 frame" in summary["pose_covariance_parametrisation"]
+    assert "pose_covariance in radians^2" in summary["conventions"]
     assert 0.03 < summary["noise_sigma_px"] < 0.5
     assert {"features", "matching", "geometry", "plots", "total"} <= set(summary["timings_s"])
     assert summary["inputs"]["image1"].endswith("0004.jpg")

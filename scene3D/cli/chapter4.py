@@ -41,10 +41,10 @@ logger = logging.getLogger("scene3D.cli")
 REPO_DATA = Path(__file__).resolve().parents[2] / "data"
 DEFAULT_CALIB = REPO_DATA / "fountain_P11_intrinsics.yaml"
 POSE_COVARIANCE_DOC = (
-    "radians^2 of (w, d): R_true = exp([w]x) R with w in the camera-2 frame (rows 0-2); "
-    "t_true = (t + d @ pose_covariance_basis) / |...| (rows 3-4); rotation_sigma_deg and "
-    "translation_sigma_deg are the square roots of the largest eigenvalues of the two "
-    "blocks; null when the matches do not determine the pose")
+    "pose_covariance in radians^2 of (w, d) for the poses exp([w]x) R (w in the camera-2 "
+    "frame, rows 0-2) and (t + d @ pose_covariance_basis) / |t + d @ pose_covariance_basis| "
+    "(rows 3-4); rotation_sigma_deg and translation_sigma_deg are the square roots of the "
+    "largest eigenvalues of its two blocks, in degrees")
 PLOT_FILES = ("optic_flow.png", "epipolar_lines.png", "rectified.png", "point_cloud.png")
 REPORT_FILE = "report.html"
 
@@ -120,7 +120,8 @@ def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path], cal
     return {
         "scene3D_version": __version__,
         "conventions": "x_cam2 = R @ x_cam1 + t; |t| = 1 (scale unknown); points3d in the "
-                       "camera-1 frame; pixels with integer coordinates at pixel centres",
+                       "camera-1 frame; pixels with integer coordinates at pixel centres; "
+                       + POSE_COVARIANCE_DOC,
         "inputs": {"image1": str(paths[0]), "image2": str(paths[1]), "calibration": str(calib)},
         "R": result.R, "t": result.t, "K": result.K,
         "image_size": list(image_size(scene.img1)),
@@ -137,7 +138,6 @@ def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path], cal
         "translation_sigma_deg": result.translation_sigma_deg,
         "pose_covariance": result.pose_covariance,
         "pose_covariance_basis": result.pose_uncertainty.basis,
-        "pose_covariance_parametrisation": POSE_COVARIANCE_DOC,
         "noise_sigma_px": result.noise_sigma_px,
         "trusted": result.trusted, "warnings": list(result.warnings),
         "timings_s": timings,
