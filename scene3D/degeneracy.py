@@ -3,7 +3,10 @@
 - A camera that only turned: every match then fits a homography ``K R K^-1``,
   and an essential matrix fits them too, for any translation. Model selection
   (:func:`motion_model_choice`, Torr's GRIC) tells a pure rotation from a small
-  real baseline; :func:`is_rotation_homography` checks a fitted homography.
+  real baseline; :func:`is_rotation_homography` checks a fitted homography. When
+  the rotation explains most matches but not all, the translation rests on the
+  few that show parallax: a camera that moved past a distant scene, or a camera
+  that stood still while something in view moved (``rotation_share``).
 - A planar scene: two poses fit the plane's matches (:func:`plane_poses`); only
   matches off the plane can choose (:func:`off_plane_evidence`), and
   :func:`lower_cost_plane_pose` lets them vote when random samples drew from the
@@ -122,33 +125,58 @@ def lower_cost_plane_pose(E: FloatArray, inliers: np.ndarray, on_plane: np.ndarr
     return better
 
 
-def fit_rotation(pts1: FloatArray, pts2: FloatArray, K: FloatArray,
-                 iterations: int = 3) -> FloatArray:
+def _rotation_steps(R: FloatArray, rays1: FloatArray, pts2: FloatArray, K: FloatArray,
+                    scale_px: float, iterations: int) -> tuple[FloatArray, float]:
+    """Gauss-Newton on the transfer errors under a Cauchy loss (reweighted); returns the
+    rotation and its robust cost ``sum log(1 + (e / scale)^2)``."""
+    def errors(R_: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        y = rays1 @ R_.T
+        pixels, J = project_with_jacobian(y, K)
+        return pixels - pts2, J @ -skews(y), y  # R <- exp([w]x) R moves y by -[y]x w
+
+    residuals, J_w, _ = errors(R)
+    for _ in range(iterations):
+        weights = 1.0 / (1.0 + np.sum(residuals**2, axis=1) / scale_px**2)
+        A = np.einsum("n,nij,nik->jk", weights, J_w, J_w)
+        b = np.einsum("n,nij,ni->j", weights, J_w, residuals)
+        try:
+            R = rotations_from_vectors(-np.linalg.solve(A, b)[None])[0] @ R
+        except np.linalg.LinAlgError:
+            break
+        residuals, J_w, _ = errors(R)
+    return R, float(np.sum(np.log1p(np.sum(residuals**2, axis=1) / scale_px**2)))
+
+
+def fit_rotation(pts1: FloatArray, pts2: FloatArray, K: FloatArray, scale_px: float = 1.0,
+                 H: FloatArray | None = None, iterations: int = 5) -> FloatArray:
     """The rotation ``R`` ``(3, 3)`` of a camera that only turned, ``x2 ~ K R K^-1 x1``.
 
-    The rotation that best aligns the viewing rays (Kabsch's SVD), then Gauss-Newton
-    steps on the transfer errors in image 2 (pixels, least squares). ``pts1, pts2``
-    ``(N, 2)`` (N >= 2) are matches, the inliers of the essential matrix.
+    Robust: Gauss-Newton on the transfer errors in image 2 (pixels) reweighted by a
+    Cauchy loss of scale ``scale_px``, so that matches the rotation cannot explain
+    (a moving object, points near the camera) do not pull it. Two starts, the
+    rotation that best aligns all the viewing rays (Kabsch's SVD) and, given a
+    homography ``H`` fitted to the same matches, the rotation nearest to
+    ``K^-1 H K``; the fit of lower robust cost wins. ``pts1, pts2`` ``(N, 2)``
+    (N >= 2) are matches, the inliers of the essential matrix.
     """
     K_inv = np.linalg.inv(K)
     rays1 = to_homogeneous(pts1) @ K_inv.T
     rays2 = to_homogeneous(pts2) @ K_inv.T
-    rays1 /= np.linalg.norm(rays1, axis=1, keepdims=True)
-    rays2 /= np.linalg.norm(rays2, axis=1, keepdims=True)
-    U, _, Vt = np.linalg.svd(rays2.T @ rays1)
-    R = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
-    for _ in range(iterations):
-        y = rays1 @ R.T
-        pixels, J = project_with_jacobian(y, K)
-        J_w = J @ -skews(y)  # R <- exp([w]x) R moves y by -[y]x w
-        A = np.einsum("nij,nik->jk", J_w, J_w)
-        b = np.einsum("nij,ni->j", J_w, pixels - pts2)
-        try:
-            w = -np.linalg.solve(A, b)
-        except np.linalg.LinAlgError:
-            break
-        R = rotations_from_vectors(w[None])[0] @ R
-    return R
+    starts = [_nearest_rotation(_unit_rows(rays2).T @ _unit_rows(rays1))]
+    if H is not None and np.all(np.isfinite(H)):
+        starts.append(_nearest_rotation(K_inv @ H @ K))
+    fits = [_rotation_steps(R, rays1, pts2, K, scale_px, iterations) for R in starts]
+    return min(fits, key=lambda fit: fit[1])[0]
+
+
+def _unit_rows(v: FloatArray) -> FloatArray:
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def _nearest_rotation(M: FloatArray) -> FloatArray:
+    """The rotation nearest to ``M`` ``(3, 3)`` in the Frobenius norm (SVD, det +1)."""
+    U, _, Vt = np.linalg.svd(M)
+    return U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
 
 
 def homography_errors(H: FloatArray, pts1: FloatArray, pts2: FloatArray) -> FloatArray:
@@ -195,6 +223,11 @@ class MotionModelChoice(NamedTuple):
     planar : bool
         The general homography explains them at least as well: a plane (or a
         baseline too short to show the depth off it), where two poses can fit.
+    rotation_share : float
+        Share of the matches the rotation explains within three noise standard
+        deviations: those that show no parallax. When they are most, a translation
+        rests on the others, which a moving object would explain as well as a camera
+        that moved.
     R : (3, 3) float64
         The fitted rotation.
     """
@@ -204,6 +237,7 @@ class MotionModelChoice(NamedTuple):
     homography_gric: float
     pure_rotation: bool
     planar: bool
+    rotation_share: float
     R: FloatArray
 
 
@@ -222,11 +256,13 @@ def motion_model_choice(pts1: FloatArray, pts2: FloatArray, K: FloatArray,
     ``sampson_px`` ``(N,)`` and the noise ``noise_px`` (pixels, per coordinate)
     measured on them.
     """
-    R = fit_rotation(pts1, pts2, K)
     sigma = noise_px
+    R = fit_rotation(pts1, pts2, K, 3.0 * sigma, H)
     essential = gric(sampson_px, sigma, 3, 5)
-    rotation = gric(homography_errors(K @ R @ np.linalg.inv(K), pts1, pts2), sigma, 2, 3)
+    rotation_errors = homography_errors(K @ R @ np.linalg.inv(K), pts1, pts2)
+    rotation = gric(rotation_errors, sigma, 2, 3)
     homography = (gric(homography_errors(H, pts1, pts2), sigma, 2, 8)
                   if np.all(np.isfinite(H)) else np.inf)
     return MotionModelChoice(essential, rotation, homography, rotation <= essential,
-                             homography <= essential, R)
+                             homography <= essential,
+                             float(np.mean(rotation_errors <= 3.0 * sigma)), R)

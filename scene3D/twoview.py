@@ -120,6 +120,14 @@ class TwoViewSettings:
         (``rotation_sigma_deg``, ``translation_sigma_deg`` of the result) exceed
         ``uncertainty_limit_deg``. The default, 3 sigma within 2 deg, keeps the
         direction within 2 deg with at least 98.9 % probability.
+    max_rotation_share : float
+        The pose is untrusted when a rotation alone explains more than this share of
+        the inliers (within three noise standard deviations;
+        :func:`scene3D.degeneracy.motion_model_choice`): most matches show no
+        parallax, and the translation rests on the others, which a moving object
+        would explain as well as a camera that moved (on OpenCV's ``left*.jpg``, a
+        still camera and a chessboard moved by hand, 5 of 78 pairs came back
+        trusted, with translation sigmas of 0.001-0.5 deg, without this check).
     trusted_inliers : int
         Fewer inliers leave the pose untrusted whatever its covariance says: a
         covariance estimated from few residuals is itself uncertain, and random
@@ -158,6 +166,7 @@ class TwoViewSettings:
     min_off_plane_matches: int = 10
     uncertainty_limit_deg: float = 2.0
     uncertainty_sigmas: float = 3.0
+    max_rotation_share: float = 0.5
     trusted_inliers: int = 50
     trusted_inlier_ratio: float = 0.25
     trusted_parallax_deg: float = 2.0
@@ -324,8 +333,8 @@ def _sigmas_text(uncertainty: PoseUncertainty) -> str:
 
 def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: int,
                    median_parallax_deg: float, homography_ratio: float, s: TwoViewSettings,
-                   fit: EssentialFit | None = None,
-                   focal: FocalFit | None = None) -> list[str]:
+                   fit: EssentialFit | None = None, focal: FocalFit | None = None,
+                   rotation_share: float = 0.0) -> list[str]:
     """Reasons to doubt a pose that passed every hard check (empty: trusted).
 
     The verdicts:
@@ -344,7 +353,10 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
       calibration's by more than ``s.max_focal_mismatch`` and
       ``s.focal_mismatch_sigmas`` standard deviations; fewer than
       ``s.trusted_inliers`` inliers, too few to estimate a covariance from and few
-      enough for wrong matches to agree by chance.
+      enough for wrong matches to agree by chance; a rotation alone explains more than
+      ``s.max_rotation_share`` of the inliers (``rotation_share``,
+      :func:`scene3D.degeneracy.motion_model_choice`), so the translation rests on
+      the few that show parallax.
 
     Every warning quotes the uncertainty.
     """
@@ -369,6 +381,11 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
     elif num_inliers < s.trusted_inliers:
         warnings.append(f"only {num_inliers} inliers: too few to rely on the pose's "
                         f"{sigmas}")
+    if rotation_share > s.max_rotation_share:
+        warnings.append(f"a rotation alone explains {rotation_share:.0%} of the inliers: the "
+                        f"translation rests on the other {1 - rotation_share:.0%}, which a "
+                        "moving object would explain as well as a camera that moved (the "
+                        f"{sigmas} assume a rigid scene)")
     if (fit is not None and s.max_starts > 1 and not fit.confirmed
             and fit.spread_deg > s.restart_agreement_deg):
         warnings.append(f"no pose was found twice in {fit.starts} robust starts: poses "
@@ -545,7 +562,7 @@ def reconstruct_from_matches(
     point_sigmas = depth_sigmas(points, K, R, t, uncertainty.covariance,
                                 uncertainty.noise_sigma_px)
     warnings = trust_warnings(uncertainty, n, num_inliers, median_kept_parallax, h_ratio, s,
-                              fit, focal)
+                              fit, focal, motion.rotation_share)
     F = fundamental_from_essential(E, K)  # the epipolar geometry the final pose obeys
     return TwoViewGeometry(
         R=R, t=t, points3d=points, pts1=pts1_kept, pts2=pts2_kept, K=K, F=F, E=E,

@@ -62,3 +62,43 @@ def test_model_selection_sees_a_plane(camera, true_pose):
     plane = np.column_stack([xy, 7.0 + 0.2 * xy[:, 0]])
     choice = _choice(camera, R, t, 0.3, points=plane)
     assert choice.planar and not choice.pure_rotation
+
+
+def _still_camera_and_a_moving_object(camera, R, moving=100, still=300, noise_px=0.2, seed=0):
+    """A camera that only turned (by R), and an object in view that moved by 0.5 units."""
+    rng = np.random.default_rng(seed)
+    scene = random_points(still, seed)
+    thing = random_points(moving, seed + 1, depth=(3.0, 5.0))
+    moved = thing + np.array([0.4, 0.1, 0.3])
+    pts1 = project(np.vstack([scene, thing]), camera, np.eye(3), np.zeros(3))
+    pts2 = np.vstack([project(scene, camera, R, np.zeros(3)),
+                      project(moved, camera, R, np.zeros(3))])
+    return (pts1 + rng.normal(0, noise_px, pts1.shape),
+            pts2 + rng.normal(0, noise_px, pts2.shape))
+
+
+def test_fit_rotation_is_not_pulled_by_a_moving_object(camera, true_pose):
+    R, _ = true_pose
+    pts1, pts2 = _still_camera_and_a_moving_object(camera, R)
+    H, _ = estimate_homography(pts1, pts2)
+    assert rotation_error_deg(fit_rotation(pts1, pts2, camera, 0.6, H), R) < 0.02
+
+
+def test_a_still_camera_with_a_moving_object_is_not_trusted(camera, true_pose):
+    """An essential matrix explains the still scene (for any translation) and the moving
+    object (the translation is its motion) together, and it explains them better than
+    the rotation: a pose comes back, pinned by the object. Three quarters of the matches
+    show no parallax, so it is untrusted, whatever its covariance says."""
+    from scene3D.errors import ReconstructionError
+    from scene3D.twoview import reconstruct_from_matches
+
+    R, _ = true_pose
+    pts1, pts2 = _still_camera_and_a_moving_object(camera, R)
+    try:
+        result = reconstruct_from_matches(pts1, pts2, camera)
+    except ReconstructionError as exc:  # refused is as good
+        assert exc.reason == "no_parallax"
+        return
+    assert not result.trusted
+    assert any("a rotation alone explains 7" in w and "moving object" in w
+               for w in result.warnings)
