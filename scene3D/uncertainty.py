@@ -44,9 +44,9 @@ from numpy.typing import ArrayLike
 
 from .geometry import FloatArray, project_with_jacobian, skew, skews
 
-#: 90 % quantiles of the chi-square distribution with 3 and 2 degrees of freedom:
-#: the Mahalanobis bounds of a rotation error (3 dof) and of a direction error (2 dof).
 CHI2_90 = {2: 4.605170185988091, 3: 6.251388631170325}
+"""90 % quantiles of the chi-square distribution with 2 and 3 degrees of freedom: the
+Mahalanobis bounds of a direction error (2 dof) and of a rotation error (3 dof)."""
 
 
 def tangent_basis(t: ArrayLike) -> FloatArray:
