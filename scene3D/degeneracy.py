@@ -125,39 +125,31 @@ def lower_cost_plane_pose(E: FloatArray, inliers: np.ndarray, on_plane: np.ndarr
     return better
 
 
-def _rotation_steps(R: FloatArray, rays1: FloatArray, pts2: FloatArray, K: FloatArray,
-                    scale_px: float, iterations: int) -> tuple[FloatArray, float]:
-    """Gauss-Newton on the transfer errors under a Cauchy loss (reweighted); returns the
-    rotation and its robust cost ``sum log(1 + (e / scale)^2)``."""
-    def errors(R_: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        y = rays1 @ R_.T
-        pixels, J = project_with_jacobian(y, K)
-        return pixels - pts2, J @ -skews(y), y  # R <- exp([w]x) R moves y by -[y]x w
+def _transfer(R: FloatArray, rays1: FloatArray, pts2: FloatArray,
+              K: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Transfer residuals ``(2N,)`` of ``K R rays1`` against ``pts2`` and their Jacobian
+    ``(2N, 3)`` by the rotation vector of ``R <- exp([w]x) R``, which moves ``y = R ray``
+    by ``-[y]x w``."""
+    y = rays1 @ R.T
+    pixels, J = project_with_jacobian(y, K)
+    return (pixels - pts2).ravel(), (J @ -skews(y)).reshape(-1, 3)
 
-    residuals, J_w, _ = errors(R)
-    for _ in range(iterations):
-        weights = 1.0 / (1.0 + np.sum(residuals**2, axis=1) / scale_px**2)
-        A = np.einsum("n,nij,nik->jk", weights, J_w, J_w)
-        b = np.einsum("n,nij,ni->j", weights, J_w, residuals)
-        try:
-            R = rotations_from_vectors(-np.linalg.solve(A, b)[None])[0] @ R
-        except np.linalg.LinAlgError:
-            break
-        residuals, J_w, _ = errors(R)
-    return R, float(np.sum(np.log1p(np.sum(residuals**2, axis=1) / scale_px**2)))
+
+def _robust_rotation_cost(residuals: FloatArray, scale_px: float) -> float:
+    return float(np.sum(np.log1p((residuals[0::2] ** 2 + residuals[1::2] ** 2) / scale_px**2)))
 
 
 def fit_rotation(pts1: FloatArray, pts2: FloatArray, K: FloatArray, scale_px: float = 1.0,
-                 H: FloatArray | None = None, iterations: int = 5) -> FloatArray:
+                 H: FloatArray | None = None, iterations: int = 4) -> FloatArray:
     """The rotation ``R`` ``(3, 3)`` of a camera that only turned, ``x2 ~ K R K^-1 x1``.
 
     Robust: Gauss-Newton on the transfer errors in image 2 (pixels) reweighted by a
     Cauchy loss of scale ``scale_px``, so that matches the rotation cannot explain
-    (a moving object, points near the camera) do not pull it. Two starts, the
-    rotation that best aligns all the viewing rays (Kabsch's SVD) and, given a
-    homography ``H`` fitted to the same matches, the rotation nearest to
-    ``K^-1 H K``; the fit of lower robust cost wins. ``pts1, pts2`` ``(N, 2)``
-    (N >= 2) are matches, the inliers of the essential matrix.
+    (a moving object, points near the camera) do not pull it. It starts from the
+    better, in that robust cost, of two rotations: the one that best aligns all the
+    viewing rays (Kabsch's SVD) and, given a homography ``H`` fitted to the same
+    matches, the one nearest to ``K^-1 H K``. ``pts1, pts2`` ``(N, 2)`` (N >= 2) are
+    matches, the inliers of the essential matrix.
     """
     K_inv = np.linalg.inv(K)
     rays1 = to_homogeneous(pts1) @ K_inv.T
@@ -165,8 +157,19 @@ def fit_rotation(pts1: FloatArray, pts2: FloatArray, K: FloatArray, scale_px: fl
     starts = [_nearest_rotation(_unit_rows(rays2).T @ _unit_rows(rays1))]
     if H is not None and np.all(np.isfinite(H)):
         starts.append(_nearest_rotation(K_inv @ H @ K))
-    fits = [_rotation_steps(R, rays1, pts2, K, scale_px, iterations) for R in starts]
-    return min(fits, key=lambda fit: fit[1])[0]
+    fits = [(R, *_transfer(R, rays1, pts2, K)) for R in starts]
+    R, residuals, J = min(fits, key=lambda fit: _robust_rotation_cost(fit[1], scale_px))
+    for _ in range(iterations):
+        squared = residuals[0::2] ** 2 + residuals[1::2] ** 2
+        weights = np.repeat(1.0 / (1.0 + squared / scale_px**2), 2)
+        Jw = J * weights[:, None]
+        try:
+            step = -np.linalg.solve(Jw.T @ J, Jw.T @ residuals)
+        except np.linalg.LinAlgError:
+            break
+        R = rotations_from_vectors(step[None])[0] @ R
+        residuals, J = _transfer(R, rays1, pts2, K)
+    return R
 
 
 def _unit_rows(v: FloatArray) -> FloatArray:

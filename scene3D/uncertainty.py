@@ -226,6 +226,27 @@ def pose_error_chi2(R_est: ArrayLike, t_est: ArrayLike, R_true: ArrayLike,
     return out[0], out[1]
 
 
+def _triangulation_normals(points3d: ArrayLike, K: ArrayLike, R: ArrayLike,
+                           t: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """``G = J_X^T J_X`` ``(N, 3, 3)`` and ``M = J_X^T J_p`` ``(N, 3, 5)`` of each point's
+    four reprojection residuals (``J_X`` by the point, ``J_p`` by the pose step)."""
+    X = np.asarray(points3d, dtype=np.float64).reshape(-1, 3)
+    K = np.asarray(K, dtype=np.float64)
+    R = np.asarray(R, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64).reshape(3)
+    n = len(X)
+    rotated = X @ R.T
+    _, J1 = project_with_jacobian(X, K)
+    _, J2 = project_with_jacobian(rotated + t, K)
+    J2R = J2 @ R  # image 2's rows by X
+    # R <- exp([w]x) R moves R X by -[R X]x w; t moves along the tangent basis.
+    dY = np.concatenate([-skews(rotated), np.broadcast_to(tangent_basis(t).T, (n, 3, 2))],
+                        axis=2)  # (N, 3, 5)
+    G = np.swapaxes(J1, 1, 2) @ J1 + np.swapaxes(J2R, 1, 2) @ J2R
+    M = np.swapaxes(J2R, 1, 2) @ (J2 @ dY)  # image 1's rows do not depend on the pose
+    return G, M
+
+
 def point_covariances(points3d: ArrayLike, K: ArrayLike, R: ArrayLike, t: ArrayLike,
                       pose_covariance: ArrayLike, noise_px: float) -> FloatArray:
     """First-order covariances ``(N, 3, 3)`` of triangulated points (camera-1 frame).
@@ -255,25 +276,14 @@ def point_covariances(points3d: ArrayLike, K: ArrayLike, R: ArrayLike, t: ArrayL
     (N, 3, 3) float64
         In units of the baseline squared; infinite when the pose covariance is.
     """
-    X = np.asarray(points3d, dtype=np.float64).reshape(-1, 3)
-    K = np.asarray(K, dtype=np.float64)
-    R = np.asarray(R, dtype=np.float64)
-    t = np.asarray(t, dtype=np.float64).reshape(3)
     C = np.asarray(pose_covariance, dtype=np.float64)
-    n = len(X)
+    G, M = _triangulation_normals(points3d, K, R, t)
     if not np.all(np.isfinite(C)):
-        return np.full((n, 3, 3), np.inf)
-    rotated = X @ R.T
-    _, J1 = project_with_jacobian(X, K)
-    _, J2 = project_with_jacobian(rotated + t, K)
-    J_X = np.concatenate([J1, J2 @ R], axis=1)  # (N, 4, 3)
-    # R <- exp([w]x) R moves R X by -[R X]x w; t moves along the tangent basis.
-    dY = np.concatenate([-skews(rotated), np.broadcast_to(tangent_basis(t).T, (n, 3, 2))],
-                        axis=2)  # (N, 3, 5)
-    J_p = np.concatenate([np.zeros((n, 2, 5)), J2 @ dY], axis=1)  # (N, 4, 5)
-    # With G = J_X^T J_X: A A^T = G^-1, so cov X = noise^2 G^-1 + B C B^T with B = A J_p.
-    G_inv = np.linalg.inv(np.swapaxes(J_X, 1, 2) @ J_X)
-    B = G_inv @ (np.swapaxes(J_X, 1, 2) @ J_p)  # (N, 3, 5)
+        return np.full((len(G), 3, 3), np.inf)
+    # With G = J_X^T J_X: A A^T = G^-1, so cov X = noise^2 G^-1 + B C B^T with
+    # B = A J_p = G^-1 M.
+    G_inv = np.linalg.inv(G)
+    B = G_inv @ M  # (N, 3, 5)
     return noise_px**2 * G_inv + B @ C @ np.swapaxes(B, 1, 2)
 
 
@@ -281,8 +291,22 @@ def depth_sigmas(points3d: ArrayLike, K: ArrayLike, R: ArrayLike, t: ArrayLike,
                  pose_covariance: ArrayLike, noise_px: float) -> FloatArray:
     """1-sigma depth ``(N,)`` of each point in camera 1, in units of the baseline.
 
-    The ``z`` entry of :func:`point_covariances`; divide by the depth
-    (``points3d[:, 2]``) for a relative uncertainty.
+    The ``z`` entry of :func:`point_covariances` (computed from the third row of
+    ``G^-1`` alone, by cofactors); divide by the depth (``points3d[:, 2]``) for a
+    relative uncertainty.
     """
-    cov = point_covariances(points3d, K, R, t, pose_covariance, noise_px)
-    return np.sqrt(np.maximum(cov[:, 2, 2], 0.0))
+    C = np.asarray(pose_covariance, dtype=np.float64)
+    G, M = _triangulation_normals(points3d, K, R, t)
+    if not np.all(np.isfinite(C)):
+        return np.full(len(G), np.inf)
+    g = G.reshape(-1, 9)
+    # Third row of the inverse of a symmetric 3x3 matrix: cofactors over the determinant.
+    row = np.column_stack([g[:, 1] * g[:, 5] - g[:, 2] * g[:, 4],
+                           g[:, 2] * g[:, 1] - g[:, 0] * g[:, 5],
+                           g[:, 0] * g[:, 4] - g[:, 1] ** 2])
+    det = (g[:, 0] * (g[:, 4] * g[:, 8] - g[:, 5] ** 2)
+           + g[:, 1] * (g[:, 5] * g[:, 2] - g[:, 1] * g[:, 8]) + g[:, 2] * row[:, 0])
+    row /= det[:, None]
+    b = np.einsum("ni,nij->nj", row, M)  # (N, 5): the depth's derivative by the pose
+    variance = noise_px**2 * row[:, 2] + np.einsum("ni,ij,nj->n", b, C, b)
+    return np.sqrt(np.maximum(variance, 0.0))

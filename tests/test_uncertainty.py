@@ -11,6 +11,7 @@ from scene3D.uncertainty import (
     angular_bound_deg,
     depth_sigmas,
     largest_sigma_deg,
+    point_covariances,
     pose_error_chi2,
     pose_error_coordinates,
     rotation_vector,
@@ -155,3 +156,15 @@ def test_depth_sigmas_agree_with_a_monte_carlo(camera, true_pose):
     # The pose's share: without it the depth spread is underestimated.
     no_pose = depth_sigmas(X, camera, R_e, t_e, np.zeros((5, 5)), 0.5)
     assert np.median(empirical / no_pose) > 1.05
+
+
+def test_depth_sigmas_are_the_depth_entry_of_the_point_covariances(camera, true_pose):
+    R, t = true_pose
+    t = t / np.linalg.norm(t)
+    points, pts1, pts2 = correspondences(camera, R, t, n=50, noise_px=0.3, seed=2)
+    cov = relative_pose_covariance(R, t, pts1, pts2, camera, "linear")
+    full = point_covariances(points, camera, R, t, cov, 0.3)
+    np.testing.assert_allclose(depth_sigmas(points, camera, R, t, cov, 0.3),
+                               np.sqrt(full[:, 2, 2]), rtol=1e-10)
+    assert np.all(np.linalg.eigvalsh(full) > 0)  # positive definite
+    assert np.isinf(depth_sigmas(points, camera, R, t, np.full((5, 5), np.inf), 0.3)).all()
