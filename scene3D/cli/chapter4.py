@@ -8,17 +8,19 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from .. import __version__
-from ..calibration_io import CameraCalibration, load_calibration
+from ..calibration_io import load_calibration
 from ..camera import adapt_intrinsics_to_size
 from ..datasets import BOOK_PAIR, fetch_fountain_p11
 from ..export import atomic_write_bytes, write_json, write_ply
 from ..features import FEATURE_MODES, normalize_feature_mode
 from ..geometry import camera_centers, rotation_angle_deg
 from ..imageio import BOOK_MAX_WIDTH_PX, image_size, read_image_size
+from ..intrinsics_prior import FocalPrior
 from ..scene import SceneReconstruction3D
 from ..twoview import TwoViewSettings
 from .common import (
@@ -71,8 +73,10 @@ def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
                         help="two photos of the same scene (default: the book's pair)")
     parser.add_argument("--calib", type=Path, metavar="FILE",
                         help="camera calibration (OpenCV YAML/XML as calibrate.py writes it); "
-                             "required with your own images; scaled when the images have the "
-                             "same aspect ratio but another size")
+                             "scaled when the images have the same aspect ratio but another "
+                             "size. Without it your own photos are self-calibrated: one focal "
+                             "length, from EXIF (or 1.2 x the longer side) refined by the "
+                             "photos, principal point at the centre, no distortion")
     add_feature_arg(parser, [m.lower() for m in FEATURE_MODES])
     add_size_args(parser, BOOK_MAX_WIDTH_PX, "the book's rule, 3072 -> 768")
     add_bundle_adjust_arg(parser)
@@ -91,14 +95,12 @@ def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
     return parser
 
 
-def _resolve_inputs(args: argparse.Namespace) -> tuple[Path, Path, Path]:
-    """Image paths and calibration file, after the defaults."""
+def _resolve_inputs(args: argparse.Namespace) -> tuple[Path, Path, Path | None]:
+    """Image paths and calibration file, after the defaults (None: self-calibrate)."""
     if len(args.images) not in (0, 2):
         raise UsageError(f"give exactly two images (or none for the book's pair), got "
                          f"{len(args.images)}")
     if args.images:
-        if args.calib is None:
-            raise UsageError("your own images need --calib FILE (make one with calibrate.py)")
         path1, path2 = Path(args.images[0]), Path(args.images[1])
         check_distinct_images([path1, path2])
         return path1, path2, args.calib
@@ -107,23 +109,81 @@ def _resolve_inputs(args: argparse.Namespace) -> tuple[Path, Path, Path]:
     return folder / BOOK_PAIR[0], folder / BOOK_PAIR[1], calib
 
 
-def _load_camera(calib_path: Path) -> CameraCalibration:
+class _Camera(NamedTuple):
+    """The camera to start from: a calibration file's, or a prior to self-calibrate."""
+
+    K: np.ndarray
+    dist: np.ndarray
+    image_size: tuple[int, int]
+    prior: FocalPrior | None = None
+
+
+def _load_camera(calib_path: Path | None, images: tuple[Path, Path]) -> _Camera:
+    """The calibration file's camera, or without one the EXIF/default focal prior of
+    ``images`` (:func:`scene3D.exif.read_camera_prior`: one camera is checked)."""
+    if calib_path is None:
+        from ..exif import read_camera_prior
+
+        prior = read_camera_prior(images)
+        return _Camera(prior.K, np.zeros(5), prior.image_size, prior)
     if calib_path == DEFAULT_CALIB and not calib_path.is_file():
         # An installed copy without the repository's data/ folder: the same K from the dataset.
         K = np.loadtxt(fetch_fountain_p11(("images/K.txt",)) / "images" / "K.txt")
-        return CameraCalibration(K, np.zeros(5), (3072, 2048))
-    return load_calibration(calib_path)
+        return _Camera(K, np.zeros(5), (3072, 2048))
+    camera = load_calibration(calib_path)
+    return _Camera(camera.K, camera.dist, camera.image_size)
 
 
-def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path], calib: Path,
-             timings: dict[str, float], requested: str) -> dict:
+def _self_calibrate(scene: SceneReconstruction3D, camera: _Camera, mode: str) -> list[str]:
+    """Without a calibration file: the focal length from the photos (``scene.K`` changes).
+    Returns the line to print about it (none with a calibration file)."""
+    if camera.prior is None:
+        return []
+    calibration = scene.self_calibrate(mode, camera.prior.sigma_log, camera.prior.source)
+    how = "refined by the photos" if calibration.determined else \
+        "kept: the photos could not refine it"
+    return [f"focal length {calibration.focal_px:.1f} px +-{calibration.focal_sigma_px:.1f} "
+            f"at the working size ({camera.prior.description}; {how})"]
+
+
+def _calibration_fields(scene: SceneReconstruction3D, camera: _Camera | None = None) -> dict:
+    """The JSON's calibration fields: where the final ``K`` comes from and how sure it is."""
+    calibration = scene.self_calibration
+    if calibration is None:
+        return {"calibration_source": "file", "focal_px_sigma": None, "self_calibration": None}
+    prior = camera.prior if camera is not None else None
+    return {
+        "calibration_source": calibration.source,
+        "focal_px_sigma": calibration.focal_sigma_px,
+        "self_calibration": {
+            "start": prior.description if prior is not None else None,
+            "camera": prior.camera_name if prior is not None else None,
+            "start_focal_px": calibration.start_focal_px,
+            "start_sigma_log": calibration.start_sigma_log,
+            "photos_focal_px": calibration.data_focal_px,
+            "photos_sigma_log": calibration.data_sigma_log,
+            "photos_sigma_parts_log": calibration.uncertainty._asdict(),
+            "determined": calibration.determined,
+            "candidates_px": [focal for focal, _ in calibration.candidates],
+            "iterations": calibration.iterations,
+            "seconds": calibration.seconds,
+            "exif_warnings": list(prior.warnings) if prior is not None else [],
+        },
+    }
+
+
+def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path],
+             calib: Path | None, timings: dict[str, float], requested: str,
+             camera: _Camera | None = None) -> dict:
     return {
         "scene3D_version": __version__,
         "conventions": "x_cam2 = R @ x_cam1 + t; |t| = 1 (scale unknown); points3d in the "
                        "camera-1 frame; pixels with integer coordinates at pixel centres; "
                        + POSE_COVARIANCE_DOC,
-        "inputs": {"image1": str(paths[0]), "image2": str(paths[1]), "calibration": str(calib)},
+        "inputs": {"image1": str(paths[0]), "image2": str(paths[1]),
+                   "calibration": None if calib is None else str(calib)},
         "R": result.R, "t": result.t, "K": result.K,
+        **_calibration_fields(scene, camera),
         "image_size": list(image_size(scene.img1)),
         "native_image_size": list(scene.native_size),
         "feature": result.feature, "feature_requested": requested,
@@ -240,7 +300,7 @@ def run(args: argparse.Namespace) -> int:
     t_start = time.perf_counter()
     mode = normalize_feature_mode(args.feature)
     path1, path2, calib_path = _resolve_inputs(args)
-    camera = _load_camera(calib_path)
+    camera = _load_camera(calib_path, (path1, path2))
     out = prepare_output_dir(args.out)
     if not args.no_report:
         check_report_viewer()
@@ -253,6 +313,7 @@ def run(args: argparse.Namespace) -> int:
                           max_width=args.max_width)
     load_s = time.perf_counter() - t0
 
+    calibration_lines = _self_calibrate(scene, camera, mode)
     result = scene.reconstruct(mode)
     timings = {"load": load_s, **{k: v for k, v in result.timings_s.items() if k != "total"}}
 
@@ -269,12 +330,14 @@ def run(args: argparse.Namespace) -> int:
     timings["plots"] = time.perf_counter() - t0  # figures, and the 3D view's data alongside
     figures = {name: png for name, (png, _) in encoded.items()}
     lines = _result_lines(scene, result, (path1, path2), dense)
+    lines[1:1] = calibration_lines
     report = None
     if view is not None:
         from ..report import two_view_report
 
         t0 = time.perf_counter()
-        partial = _summary(scene, result, (path1, path2), calib_path, dict(timings), args.feature)
+        partial = _summary(scene, result, (path1, path2), calib_path, dict(timings), args.feature,
+                           camera)
         if dense is not None:
             partial["dense"] = _dense_summary(dense)
         report = two_view_report(partial, lines, {n: jpg for n, (_, jpg) in encoded.items()},
@@ -290,7 +353,7 @@ def run(args: argparse.Namespace) -> int:
         written.append(atomic_write_bytes(out / REPORT_FILE, report.encode("utf-8")))
     timings["write"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
-    summary = _summary(scene, result, (path1, path2), calib_path, timings, args.feature)
+    summary = _summary(scene, result, (path1, path2), calib_path, timings, args.feature, camera)
     if dense is not None:
         summary["dense"] = _dense_summary(dense)
     written.append(write_json(out / "reconstruction.json", summary))
