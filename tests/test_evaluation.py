@@ -96,22 +96,39 @@ def test_evaluate_refuses_a_pair_of_two_cameras(fountain, tmp_path, capsys):
     assert "flagged 1, wrong and unflagged 0" in out
 
 
-def test_evaluate_views_are_computed_once_and_dropped_after_their_last_pair(fountain):
-    from scene3D.cli.evaluate import _Views, _views
+def test_evaluate_maps_one_task_per_view_and_one_per_pair(fountain):
+    from scene3D.cli.evaluate import _views, evaluate_pairs
     from scene3D.datasets import read_strecha_camera
+    from scene3D.engines import LocalEngine
+    from scene3D.twoview import TwoViewSettings
 
-    views = _views(fountain)[:3]
-    pairs = [(0, 1), (0, 2)]
-    data = _Views(views, [read_strecha_camera(c) for _, c in views], 400, "SIFT", pairs)
-    first = data.matches(0, 1)
-    data.done(0)
-    assert sorted(data.features) == [0]  # view 1 had no pair left
-    features_0 = data.features[0]
-    data.matches(0, 2)
-    assert data.features[0] is features_0  # view 0 was not detected again
-    data.done(1)
-    assert not data.features and not data.images
-    assert len(first) > 50 and first.feature == "SIFT"
+    class Recording(LocalEngine):
+        def __init__(self):
+            self.tasks, self.shared = [], []
+
+        def map(self, fn, arguments, *, label="tasks", progress=None):
+            arguments = list(arguments)
+            self.tasks.append((label, len(arguments)))
+            return super().map(fn, arguments, label=label, progress=progress)
+
+        def share(self, value):
+            self.shared.append(value)
+            return value
+
+    views = _views(fountain)[:4]
+    engine, seen = Recording(), []
+    rows = list(evaluate_pairs(engine, [image for image, _ in views],
+                               [read_strecha_camera(c) for _, c in views],
+                               [(0, 1), (0, 2), (2, 0)], 400, "SIFT", TwoViewSettings(),
+                               lambda label, done, total: seen.append((label, done, total))))
+    # Views 0, 1, 2 once each (view 3 is in no pair, view 0 in three), then the pairs.
+    assert engine.tasks == [("views", 3), ("pairs", 3)]
+    assert len(engine.shared) == 3 and all(v.features.feature == "SIFT" for v in engine.shared)
+    assert [r["pair"] for r in rows] == ["0000.jpg-0001.jpg", "0000.jpg-0002.jpg",
+                                         "0002.jpg-0000.jpg"]
+    assert seen[-1] == ("pairs", 3, 3) and ("views", 3, 3) in seen
+    for row in rows:  # each pair (the last one reversed) against the truth
+        assert row["inliers"] > 40 and row["rotation_deg"] < 1.0
 
 
 def test_evaluate_names_the_detector_that_ran(fountain, capsys):
