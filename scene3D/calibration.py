@@ -9,7 +9,9 @@ The steps, usable one by one from a notebook:
    uncertainties, and can drop outlier views and solve again;
 3. :func:`corner_coverage` tells which parts of the image the corners cover;
 4. :func:`save_calibration` / :func:`load_calibration` (in
-   :mod:`scene3D.calibration_io`) read and write OpenCV FileStorage YAML.
+   :mod:`scene3D.calibration_io`) read and write OpenCV FileStorage YAML;
+5. :mod:`scene3D.calibration_uncertainty` gives the full covariance of the intrinsics
+   (:attr:`CalibrationResult.covariance`) and the projection-uncertainty map.
 
 Sizes are (width, height) everywhere. Pixel conventions as in :mod:`scene3D.geometry`.
 """
@@ -23,6 +25,7 @@ import cv2
 import numpy as np
 
 from .calibration_io import CameraCalibration, load_calibration, save_calibration
+from .calibration_uncertainty import IntrinsicsCovariance, intrinsics_covariance
 from .errors import CalibrationError
 from .geometry import FloatArray
 
@@ -217,6 +220,10 @@ class CalibrationResult:
     board : BoardSpec
     rvecs, tvecs : tuple of (3,) float64
         Board pose in each kept view (board-to-camera).
+    covariance : IntrinsicsCovariance or None
+        Full first-order covariance of ``fx, fy, cx, cy`` and the distortion, the board
+        poses marginalised out (:func:`scene3D.calibration_uncertainty.intrinsics_covariance`);
+        its diagonal gives ``std_intrinsics``.
     """
 
     K: FloatArray
@@ -229,6 +236,7 @@ class CalibrationResult:
     board: BoardSpec
     rvecs: tuple[FloatArray, ...] = field(default=(), repr=False)
     tvecs: tuple[FloatArray, ...] = field(default=(), repr=False)
+    covariance: IntrinsicsCovariance | None = field(default=None, repr=False)
 
     def as_camera(self) -> CameraCalibration:
         return CameraCalibration(self.K, self.dist, self.image_size)
@@ -308,12 +316,20 @@ def calibrate(
     std = std_int.ravel()
     std_names = ("fx", "fy", "cx", "cy") + DISTORTION_NAMES
     std_intrinsics = {n: float(s) for n, s in zip(std_names, std[: 4 + len(dist)])}
+    try:
+        covariance = intrinsics_covariance([d.object_points for d in views],
+                                           [d.image_points for d in views], K, dist, rvecs,
+                                           tvecs, flags)
+    except ValueError as exc:  # flags the covariance does not model
+        logger.warning("no covariance of the intrinsics: %s", exc)
+        covariance = None
     return CalibrationResult(
         K=K.astype(np.float64), dist=dist, image_size=tuple(image_size), rms_px=float(rms),
         per_view_errors_px={n: float(e) for n, e in zip(names, errors)},
         std_intrinsics=std_intrinsics, rejected_views=rejected, board=board,
         rvecs=tuple(np.ravel(r).astype(np.float64) for r in rvecs),
         tvecs=tuple(np.ravel(t).astype(np.float64) for t in tvecs),
+        covariance=covariance,
     )
 
 

@@ -1,8 +1,11 @@
-"""Figures of a reconstruction. Headless-safe: no pyplot, no windows, no ``plt.show()``.
+"""Figures of a reconstruction or a calibration as matplotlib ``Figure`` objects, for
+notebooks and the book's methods. Headless-safe: no pyplot, no windows, no ``plt.show()``.
 
-Each function takes an optional matplotlib ``ax`` (or creates its own figure)
-and returns the ``Figure``. Images are BGR ``uint8`` as cv2 loads them; they
-are never drawn into.
+Each function takes an optional matplotlib ``ax`` (or creates its own figure) and returns
+the ``Figure``. The image-like figures (optic flow, epipolar lines, rectified pair,
+disparity) are drawn once, by :mod:`scene3D.drawing` with OpenCV at the images' resolution,
+and shown here; the command-line tools write those drawings as PNG without matplotlib.
+Images are BGR ``uint8`` as cv2 loads them; they are never drawn into.
 """
 
 from __future__ import annotations
@@ -11,8 +14,18 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from .epipolar import epipolar_lines
-from .geometry import FloatArray, camera_centers
+from .calibration_uncertainty import UncertaintyMap
+from .drawing import (
+    Raster,
+    draw_disparity,
+    draw_epipolar_lines,
+    draw_optic_flow,
+    draw_rectified,
+    frustum_corners,
+    robust_extent,
+    subsample_indices,
+)
+from .geometry import FloatArray
 from .rectification import RectifiedPair
 
 
@@ -25,30 +38,21 @@ def _axes(ax: Axes | None, ncols: int = 1, figsize: tuple[float, float] = (8, 6)
     return fig, axes
 
 
-def _show_image(ax: Axes, img: np.ndarray, title: str) -> None:
-    ax.imshow(img[..., ::-1] if img.ndim == 3 else img, cmap="gray" if img.ndim == 2 else None)
-    ax.set_title(title)
+def plot_raster(raster: Raster, ax: Axes | None = None, width_in: float = 10.0) -> Figure:
+    """Show a :class:`scene3D.drawing.Raster` (an OpenCV drawing) with its title."""
+    h, w = raster.image.shape[:2]
+    fig, (ax,) = _axes(ax, figsize=(width_in, width_in * h / w + 0.5))
+    ax.imshow(raster.image[..., ::-1])
+    ax.set_title(raster.title)
     ax.set_axis_off()
-
-
-def _subsample(n: int, at_most: int, seed: int = 0) -> np.ndarray:
-    if n <= at_most:
-        return np.arange(n)
-    return np.sort(np.random.default_rng(seed).choice(n, at_most, replace=False))
+    return fig
 
 
 def plot_optic_flow(
     img1: np.ndarray, pts1: FloatArray, pts2: FloatArray, ax: Axes | None = None
 ) -> Figure:
     """Arrows from each point of image 1 to its match in image 2, drawn over image 1."""
-    fig, (ax,) = _axes(ax, figsize=(10, 7))
-    grey = img1.mean(axis=2).astype(np.uint8) if img1.ndim == 3 else img1
-    _show_image(ax, grey, f"Optic flow: {len(pts1)} tracks (image 1 -> image 2)")
-    d = pts2 - pts1
-    ax.quiver(pts1[:, 0], pts1[:, 1], d[:, 0], d[:, 1], color="yellow", angles="xy",
-              scale_units="xy", scale=1, width=0.0015)
-    ax.plot(pts1[:, 0], pts1[:, 1], "r.", markersize=2)
-    return fig
+    return plot_raster(draw_optic_flow(img1, pts1, pts2), ax)
 
 
 def plot_epipolar_lines(
@@ -58,39 +62,21 @@ def plot_epipolar_lines(
     pts1: FloatArray,
     pts2: FloatArray,
     num_lines: int = 20,
+    ax: Axes | None = None,
 ) -> Figure:
     """Both images with the epipolar lines of a few matches (``x2^T F x1 = 0``).
 
     Left: image 1 with the lines ``F^T x2`` and the points ``x1``; right: image 2
     with the lines ``F x1`` and the points ``x2``.
     """
-    fig, (ax1, ax2) = _axes(None, ncols=2, figsize=(14, 5))
-    idx = _subsample(len(pts1), num_lines)
-    colors = [tuple(c) for c in np.random.default_rng(1).uniform(0.2, 1.0, (len(idx), 3))]
-    for ax, img, pts, lines, title in (
-        (ax1, img1, pts1[idx], epipolar_lines(F, pts2[idx], 2), "Image 1"),
-        (ax2, img2, pts2[idx], epipolar_lines(F, pts1[idx], 1), "Image 2"),
-    ):
-        _show_image(ax, img, f"{title}: epipolar lines")
-        w = img.shape[1]
-        xs = np.array([0.0, w - 1.0])
-        for (a, b, c), p, color in zip(lines, pts, colors):
-            if abs(b) > 1e-9:
-                ax.plot(xs, -(a * xs + c) / b, color=color, linewidth=1)
-            ax.plot(p[0], p[1], "o", color=color, markersize=4)
-        ax.set_xlim(0, w - 1)
-        ax.set_ylim(img.shape[0] - 1, 0)
-    return fig
+    return plot_raster(draw_epipolar_lines(img1, img2, F, pts1, pts2, num_lines), ax,
+                       width_in=14.0)
 
 
-def plot_rectified(rectified: RectifiedPair, num_rows: int = 20) -> Figure:
+def plot_rectified(rectified: RectifiedPair, num_rows: int = 20,
+                   ax: Axes | None = None) -> Figure:
     """The rectified images side by side with horizontal guide lines."""
-    fig, (ax,) = _axes(None, figsize=(14, 5))
-    pair = np.hstack([rectified.img1, rectified.img2])
-    _show_image(ax, pair, "Rectified images (matches share a row)")
-    for y in np.linspace(0, pair.shape[0] - 1, num_rows + 2)[1:-1]:
-        ax.axhline(y, color="lime", linewidth=0.6)
-    return fig
+    return plot_raster(draw_rectified(rectified, num_rows), ax, width_in=14.0)
 
 
 def _display_axes(points: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -110,14 +96,13 @@ def plot_point_cloud(
     not flatten the view.
     """
     fig, (ax,) = _axes(ax, figsize=(8, 7), projection="3d")
-    idx = _subsample(len(points3d), max_points)
+    idx = subsample_indices(len(points3d), max_points)
     pts = points3d[idx]
     c = None if colors is None else colors[idx] / 255.0
     x, y, z = _display_axes(pts)
     ax.scatter(x, y, z, c=c, s=2, depthshade=False)
     if len(pts):
-        lo = np.percentile(np.column_stack([x, y, z]), 2, axis=0)
-        hi = np.percentile(np.column_stack([x, y, z]), 98, axis=0)
+        lo, hi = robust_extent(np.column_stack([x, y, z]))
         for setter, a, b in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), lo, hi):
             pad = 0.05 * (b - a) + 1e-9
             setter(a - pad, b + pad)
@@ -178,14 +163,7 @@ def plot_view_errors(
 
 def plot_disparity(disparity: np.ndarray, ax: Axes | None = None) -> Figure:
     """The disparity map (pixels) with a colour bar; invalid pixels (NaN) are white."""
-    fig, (ax,) = _axes(ax, figsize=(9, 6))
-    finite = disparity[np.isfinite(disparity)]
-    lo, hi = (np.percentile(finite, [1, 99]) if finite.size else (0.0, 1.0))
-    image = ax.imshow(disparity, cmap="viridis", vmin=lo, vmax=hi)
-    fig.colorbar(image, ax=ax, label="disparity (px)", shrink=0.8)
-    ax.set_title(f"Disparity of rectified image 1 ({finite.size / disparity.size:.0%} valid)")
-    ax.set_axis_off()
-    return fig
+    return plot_raster(draw_disparity(disparity), ax)
 
 
 def plot_cameras_and_points(
@@ -205,19 +183,52 @@ def plot_cameras_and_points(
     """
     fig = plot_point_cloud(points3d, colors, ax=ax, max_points=max_points)
     ax = fig.axes[0]
-    lo, hi = np.percentile(points3d, [2, 98], axis=0) if len(points3d) else (0, 1)
-    depth = 0.08 * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
-    w, h = image_size
-    corners = np.array([[0, 0, 1], [w, 0, 1], [w, h, 1], [0, h, 1]], dtype=float)
-    rays = corners @ np.linalg.inv(K).T * depth  # camera frame, at the chosen depth
+    lo, hi = robust_extent(points3d)
+    depth = 0.08 * float(np.linalg.norm(hi - lo))
     drawn = 0
-    for R_v, center in zip(R, camera_centers(R, t)):
-        if not np.all(np.isfinite(R_v)):
+    for corners in frustum_corners(R, t, K, image_size, depth):
+        if not np.all(np.isfinite(corners)):
             continue
-        world = rays @ R_v + center  # R^T (x - t) for each corner
+        center, world = corners[0], corners[1:]
         for corner in world:
             ax.plot(*_display_axes(np.array([center, corner])), color="tab:red", linewidth=0.8)
         ax.plot(*_display_axes(np.vstack([world, world[:1]])), color="tab:red", linewidth=0.8)
         drawn += 1
     ax.set_title(f"{len(points3d)} points, {drawn} cameras")
+    return fig
+
+
+def plot_uncertainty_map(umap: UncertaintyMap, ax: Axes | None = None) -> Figure:
+    """Heat map of the projection uncertainty (1 sigma, worst direction, pixels) over the
+    image, with contours, its median and worst values, and the corners' values."""
+    fig, (ax,) = _axes(ax, figsize=(9, 6.5))
+    w, h = umap.image_size
+    extent = (-0.5, w - 0.5, h - 0.5, -0.5)
+    from matplotlib.colors import LogNorm
+
+    lo = max(float(umap.sigma_px.min()), 1e-6)
+    norm = LogNorm(vmin=lo, vmax=max(float(umap.sigma_px.max()), 1.01 * lo))
+    image = ax.imshow(umap.sigma_px, extent=extent, cmap="magma_r", norm=norm,
+                      interpolation="bilinear")
+    fig.colorbar(image, ax=ax, label="1 sigma projection error, worst direction (px, log scale)",
+                 shrink=0.85)
+    levels = [v for v in (0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0)
+              if umap.sigma_px.min() < v < umap.sigma_px.max()]
+    if levels:
+        contours = ax.contour(umap.xs, umap.ys, umap.sigma_px, levels=levels, colors="k",
+                              linewidths=0.7)
+        ax.clabel(contours, fmt="%g px", fontsize=8)
+    for value, (x, y, ha, va) in zip(umap.corners_px.values(), (
+            (0, 0, "left", "top"), (w - 1, 0, "right", "top"), (w - 1, h - 1, "right", "bottom"),
+            (0, h - 1, "left", "bottom"))):
+        color = "tab:red" if value > umap.limit_px else "k"
+        ax.annotate(f"{value:.2f} px", (x, y), xytext=(6 if ha == "left" else -6,
+                                                       -6 if va == "top" else 6),
+                    textcoords="offset points", ha=ha, va=va, fontsize=9, color=color,
+                    bbox={"boxstyle": "round", "fc": "white", "alpha": 0.8, "lw": 0})
+    ax.set_xlim(extent[0], extent[1])
+    ax.set_ylim(extent[2], extent[3])
+    ax.set_aspect("equal")
+    ax.set_title(f"Projection uncertainty: median {umap.median_px:.2f} px, "
+                 f"worst {umap.worst_px:.2f} px, centre {umap.centre_px:.2f} px")
     return fig

@@ -15,12 +15,18 @@ reconstruction are computed once per feature mode and reused by every plot.
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .camera import scale_intrinsics_halved, validate_distortion, validate_intrinsics
+from .camera import (
+    scale_intrinsics,
+    scale_intrinsics_halved,
+    validate_distortion,
+    validate_intrinsics,
+)
 from .features import Matches, find_matches, normalize_feature_mode
 from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, load_working_images
 from .rectification import RectifiedPair, rectify_pair
@@ -30,6 +36,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from .dense import DenseReconstruction
+    from .selfcalibration import SelfCalibration, SelfCalibrationSettings
 
 logger = logging.getLogger(__name__)
 
@@ -62,6 +69,8 @@ class SceneReconstruction3D:
         All putative matches.
     match_inliers1, match_inliers2 : (M, 2)
         The essential-matrix inliers.
+    self_calibration : SelfCalibration or None
+        What :meth:`self_calibrate` found (photos without a calibration file).
     """
 
     def __init__(self, K: ArrayLike, dist: ArrayLike | None = None,
@@ -78,6 +87,7 @@ class SceneReconstruction3D:
         self._matches: dict[str, Matches] = {}
         self._results: dict[str, TwoViewReconstruction] = {}
         self._dense: dict[tuple[str, int], DenseReconstruction] = {}
+        self.self_calibration: SelfCalibration | None = None
 
     # -- loading -----------------------------------------------------------------
     def load_image_pair(self, img1: ImageSource, img2: ImageSource, use_pyr_down: bool = True,
@@ -107,6 +117,7 @@ class SceneReconstruction3D:
         self._matches.clear()
         self._results.clear()
         self._dense.clear()
+        self.self_calibration = None
         logger.info("working size %dx%d (halved %d times)", a.shape[1], a.shape[0], levels)
 
     def _require_images(self) -> tuple[np.ndarray, np.ndarray]:
@@ -145,6 +156,46 @@ class SceneReconstruction3D:
         self.F, self.E = result.F, result.E
         self.Rt1, self.Rt2 = result.Rt1, result.Rt2
         return result
+
+    def self_calibrate(self, feat_mode: str = "SIFT", prior_sigma_log: float = 0.5,
+                       prior_source: str = "prior",
+                       search: SelfCalibrationSettings | None = None) -> SelfCalibration:
+        """Find the focal length from the loaded pair, starting from the one in ``K``.
+
+        For photos without a calibration: ``K`` (given to the constructor) holds the
+        EXIF or prior focal length and the principal point at the image centre
+        (:class:`scene3D.intrinsics_prior.FocalPrior`), ``prior_sigma_log`` its
+        uncertainty and ``prior_source`` (``"exif"`` or ``"prior"``) where it comes
+        from. :func:`scene3D.selfcalibration.self_calibrate_pair` refines it on the
+        matches of ``feat_mode``; ``K`` (and ``K_native``) become the result's, and
+        :meth:`reconstruct` and every plot use them. The doubts about the focal length
+        join the reconstruction's ``warnings`` (and can make it untrusted).
+
+        Raises
+        ------
+        ReconstructionError
+            The pair is refused under every focal length tried.
+        """
+        from .selfcalibration import self_calibrate_pair
+
+        mode = normalize_feature_mode(feat_mode)
+        matches = self.matches(mode)
+        calibration = self_calibrate_pair(matches.pts1, matches.pts2, self.K, prior_sigma_log,
+                                          prior_source, self.settings, search)
+        up = 2.0 ** self.halvings
+        self.K = calibration.K.copy()
+        self.K_inv = np.linalg.inv(self.K)
+        self.K_native = scale_intrinsics(self.K, up, up)
+        self._results.clear()
+        self._dense.clear()
+        self.self_calibration = calibration
+        result = reconstruct_two_view(self._require_images()[0], matches, self.K, self.settings)
+        self._results[mode] = replace(result, trusted=result.trusted and calibration.trusted,
+                                      warnings=result.warnings + calibration.warnings)
+        for warning in calibration.warnings:
+            logger.warning("%s", warning)
+        self.reconstruct(mode)
+        return calibration
 
     def rectify(self, feat_mode: str = "SIFT") -> RectifiedPair:
         """Rectify the working pair with the estimated pose."""

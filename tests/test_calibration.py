@@ -155,6 +155,14 @@ def test_board_spec_validation():
 
 # -- the command ---------------------------------------------------------------------
 
+def fs_value(path, key):
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    try:
+        return fs.getNode(key).real()
+    finally:
+        fs.release()
+
+
 def test_cli_on_opencv_left_writes_a_readable_calibration(tmp_path, chessboards, capsys):
     out = tmp_path / "left.yaml"
     code = main(["--images", str(chessboards / "opencv-left"), "--out", str(out),
@@ -172,6 +180,20 @@ def test_cli_on_opencv_left_writes_a_readable_calibration(tmp_path, chessboards,
     np.testing.assert_allclose(camera.K, OPENCV_LEFT_K, atol=2.0)
     assert (tmp_path / "left_coverage.png").exists()
     assert (tmp_path / "left_view_errors.png").exists()
+    assert (tmp_path / "left_uncertainty.png").read_bytes().startswith(b"\x89PNG")
+    assert "projection uncertainty (1 sigma): median" in captured.out
+    assert fs_value(out, "projection_uncertainty_median_px") < 1.0
+    report = (tmp_path / "left_report.html").read_text()
+    assert "Projection uncertainty" in report and "left14.jpg" in report
+    # --no-report: no report, and an existing one is no reason to refuse.
+    (tmp_path / "left_report.html").unlink()
+    assert main(["--images", str(chessboards / "opencv-left"), "--out",
+                 str(tmp_path / "other.yaml"), "--no-report", "-q"]) == 0
+    assert not (tmp_path / "other_report.html").exists()
+    assert (tmp_path / "other_uncertainty.png").exists()
+    assert main(["--images", str(chessboards / "opencv-left"), "--out", str(out),
+                 "--force", "-q"]) == 0
+    assert (tmp_path / "left_report.html").exists()
     # Never overwrite without --force.
     before = out.read_bytes()
     assert main(["--images", str(chessboards / "opencv-left"), "--out", str(out)]) == 2

@@ -2,6 +2,7 @@
 
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -15,6 +16,7 @@ from scene3D.camera import scale_intrinsics
 from scene3D.datasets import read_strecha_camera, relative_pose
 from scene3D.evaluation import relative_pose_error
 from scene3D.export import read_ply
+from scene3D.geometry import angle_between_deg
 
 from .conftest import REPO
 
@@ -48,7 +50,7 @@ def test_default_run_is_the_book_pair_against_ground_truth(tmp_path, data_root):
     assert proc.returncode == 0, proc.stderr
     out = tmp_path / "out"
     names = {"optic_flow.png", "epipolar_lines.png", "rectified.png", "point_cloud.png",
-             "point_cloud.ply", "reconstruction.json"}
+             "point_cloud.ply", "reconstruction.json", "report.html"}
     assert {p.name for p in out.iterdir()} == names
     for name in names:
         assert f"Wrote '{out / name}'" in proc.stdout
@@ -73,6 +75,11 @@ def test_default_run_is_the_book_pair_against_ground_truth(tmp_path, data_root):
     assert len(points) == summary["num_points"] > 200
     assert colors.shape == (len(points), 3)
     assert np.all(points[:, 2] > 0)  # in front of camera 1
+    # The printed centre of camera 2 is where the truth puts it, in camera 1's frame.
+    printed = re.search(r"centre at \(([-+.\d]+), ([-+.\d]+), ([-+.\d]+)\) in camera 1's frame",
+                        proc.stdout)
+    R_true, t_true = relative_pose(cam4, cam5)
+    assert angle_between_deg([float(v) for v in printed.groups()], -R_true.T @ t_true) < 3.0
 
 
 def test_synthetic_pair_with_calibration_file(tmp_path, synthetic_files, rendered_pair):
@@ -129,7 +136,7 @@ def test_console_script_reconstruct(tmp_path, synthetic_files):
     ("no_matrix", 2, "no 'camera_matrix'"),
     ("aspect", 2, "aspect ratio"),
     ("out_is_file", 2, "is not a folder"),
-    ("no_calib", 2, "--calib"),
+    ("sizes_no_calib", 2, "at one size"),
     ("one_image", 2, "exactly two images"),
     ("same_image", 2, "image given twice"),
     ("rotation", 1, "pure rotation"),
@@ -151,7 +158,7 @@ def test_bad_inputs_exit_codes_and_messages(tmp_path, synthetic_files, case, cod
         "no_matrix": [f / "a.png", f / "b.png", "--calib", tmp_path / "nomatrix.yaml"],
         "aspect": [f / "a.png", f / "b.png", "--calib", f / "camera_wide.yaml"],
         "out_is_file": [f / "a.png", f / "b.png", "--calib", calib, "--out", tmp_path / "file"],
-        "no_calib": [f / "a.png", f / "b.png"],
+        "sizes_no_calib": [f / "a.png", f / "small.png"],
         "one_image": [f / "a.png", "--calib", calib],
         "same_image": [f / "a.png", f / ".." / f.name / "a.png", "--calib", calib],
         "rotation": [f / "a.png", f / "rot.png", "--calib", calib],
@@ -187,8 +194,8 @@ def test_help_explains_the_outputs():
                           capture_output=True, text=True)
     assert proc.returncode == 0
     for word in ("--calib", "--feature", "--no-pyr-down", "--max-width", "--out", "--no-plots",
-                 "--show", "reconstruction.json", "exit codes"):
-        assert word in proc.stdout
+                 "--no-report", "report.html", "--show", "reconstruction.json", "exit codes"):
+        assert word in " ".join(proc.stdout.split())
 
 
 def test_dense_outputs(tmp_path, synthetic_files):
@@ -201,6 +208,10 @@ def test_dense_outputs(tmp_path, synthetic_files):
     assert len(points) == summary["dense"]["num_points"] > 50_000
     assert (tmp_path / "disparity.png").read_bytes().startswith(b"\x89PNG")
     assert "dense" in summary["timings_s"]
+    # The report's 3D view holds both clouds.
+    report = (tmp_path / "report.html").read_text()
+    assert f'"name":"dense ({summary["dense"]["num_points"]:,})"' in report
+    assert f'"name":"sparse ({summary["num_points"]:,})"' in report
 
 
 def test_show_without_a_display_warns_and_still_writes(tmp_path, synthetic_files):

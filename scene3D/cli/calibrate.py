@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import glob
+import io
 import logging
 import sys
 from collections import Counter
@@ -25,9 +26,10 @@ from ..calibration import (
     detect_board,
     save_calibration,
 )
+from ..calibration_uncertainty import CORNER_LIMIT_PX, UncertaintyMap, uncertainty_map
 from ..camera import undistort_image
 from ..errors import CalibrationError
-from ..export import atomic_write_bytes, save_figure
+from ..export import atomic_write_bytes
 from ..imageio import IMAGE_SUFFIXES, image_size, load_bgr, read_image_size
 from .common import (
     EXIT_CODES_HELP,
@@ -40,7 +42,6 @@ from .common import (
 )
 
 logger = logging.getLogger("scene3D.cli")
-
 
 
 def _board_size(text: str) -> tuple[int, int]:
@@ -62,8 +63,10 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
         ),
         epilog=(
             "The output is OpenCV FileStorage YAML (camera_matrix, distortion_coefficients, "
-            "image_width, image_height, rms_px, per_view_errors, board, date); NAME_coverage.png "
-            "and NAME_view_errors.png are written beside it (NAME: --out without its suffix). "
+            "image_width, image_height, rms_px, per_view_errors, board, date); NAME_coverage.png, "
+            "NAME_view_errors.png, NAME_uncertainty.png (the projection-uncertainty map) and "
+            "NAME_report.html (one self-contained page with the numbers and the figures) are "
+            "written beside it (NAME: --out without its suffix). "
             f"Nothing is overwritten without --force. {EXIT_CODES_HELP}."
         ),
     )
@@ -102,6 +105,11 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, default=Path("camera.yaml"), metavar="FILE",
                         help="output calibration (default camera.yaml)")
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    parser.add_argument("--uncertainty-limit", type=positive_float, default=CORNER_LIMIT_PX,
+                        metavar="PX",
+                        help="warn when the projection uncertainty (1 sigma) at an image corner "
+                             f"exceeds this (default {CORNER_LIMIT_PX:g} px)")
+    parser.add_argument("--no-report", action="store_true", help="skip NAME_report.html")
     parser.add_argument("--save-undistorted", type=Path, metavar="DIR",
                         help="also write the undistorted views into DIR")
     parser.add_argument("--show", action="store_true",
@@ -218,7 +226,8 @@ def collect_views(args: argparse.Namespace, board: BoardSpec, keep_images: bool 
     return views, images, size, seen
 
 
-def _report(result: CalibrationResult) -> str:
+def _result_lines(result: CalibrationResult, umap: UncertaintyMap) -> list[str]:
+    """What the command prints (also the head of the report)."""
     K, d, std = result.K, result.dist, result.std_intrinsics
     lines = [
         f"RMS reprojection error: {result.rms_px:.4f} px over {len(result.per_view_errors_px)} "
@@ -234,12 +243,44 @@ def _report(result: CalibrationResult) -> str:
     if result.rejected_views:
         lines.append("dropped as outliers (> 3x median error): " + ", ".join(
             f"{n} ({e:.2f} px)" for n, e in result.rejected_views.items()))
-    return "\n".join(lines)
+    corners = ", ".join(f"{v:.2f}" for v in umap.corners_px.values())
+    lines.append(f"projection uncertainty (1 sigma): median {umap.median_px:.2f} px, worst "
+                 f"{umap.worst_px:.2f} px, centre {umap.centre_px:.2f} px, corners {corners} px")
+    return lines
+
+
+def _report_numbers(result: CalibrationResult) -> dict:
+    """The named values of the report's table."""
+    std = result.std_intrinsics
+    numbers: dict = {"image size": f"{result.image_size[0]}x{result.image_size[1]}",
+                     "board": result.board.describe(),
+                     "views kept": len(result.per_view_errors_px),
+                     "views dropped": len(result.rejected_views),
+                     "RMS reprojection error (px)": result.rms_px}
+    if result.covariance is not None:
+        numbers["corner noise, 1 sigma per coordinate (px)"] = \
+            result.covariance.residual_sigma_px
+    for name, (i, j) in {"fx": (0, 0), "fy": (1, 1), "cx": (0, 2), "cy": (1, 2)}.items():
+        numbers[f"{name} (px)"] = f"{result.K[i, j]:.3f} +- {std[name]:.3f}"
+    for name, value in zip(("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"), result.dist):
+        numbers[name] = f"{value:+.5f} +- {std.get(name, float('nan')):.5f}"
+    return numbers
+
+
+def _png(fig) -> bytes:
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=100, bbox_inches="tight")
+    return buffer.getvalue()
 
 
 def _outputs(args: argparse.Namespace) -> list[Path]:
+    """The calibration, its three figures and (unless --no-report) its report."""
     stem = args.out.with_suffix("")
-    return [args.out, Path(f"{stem}_coverage.png"), Path(f"{stem}_view_errors.png")]
+    outputs = [args.out] + [Path(f"{stem}_{name}.png")
+                            for name in ("coverage", "view_errors", "uncertainty")]
+    if not args.no_report:
+        outputs.append(Path(f"{stem}_report.html"))
+    return outputs
 
 
 def run(args: argparse.Namespace) -> int:
@@ -274,11 +315,16 @@ def run(args: argparse.Namespace) -> int:
         raise CalibrationError(f"{exc} (--max-rms); {hint}", exc.reason) from None
     kept = [v for v in views if v.name in result.per_view_errors_px]
     counts = corner_coverage([v.image_points for v in kept], size)
-    warnings = coverage_warnings(counts)
+    if result.covariance is None:
+        raise CalibrationError("no covariance of the intrinsics: the projection uncertainty "
+                               "cannot be computed")
+    umap = uncertainty_map(result.K, result.dist, result.covariance, size,
+                           limit_px=args.uncertainty_limit)
+    warnings = coverage_warnings(counts) + umap.warnings
     for w in warnings:
         logger.warning("%s", w)
 
-    from ..plotting import plot_calibration_coverage, plot_view_errors
+    from ..plotting import plot_calibration_coverage, plot_uncertainty_map, plot_view_errors
 
     extras = {
         "rms_px": result.rms_px,
@@ -286,6 +332,8 @@ def run(args: argparse.Namespace) -> int:
         "view_names": ";".join(result.per_view_errors_px),
         "std_intrinsics": np.array([result.std_intrinsics[k] for k in ("fx", "fy", "cx", "cy")]
                                    ).reshape(1, -1),
+        "projection_uncertainty_median_px": umap.median_px,
+        "projection_uncertainty_worst_px": umap.worst_px,
         "board": board.describe(),
         "square_size_m": board.square_size_m,
         "calibration_date": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
@@ -297,22 +345,38 @@ def run(args: argparse.Namespace) -> int:
         existing = [target for target in undistorted if target.exists()]
         if existing and not args.force:
             raise UsageError(f"'{existing[0]}' exists; use --force to overwrite it")
-        args.save_undistorted.mkdir(parents=True, exist_ok=True)
 
+    # Everything in memory first; the files are written once all of it exists.
+    figures = {
+        outputs[1].name: _png(plot_calibration_coverage([v.image_points for v in kept], size,
+                                                        counts)),
+        outputs[2].name: _png(plot_view_errors(result.per_view_errors_px,
+                                               result.rejected_views)),
+        outputs[3].name: _png(plot_uncertainty_map(umap)),
+    }
+    lines = _result_lines(result, umap)
+    report = None
+    if not args.no_report:
+        from ..report import calibration_report
+
+        report = calibration_report(lines, _report_numbers(result), result.per_view_errors_px,
+                                    result.rejected_views, warnings, umap, figures)
+
+    if args.save_undistorted is not None:
+        args.save_undistorted.mkdir(parents=True, exist_ok=True)
     written = [save_calibration(args.out, result.as_camera(), extras, overwrite=args.force)]
-    written.append(save_figure(
-        plot_calibration_coverage([v.image_points for v in kept], size, counts), outputs[1]))
-    written.append(save_figure(plot_view_errors(result.per_view_errors_px,
-                                                result.rejected_views), outputs[2]))
+    written += [atomic_write_bytes(path, figures[path.name]) for path in outputs[1:4]]
+    if report is not None:
+        written.append(atomic_write_bytes(outputs[4], report.encode("utf-8")))
     for target, img in zip(undistorted, images):  # one undistorted image in memory at a time
         png = cv2.imencode(".png", undistort_image(img, result.K, result.dist))[1]
         written.append(atomic_write_bytes(target, png.tobytes()))
     if not args.quiet:
-        print(_report(result))
+        print("\n".join(lines))
     for path in written:
         print(f"Wrote '{path}'")
     if args.show:
-        show_images(written[1:3])
+        show_images(written[1:4])
     return EXIT_OK
 
 

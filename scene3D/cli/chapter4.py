@@ -6,18 +6,21 @@ import argparse
 import logging
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from .. import __version__
-from ..calibration_io import CameraCalibration, load_calibration
+from ..calibration_io import load_calibration
 from ..camera import adapt_intrinsics_to_size
 from ..datasets import BOOK_PAIR, fetch_fountain_p11
-from ..export import save_figure, write_json, write_ply
+from ..export import atomic_write_bytes, write_json, write_ply
 from ..features import FEATURE_MODES, normalize_feature_mode
-from ..geometry import rotation_angle_deg
+from ..geometry import camera_centers, rotation_angle_deg
 from ..imageio import BOOK_MAX_WIDTH_PX, image_size, read_image_size
+from ..intrinsics_prior import FocalPrior
 from ..scene import SceneReconstruction3D
 from ..twoview import TwoViewSettings
 from .common import (
@@ -29,6 +32,7 @@ from .common import (
     add_feature_arg,
     add_size_args,
     check_distinct_images,
+    check_report_viewer,
     prepare_output_dir,
     run_command,
     show_images,
@@ -39,6 +43,7 @@ logger = logging.getLogger("scene3D.cli")
 REPO_DATA = Path(__file__).resolve().parents[2] / "data"
 DEFAULT_CALIB = REPO_DATA / "fountain_P11_intrinsics.yaml"
 PLOT_FILES = ("optic_flow.png", "epipolar_lines.png", "rectified.png", "point_cloud.png")
+REPORT_FILE = "report.html"
 
 
 def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
@@ -53,7 +58,9 @@ def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
         epilog=(
             f"Outputs in --out: {', '.join(PLOT_FILES)}, point_cloud.ply (binary, RGB), "
             "with --dense dense.ply and disparity.png, and reconstruction.json (R, t with "
-            "x_cam2 = R x_cam1 + t and |t| = 1: the scale is unknown). Files are replaced "
+            "x_cam2 = R x_cam1 + t and |t| = 1: the scale is unknown), and report.html (one "
+            "self-contained page: the numbers, the figures and an interactive 3D view of the "
+            "cloud and the cameras; it opens offline). Files are replaced "
             f"only once the run has succeeded. {EXIT_CODES_HELP}."
         ),
     )
@@ -61,8 +68,10 @@ def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
                         help="two photos of the same scene (default: the book's pair)")
     parser.add_argument("--calib", type=Path, metavar="FILE",
                         help="camera calibration (OpenCV YAML/XML as calibrate.py writes it); "
-                             "required with your own images; scaled when the images have the "
-                             "same aspect ratio but another size")
+                             "scaled when the images have the same aspect ratio but another "
+                             "size. Without it your own photos are self-calibrated: one focal "
+                             "length, from EXIF (or 1.2 x the longer side) refined by the "
+                             "photos, principal point at the centre, no distortion")
     add_feature_arg(parser, [m.lower() for m in FEATURE_MODES])
     add_size_args(parser, BOOK_MAX_WIDTH_PX, "the book's rule, 3072 -> 768")
     add_bundle_adjust_arg(parser)
@@ -72,21 +81,21 @@ def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, default=Path("out"), metavar="DIR",
                         help="output folder (default: out/)")
     parser.add_argument("--no-plots", action="store_true",
-                        help="skip the PNG figures (faster; matplotlib is not imported)")
+                        help="skip the PNG figures")
+    parser.add_argument("--no-report", action="store_true",
+                        help=f"skip {REPORT_FILE}")
     parser.add_argument("--show", action="store_true",
                         help="also open the figures in windows when a display exists")
     add_common_args(parser)
     return parser
 
 
-def _resolve_inputs(args: argparse.Namespace) -> tuple[Path, Path, Path]:
-    """Image paths and calibration file, after the defaults."""
+def _resolve_inputs(args: argparse.Namespace) -> tuple[Path, Path, Path | None]:
+    """Image paths and calibration file, after the defaults (None: self-calibrate)."""
     if len(args.images) not in (0, 2):
         raise UsageError(f"give exactly two images (or none for the book's pair), got "
                          f"{len(args.images)}")
     if args.images:
-        if args.calib is None:
-            raise UsageError("your own images need --calib FILE (make one with calibrate.py)")
         path1, path2 = Path(args.images[0]), Path(args.images[1])
         check_distinct_images([path1, path2])
         return path1, path2, args.calib
@@ -95,22 +104,80 @@ def _resolve_inputs(args: argparse.Namespace) -> tuple[Path, Path, Path]:
     return folder / BOOK_PAIR[0], folder / BOOK_PAIR[1], calib
 
 
-def _load_camera(calib_path: Path) -> CameraCalibration:
+class _Camera(NamedTuple):
+    """The camera to start from: a calibration file's, or a prior to self-calibrate."""
+
+    K: np.ndarray
+    dist: np.ndarray
+    image_size: tuple[int, int]
+    prior: FocalPrior | None = None
+
+
+def _load_camera(calib_path: Path | None, images: tuple[Path, Path]) -> _Camera:
+    """The calibration file's camera, or without one the EXIF/default focal prior of
+    ``images`` (:func:`scene3D.exif.read_camera_prior`: one camera is checked)."""
+    if calib_path is None:
+        from ..exif import read_camera_prior
+
+        prior = read_camera_prior(images)
+        return _Camera(prior.K, np.zeros(5), prior.image_size, prior)
     if calib_path == DEFAULT_CALIB and not calib_path.is_file():
         # An installed copy without the repository's data/ folder: the same K from the dataset.
         K = np.loadtxt(fetch_fountain_p11(("images/K.txt",)) / "images" / "K.txt")
-        return CameraCalibration(K, np.zeros(5), (3072, 2048))
-    return load_calibration(calib_path)
+        return _Camera(K, np.zeros(5), (3072, 2048))
+    camera = load_calibration(calib_path)
+    return _Camera(camera.K, camera.dist, camera.image_size)
 
 
-def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path], calib: Path,
-             timings: dict[str, float], requested: str) -> dict:
+def _self_calibrate(scene: SceneReconstruction3D, camera: _Camera, mode: str) -> list[str]:
+    """Without a calibration file: the focal length from the photos (``scene.K`` changes).
+    Returns the line to print about it (none with a calibration file)."""
+    if camera.prior is None:
+        return []
+    calibration = scene.self_calibrate(mode, camera.prior.sigma_log, camera.prior.source)
+    how = "refined by the photos" if calibration.determined else \
+        "kept: the photos could not refine it"
+    return [f"focal length {calibration.focal_px:.1f} px +-{calibration.focal_sigma_px:.1f} "
+            f"at the working size ({camera.prior.description}; {how})"]
+
+
+def _calibration_fields(scene: SceneReconstruction3D, camera: _Camera | None = None) -> dict:
+    """The JSON's calibration fields: where the final ``K`` comes from and how sure it is."""
+    calibration = scene.self_calibration
+    if calibration is None:
+        return {"calibration_source": "file", "focal_px_sigma": None, "self_calibration": None}
+    prior = camera.prior if camera is not None else None
+    return {
+        "calibration_source": calibration.source,
+        "focal_px_sigma": calibration.focal_sigma_px,
+        "self_calibration": {
+            "start": prior.description if prior is not None else None,
+            "camera": prior.camera_name if prior is not None else None,
+            "start_focal_px": calibration.start_focal_px,
+            "start_sigma_log": calibration.start_sigma_log,
+            "photos_focal_px": calibration.data_focal_px,
+            "photos_sigma_log": calibration.data_sigma_log,
+            "photos_sigma_parts_log": calibration.uncertainty._asdict(),
+            "determined": calibration.determined,
+            "candidates_px": [focal for focal, _ in calibration.candidates],
+            "iterations": calibration.iterations,
+            "seconds": calibration.seconds,
+            "exif_warnings": list(prior.warnings) if prior is not None else [],
+        },
+    }
+
+
+def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path],
+             calib: Path | None, timings: dict[str, float], requested: str,
+             camera: _Camera | None = None) -> dict:
     return {
         "scene3D_version": __version__,
         "conventions": "x_cam2 = R @ x_cam1 + t; |t| = 1 (scale unknown); points3d in the "
                        "camera-1 frame; pixels with integer coordinates at pixel centres",
-        "inputs": {"image1": str(paths[0]), "image2": str(paths[1]), "calibration": str(calib)},
+        "inputs": {"image1": str(paths[0]), "image2": str(paths[1]),
+                   "calibration": None if calib is None else str(calib)},
         "R": result.R, "t": result.t, "K": result.K,
+        **_calibration_fields(scene, camera),
         "image_size": list(image_size(scene.img1)),
         "native_image_size": list(scene.native_size),
         "feature": result.feature, "feature_requested": requested,
@@ -126,12 +193,106 @@ def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path], cal
     }
 
 
+def _dense_summary(dense) -> dict:
+    return {"num_points": dense.num_points, "disparity_range_px": list(dense.disparity_range)}
+
+
+def _result_lines(scene: SceneReconstruction3D, result, paths: tuple[Path, Path],
+                  dense) -> list[str]:
+    """What the command prints about the result (also the head of the report)."""
+    w, h = image_size(scene.img1)
+    lines = [f"{paths[0].name} + {paths[1].name} at {w}x{h}, {result.feature}: "
+             f"{result.num_matches} matches, {result.num_inliers} inliers, "
+             f"{result.num_points} points, reprojection RMSE "
+             f"{result.reprojection_rmse_px:.3f} px"]
+    if dense is not None:
+        lines.append(f"dense: {dense.num_points} points from disparities in "
+                     f"[{dense.disparity_range[0]}, {dense.disparity_range[1]}) px")
+    center = camera_centers(result.R[None], result.t[None])[0]  # camera 2 in camera 1's frame
+    lines.append(f"camera 2: rotated {rotation_angle_deg(result.R):.2f} deg, centre at "
+                 f"({center[0]:+.3f}, {center[1]:+.3f}, {center[2]:+.3f}) in camera 1's frame "
+                 "(x right, y down, z forward; unit baseline)")
+    if not result.trusted:
+        lines.append("warning: the pose may not be trustworthy: " + "; ".join(result.warnings))
+    return lines
+
+
+def _figure_jobs(scene: SceneReconstruction3D, result, dense) -> dict[str, Callable]:
+    """The figures to write, each a function drawing it with OpenCV (pure functions of the
+    images and the result, so that they can run in threads; cv2 releases the GIL)."""
+    from ..drawing import (
+        draw_disparity,
+        draw_epipolar_lines,
+        draw_optic_flow,
+        draw_rectified,
+        frustum_corners,
+        render_point_cloud,
+        robust_extent,
+    )
+    from ..features import find_matches
+    from ..rectification import rectify_pair
+
+    img1, img2, K = scene.img1, scene.img2, scene.K
+
+    def optic_flow():
+        flow = find_matches(img1, img2, "flow")  # the book's figure tracks corners
+        return draw_optic_flow(img1, flow.pts1, flow.pts2)
+
+    def point_cloud():
+        lo, hi = robust_extent(result.points3d)
+        frusta = frustum_corners(np.stack([np.eye(3), result.R]),
+                                 np.stack([np.zeros(3), result.t]), K, image_size(img1),
+                                 0.08 * float(np.linalg.norm(hi - lo)))
+        return render_point_cloud(result.points3d, result.colors, frusta, title=(
+            f"Point cloud: {result.num_points} points, 2 cameras (red), unit baseline"))
+
+    jobs = {
+        "optic_flow.png": optic_flow,
+        "epipolar_lines.png": lambda: draw_epipolar_lines(
+            img1, img2, result.F, result.inlier_pts1, result.inlier_pts2),
+        "rectified.png": lambda: draw_rectified(rectify_pair(img1, img2, K, result.R, result.t)),
+        "point_cloud.png": point_cloud,
+    }
+    if dense is not None:
+        jobs["disparity.png"] = lambda: draw_disparity(dense.disparity)
+    return jobs
+
+
+def _encode(job: Callable) -> tuple[bytes, bytes]:
+    """A figure's PNG (the file) and JPEG (for the report) bytes."""
+    from ..drawing import encode_jpeg, encode_png, titled
+
+    image = titled(job())
+    return encode_png(image), encode_jpeg(image)
+
+
+def _figures_and_view(scene: SceneReconstruction3D, result, dense, plots: bool, report: bool
+                      ) -> tuple[dict[str, tuple[bytes, bytes]], object]:
+    """Figures encoded in two threads while this one prepares the report's 3D view."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        futures = {name: pool.submit(_encode, job)
+                   for name, job in (_figure_jobs(scene, result, dense) if plots else {}).items()}
+        view = None
+        if report:
+            from ..report import prepare_view, two_view_layers
+
+            view = prepare_view(*two_view_layers(
+                result.points3d, result.colors, result.R, result.t, scene.K,
+                image_size(scene.img1), None if dense is None else dense.points3d,
+                None if dense is None else dense.colors))
+        return {name: future.result() for name, future in futures.items()}, view
+
+
 def run(args: argparse.Namespace) -> int:
     t_start = time.perf_counter()
     mode = normalize_feature_mode(args.feature)
     path1, path2, calib_path = _resolve_inputs(args)
-    camera = _load_camera(calib_path)
+    camera = _load_camera(calib_path, (path1, path2))
     out = prepare_output_dir(args.out)
+    if not args.no_report:
+        check_report_viewer()
 
     t0 = time.perf_counter()
     K = adapt_intrinsics_to_size(camera.K, camera.image_size, read_image_size(path1))
@@ -141,56 +302,54 @@ def run(args: argparse.Namespace) -> int:
                           max_width=args.max_width)
     load_s = time.perf_counter() - t0
 
+    calibration_lines = _self_calibrate(scene, camera, mode)
     result = scene.reconstruct(mode)
     timings = {"load": load_s, **{k: v for k, v in result.timings_s.items() if k != "total"}}
 
-    figures = {}
-    if not args.no_plots:
-        t0 = time.perf_counter()
-        figures = {
-            "optic_flow.png": scene.plot_optic_flow(),
-            "epipolar_lines.png": scene.draw_epipolar_lines(mode),
-            "rectified.png": scene.plot_rectified_images(mode),
-            "point_cloud.png": scene.plot_point_cloud(mode),
-        }
-        timings["plots"] = time.perf_counter() - t0
     dense = None
     if args.dense:
         t0 = time.perf_counter()
         dense = scene.dense_point_cloud(mode)
         timings["dense"] = time.perf_counter() - t0
-        if not args.no_plots:
-            from ..plotting import plot_disparity
 
-            figures["disparity.png"] = plot_disparity(dense.disparity)
-
-    # Everything is computed: only now touch the output folder.
+    # Figures and report are made in memory first; files are written only once all is done.
     t0 = time.perf_counter()
-    written = [save_figure(fig, out / name) for name, fig in figures.items()]
+    encoded, view = _figures_and_view(scene, result, dense, not args.no_plots,
+                                      not args.no_report)
+    timings["plots"] = time.perf_counter() - t0  # figures, and the 3D view's data alongside
+    figures = {name: png for name, (png, _) in encoded.items()}
+    lines = _result_lines(scene, result, (path1, path2), dense)
+    lines[1:1] = calibration_lines
+    report = None
+    if view is not None:
+        from ..report import two_view_report
+
+        t0 = time.perf_counter()
+        partial = _summary(scene, result, (path1, path2), calib_path, dict(timings), args.feature,
+                           camera)
+        if dense is not None:
+            partial["dense"] = _dense_summary(dense)
+        report = two_view_report(partial, lines, {n: jpg for n, (_, jpg) in encoded.items()},
+                                 view)
+        timings["report"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    written = [atomic_write_bytes(out / name, png) for name, png in figures.items()]
     written.append(write_ply(out / "point_cloud.ply", result.points3d, result.colors))
     if dense is not None:
         written.append(write_ply(out / "dense.ply", dense.points3d, dense.colors))
+    if report is not None:
+        written.append(atomic_write_bytes(out / REPORT_FILE, report.encode("utf-8")))
     timings["write"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
-    summary = _summary(scene, result, (path1, path2), calib_path, timings, args.feature)
+    summary = _summary(scene, result, (path1, path2), calib_path, timings, args.feature, camera)
     if dense is not None:
-        summary["dense"] = {"num_points": dense.num_points,
-                            "disparity_range_px": list(dense.disparity_range)}
+        summary["dense"] = _dense_summary(dense)
     written.append(write_json(out / "reconstruction.json", summary))
 
     if not args.quiet:
-        w, h = image_size(scene.img1)
-        print(f"{path1.name} + {path2.name} at {w}x{h}, {result.feature}: "
-              f"{result.num_matches} matches, {result.num_inliers} inliers, "
-              f"{result.num_points} points, reprojection RMSE "
-              f"{result.reprojection_rmse_px:.3f} px, {timings['total']:.2f} s")
-        if dense is not None:
-            print(f"dense: {dense.num_points} points from disparities in "
-                  f"[{dense.disparity_range[0]}, {dense.disparity_range[1]}) px")
-        print(f"camera 2: rotated {rotation_angle_deg(result.R):.2f} deg, moved towards "
-              f"({result.t[0]:+.3f}, {result.t[1]:+.3f}, {result.t[2]:+.3f}) (unit baseline)")
-        if not result.trusted:
-            print("warning: the pose may not be trustworthy: " + "; ".join(result.warnings))
+        lines[0] += f", {timings['total']:.2f} s"
+        print("\n".join(lines))
     for path in written:
         print(f"Wrote '{path}'")
     if args.show and figures:

@@ -58,6 +58,17 @@ def check_distinct_images(paths: list[Path]) -> None:
         seen[key] = path
 
 
+def check_report_viewer() -> None:
+    """Raise :class:`UsageError` (before any work) when the report's 3D view cannot be
+    made: plotly.js comes from the ``plotly`` package."""
+    from ..report.viewer import MissingViewerError, plotly_js_path
+
+    try:
+        plotly_js_path()
+    except MissingViewerError as exc:
+        raise UsageError(str(exc)) from None
+
+
 def add_common_args(parser: argparse.ArgumentParser) -> None:
     """``-v/--verbose``, ``-q/--quiet`` and ``--debug``."""
     group = parser.add_argument_group("output and diagnostics")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import csv
 import io
+import math
 import re
 import sys
 import time
@@ -61,6 +62,13 @@ def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
     add_size_args(parser, BOOK_MAX_WIDTH_PX, "the book's rule, 3072 -> 768")
     add_feature_arg(parser, [m.lower() for m in FEATURE_MODES])
     add_bundle_adjust_arg(parser)
+    parser.add_argument("--no-calib", action="store_true",
+                        help="ignore the camera files' intrinsics and distortion: each pair "
+                             "starts from its photos' EXIF focal length (or 1.2 x the longer "
+                             "side), principal point at the centre, and self-calibrates its "
+                             "focal length, as chapter4.py does without --calib; the 'focal "
+                             "fit' column is then the focal length found over the camera "
+                             "file's, and the summary gives the median focal error")
     parser.add_argument("--csv", type=Path, metavar="FILE",
                         help="also write the per-pair rows (with notes) to this CSV file")
     parser.add_argument("--force", action="store_true",
@@ -106,8 +114,10 @@ class _Views:
     """
 
     def __init__(self, views: list[tuple[Path, Path]], cameras: list[StrechaCamera],
-                 max_width: int | None, feature: str, pairs: list[tuple[int, int]]) -> None:
+                 max_width: int | None, feature: str, pairs: list[tuple[int, int]],
+                 no_calib: bool = False) -> None:
         self.paths = [image for image, _ in views]
+        self.no_calib = no_calib  # load without the camera files' distortion
         self.cameras, self.max_width, self.feature = cameras, max_width, feature
         self.last_use = {i: k for k, pair in enumerate(pairs) for i in pair}
         self.images: dict[int, tuple[np.ndarray, np.ndarray]] = {}
@@ -117,7 +127,8 @@ class _Views:
         """The working image of view ``i`` (BGR) and its intrinsics."""
         if i not in self.images:
             cam = self.cameras[i]
-            img, _, levels = load_working_image(self.paths[i], cam.K, cam.dist, self.max_width)
+            dist = np.zeros(5) if self.no_calib else cam.dist
+            img, _, levels = load_working_image(self.paths[i], cam.K, dist, self.max_width)
             self.images[i] = img, scale_intrinsics_halved(cam.K, levels)
         return self.images[i]
 
@@ -164,6 +175,61 @@ def _evaluate_pair(data: _Views, a: int, b: int, settings: TwoViewSettings) -> d
     return row
 
 
+def _evaluate_pair_no_calib(data: _Views, a: int, b: int, settings: TwoViewSettings) -> dict:
+    """One row without the camera files' intrinsics: the pair self-calibrates its focal length
+    from its photos' EXIF or the default prior (:mod:`scene3D.selfcalibration`), and
+    ``focal_scale`` is the focal length found over the camera file's."""
+    from ..exif import read_camera_prior
+    from ..selfcalibration import self_calibrate_pair
+
+    row = {"pair": f"{data.paths[a].name}-{data.paths[b].name}", "width": 0, "feature": "",
+           "rotation_deg": np.inf, "translation_deg": np.inf, "inliers": 0, "points": 0,
+           "focal_scale": np.nan, "flagged": True, "note": "", "focal_error": np.nan,
+           "calibration_source": ""}
+    img_a, K_a = data.image(a)
+    row["width"] = img_a.shape[1]
+    try:
+        prior = read_camera_prior([data.paths[a], data.paths[b]])
+    except ValueError as exc:
+        row["note"] = f"refused: {exc}"
+        return row
+    levels = round(math.log2(prior.image_size[0] / img_a.shape[1]))
+    matches = data.matches(a, b)
+    row["feature"] = matches.feature
+    try:
+        calibration = self_calibrate_pair(matches.pts1, matches.pts2,
+                                          scale_intrinsics_halved(prior.K, levels),
+                                          prior.sigma_log, prior.source, settings)
+    except ReconstructionError as exc:
+        row["note"] = f"refused: {exc.reason}"
+        return row
+    result = calibration.geometry
+    err = relative_pose_error(result.R, result.t,
+                              *relative_pose(data.cameras[a], data.cameras[b]))
+    scale = calibration.focal_px / math.sqrt(K_a[0, 0] * K_a[1, 1])
+    row.update(rotation_deg=err.rotation_deg, translation_deg=err.translation_deg,
+               inliers=result.num_inliers, points=len(result.points3d), focal_scale=scale,
+               flagged=not calibration.trusted, focal_error=scale - 1.0,
+               calibration_source=calibration.source,
+               note="; ".join(calibration.warnings + result.warnings))
+    return row
+
+
+def _focal_summary(rows: list[dict]) -> str:
+    """The --no-calib summary line: focal errors against the camera files and their sources."""
+    errors = np.abs([r["focal_error"] for r in rows if np.isfinite(r["focal_error"])])
+    sources = {}
+    for r in rows:
+        if r["calibration_source"]:
+            sources[r["calibration_source"]] = sources.get(r["calibration_source"], 0) + 1
+    if not len(errors):
+        return "without a calibration: no pair gave a focal length"
+    return (f"without a calibration: focal length within {np.median(errors):.2%} of the camera "
+            f"files' (median; p90 {np.percentile(errors, 90):.2%}, max {errors.max():.2%}) "
+            f"on {len(errors)} pair{'s' * (len(errors) != 1)}; "
+            + ", ".join(f"{n} {k}" for k, n in sorted(sources.items())))
+
+
 def _check_csv_target(path: Path | None, force: bool) -> None:
     """Refuse, before any work, a --csv file that could not or should not be written."""
     if path is None:
@@ -189,12 +255,13 @@ def run(args: argparse.Namespace) -> int:
     pairs = _pairs(args.pairs, len(views))
     cameras = [read_strecha_camera(cam) for _, cam in views]
     data = _Views(views, cameras, None if args.no_pyr_down else args.max_width,
-                  normalize_feature_mode(args.feature), pairs)
+                  normalize_feature_mode(args.feature), pairs, args.no_calib)
+    evaluate_pair = _evaluate_pair_no_calib if args.no_calib else _evaluate_pair
     settings = TwoViewSettings(bundle_adjust=args.bundle_adjust)
     rows = []
     for k, (a, b) in enumerate(pairs):
         t0 = time.perf_counter()
-        row = _evaluate_pair(data, a, b, settings)
+        row = evaluate_pair(data, a, b, settings)
         data.done(k)
         row["seconds"] = time.perf_counter() - t0
         rows.append(row)
@@ -225,6 +292,8 @@ def run(args: argparse.Namespace) -> int:
           f"flagged {int(stats['flagged'])}, wrong and unflagged {int(stats['wrong_unflagged'])}"
           + (f"; the matches' focal length: median {float(np.median(fitted)):.3f} times the "
              "calibration's" if fitted else ""))
+    if args.no_calib:
+        print(_focal_summary(rows))
     if args.csv is not None:
         atomic_write_bytes(args.csv, _csv_text(rows).encode())
         print(f"Wrote '{args.csv}'")

@@ -27,6 +27,7 @@ from .common import (
     add_feature_arg,
     add_size_args,
     check_distinct_images,
+    check_report_viewer,
     positive_int,
     prepare_output_dir,
     run_command,
@@ -45,7 +46,8 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
         epilog=(
             "Writes into --out: points.ply (binary, RGB), cameras.json (world-to-camera "
             "poses), colmap/cameras.txt, images.txt, points3D.txt (a COLMAP text model), "
-            "reconstruction.json (summary) and cameras.png (cloud with camera frusta). "
+            "reconstruction.json (summary), cameras.png (cloud with camera frusta) and "
+            "report.html (the summary with an interactive 3D view; opens offline). "
             "Views that cannot be registered are named, not dropped silently. "
             f"{EXIT_CODES_HELP}."
         ),
@@ -68,6 +70,9 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
     parser.add_argument("--out", type=Path, default=Path("out/views"), metavar="DIR",
                         help="output folder (default out/views)")
     parser.add_argument("--no-plots", action="store_true", help="skip cameras.png")
+    parser.add_argument("--no-report", action="store_true",
+                        help="skip report.html (one self-contained page: the numbers, the "
+                             "figure and an interactive 3D view of the points and cameras)")
     add_common_args(parser)
     return parser
 
@@ -107,6 +112,23 @@ def evaluate_against(folder: Path, names: list[str], recon) -> dict:
     }
 
 
+def _write_report(out: Path, names: list[str], recon, summary: dict, figure) -> Path:
+    """report.html: the summary, cameras.png and the interactive 3D view (scene3D.report)."""
+    from ..export import atomic_write_bytes
+    from ..report import multi_view_layers, multi_view_report, prepare_view
+
+    lines = [f"{summary['registered']} of {len(names)} views registered, "
+             f"{summary['points']} points, mean track length {recon.mean_track_length:.2f}, "
+             f"reprojection RMSE {recon.reprojection_rmse_px:.3f} px"]
+    figures = {}
+    if figure is not None:
+        figures["cameras.png"] = (out / "cameras.png").read_bytes()
+    view = prepare_view(*multi_view_layers(names, recon.K, recon.image_size, recon.registered,
+                                           recon.R, recon.t, recon.points3d, recon.colors))
+    page = multi_view_report(names, recon.registered, summary, lines, figures, view)
+    return atomic_write_bytes(out / "report.html", page.encode("utf-8"))
+
+
 def run(args: argparse.Namespace) -> int:
     t_start = time.perf_counter()
     paths = image_paths(args.images)
@@ -114,6 +136,8 @@ def run(args: argparse.Namespace) -> int:
     out = prepare_output_dir(args.out)
     if args.ground_truth is not None and not args.ground_truth.is_dir():
         raise UsageError(f"--ground-truth '{args.ground_truth}' is not a folder")
+    if not args.no_report:
+        check_report_viewer()
 
     K_native = adapt_intrinsics_to_size(camera.K, camera.image_size, read_image_size(paths[0]))
 
@@ -160,6 +184,8 @@ def run(args: argparse.Namespace) -> int:
     timings["total"] = time.perf_counter() - t_start
     summary["timings_s"] = timings
     written.append(write_json(out / "reconstruction.json", summary))
+    if not args.no_report:
+        written.append(_write_report(out, names, recon, summary, figure))
 
     for name in recon.unregistered:
         logger.warning("view '%s' could not be registered", name)

@@ -1,0 +1,166 @@
+"""One self-contained HTML page: styles, tables, embedded PNG figures, the inlined 3D view.
+
+Everything the page shows is inside the file: figures as ``data:`` URLs, plotly.js inline.
+A Content-Security-Policy forbids every fetch (``default-src 'none'``), so a page that
+tried to load anything would fail visibly (a console error) rather than reach the network.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+_CSP = ("default-src 'none'; script-src 'unsafe-inline' 'unsafe-eval'; "
+        "style-src 'unsafe-inline'; img-src data: blob:; font-src data:; "
+        "worker-src blob:; connect-src data: blob:")
+
+_STYLE = """
+body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 0 auto;
+       max-width: 1200px; padding: 0 1.5em 3em; color: #222; line-height: 1.45; }
+h1 { font-size: 1.5em; margin: 1em 0 0.3em; } h2 { font-size: 1.2em; margin-top: 1.6em;
+  border-bottom: 1px solid #ddd; padding-bottom: 0.2em; }
+.lines { background: #f6f8fa; padding: 0.7em 1em; border-radius: 6px; white-space: pre-wrap;
+  font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: 0.9em; }
+.verdict { padding: 0.6em 1em; border-radius: 6px; margin: 0.8em 0; }
+.ok { background: #e6f4ea; border: 1px solid #a8d5b5; }
+.warn { background: #fff4e5; border: 1px solid #f0c36d; }
+table { border-collapse: collapse; margin: 0.5em 0; font-size: 0.92em; }
+td, th { border: 1px solid #ddd; padding: 0.25em 0.7em; text-align: left; vertical-align: top; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; }
+figure { margin: 1em 0; } figure img { max-width: 100%; border: 1px solid #ddd; }
+figcaption { font-size: 0.9em; color: #555; }
+#view3d { width: 100%; height: 640px; border: 1px solid #ddd; }
+.note { font-size: 0.9em; color: #555; }
+details pre { background: #f6f8fa; padding: 0.7em; overflow-x: auto; font-size: 0.8em; }
+footer { margin-top: 2em; font-size: 0.8em; color: #777; }
+"""
+
+
+def esc(text: Any) -> str:
+    """HTML-escaped ``str(text)``."""
+    return html.escape(str(text), quote=True)
+
+
+def format_value(value: Any) -> str:
+    """A number or value as the report prints it (4 significant digits for floats)."""
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            return "-"
+        return f"{value:.4g}"
+    if isinstance(value, (list, tuple)):
+        return ", ".join(format_value(v) for v in value)
+    return str(value)
+
+
+def image_data_url(data: bytes) -> str:
+    """``data:image/png;base64,...`` (or ``image/jpeg`` for JPEG bytes)."""
+    if data[:8] == b"\x89PNG\r\n\x1a\n":
+        mime = "image/png"
+    elif data[:3] == b"\xff\xd8\xff":
+        mime = "image/jpeg"
+    else:
+        raise ValueError("a figure must be PNG or JPEG bytes")
+    return f"data:{mime};base64," + base64.b64encode(data).decode("ascii")
+
+
+@dataclass
+class Page:
+    """An HTML report being assembled, section by section.
+
+    Attributes
+    ----------
+    title : str
+    parts : list of str
+        HTML fragments, in order.
+    """
+
+    title: str
+    parts: list[str] = field(default_factory=list)
+    _scripts: list[str] = field(default_factory=list)
+
+    def heading(self, text: str) -> None:
+        self.parts.append(f"<h2>{esc(text)}</h2>")
+
+    def paragraph(self, text: str, css: str = "") -> None:
+        cls = f' class="{css}"' if css else ""
+        self.parts.append(f"<p{cls}>{esc(text)}</p>")
+
+    def lines(self, lines: Iterable[str]) -> None:
+        """Pre-formatted lines (what the command printed)."""
+        self.parts.append(f'<div class="lines" id="summary-lines">'
+                          f'{esc(chr(10).join(lines))}</div>')
+
+    def verdict(self, good: bool, headline: str, warnings: Iterable[str] = ()) -> None:
+        """A green or orange box with a headline and the warnings."""
+        items = "".join(f"<li>{esc(w)}</li>" for w in warnings)
+        self.parts.append(f'<div class="verdict {"ok" if good else "warn"}" id="verdict">'
+                          f"<strong>{esc(headline)}</strong>"
+                          + (f"<ul>{items}</ul>" if items else "") + "</div>")
+
+    def table(self, rows: Iterable[Iterable[Any]], header: Iterable[str] | None = None,
+              table_id: str = "") -> None:
+        """A table; floats and ints are right-aligned, formatted by :func:`format_value`."""
+        out = [f'<table{f" id={chr(34)}{esc(table_id)}{chr(34)}" if table_id else ""}>']
+        if header is not None:
+            out.append("<tr>" + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr>")
+        for row in rows:
+            cells = []
+            for v in row:
+                num = isinstance(v, (int, float)) and not isinstance(v, bool)
+                cells.append(f'<td{" class=num" if num else ""}>{esc(format_value(v))}</td>')
+            out.append("<tr>" + "".join(cells) + "</tr>")
+        out.append("</table>")
+        self.parts.append("".join(out))
+
+    def key_values(self, values: Mapping[str, Any], table_id: str = "") -> None:
+        """A two-column table of names and values."""
+        self.table(((k, v) for k, v in values.items()), table_id=table_id)
+
+    def figure(self, image: bytes, caption: str, alt: str = "") -> None:
+        """An embedded figure (PNG or JPEG bytes)."""
+        self.parts.append(f'<figure><img src="{image_data_url(image)}" '
+                          f'alt="{esc(alt or caption)}">'
+                          f"<figcaption>{esc(caption)}</figcaption></figure>")
+
+    def view3d(self, plotly_js: str, figure_json: str, notes: Iterable[str] = ()) -> None:
+        """The interactive 3D view: ``plotly_js`` inlined once, the figure as JSON data."""
+        for note in notes:
+            self.paragraph(note, "note")
+        self.parts.append('<div id="view3d"></div>')
+        self.parts.append(f'<script type="application/json" id="view3d-data">{figure_json}'
+                          "</script>")
+        self._scripts.append(plotly_js)
+        self._scripts.append(
+            "(function () {\n"
+            "  var fig = JSON.parse(document.getElementById('view3d-data').textContent);\n"
+            "  Plotly.newPlot('view3d', fig.data, fig.layout,\n"
+            "                 {displaylogo: false, responsive: true, scrollZoom: true});\n"
+            "})();")
+
+    def raw_json(self, obj: Any, summary: str = "All numbers (JSON)") -> None:
+        """A collapsed block with ``obj`` as indented JSON."""
+        text = json.dumps(obj, indent=2, default=str, allow_nan=True)
+        self.parts.append(f"<details><summary>{esc(summary)}</summary><pre>{esc(text)}</pre>"
+                          "</details>")
+
+    def render(self, footer: str = "") -> str:
+        """The whole page."""
+        scripts = "".join(f"<script>{s}</script>\n" for s in self._scripts)
+        return (
+            "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
+            f'<meta http-equiv="Content-Security-Policy" content="{_CSP}">\n'
+            '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
+            f"<title>{esc(self.title)}</title>\n<style>{_STYLE}</style>\n</head>\n<body>\n"
+            f"<h1>{esc(self.title)}</h1>\n" + "\n".join(self.parts) + "\n"
+            + (f"<footer>{esc(footer)}</footer>\n" if footer else "")
+            + scripts + "</body>\n</html>\n"
+        )

@@ -1,0 +1,252 @@
+"""The interactive 3D view of a report: a plotly.js figure built as JSON, no plotly Python.
+
+plotly.js comes from the installed ``plotly`` package (its bundled ``plotly.min.js``), read
+as a file and inlined into the page, so the report needs no network; the package's Python
+modules are never imported (the figure is plain JSON, built here in a few milliseconds).
+Point coordinates travel as base64 float32 typed arrays (plotly.js's ``{dtype, bdata}``
+form), colours as ``#rrggbb`` strings.
+
+The view reads results; the camera frusta come from :func:`scene3D.drawing.frustum_corners`.
+Frames: points and cameras in the reconstruction's frame (a camera frame: ``x`` right,
+``y`` down, ``z`` forward); the view is set up with ``-y`` up.
+"""
+
+from __future__ import annotations
+
+import base64
+import importlib.util
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..drawing import robust_extent, subsample_indices
+from ..geometry import FloatArray
+
+#: At most this many points are sent to the browser, all layers together; beyond it a
+#: random subset is shown (with a note) so that the view stays responsive.
+MAX_VIEW_POINTS = 300_000
+
+
+class MissingViewerError(RuntimeError):
+    """plotly.js (the ``plotly`` package) is not installed."""
+
+
+@dataclass(frozen=True)
+class CloudLayer:
+    """One point cloud of the view.
+
+    Attributes
+    ----------
+    name : str
+        Legend entry ("sparse", "dense").
+    points3d : (N, 3) float64
+    colors : (N, 3) uint8 or None
+        RGB.
+    marker_size : float
+        Marker diameter in screen pixels.
+    """
+
+    name: str
+    points3d: FloatArray
+    colors: np.ndarray | None
+    marker_size: float = 2.0
+
+
+@dataclass(frozen=True)
+class CameraLayer:
+    """Camera frusta: ``corners[v] = (centre, 4 image corners)`` in the view's frame.
+
+    Attributes
+    ----------
+    names : tuple[str, ...]
+    corners : (V, 5, 3) float64
+        From :func:`scene3D.drawing.frustum_corners`; rows with NaN are skipped.
+    """
+
+    names: tuple[str, ...]
+    corners: FloatArray
+
+
+@dataclass(frozen=True)
+class PreparedView:
+    """Everything the page needs for the 3D view (built before the page, so that a command
+    can build it while its figures are being encoded).
+
+    Attributes
+    ----------
+    plotly_js : str
+        The library's text, to inline.
+    version : str
+        plotly.js version.
+    figure_json : str
+        The figure (:func:`scene_figure_json`).
+    notes : list of str
+        Notes for the reader (decimation).
+    num_points : int
+        Points of all layers before decimation.
+    """
+
+    plotly_js: str
+    version: str
+    figure_json: str
+    notes: list[str]
+    num_points: int
+
+
+def prepare_view(layers: list[CloudLayer], cameras: CameraLayer | None = None,
+                 max_points: int = MAX_VIEW_POINTS) -> PreparedView:
+    """plotly.js and the figure JSON of ``layers`` and ``cameras``."""
+    js, version = plotly_js()
+    figure_json, notes = scene_figure_json(layers, cameras, max_points)
+    return PreparedView(js, version, figure_json, notes,
+                        sum(len(layer.points3d) for layer in layers))
+
+
+def plotly_js_path() -> Path:
+    """Location of the installed ``plotly`` package's ``plotly.min.js`` (the package is
+    located, not imported)."""
+    spec = importlib.util.find_spec("plotly")
+    if spec is None or not spec.submodule_search_locations:
+        raise MissingViewerError("the report's 3D view needs the 'plotly' package "
+                                 "(pip install plotly), or use --no-report")
+    path = Path(list(spec.submodule_search_locations)[0]) / "package_data" / "plotly.min.js"
+    if not path.is_file():
+        raise MissingViewerError(f"the 'plotly' package has no '{path.name}' at '{path}'")
+    return path
+
+
+def plotly_js() -> tuple[str, str]:
+    """The text of ``plotly.min.js`` and its version (e.g. ``"4.1.1"``)."""
+    text = plotly_js_path().read_text(encoding="utf-8")
+    match = re.search(r"plotly\.js v(\d+\.\d+\.\d+)", text[:400])
+    return text, match.group(1) if match else "unknown"
+
+
+def _typed(values: np.ndarray) -> dict:
+    """plotly.js typed array: little-endian float32, base64."""
+    data = np.ascontiguousarray(values, dtype="<f4")
+    return {"dtype": "f4", "bdata": base64.b64encode(data.tobytes()).decode("ascii")}
+
+
+_HEX = np.frombuffer(b"0123456789abcdef", dtype=np.uint8)
+
+
+def hex_colors_json(rgb: np.ndarray) -> str:
+    """A JSON array of ``"#rrggbb"`` strings for ``(N, 3) uint8`` colours, built in numpy."""
+    rgb = np.asarray(rgb, dtype=np.uint8).reshape(-1, 3)
+    if len(rgb) == 0:
+        return "[]"
+    text = np.empty((len(rgb), 11), dtype=np.uint8)
+    text[:, 0], text[:, 1] = ord('"'), ord("#")
+    for c in range(3):
+        text[:, 2 + 2 * c] = _HEX[rgb[:, c] >> 4]
+        text[:, 3 + 2 * c] = _HEX[rgb[:, c] & 15]
+    text[:, 8], text[:, 9], text[:, 10] = ord('"'), ord(","), ord(" ")
+    return "[" + text.tobytes()[:-2].decode("ascii") + "]"
+
+
+def _decimate(layers: list[CloudLayer], max_points: int
+              ) -> tuple[list[tuple[CloudLayer, np.ndarray]], list[str]]:
+    """Each layer with the indices shown; the layers listed first are kept whole first."""
+    left, kept, notes = max_points, [], []
+    for layer in layers:
+        n = len(layer.points3d)
+        idx = subsample_indices(n, max(left, 0))
+        if len(idx) < n:
+            notes.append(f"The {layer.name} cloud shows {len(idx):,} of its {n:,} points "
+                         f"(every {n / max(len(idx), 1):.1f}th: the view holds at most "
+                         f"{max_points:,}).")
+        left -= len(idx)
+        kept.append((layer, idx))
+    return kept, notes
+
+
+def scene_figure_json(layers: list[CloudLayer], cameras: CameraLayer | None = None,
+                      max_points: int = MAX_VIEW_POINTS) -> tuple[str, list[str]]:
+    """The plotly.js figure (``{"data": ..., "layout": ...}``) as JSON text, and notes.
+
+    Returns
+    -------
+    json_text : str
+        Safe to embed in a ``<script type="application/json">`` element.
+    notes : list of str
+        What the reader should know about the view (e.g. that a cloud was decimated).
+    """
+    kept, notes = _decimate(layers, max_points)
+    data: list[dict] = []
+    colors: dict[str, str] = {}
+    shown = []
+    for k, (layer, idx) in enumerate(kept):
+        pts = np.asarray(layer.points3d, dtype=np.float64).reshape(-1, 3)[idx]
+        shown.append(pts)
+        marker: dict = {"size": layer.marker_size, "opacity": 1.0}
+        if layer.colors is not None:
+            placeholder = f"@@colors{k}@@"
+            colors[placeholder] = hex_colors_json(np.asarray(layer.colors)[idx])
+            marker["color"] = placeholder
+        data.append({
+            "type": "scatter3d", "mode": "markers", "name": f"{layer.name} ({len(idx):,})",
+            "x": _typed(pts[:, 0]), "y": _typed(pts[:, 1]), "z": _typed(pts[:, 2]),
+            "marker": marker, "hoverinfo": "skip" if len(idx) > 20000 else "x+y+z+name",
+        })
+    if cameras is not None:
+        xs: list[float | None] = []
+        ys: list[float | None] = []
+        zs: list[float | None] = []
+        centres, labels = [], []
+        for name, corners in zip(cameras.names, np.asarray(cameras.corners, dtype=np.float64)):
+            if not np.all(np.isfinite(corners)):
+                continue
+            c, q = corners[0], corners[1:]
+            path = [c, q[0], q[1], c, q[2], q[3], c, q[0], q[3], q[2], q[1]]
+            for p in path:
+                xs.append(float(p[0]))
+                ys.append(float(p[1]))
+                zs.append(float(p[2]))
+            xs.append(None)
+            ys.append(None)
+            zs.append(None)
+            centres.append(c)
+            labels.append(name)
+        if centres:
+            shown.append(np.array(centres))
+            data.append({"type": "scatter3d", "mode": "lines", "name": f"cameras ({len(labels)})",
+                         "x": xs, "y": ys, "z": zs, "hoverinfo": "skip",
+                         "line": {"color": "#d62728", "width": 3}})
+            cen = np.array(centres)
+            data.append({"type": "scatter3d", "mode": "markers+text", "name": "camera names",
+                         "x": cen[:, 0].tolist(), "y": cen[:, 1].tolist(),
+                         "z": cen[:, 2].tolist(), "text": labels, "textposition": "top center",
+                         "marker": {"size": 3, "color": "#d62728"}, "showlegend": False,
+                         "hoverinfo": "text"})
+    points_shown = [p for p in shown[:len(kept)] if len(p)]
+    lo, hi = robust_extent(np.vstack(points_shown) if points_shown else np.zeros((0, 3)))
+    if len(shown) > len(kept):  # keep the cameras inside the box
+        lo, hi = np.minimum(lo, shown[-1].min(axis=0)), np.maximum(hi, shown[-1].max(axis=0))
+    pad = 0.05 * (hi - lo) + 1e-9
+    lo, hi = lo - pad, hi + pad
+    span = hi - lo
+    ratio = span / span.max()
+    axis_titles = ("x (right)", "y (down)", "z (forward)")
+    layout = {
+        "margin": {"l": 0, "r": 0, "t": 0, "b": 0},
+        "legend": {"x": 0.01, "y": 0.99, "bgcolor": "rgba(255,255,255,0.7)"},
+        "paper_bgcolor": "#ffffff",
+        "uirevision": "keep",
+        "scene": {
+            "aspectmode": "manual",
+            "aspectratio": {"x": float(ratio[0]), "y": float(ratio[1]), "z": float(ratio[2])},
+            "camera": {"up": {"x": 0, "y": -1, "z": 0}, "eye": {"x": -0.45, "y": -0.65, "z": -1.2},
+                       "center": {"x": 0, "y": 0, "z": 0}},
+            **{f"{a}axis": {"title": {"text": t}, "range": [float(lo[i]), float(hi[i])],
+                            "backgroundcolor": "#f4f4f4", "showbackground": True}
+               for i, (a, t) in enumerate(zip("xyz", axis_titles))},
+        },
+    }
+    text = json.dumps({"data": data, "layout": layout}, separators=(",", ":"))
+    for placeholder, array in colors.items():
+        text = text.replace(f'"{placeholder}"', array)
+    return text.replace("</", "<\\/"), notes

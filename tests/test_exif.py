@@ -1,0 +1,97 @@
+"""Reading EXIF with Pillow from real files (written by Pillow in a temporary folder)."""
+
+import numpy as np
+import pytest
+from PIL import ExifTags, Image
+
+from scene3D.exif import read_camera_prior, read_exif
+from scene3D.intrinsics_prior import focal_px_from_35mm
+
+SIZE = (96, 64)
+
+
+def exif_bytes(make="Canon", model="Canon EOS 5D", focal_35mm=None, focal_mm=None,
+               plane_res=None, plane_unit=None, pixel_dims=None, orientation=None) -> bytes:
+    exif = Image.Exif()
+    exif[ExifTags.Base.Make] = make
+    exif[ExifTags.Base.Model] = model
+    if orientation is not None:
+        exif[ExifTags.Base.Orientation] = orientation
+    sub = exif.get_ifd(ExifTags.IFD.Exif)
+    for tag, value in [(ExifTags.Base.FocalLengthIn35mmFilm, focal_35mm),
+                       (ExifTags.Base.FocalLength, focal_mm),
+                       (ExifTags.Base.FocalPlaneXResolution, plane_res),
+                       (ExifTags.Base.FocalPlaneResolutionUnit, plane_unit)]:
+        if value is not None:
+            sub[tag] = value
+    if pixel_dims is not None:
+        sub[ExifTags.Base.ExifImageWidth], sub[ExifTags.Base.ExifImageHeight] = pixel_dims
+    return exif.tobytes()
+
+
+def save(path, exif: bytes | None = None, size=SIZE):
+    rng = np.random.default_rng(0)
+    img = Image.fromarray((rng.random((size[1], size[0], 3)) * 255).astype(np.uint8))
+    img.save(path, **({"exif": exif} if exif is not None else {}))
+    return path
+
+
+def test_reads_the_camera_tags(tmp_path):
+    path = save(tmp_path / "a.jpg", exif_bytes(focal_35mm=32, focal_mm=7.4, plane_res=2000.0,
+                                              plane_unit=3, pixel_dims=(3072, 2048),
+                                              orientation=6))
+    exif = read_exif(path)
+    assert exif.error is None and exif.camera_name == "Canon EOS 5D"
+    assert exif.focal_length_35mm == 32 and exif.focal_length_mm == pytest.approx(7.4)
+    assert exif.focal_plane_x_resolution == pytest.approx(2000.0)
+    assert exif.focal_plane_resolution_unit == 3
+    assert (exif.pixel_x_dimension, exif.pixel_y_dimension) == (3072, 2048)
+    assert exif.orientation == 6  # recorded, not applied
+
+
+def test_no_exif_is_none(tmp_path):
+    assert read_exif(save(tmp_path / "plain.jpg")) is None
+    assert read_exif(save(tmp_path / "plain.png")) is None
+    with pytest.raises(FileNotFoundError, match="nope.jpg"):
+        read_exif(tmp_path / "nope.jpg")
+
+
+@pytest.mark.parametrize("damage, message", [
+    (lambda tiff: tiff[:4] + b"\x08\x00\x00\x00\xff\xff" + tiff[10:], "Corrupt EXIF data"),
+    (lambda tiff: b"XXXX" + tiff[4:], "does not parse as TIFF"),
+    (lambda tiff: tiff[:4] + b"\xff\xff\x00\x00" + tiff[8:], "Corrupt EXIF data"),
+])
+def test_a_corrupt_block_is_reported_not_ignored(tmp_path, damage, message):
+    good = save(tmp_path / "good.jpg", exif_bytes(focal_35mm=32)).read_bytes()
+    start = good.index(b"Exif\x00\x00") + 6
+    tiff = good[start:start + 64]
+    (tmp_path / "bad.jpg").write_bytes(good[:start] + damage(tiff) + good[start + 64:])
+    exif = read_exif(tmp_path / "bad.jpg")
+    assert exif is not None and message in exif.error
+    prior = read_camera_prior([tmp_path / "bad.jpg"])
+    assert prior.source == "prior" and "corrupt" in prior.warnings[0]
+
+
+def test_camera_prior_of_photos(tmp_path):
+    exif = exif_bytes(focal_35mm=32)
+    paths = [save(tmp_path / f"{i}.jpg", exif) for i in range(3)]
+    prior = read_camera_prior(paths)
+    assert prior.source == "exif" and prior.image_size == SIZE
+    assert prior.focal_px == pytest.approx(focal_px_from_35mm(32, SIZE))
+    assert prior.camera_name == "Canon EOS 5D"
+
+
+def test_camera_prior_refuses_two_cameras(tmp_path):
+    a = save(tmp_path / "a.jpg", exif_bytes(focal_35mm=32))
+    b = save(tmp_path / "b.jpg", exif_bytes(make="Apple", model="iPhone 12", focal_35mm=26))
+    with pytest.raises(ValueError, match="'b.jpg' was taken with a Apple iPhone 12"):
+        read_camera_prior([a, b])
+    c = save(tmp_path / "c.jpg", exif_bytes(focal_35mm=32), size=(64, 96))
+    with pytest.raises(ValueError, match="one was rotated"):
+        read_camera_prior([a, c])
+
+
+def test_absurd_focal_length_is_not_used(tmp_path):
+    path = save(tmp_path / "a.jpg", exif_bytes(focal_35mm=5000))
+    prior = read_camera_prior([path])
+    assert prior.source == "prior" and "implausible" in prior.warnings[0]

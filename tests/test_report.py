@@ -1,0 +1,198 @@
+"""HTML reports: the pieces (figure JSON, page) and the three reports of issue #23 opened in
+a real headless browser (Debian's chromium through Playwright)."""
+
+import base64
+import json
+import os
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from scene3D.calibration_uncertainty import IntrinsicsCovariance, uncertainty_map
+from scene3D.report import (
+    CameraLayer,
+    CloudLayer,
+    calibration_report,
+    multi_view_layers,
+    multi_view_report,
+    prepare_view,
+    two_view_layers,
+    two_view_report,
+)
+from scene3D.report.page import image_data_url
+from scene3D.report.viewer import hex_colors_json, scene_figure_json
+
+from .browser import changed_fraction, visit
+from .conftest import REPO
+
+
+def _decode(typed):
+    assert typed["dtype"] == "f4"
+    return np.frombuffer(base64.b64decode(typed["bdata"]), dtype="<f4")
+
+
+def test_hex_colors():
+    rgb = np.array([[255, 0, 16], [1, 2, 3]], dtype=np.uint8)
+    assert json.loads(hex_colors_json(rgb)) == ["#ff0010", "#010203"]
+    assert hex_colors_json(np.zeros((0, 3), np.uint8)) == "[]"
+
+
+def test_figure_json_holds_the_points_colours_and_cameras():
+    rng = np.random.default_rng(0)
+    points = rng.normal(size=(500, 3)) + [0, 0, 5]
+    colors = rng.integers(0, 256, (500, 3)).astype(np.uint8)
+    corners = np.zeros((3, 5, 3))
+    corners[1] = np.nan  # a view without a pose is skipped
+    text, notes = scene_figure_json([CloudLayer("sparse", points, colors)],
+                                    CameraLayer(("a", "b</script>", "c"), corners))
+    assert notes == [] and "</script" not in text
+    fig = json.loads(text)
+    cloud, frusta, names = fig["data"]
+    got = np.column_stack([_decode(cloud[k]) for k in "xyz"])
+    np.testing.assert_allclose(got, points, rtol=1e-6)
+    r, g, b = colors[7]
+    assert cloud["marker"]["color"][7] == f"#{r:02x}{g:02x}{b:02x}"
+    assert names["text"] == ["a", "c"] and frusta["name"] == "cameras (2)"
+    assert fig["layout"]["scene"]["camera"]["up"] == {"x": 0, "y": -1, "z": 0}
+
+
+def test_view_is_decimated_with_a_note():
+    points = np.random.default_rng(1).normal(size=(1000, 3))
+    sparse = CloudLayer("sparse", points[:100], None)
+    dense = CloudLayer("dense", points, None)
+    text, notes = scene_figure_json([sparse, dense], None, max_points=400)
+    fig = json.loads(text)
+    assert [len(_decode(t["x"])) for t in fig["data"]] == [100, 300]
+    assert notes == ["The dense cloud shows 300 of its 1,000 points (every 3.3th: the view "
+                     "holds at most 400)."]
+
+
+def test_page_is_self_contained_and_escapes():
+    layers, cameras = two_view_layers(np.array([[0.0, 0, 5], [1, 1, 6]]), None, np.eye(3),
+                                      np.array([-1.0, 0, 0]), np.diag([500.0, 500, 1]),
+                                      (640, 480))
+    summary = {"inputs": {"image1": "<b>a.jpg</b>", "image2": "b.jpg"}, "num_points": 2,
+               "trusted": False, "warnings": ["few inliers"], "timings_s": {"total": 1.0}}
+    png = base64.b64decode("iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mNk"
+                           "+M9QDwADhgGAWjR9awAAAABJRU5ErkJggg==")
+    page = two_view_report(summary, ["line <1>"], {"f.png": png}, prepare_view(layers, cameras))
+    assert "<b>a.jpg" not in page and "&lt;b&gt;a.jpg" in page
+    assert "Content-Security-Policy" in page and "default-src 'none'" in page
+    assert "The pose may not be trustworthy" in page and "few inliers" in page
+    # Outside plotly.js's own text nothing refers to another resource.
+    ours = re.sub(r"<script>.*?</script>", "", page, flags=re.S)
+    assert not re.search(r"(src|href)=\"(?!data:)", ours)
+    assert image_data_url(png).startswith("data:image/png;base64,")
+    with pytest.raises(ValueError):
+        image_data_url(b"GIF89a")
+
+
+def test_report_without_plotly_is_a_usage_error(tmp_path, monkeypatch, capsys):
+    import importlib.util
+
+    from scene3D.cli.chapter4 import main
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "plotly" else real(name, *a))
+    assert main([str(tmp_path / "a.png"), str(tmp_path / "b.png"), "--calib",
+                 str(REPO / "data" / "fountain_P11_intrinsics.yaml"),
+                 "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "plotly" in err and "--no-report" in err
+    assert not list((tmp_path / "o").iterdir())
+
+
+def test_multi_view_layers_skip_unregistered_views():
+    R = np.stack([np.eye(3), np.eye(3), np.full((3, 3), np.nan)])
+    t = np.array([[0.0, 0, 0], [-1, 0, 0], [np.nan] * 3])
+    layers, cameras = multi_view_layers(("a", "b", "c"), np.diag([500.0, 500, 1]), (640, 480),
+                                        [True, True, False], R, t,
+                                        np.array([[0.0, 0, 5], [1, 0, 6]]), None)
+    assert np.all(np.isfinite(cameras.corners[:2])) and np.all(np.isnan(cameras.corners[2]))
+    np.testing.assert_allclose(cameras.corners[1, 0], [1, 0, 0])  # centre -R^T t
+    page = multi_view_report(("a", "b", "c"), [True, True, False], {"points": 2}, ["2 of 3"],
+                             {}, prepare_view(layers, cameras))
+    assert "view &#x27;c&#x27; could not be registered" in page
+
+
+# -- in the browser -----------------------------------------------------------------------
+
+def _run(args, cwd, timeout=600):
+    env = dict(os.environ, MPLBACKEND="Agg")
+    proc = subprocess.run([sys.executable, *map(str, args)], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=timeout)
+    assert proc.returncode == 0, proc.stderr
+    return proc
+
+
+def _check_page(visit_result, with_view, images):
+    assert visit_result.errors == [], visit_result.errors
+    assert visit_result.requests and visit_result.outside_requests == [], visit_result.requests
+    assert visit_result.images == images and visit_result.broken_images == 0
+    if with_view:
+        # The clouds cover part of the WebGL canvas (hiding them changes those pixels) and
+        # a drag turns the scene.
+        assert changed_fraction(visit_result.canvas_after_drag,
+                                visit_result.canvas_without_clouds) > 0.003
+        assert "scene.camera" in visit_result.relayout_keys
+        assert changed_fraction(visit_result.canvas_pixels,
+                                visit_result.canvas_after_drag) > 0.003
+
+
+def test_book_pair_report_in_browser(tmp_path, data_root):
+    out = tmp_path / "out"
+    _run([REPO / "chapter4.py", "--out", out], tmp_path)
+    summary = json.loads((out / "reconstruction.json").read_text())
+    page = visit(out / "report.html", wait_for_view=True)
+    _check_page(page, with_view=True, images=4)
+    text = page.text
+    assert f"{summary['num_matches']} matches, {summary['num_inliers']} inliers, " \
+           f"{summary['num_points']} points, reprojection RMSE " \
+           f"{summary['reprojection_rmse_px']:.3f} px" in text
+    assert "Trusted result" in text
+    assert f"{summary['num_points']:,} points (plotly.js" in text
+    assert '"name":"cameras (2)"' in (out / "report.html").read_text()
+
+
+def test_fountain_eleven_views_report_in_browser(tmp_path, fountain):
+    out = tmp_path / "views"
+    _run(["-m", "scene3D", "reconstruct-views", fountain / "images", "--calib",
+          REPO / "data" / "fountain_P11_intrinsics.yaml", "--out", out], tmp_path, timeout=900)
+    summary = json.loads((out / "reconstruction.json").read_text())
+    page = visit(out / "report.html", wait_for_view=True)
+    _check_page(page, with_view=True, images=1)  # cameras.png
+    assert f"{summary['registered']} of 11 views registered" in page.text
+    assert f"{summary['points']:,} points (plotly.js" in page.text
+    assert f"reprojection RMSE {summary['reprojection_rmse_px']:.3f} px" in page.text
+    html = (out / "report.html").read_text()
+    assert f'"name":"cameras ({summary["registered"]})"' in html
+
+
+def test_left_calibration_report_in_browser(tmp_path, chessboards):
+    out = tmp_path / "left.yaml"
+    proc = _run([REPO / "calibrate.py", "--images", chessboards / "opencv-left", "--out", out],
+                tmp_path)
+    page = visit(tmp_path / "left_report.html", wait_for_view=False)
+    _check_page(page, with_view=False, images=3)
+    rms = re.search(r"RMS reprojection error: ([0-9.]+) px", proc.stdout).group(1)
+    median = re.search(r"projection uncertainty \(1 sigma\): median ([0-9.]+) px",
+                       proc.stdout).group(1)
+    assert f"RMS reprojection error: {rms} px" in page.text
+    assert f"median {median} px" in page.text
+    assert "exceeds 1 px" in page.text  # the boards never reach the corners
+    assert (tmp_path / "left_uncertainty.png").read_bytes().startswith(b"\x89PNG")
+
+
+def test_calibration_report_lists_views_and_uncertainty():
+    names = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
+    cov = np.diag([1.0, 1.0, 0.25, 0.25] + [0.0] * 5)
+    umap = uncertainty_map(np.diag([500.0, 500, 1]) + [[0, 0, 320], [0, 0, 240], [0, 0, 0]],
+                           np.zeros(5), IntrinsicsCovariance(names, cov, 0.2, 100), (640, 480))
+    page = calibration_report(["RMS 0.2"], {"fx (px)": "500 +- 1"}, {"a.jpg": 0.2},
+                              {"b.jpg": 3.0}, umap.warnings, umap, {})
+    assert "dropped as an outlier" in page and "b.jpg" in page
+    assert f"{umap.median_px:.4g}" in page
