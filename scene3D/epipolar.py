@@ -32,10 +32,12 @@ from .refinement import _loss, refine_relative_pose, sampson_residuals
 #: the single start of :func:`fit_essential`.
 ROBUST_METHOD = cv2.USAC_MAGSAC
 
-#: Robust estimator of the restarts of :func:`fit_essential`: USAC with MSAC scoring and
-#: local optimisation (LO-RANSAC). At a threshold near the noise it keeps the tightest
-#: consensus; MAGSAC++ marginalises over noise levels up to the threshold and, on
-#: repeated structure, returns the model that also fits the mismatches more loosely.
+#: Robust estimator of the restarts of :func:`fit_essential` when they run below the
+#: given threshold: USAC with MSAC scoring and local optimisation (LO-RANSAC). At a
+#: threshold near the noise it keeps the tightest consensus; MAGSAC++ marginalises over
+#: noise levels up to the threshold and, on repeated structure, returns the model that
+#: also fits the mismatches more loosely. At the given threshold (matches as noisy as it
+#: allows) the restarts use :data:`ROBUST_METHOD`, which suits noise of that size better.
 RESTART_METHOD = cv2.USAC_DEFAULT
 
 #: Scale of the Cauchy loss of the MSAC-style cost that compares models, as a fraction
@@ -208,13 +210,16 @@ def fit_essential(
     repeated windows, which lie a few pixels from their true epipolar lines
     (castle-P19 at 1536 px: 700 inliers with a median Sampson distance of 0.26 px,
     1.6 deg off, against 560 inliers at 0.10 px for the true pose). Within the
-    noise only the true pose fits. So the first start is a noise probe, a USAC
-    estimation at :data:`NOISE_PROBE_OF_THRESHOLD` of the threshold, tight enough
-    that no such compromise fits within it; the noise of the matches within
-    ``threshold_px`` of its model sets the comparison threshold
-    (:func:`comparison_threshold_px`, three standard deviations). Every start
-    (:data:`RESTART_METHOD`) runs and is refined at that threshold, and the best
-    optimum is finally refined at ``threshold_px``, whose inliers it returns.
+    noise only the true pose fits. So a noise probe comes first, a USAC estimation at
+    :data:`NOISE_PROBE_OF_THRESHOLD` of the threshold, tight enough that no such
+    compromise fits within it; the noise of the matches within ``threshold_px`` of
+    its model sets the comparison threshold (:func:`comparison_threshold_px`, three
+    standard deviations). When that is below ``threshold_px``, the probe is the first
+    start, every other start (:data:`RESTART_METHOD`) runs and is refined at that
+    threshold, and the best optimum is finally refined at ``threshold_px``, whose
+    inliers it returns. When the matches are as noisy as ``threshold_px`` allows, the
+    starts are those of a plain restart at ``threshold_px`` (:data:`ROBUST_METHOD`,
+    the first on the matches in their order).
 
     Parameters
     ----------
@@ -225,8 +230,8 @@ def fit_essential(
     threshold_px : float
         Inlier threshold in pixels: the largest distance at which a match counts.
     max_starts : int
-        Most robust estimations to run, the noise probe included (>= 1; 1: a single
-        MAGSAC++ start at ``threshold_px``, no probe and no restarts, as plain OpenCV).
+        Most starts, each a refined robust estimation (>= 1; 1: a single MAGSAC++
+        start at ``threshold_px``, no noise probe and no restarts, as plain OpenCV).
 
     Returns
     -------
@@ -237,32 +242,27 @@ def fit_essential(
     p1, p2 = _check_pair(pts1, pts2, 5)
     K = as_matrix(K, (3, 3), "K")
     n = len(p1)
-    if max_starts == 1:
-        E, inliers = _robust_essential(p1, p2, K, threshold_px, confidence, max_iters)
-        if not np.all(np.isfinite(E)):
-            return EssentialFit(E, inliers, 1, 0.0, comparison_threshold_px=threshold_px)
-        t0 = time.perf_counter()
-        _, E, inliers = polish_essential(E, p1, p2, K, threshold_px, inliers)
-        return EssentialFit(E, inliers, 1, time.perf_counter() - t0,
-                            comparison_threshold_px=threshold_px)
     # Python's generator, not numpy's: numpy.random costs 13 ms to import.
     rng = random.Random(0)
     refinement_s = 0.0
-    E_probe, _ = _robust_essential(p1, p2, K, NOISE_PROBE_OF_THRESHOLD * threshold_px,
-                                   confidence, max_iters, method=RESTART_METHOD)
     fits: list[tuple[float, FloatArray, np.ndarray]] = []  # (cost, E, inliers)
+    tau = threshold_px
+    if max_starts > 1:
+        E_probe, _ = _robust_essential(p1, p2, K, NOISE_PROBE_OF_THRESHOLD * threshold_px,
+                                       confidence, max_iters, method=RESTART_METHOD)
+        if np.all(np.isfinite(E_probe)):
+            tau = comparison_threshold_px(essential_distances(E_probe, p1, p2, K),
+                                          threshold_px)
+        if tau < threshold_px:  # the probe is the first start
+            t0 = time.perf_counter()
+            fits.append(polish_essential(E_probe, p1, p2, K, tau))
+            refinement_s += time.perf_counter() - t0
+    # Matches as noisy as the threshold allows: the restarts of before, MAGSAC++ at it.
+    method = RESTART_METHOD if tau < threshold_px else ROBUST_METHOD
     confirmed = False
-    if np.all(np.isfinite(E_probe)):
-        tau = comparison_threshold_px(essential_distances(E_probe, p1, p2, K), threshold_px)
-        t0 = time.perf_counter()
-        fits.append(polish_essential(E_probe, p1, p2, K, tau))
-        refinement_s += time.perf_counter() - t0
-    else:
-        tau = threshold_px
-    for _ in range(max_starts - 1):
-        order = np.array(rng.sample(range(n), n))
-        E, inliers = _robust_essential(p1, p2, K, tau, confidence, max_iters, order,
-                                       RESTART_METHOD)
+    for start in range(len(fits), max_starts):
+        order = None if start == 0 else np.array(rng.sample(range(n), n))
+        E, inliers = _robust_essential(p1, p2, K, tau, confidence, max_iters, order, method)
         if not np.all(np.isfinite(E)):
             continue
         t0 = time.perf_counter()
