@@ -7,11 +7,15 @@ fixes the frame; the overall scale is held by the damping). Every observation
 depends on one camera and one point, so Levenberg-Marquardt solves its normal
 equations with the points eliminated (:mod:`scene3D.schur`): one system of six
 unknowns per camera, then a 3x3 solve per point.
+
+Extending it: a parameter shared by every view (a focal length refined with the
+poses) would add one column to every observation's Jacobian, and one row and
+column to the reduced camera system outside the per-point blocks.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,12 +57,13 @@ def bundle_adjust(
     points3d: FloatArray,
     obs: Observations,
     K: FloatArray,
-    fixed_view: int,
+    fixed_view: int | Sequence[int],
     loss: str = "soft_l1",
     scale_px: float = 1.0,
     max_iterations: int = 50,
+    tolerance: float = 1e-10,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Refine all cameras but ``fixed_view`` and all points.
+    """Refine all observed cameras but ``fixed_view`` and all points.
 
     Parameters
     ----------
@@ -67,15 +72,19 @@ def bundle_adjust(
     points3d : (P, 3)
         World points.
     obs : Observations
-        The measurements.
+        The measurements; only the cameras and points they mention take part (a local
+        adjustment passes the observations of the points it refines).
     K : (3, 3)
         Intrinsics shared by every view.
+    fixed_view : int or sequence of int
+        Cameras held fixed (they fix the frame; with one fixed camera the scale is held
+        by the damping). Observations by fixed cameras still constrain the points.
     loss, scale_px : str, float
         Robust loss (``"linear"``, ``"huber"``, ``"soft_l1"``, ``"cauchy"``, as in
         scipy, applied to each pixel coordinate) and its scale in pixels.
     max_iterations : int
         Levenberg-Marquardt iterations at most; it stops earlier once a step
-        gains less than 1e-10 of the cost.
+        gains less than ``tolerance`` of the cost.
 
     Returns
     -------
@@ -83,7 +92,7 @@ def bundle_adjust(
         Refined copies.
     """
     num_points = len(points3d)
-    free = np.array([v for v in np.unique(obs.view) if v != fixed_view], dtype=int)
+    free = np.setdiff1d(np.unique(obs.view), np.atleast_1d(np.asarray(fixed_view, dtype=int)))
     slot = np.full(len(R), -1, dtype=int)
     slot[free] = np.arange(len(free))
     camera = slot[obs.view]
@@ -116,5 +125,5 @@ def bundle_adjust(
 
     state, cost = evaluate(np.array(R, np.float64), np.array(t, np.float64),
                            np.asarray(points3d, np.float64))
-    R, t, X, _ = _levenberg_marquardt(state, cost, linearize, max_iterations, 1e-10)
+    R, t, X, _ = _levenberg_marquardt(state, cost, linearize, max_iterations, tolerance)
     return R, t, X

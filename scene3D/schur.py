@@ -92,15 +92,15 @@ def normal_equations(
         camera=cam, point=point[free])
 
 
-def _schur_product(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
-                   num_cameras: int, chunk_entries: int = 1 << 22) -> FloatArray:
-    """``sum over points p of Y_p W_p^T``, ``(C c, C c)``, where ``Y_p`` stacks the
-    ``(c, 3)`` blocks ``Y[o]`` of the observations of ``p`` by camera (zero where a camera
-    does not see ``p``), and likewise ``W_p``.
+def _schur_product_dense(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
+                         num_cameras: int, chunk_entries: int = 1 << 22) -> FloatArray:
+    """:func:`schur_product` for a few cameras: dense matrix products over chunks of points.
 
     A chunk of points at a time is laid out densely as ``(C c, 3 points)`` matrices
     (at most ``chunk_entries`` numbers each), so the sum is one matrix product per
-    chunk; a camera sees a point at most once, so the blocks never collide.
+    chunk; a camera sees a point at most once, so the blocks never collide. The cost
+    grows with the square of the cameras times the points: fast (BLAS) for tens of
+    cameras, slow for hundreds.
     """
     c = Y.shape[1]
     size = num_cameras * c
@@ -123,6 +123,83 @@ def _schur_product(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.n
     return S
 
 
+def pairs_within_groups(starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every ordered pair ``(a, b)`` of members of the same group, ``a == b`` included.
+
+    Groups are consecutive runs ``starts[g] <= k < starts[g + 1]`` of some sorted
+    array; returns the member indices ``a, b`` ``(M,)`` with ``M = sum n_g^2``.
+    """
+    counts = np.diff(starts)
+    squares = counts * counts
+    group = np.repeat(np.arange(len(counts)), squares)
+    k = np.arange(int(squares.sum())) - np.repeat(np.cumsum(squares) - squares, squares)
+    n = counts[group]
+    return starts[group] + k // n, starts[group] + k % n
+
+
+def _schur_product_sparse(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
+                          num_cameras: int, chunk_pairs: int = 1 << 18) -> FloatArray:
+    """:func:`schur_product` for many cameras: one ``(c, 3) x (3, c)`` product per pair of
+    observations of the same point, summed into the camera blocks they connect.
+
+    ``Y[o] = W[o] V_p^-1`` with ``V_p`` symmetric (as in the Schur complement), so the
+    block of the pair ``(b, a)`` is the transpose of that of ``(a, b)``: only pairs with
+    ``a <= b`` are multiplied. The cost grows with the points times the square of their
+    track lengths, not with the square of the cameras.
+    """
+    c = Y.shape[1]
+    size = num_cameras * c
+    if len(point) == 0:
+        return np.zeros((size, size))
+    order = np.argsort(point, kind="stable")
+    cam, Y, W = camera[order], Y[order], W[order]
+    starts = np.flatnonzero(np.r_[True, np.diff(point[order]) != 0, True])
+    off = np.zeros((num_cameras * num_cameras, c, c))  # pairs a < b
+    diagonal = np.zeros((num_cameras, c, c))  # a == b
+    np.add.at(diagonal, cam, Y @ W.transpose(0, 2, 1))
+    # Chunks of whole points, each holding about chunk_pairs observation pairs.
+    groups = len(starts) - 1
+    total = np.cumsum(np.diff(starts) ** 2)
+    cuts = np.unique(np.r_[0, np.searchsorted(total, np.arange(chunk_pairs, total[-1],
+                                                               chunk_pairs)), groups])
+    for g0, g1 in zip(cuts[:-1], cuts[1:]):
+        a, b = pairs_within_groups(starts[g0:g1 + 1])
+        upper = a < b
+        a, b = a[upper], b[upper]
+        if len(a) == 0:
+            continue
+        key = cam[a] * num_cameras + cam[b]
+        blocks = Y[a] @ W[b].transpose(0, 2, 1)
+        by_key = np.argsort(key, kind="stable")
+        key = key[by_key]
+        first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+        off[key[first]] += np.add.reduceat(blocks[by_key], first, axis=0)
+    S = off.reshape(num_cameras, num_cameras, c, c).transpose(0, 2, 1, 3).reshape(size, size)
+    S = S + S.T
+    for k in range(num_cameras):
+        S[k * c:(k + 1) * c, k * c:(k + 1) * c] += diagonal[k]
+    return S
+
+
+#: Above this many camera unknowns the Schur product is summed over observation pairs.
+SPARSE_SCHUR_UNKNOWNS = 180
+
+
+def schur_product(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
+                  num_cameras: int) -> FloatArray:
+    """``sum over points p of Y_p W_p^T``, ``(C c, C c)``, where ``Y_p`` stacks the
+    ``(c, 3)`` blocks ``Y[o]`` of the observations of ``p`` by camera (zero where a camera
+    does not see ``p``), and likewise ``W_p``.
+
+    Dense chunked products for a few cameras (BLAS is fastest there), pairs of
+    observations for many (the dense layout grows with the square of the cameras):
+    both give the same sum.
+    """
+    if num_cameras * Y.shape[1] <= SPARSE_SCHUR_UNKNOWNS:
+        return _schur_product_dense(Y, W, camera, point, num_cameras)
+    return _schur_product_sparse(Y, W, camera, point, num_cameras)
+
+
 def solve_damped(ne: NormalEquations, damping: float) -> tuple[FloatArray, FloatArray]:
     """Steps ``(C, c)`` for the cameras and ``(P, 3)`` for the points.
 
@@ -135,7 +212,7 @@ def solve_damped(ne: NormalEquations, damping: float) -> tuple[FloatArray, Float
     V_inv = np.linalg.inv(ne.V + damping * (np.einsum("nii->ni", ne.V) + _TINY)[:, :, None]
                           * eye_3)
     Y = ne.W @ V_inv[ne.point]  # (O', c, 3): W V^-1 per observation
-    S = -_schur_product(Y, ne.W, ne.camera, ne.point, num_cameras)  # U - W V^-1 W^T
+    S = -schur_product(Y, ne.W, ne.camera, ne.point, num_cameras)  # U - W V^-1 W^T
     for k in range(num_cameras):
         S[k * c:(k + 1) * c, k * c:(k + 1) * c] += U[k]
     rhs = _sum_by(ne.camera, (Y @ ne.g_point[ne.point][:, :, None])[:, :, 0], num_cameras)

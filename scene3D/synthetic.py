@@ -6,6 +6,8 @@
 - :func:`render_planes`: ray-cast textured rectangles (a room corner with a box)
   seen by a pinhole camera.
 - :func:`render_board`: a chessboard seen by a camera with lens distortion.
+- :func:`orbit_scene` / :func:`orbit_poses`: a courtyard (tiled ground, walls, boxes)
+  and any number of cameras circling it, for many-view tests and benchmarks.
 
 Poses follow :mod:`scene3D.geometry`: ``x_cam = R X + t``.
 """
@@ -13,6 +15,7 @@ Poses follow :mod:`scene3D.geometry`: ``x_cam = R X + t``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -48,8 +51,12 @@ def random_points(n: int, seed: int = 0, depth: tuple[float, float] = (4.0, 9.0)
     return np.column_stack([x, y, z])
 
 
+@lru_cache(maxsize=256)
 def texture(size: int = 512, seed: int = 0) -> np.ndarray:
-    """A grey ``uint8`` texture with blobs at several scales and sharp-edged shapes (corners)."""
+    """A grey ``uint8`` texture with blobs at several scales and sharp-edged shapes (corners).
+
+    Cached: the same ``(size, seed)`` returns the same read-only array.
+    """
     rng = np.random.default_rng(seed)
     img = np.zeros((size, size), np.float32)
     for cells in (8, 16, 32, 64, 128):
@@ -64,7 +71,9 @@ def texture(size: int = 512, seed: int = 0) -> np.ndarray:
             cv2.circle(img, (int(x), int(y)), r, value, -1, cv2.LINE_AA)
         else:
             cv2.rectangle(img, (int(x), int(y)), (int(x) + r, int(y) + 2 * r // 3), value, -1)
-    return np.clip(img, 0, 255).astype(np.uint8)
+    out = np.clip(img, 0, 255).astype(np.uint8)
+    out.flags.writeable = False
+    return out
 
 
 @dataclass(frozen=True)
@@ -86,6 +95,61 @@ def box_scene() -> list[Rectangle]:
         Rectangle((0.5, 0.5, 6.0), (0.0, 0.0, 2.5), (0.0, 3.0, 0.0), seed=4),  # box side
         Rectangle((-2.5, 0.5, 6.0), (3.0, 0.0, 0.0), (0.0, 0.0, 2.5), seed=5),  # box top
     ]
+
+
+def orbit_scene() -> list[Rectangle]:
+    """A courtyard around the origin (world y points down, the ground at ``y = 2``).
+
+    A ground of 6 x 6 tiles (4 m each), eight walls 7 m high on a circle of radius 15 m,
+    and three boxes near the centre; every face has its own texture, so that no two
+    places look alike.
+    """
+    rects: list[Rectangle] = []
+    seed = 100
+    for a in range(6):
+        for b in range(6):
+            rects.append(Rectangle((-12.0 + 4 * a, 2.0, -12.0 + 4 * b), (4.0, 0, 0), (0, 0, 4.0),
+                                   seed=seed))
+            seed += 1
+    for k in range(8):
+        a0, a1 = 2 * np.pi * k / 8, 2 * np.pi * (k + 1) / 8
+        p0 = np.array([15 * np.sin(a0), -5.0, -15 * np.cos(a0)])
+        p1 = np.array([15 * np.sin(a1), -5.0, -15 * np.cos(a1)])
+        rects.append(Rectangle(tuple(p0), tuple(p1 - p0), (0.0, 7.0, 0.0), seed=seed))
+        seed += 1
+    for (x, z, w, h, d) in ((-1.5, -1.5, 3.0, 3.0, 3.0), (2.5, 1.0, 1.5, 2.0, 1.5),
+                            (-3.5, 2.0, 2.0, 1.2, 1.0)):
+        top = 2.0 - h
+        for origin, u, v in (((x, top, z), (w, 0, 0), (0, h, 0)),  # faces towards -z
+                             ((x, top, z + d), (w, 0, 0), (0, h, 0)),  # +z
+                             ((x, top, z), (0, 0, d), (0, h, 0)),  # -x
+                             ((x + w, top, z), (0, 0, d), (0, h, 0)),  # +x
+                             ((x, top, z), (w, 0, 0), (0, 0, d))):  # top
+            rects.append(Rectangle(origin, u, v, seed=seed))
+            seed += 1
+    return rects
+
+
+def orbit_poses(n: int, radius: float = 9.0) -> tuple[FloatArray, FloatArray]:
+    """``n`` world-to-camera poses ``R (n, 3, 3)``, ``t (n, 3)`` circling :func:`orbit_scene`.
+
+    Camera ``k`` stands at angle ``360 k / n`` deg on a wavy circle (radius and height
+    vary), looking at the boxes; cameras are upright (image y along world y, down).
+    """
+    angles = 2 * np.pi * np.arange(n) / n
+    Rs, ts = np.empty((n, 3, 3)), np.empty((n, 3))
+    down = np.array([0.0, 1.0, 0.0])
+    for k, a in enumerate(angles):
+        r = radius + 0.8 * np.cos(2 * a)
+        center = np.array([r * np.sin(a), -0.6 + 0.4 * np.sin(3 * a), -r * np.cos(a)])
+        z = np.array([0.0, 0.3, 0.0]) - center
+        z /= np.linalg.norm(z)
+        x = np.cross(down, z)
+        x /= np.linalg.norm(x)
+        y = np.cross(z, x)
+        Rs[k] = np.stack([x, y, z])
+        ts[k] = -Rs[k] @ center
+    return Rs, ts
 
 
 def _pixel_rays(K: FloatArray, size: tuple[int, int], supersample: int) -> FloatArray:
@@ -122,22 +186,43 @@ def render_planes(
     center = -R.T @ np.reshape(t, 3)
     best = np.full(rays.shape[:2], np.inf)
     shade = np.zeros(rays.shape[:2] + (3,), np.float32)
+    H, W = rays.shape[:2]
     for rect in rectangles:
         o, u, v = (np.asarray(a, dtype=np.float64) for a in (rect.origin, rect.u, rect.v))
+        corners = np.array([o, o + u, o + v, o + u + v]) @ R.T + np.reshape(t, 3)
+        if np.all(corners[:, 2] <= 0):
+            continue  # behind the camera
+        window = (slice(0, H), slice(0, W))
+        if np.all(corners[:, 2] > 0):  # all in front: only its bounding box can see it
+            pix = (corners @ K.T)[:, :2] / corners[:, 2:3] * supersample
+            x0, y0 = np.floor(pix.min(axis=0)).astype(int) - 2
+            x1, y1 = np.ceil(pix.max(axis=0)).astype(int) + 2
+            x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
+            if x0 >= x1 or y0 >= y1:
+                continue
+            window = (slice(y0, y1), slice(x0, x1))
+        r = rays[window]
         n = np.cross(u, v)
-        denom = rays @ n
+        denom = r @ n
         with np.errstate(divide="ignore", invalid="ignore"):
             s = ((o - center) @ n) / denom
-        hit = center + s[..., None] * rays - o
+        hit = center + s[..., None] * r - o
         a = hit @ u / (u @ u)
         b = hit @ v / (v @ v)
-        visible = (s > 0) & (a >= 0) & (a <= 1) & (b >= 0) & (b <= 1) & (s < best)
+        visible = (s > 0) & (a >= 0) & (a <= 1) & (b >= 0) & (b <= 1) & (s < best[window])
+        if not visible.any():
+            continue
         tex = texture(512, rect.seed)
-        sample = cv2.remap(tex, (a * 511).astype(np.float32), (b * 511).astype(np.float32),
-                           cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+        # Sample the texture at the visible pixels only (the same values as a full map).
+        count = int(visible.sum())
+        rows = -(-count // 1024)
+        map_a, map_b = np.zeros(rows * 1024, np.float32), np.zeros(rows * 1024, np.float32)
+        map_a[:count], map_b[:count] = a[visible] * 511, b[visible] * 511
+        sample = cv2.remap(tex, map_a.reshape(rows, 1024), map_b.reshape(rows, 1024),
+                           cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT).ravel()[:count]
         tint = 0.6 + 0.4 * np.random.default_rng(rect.seed).random(3)
-        best = np.where(visible, s, best)
-        shade[visible] = sample[visible][:, None] * tint[None, :]
+        best[window] = np.where(visible, s, best[window])
+        shade[window][visible] = sample.astype(np.float32)[:, None] * tint[None, :]
     # Rays are (x, y, 1) in camera coordinates, so the ray parameter s is the depth.
     shade = shade.reshape(h, supersample, w, supersample, 3).mean(axis=(1, 3))
     depth = best.reshape(h, supersample, w, supersample)[:, supersample // 2, :, supersample // 2]

@@ -20,14 +20,17 @@ from scene3D.geometry import (
     rotation_from_quaternion,
 )
 from scene3D.multiview import (
+    PairMatches,
     SfMSettings,
     ViewFeatures,
     build_tracks,
+    check_model,
     extract_features,
-    incremental_reconstruction,
+    reconstruct_models,
     select_pairs,
     verify_pair,
 )
+from scene3D.schur import _schur_product_dense, _schur_product_sparse
 
 from .conftest import REPO
 from .helpers import scipy_bundle_adjust
@@ -62,11 +65,11 @@ def _synthetic_views(noise_px=0.0, seed=0):
         features.append(ViewFeatures(noisy, np.zeros((len(order), 1), np.float32),
                                      np.zeros((len(order), 3), np.uint8)))
         ids.append(order)
-    pair_matches = {}
+    pairs = []
     for i, j in select_pairs(len(Rs), "all")[0]:
         common, a, b = np.intersect1d(ids[i], ids[j], return_indices=True)
-        pair_matches[(i, j)] = (a, b)
-    return features, pair_matches, Rs, ts, points
+        pairs.append(PairMatches(i, j, a, b, len(a)))
+    return features, pairs, Rs, ts, points
 
 
 @pytest.mark.parametrize("noise_px, center_tol, rot_tol_deg, rmse_tol", [
@@ -75,27 +78,29 @@ def _synthetic_views(noise_px=0.0, seed=0):
 ])
 def test_synthetic_views_are_recovered_up_to_similarity(noise_px, center_tol, rot_tol_deg,
                                                         rmse_tol):
-    features, pair_matches, Rs, ts, _ = _synthetic_views(noise_px)
-    state, _ = incremental_reconstruction(features, pair_matches, K, SfMSettings())
-    assert state.registered.all()
+    features, pairs, Rs, ts, _ = _synthetic_views(noise_px)
+    models, reasons, _ = reconstruct_models(features, pairs, K, SfMSettings())
+    model = models[0]
+    assert len(models) == 1 and model.registered.all() and reasons == {}
     centers_true = -np.einsum("vji,vj->vi", Rs, ts)
-    err = camera_set_error(state.R, state.centers(), Rs, centers_true)
+    err = camera_set_error(model.R, model.centers, Rs, centers_true)
     assert err.center_errors.max() < center_tol
     assert err.rotation_errors_deg.max() < rot_tol_deg
-    obs = state.observations()
-    res = reprojection_residuals(state.R, state.t, np.array(state.points), obs, K)
-    assert np.sqrt(np.mean(res**2)) < rmse_tol
-    assert len(state.points) > 400
+    res = reprojection_residuals(model.R, model.t, model.points3d, model.observations, K)
+    assert np.sqrt(np.mean(res**2)) == pytest.approx(model.reprojection_rmse_px)
+    assert model.reprojection_rmse_px < rmse_tol
+    assert len(model.points3d) > 400
+    assert model.check.ok and model.check.pairs_checked == len(pairs)
 
 
 def test_tracks_chain_matches_and_drop_inconsistent_ones():
     matches = {(0, 1): (np.array([0, 1]), np.array([5, 6])),
                (1, 2): (np.array([5, 6]), np.array([9, 9]))}  # 0:0 and 0:1 meet in 2:9
     tracks = build_tracks([3, 7, 10], matches)
-    assert tracks == []
-    tracks = build_tracks([3, 7, 10], {(0, 1): (np.array([0]), np.array([5])),
+    assert tracks.as_dicts() == [] and tracks.num_tracks == 0
+    tracks = build_tracks([3, 7, 10], {(0, 1): (np.array([0, 2]), np.array([5, 1])),
                                        (1, 2): (np.array([5]), np.array([9]))})
-    assert tracks == [{0: 0, 1: 5, 2: 9}]
+    assert tracks.as_dicts() == [{0: 0, 1: 5, 2: 9}, {0: 2, 1: 1}]
 
 
 @pytest.mark.parametrize("feature, norm", [("SIFT", cv2.NORM_L2), ("ORB", cv2.NORM_HAMMING)])
@@ -103,7 +108,8 @@ def test_views_carry_their_descriptor_norm_into_matching(rendered_pair, feature,
     img1, img2, K, R, t = rendered_pair
     f1, f2 = extract_features(img1, feature), extract_features(img2, feature)
     assert f1.norm == f2.norm == norm
-    idx1, idx2 = verify_pair(f1, f2, K, SfMSettings())
+    found = verify_pair(f1, f2, K, SfMSettings())
+    idx1, idx2 = found.idx_i, found.idx_j
     distances = essential_distances(essential_from_pose(R, t), f1.keypoints[idx1],
                                     f2.keypoints[idx2], K)
     assert len(idx1) >= 50 and np.median(distances) < 1.0  # within 1 px of the true geometry
@@ -111,14 +117,30 @@ def test_views_carry_their_descriptor_norm_into_matching(rendered_pair, feature,
 
 def test_pair_selection():
     assert select_pairs(4, "all")[0] == [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
-    pairs, text = select_pairs(30, "auto", neighbours=2)
-    assert pairs[:3] == [(0, 1), (0, 2), (1, 2)] and "neighbours" in text
-    with pytest.raises(ValueError, match="'auto', 'all' or 'sequential'"):
+    pairs, text = select_pairs(30, "sequential", neighbours=2)
+    assert pairs[:3] == [(0, 1), (0, 2), (1, 2)] and "sequential" in text
+    # 30 views on a circle: similar when close on it. In order, auto adds the sequence;
+    # shuffled, the same retrieval pairs and no sequential ones.
+    angle = 2 * np.pi * np.arange(30) / 30
+    vlads = np.column_stack([np.cos(angle), np.sin(angle)])
+    from scene3D.multiview import similarity_ranking
+
+    ranking, _ = similarity_ranking(vlads)
+    pairs, text = select_pairs(30, "auto", 3, ranking, retrieval_neighbours=4)
+    assert "sequential" in text and (0, 3) in pairs and (0, 29) in pairs and (0, 15) not in pairs
+    shuffled = np.random.default_rng(0).permutation(30)
+    pairs_s, text_s = select_pairs(30, "auto", 3, ranking, 4, sequence=shuffled)
+    assert "not a sequence" in text_s
+    assert set(pairs_s) == set(select_pairs(30, "retrieval", 3, ranking, 4)[0])
+    assert select_pairs(9, "auto", retrieval_neighbours=4)[1] == "all pairs (auto: 9 views)"
+    with pytest.raises(ValueError, match="'auto', 'retrieval', 'sequential', 'all'"):
         select_pairs(3, "random")
+    with pytest.raises(ValueError, match="similarity ranking"):
+        select_pairs(30, "retrieval")
 
 
 def test_bundle_adjustment_reduces_error_and_fixes_the_reference():
-    features, pair_matches, Rs, ts, points = _synthetic_views()
+    features, pairs, Rs, ts, points = _synthetic_views()
     rng = np.random.default_rng(3)
     view, point, xy = [], [], []
     for v, (R, t) in enumerate(zip(Rs, ts)):
@@ -145,6 +167,59 @@ def test_bundle_adjustment_reduces_error_and_fixes_the_reference():
     scale = np.linalg.norm(ts_[1:]) / np.linalg.norm(t1[1:])
     np.testing.assert_allclose(R1, Rs_, atol=1e-6)
     np.testing.assert_allclose(t1 * scale, ts_, atol=1e-5 * np.linalg.norm(ts_))
+
+
+def test_schur_product_sparse_equals_dense():
+    rng = np.random.default_rng(1)
+    camera, point = [], []
+    for p in range(400):  # tracks of 2-6 views among 30 cameras
+        views = rng.choice(30, rng.integers(2, 7), replace=False)
+        camera += list(views)
+        point += [p] * len(views)
+    camera, point = np.array(camera), np.array(point)
+    shuffle = rng.permutation(len(camera))
+    camera, point = camera[shuffle], point[shuffle]
+    # As in the Schur complement: Y = W V^-1 with one symmetric V per point.
+    A = rng.normal(size=(400, 3, 3))
+    V_inv = A @ A.transpose(0, 2, 1) + np.eye(3)
+    W = rng.normal(size=(len(camera), 6, 3))
+    Y = W @ V_inv[point]
+    dense = _schur_product_dense(Y, W, camera, point, 30)
+    np.testing.assert_allclose(_schur_product_sparse(Y, W, camera, point, 30, chunk_pairs=500),
+                               dense, atol=1e-10)
+    # One point's contribution by hand: camera blocks (a, b) get Y_a W_b^T.
+    obs = np.flatnonzero(point == 7)
+    S = _schur_product_sparse(Y[obs], W[obs], camera[obs], point[obs], 30)
+    a, b = obs[0], obs[1]
+    np.testing.assert_allclose(S[6 * camera[a]:6 * camera[a] + 6, 6 * camera[b]:6 * camera[b] + 6],
+                               Y[a] @ W[b].T)
+
+
+def test_check_names_a_view_whose_pose_contradicts_its_pairs():
+    """Break a correct model on purpose: one camera turned by 3 deg, then half the cameras
+    mirrored through a plane (a fold); the check must name them, and pass the intact one."""
+    features, pairs, Rs, ts, _ = _synthetic_views(noise_px=0.3)
+    registered = np.ones(len(Rs), dtype=bool)
+    intact = check_model(registered, Rs, ts, pairs, features, K, 4.0, reference=0)
+    assert intact.ok and intact.pairs_checked == len(pairs) and not intact.inconsistent_pairs
+    turned = Rs.copy()
+    turned[3] = rotation_about_axis([0.3, 1.0, 0.2], 3.0) @ Rs[3]
+    broken = check_model(registered, turned, ts, pairs, features, K, 4.0, reference=0)
+    assert broken.suspect_views == (3,) and not broken.ok
+    assert {(i, j) for i, j, _ in broken.inconsistent_pairs} == {
+        (min(3, v), max(3, v)) for v in range(len(Rs)) if v != 3}
+    # A fold: the last views placed as if the scene were mirrored through x = 0 (centres
+    # and orientations reflected): consistent among themselves, not with the others.
+    def folded(views):
+        M = np.diag([-1.0, 1.0, 1.0])
+        R_, t_ = Rs.copy(), ts.copy()
+        for v in views:
+            R_[v] = M @ Rs[v] @ M
+            t_[v] = -R_[v] @ (M @ (-Rs[v].T @ ts[v]))
+        return check_model(registered, R_, t_, pairs, features, K, 4.0, reference=0)
+
+    assert folded((4, 5)).suspect_views == (4, 5)
+    assert not folded((3, 4, 5)).ok  # half and half: which half is right cannot be told
 
 
 def test_similarity_and_quaternions():
@@ -242,7 +317,8 @@ def test_an_unrelated_image_is_reported_not_registered(fountain, chessboards, tm
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((out / "reconstruction.json").read_text())
     assert summary["unregistered"] == ["0005b_board.jpg"]
-    assert summary["registered"] == 4
+    assert summary["unregistered_reasons"]["0005b_board.jpg"]
+    assert summary["registered"] == 4 and len(summary["models"]) == 1
     assert "view '0005b_board.jpg' could not be registered" in proc.stderr
 
 
@@ -274,7 +350,7 @@ def test_sequential_pairs_through_the_api(fountain):
     recon = reconstruct_views(paths, cams[0].K, np.zeros(5), max_width=800,
                               pairs="sequential", settings=SfMSettings(neighbours=1),
                               progress=messages.append)
-    assert recon.pair_selection == "neighbours (1 following views)"
+    assert recon.pair_selection == "sequential (1 following views)"
     assert recon.registered.all() and recon.names[0] == "0002.jpg"
     assert recon.image_size == (768, 512)
     err = camera_set_error(recon.R, recon.centers, np.array([c.R for c in cams]),
@@ -293,3 +369,130 @@ def test_a_calibration_that_does_not_fit_stops_with_the_reason(fountain):
     with pytest.raises(ReconstructionError, match="focal length 1.2") as info:
         reconstruct_views(paths, K, np.zeros(5), max_width=800)
     assert info.value.reason == "no_initial_pair"
+
+
+def _cli(args, tmp_path, name="out"):
+    out = tmp_path / name
+    proc = subprocess.run([sys.executable, "-m", "scene3D", "reconstruct-views", *args,
+                           "--calib", str(REPO / "data" / "fountain_P11_intrinsics.yaml"),
+                           "--max-width", "800", "--no-plots", "--out", str(out)],
+                          capture_output=True, text=True, timeout=900)
+    return proc, out
+
+
+def test_shuffled_names_give_the_same_reconstruction(fountain, tmp_path):
+    """The fountain images under random names, in random order (symlinks): the same
+    cameras, bit for bit up to float noise, as under their own names."""
+    images = sorted((fountain / "images").glob("*.jpg"))[2:9]
+    ordered = tmp_path / "ordered"
+    ordered.mkdir()
+    for p in images:
+        (ordered / p.name).symlink_to(p)
+    shuffled = tmp_path / "shuffled"
+    shuffled.mkdir()
+    rng = np.random.default_rng(7)
+    alias = {}
+    for p in rng.permutation(images):
+        alias[p.name] = f"{rng.integers(10**8):08d}.jpg"
+        (shuffled / alias[p.name]).symlink_to(p)
+    a_proc, a_out = _cli([str(ordered), "--pairs", "retrieval", "--retrieval-neighbours", "3"],
+                         tmp_path, "a")
+    b_proc, b_out = _cli([str(shuffled), "--pairs", "retrieval", "--retrieval-neighbours",
+                          "3"], tmp_path, "b")
+    assert a_proc.returncode == 0, a_proc.stderr
+    assert b_proc.returncode == 0, b_proc.stderr
+    cams_a = json.loads((a_out / "cameras.json").read_text())
+    cams_b = json.loads((b_out / "cameras.json").read_text())
+    assert len(cams_a) == len(images) == len(cams_b)
+    for name, cam in cams_a.items():
+        other = cams_b[alias[name]]
+        np.testing.assert_allclose(cam["R"], other["R"], atol=1e-6)
+        np.testing.assert_allclose(cam["center"], other["center"], atol=1e-6)
+
+
+def test_unconnected_scenes_become_two_models(fountain, data_root, tmp_path):
+    """Five fountain views and four Herz-Jesus views: no pair joins the two scenes, so each
+    is a model of its own, written to its own folder, and the summary says which is where."""
+    folder = tmp_path / "two"
+    folder.mkdir()
+    for i in range(2, 7):
+        (folder / f"f{i}.jpg").symlink_to(fountain / "images" / f"{i:04d}.jpg")
+    for i in range(0, 4):
+        (folder / f"h{i}.jpg").symlink_to(data_root / "Herz-Jesus-P8" / "images" / f"{i:04d}.jpg")
+    proc, out = _cli([str(folder)], tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((out / "reconstruction.json").read_text())
+    assert len(summary["models"]) == 2 and summary["unregistered"] == []
+    views = [sorted(m["views"]) for m in summary["models"]]
+    assert views == [[f"f{i}.jpg" for i in range(2, 7)], [f"h{i}.jpg" for i in range(4)]]
+    assert summary["models"][1]["folder"] == "model-1"
+    assert (out / "model-1" / "points.ply").is_file() and (out / "points.ply").is_file()
+    assert json.loads((out / "model-1" / "cameras.json").read_text()).keys() == {
+        f"h{i}.jpg" for i in range(4)}
+    assert "model 1 (model-1/): 4 more views" in proc.stdout
+
+
+def test_a_broken_reconstruction_is_reported_not_written_as_a_success(fountain, tmp_path,
+                                                                       monkeypatch, capsys):
+    """Turn one registered camera by 5 deg just before the result is taken (as a wrong
+    registration would leave it): the command must say so and exit 1, not 0."""
+    from scene3D.cli.multiview import main
+    from scene3D.multiview import mapper
+
+    original = mapper._Model.result
+
+    def broken(self, check):
+        view = [v for v in np.flatnonzero(self.registered) if v != self.reference][1]
+        self.R[view] = rotation_about_axis([0.2, 1.0, 0.1], 5.0) @ self.R[view]
+        return original(self, self.check())
+
+    monkeypatch.setattr(mapper._Model, "result", broken)
+    paths = [str(fountain / "images" / f"{i:04d}.jpg") for i in range(3, 8)]
+    out = tmp_path / "out"
+    code = main([*paths, "--calib", str(REPO / "data" / "fountain_P11_intrinsics.yaml"),
+                 "--max-width", "800", "--no-plots", "--out", str(out), "-q"])
+    assert code == 1
+    err = capsys.readouterr().err
+    assert "failed its consistency check" in err
+    summary = json.loads((out / "reconstruction.json").read_text())
+    assert summary["status"] == "failed"
+    check = summary["models"][0]["check"]
+    assert check["status"] == "failed" and len(check["suspect_views"]) == 1
+    assert check["suspect_views"][0] in err
+
+
+class _PicklingEngine:
+    """An engine that sends every task's function, arguments and result through pickle,
+    as an engine of worker processes would: what reconstruct_views hands it must survive."""
+
+    name = "pickling"
+
+    def __init__(self):
+        self.tasks: dict[str, int] = {}
+
+    def map(self, fn, arguments, *, label="tasks", progress=None):
+        import pickle
+
+        for args in arguments:
+            fn_, args_ = pickle.loads(pickle.dumps((fn, args)))
+            self.tasks[label] = self.tasks.get(label, 0) + 1
+            yield pickle.loads(pickle.dumps(fn_(*args_)))
+
+    def share(self, value):
+        return value
+
+
+def test_tasks_run_through_the_engine_and_survive_pickling(fountain):
+    from scene3D.datasets import read_strecha_camera
+    from scene3D.engines import LocalEngine
+    from scene3D.multiview import reconstruct_views
+
+    K = read_strecha_camera(fountain / "gt_dense_cameras" / "0003.jpg.camera").K
+    paths = [fountain / "images" / f"{i:04d}.jpg" for i in range(3, 7)]
+    engine = _PicklingEngine()
+    remote = reconstruct_views(paths, K, max_width=800, engine=engine)
+    local = reconstruct_views(paths, K, max_width=800, engine=LocalEngine())
+    assert engine.tasks["features"] == 4 and engine.tasks["pairs"] == 6
+    assert remote.registered.all() and local.registered.all()
+    np.testing.assert_allclose(remote.R, local.R, atol=1e-9)
+    np.testing.assert_allclose(remote.t, local.t, atol=1e-9)

@@ -16,7 +16,7 @@ import numpy as np
 from ..camera import scale_intrinsics_halved
 from ..datasets import StrechaCamera, read_strecha_camera, relative_pose, strecha_views
 from ..errors import ReconstructionError
-from ..evaluation import relative_pose_error, summarize_pose_errors
+from ..evaluation import relative_pose_error, sigma_calibration, summarize_pose_errors
 from ..export import atomic_write_bytes
 from ..features import (
     FEATURE_MODES,
@@ -29,6 +29,7 @@ from ..features import (
 )
 from ..imageio import BOOK_MAX_WIDTH_PX, load_working_image
 from ..twoview import TwoViewSettings, reconstruct_two_view
+from ..uncertainty import pose_error_chi2
 from .common import (
     EXIT_CODES_HELP,
     EXIT_OK,
@@ -51,6 +52,9 @@ def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
         ),
         epilog=("Errors are in degrees: rotation angle of R_est R_true^T and the angle "
                 "between translation directions; failed pairs count as infinite error. "
+                "Sigmas are each pose's predicted 1-sigma rotation and translation-direction "
+                "angles (worst axis); the summary says how often the errors fall within the "
+                "predicted 90 %% bounds (chi-square on the full covariance). "
                 f"{EXIT_CODES_HELP}."),
     )
     parser.add_argument("dataset", type=Path, metavar="DATASET_DIR",
@@ -152,6 +156,8 @@ def _evaluate_pair(data: _Views, a: int, b: int, settings: TwoViewSettings) -> d
     """One row of the table: the pose errors of pair (a, b), or why it was refused."""
     row = {"pair": f"{data.paths[a].name}-{data.paths[b].name}", "width": 0, "feature": "",
            "rotation_deg": np.inf, "translation_deg": np.inf, "inliers": 0, "points": 0,
+           "rotation_sigma_deg": np.nan, "translation_sigma_deg": np.nan,
+           "rotation_chi2": np.nan, "translation_chi2": np.nan,
            "focal_scale": np.nan, "flagged": True, "note": ""}
     (img_a, K_a), (img_b, K_b) = data.image(a), data.image(b)
     row["width"] = img_a.shape[1]
@@ -166,9 +172,14 @@ def _evaluate_pair(data: _Views, a: int, b: int, settings: TwoViewSettings) -> d
     except ReconstructionError as exc:
         row["note"] = f"refused: {exc.reason}"
         return row
-    err = relative_pose_error(result.R, result.t,
-                              *relative_pose(data.cameras[a], data.cameras[b]))
+    truth = relative_pose(data.cameras[a], data.cameras[b])
+    err = relative_pose_error(result.R, result.t, *truth)
+    rotation_chi2, translation_chi2 = pose_error_chi2(result.R, result.t, *truth,
+                                                      result.pose_covariance)
     row.update(rotation_deg=err.rotation_deg, translation_deg=err.translation_deg,
+               rotation_sigma_deg=result.rotation_sigma_deg,
+               translation_sigma_deg=result.translation_sigma_deg,
+               rotation_chi2=rotation_chi2, translation_chi2=translation_chi2,
                inliers=result.num_inliers, points=result.num_points,
                focal_scale=result.focal_scale, flagged=not result.trusted,
                note="; ".join(result.warnings))
@@ -184,6 +195,8 @@ def _evaluate_pair_no_calib(data: _Views, a: int, b: int, settings: TwoViewSetti
 
     row = {"pair": f"{data.paths[a].name}-{data.paths[b].name}", "width": 0, "feature": "",
            "rotation_deg": np.inf, "translation_deg": np.inf, "inliers": 0, "points": 0,
+           "rotation_sigma_deg": np.nan, "translation_sigma_deg": np.nan,
+           "rotation_chi2": np.nan, "translation_chi2": np.nan,
            "focal_scale": np.nan, "flagged": True, "note": "", "focal_error": np.nan,
            "calibration_source": ""}
     img_a, K_a = data.image(a)
@@ -204,9 +217,14 @@ def _evaluate_pair_no_calib(data: _Views, a: int, b: int, settings: TwoViewSetti
         row["note"] = f"refused: {exc.reason}"
         return row
     result = calibration.geometry
-    err = relative_pose_error(result.R, result.t,
-                              *relative_pose(data.cameras[a], data.cameras[b]))
+    truth = relative_pose(data.cameras[a], data.cameras[b])
+    err = relative_pose_error(result.R, result.t, *truth)
+    rotation_chi2, translation_chi2 = pose_error_chi2(result.R, result.t, *truth,
+                                                      result.pose_covariance)
     scale = calibration.focal_px / math.sqrt(K_a[0, 0] * K_a[1, 1])
+    row.update(rotation_sigma_deg=result.rotation_sigma_deg,
+               translation_sigma_deg=result.translation_sigma_deg,
+               rotation_chi2=rotation_chi2, translation_chi2=translation_chi2)
     row.update(rotation_deg=err.rotation_deg, translation_deg=err.translation_deg,
                inliers=result.num_inliers, points=len(result.points3d), focal_scale=scale,
                flagged=not calibration.trusted, focal_error=scale - 1.0,
@@ -273,16 +291,20 @@ def run(args: argparse.Namespace) -> int:
     stats = summarize_pose_errors([r["rotation_deg"] for r in rows],
                                   [r["translation_deg"] for r in rows],
                                   [r["flagged"] for r in rows])
+    calibration = sigma_calibration([r["rotation_chi2"] for r in rows],
+                                    [r["translation_chi2"] for r in rows])
     widths = "/".join(str(w) for w in sorted({r["width"] for r in rows}))
     # The detector that ran (SIFT when SURF is not in this OpenCV build).
     feature = "/".join(sorted({r["feature"] for r in rows if r["feature"]})) or args.feature
-    print("| pair | rotation err (deg) | t-dir err (deg) | inliers | points | focal fit | "
-          "trusted | s | note |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| pair | rotation err (deg) | t-dir err (deg) | rotation sigma (deg) | "
+          "t-dir sigma (deg) | inliers | points | focal fit | trusted | s | note |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         focal = f"{r['focal_scale']:.3f}" if np.isfinite(r["focal_scale"]) else "-"
+        sigmas = [f"{r[k]:.3f}" if np.isfinite(r[k]) else "-"
+                  for k in ("rotation_sigma_deg", "translation_sigma_deg")]
         print(f"| {r['pair']} | {r['rotation_deg']:.3f} | {r['translation_deg']:.3f} | "
-              f"{r['inliers']} | {r['points']} | {focal} | "
+              f"{sigmas[0]} | {sigmas[1]} | {r['inliers']} | {r['points']} | {focal} | "
               f"{'no' if r['flagged'] else 'yes'} | {r['seconds']:.2f} | {r['note']} |")
     print(f"\n{len(rows)} pair{'s' * (len(rows) != 1)} at {widths} px, {feature}: median rotation "
           f"{stats['median_rotation_deg']:.3f} deg (p90 {stats['p90_rotation_deg']:.3f}), "
@@ -292,6 +314,15 @@ def run(args: argparse.Namespace) -> int:
           f"flagged {int(stats['flagged'])}, wrong and unflagged {int(stats['wrong_unflagged'])}"
           + (f"; the matches' focal length: median {float(np.median(fitted)):.3f} times the "
              "calibration's" if fitted else ""))
+    print(f"Trust: {int(stats['right_flagged'])} right poses (< 1 deg) flagged; "
+          f"{int(stats['off2_flagged'])} of {int(stats['off2'])} poses more than 2 deg off (or "
+          f"refused) flagged; {int(stats['wrong_unflagged'])} more than 5 deg off not flagged.")
+    if calibration["pairs"]:
+        print(f"Sigma calibration: {calibration['rotation_within90']:.0%} of the rotation errors "
+              f"and {calibration['translation_within90']:.0%} of the translation-direction "
+              f"errors within their predicted 90 % bounds ({int(calibration['pairs'])} poses; "
+              "about 90 % when the sigmas are right, less when the camera files' own error "
+              "is comparable to them)")
     if args.no_calib:
         print(_focal_summary(rows))
     if args.csv is not None:

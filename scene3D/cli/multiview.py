@@ -18,9 +18,16 @@ from ..evaluation import camera_set_error
 from ..export import colmap_text_files, save_figure, write_json, write_ply, write_text_files
 from ..features import FEATURE_MODES
 from ..imageio import BOOK_MAX_WIDTH_PX, IMAGE_SUFFIXES, read_image_size
-from ..multiview import SfMSettings, reconstruct_views
+from ..multiview import (
+    PAIR_MODES,
+    MultiViewReconstruction,
+    SfMModel,
+    SfMSettings,
+    reconstruct_views,
+)
 from .common import (
     EXIT_CODES_HELP,
+    EXIT_FAILED,
     EXIT_OK,
     UsageError,
     add_common_args,
@@ -46,9 +53,14 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
         epilog=(
             "Writes into --out: points.ply (binary, RGB), cameras.json (world-to-camera "
             "poses), colmap/cameras.txt, images.txt, points3D.txt (a COLMAP text model), "
-            "reconstruction.json (summary), cameras.png (cloud with camera frusta) and "
-            "report.html (the summary with an interactive 3D view; opens offline). "
-            "Views that cannot be registered are named, not dropped silently. "
+            "cameras.png (cloud with camera frusta) for the largest model, the same files "
+            "in model-1/, model-2/, ... for further models (views that connect among "
+            "themselves but not to the first), and reconstruction.json (summary: which "
+            "views are in which model, which are in none and why) and report.html (the "
+            "summary with an interactive 3D view of the largest model; opens offline). "
+            "A model that fails the "
+            "consistency check (a view whose pose contradicts its pair geometry, a fold) is "
+            "written for inspection, its status 'failed', and the exit code is 1. "
             f"{EXIT_CODES_HELP}."
         ),
     )
@@ -57,12 +69,19 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
     parser.add_argument("--calib", type=Path, required=True, metavar="FILE",
                         help="camera calibration (OpenCV YAML/XML as calibrate.py writes it)")
     add_size_args(parser, 2 * BOOK_MAX_WIDTH_PX, "3072 -> 1536, half resolution")
-    parser.add_argument("--pairs", choices=("auto", "all", "sequential"), default="auto",
-                        help="which pairs to match: all pairs (up to 20 views in auto), or "
-                             "each view with its --neighbours followers (ordered sequences)")
+    parser.add_argument("--pairs", choices=PAIR_MODES, default="auto",
+                        help="which pairs to match: 'retrieval' (each view with its "
+                             "--retrieval-neighbours most similar views, any order), "
+                             "'sequential' (each with its --neighbours followers in the "
+                             "given order), 'all', or 'auto' (all pairs up to 2K+1 views, "
+                             "else retrieval, plus sequential when the images show that "
+                             "the given order is a sequence; the summary says which)")
     parser.add_argument("--neighbours", type=positive_int, default=3, metavar="N",
-                        help="with --pairs sequential (or auto beyond 20 views): how many "
-                             "following views each view is matched with (default 3)")
+                        help="sequential pairs: how many following views each view is "
+                             "matched with (default 3)")
+    parser.add_argument("--retrieval-neighbours", type=positive_int, default=8, metavar="K",
+                        help="retrieval: how many most similar views each view is matched "
+                             "with (default 8)")
     add_feature_arg(parser, [m.lower() for m in FEATURE_MODES if m != "flow"])
     parser.add_argument("--ground-truth", type=Path, metavar="DIR",
                         help="Strecha .camera files (NAME.camera per image): report camera "
@@ -97,23 +116,38 @@ def image_paths(specs: list[str]) -> list[Path]:
     return paths
 
 
-def evaluate_against(folder: Path, names: list[str], recon) -> dict:
-    """Camera errors of the registered views against Strecha ground truth."""
-    reg = [i for i in range(len(names)) if recon.registered[i]]
+def evaluate_against(folder: Path, names: list[str], model: SfMModel) -> dict:
+    """Camera errors of a model's views against Strecha ground truth."""
+    reg = [i for i in range(len(names)) if model.registered[i]]
     truth = [read_strecha_camera(folder / f"{names[i]}.camera") for i in reg]
-    err = camera_set_error(recon.R[reg], recon.centers[reg], np.array([c.R for c in truth]),
+    err = camera_set_error(model.R[reg], model.centers[reg], np.array([c.R for c in truth]),
                            np.array([c.center for c in truth]))
     return {
         "views": [names[i] for i in reg],
         "center_error_fraction_of_extent": err.center_errors,
         "rotation_error_deg": err.rotation_errors_deg,
         "max_center_error_fraction": float(err.center_errors.max()),
+        "median_center_error_fraction": float(np.median(err.center_errors)),
         "max_rotation_error_deg": float(err.rotation_errors_deg.max()),
+        "median_rotation_error_deg": float(np.median(err.rotation_errors_deg)),
     }
 
 
-def _write_report(out: Path, names: list[str], recon, summary: dict, figure) -> Path:
-    """report.html: the summary, cameras.png and the interactive 3D view (scene3D.report)."""
+def check_summary(model: SfMModel, names: list[str]) -> dict:
+    check = model.check
+    return {
+        "status": "ok" if check.ok else "failed",
+        "pairs_checked": check.pairs_checked,
+        "inconsistent_pairs": [{"views": [names[i], names[j]], "median_epipolar_px": r}
+                               for i, j, r in check.inconsistent_pairs],
+        "suspect_views": [names[v] for v in check.suspect_views],
+    }
+
+
+def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, summary: dict,
+                  plots: bool) -> Path:
+    """report.html: the summary, cameras.png and the interactive 3D view (scene3D.report)
+    of the largest model."""
     from ..export import atomic_write_bytes
     from ..report import multi_view_layers, multi_view_report, prepare_view
 
@@ -121,12 +155,34 @@ def _write_report(out: Path, names: list[str], recon, summary: dict, figure) -> 
              f"{summary['points']} points, mean track length {recon.mean_track_length:.2f}, "
              f"reprojection RMSE {recon.reprojection_rmse_px:.3f} px"]
     figures = {}
-    if figure is not None:
+    if plots:
         figures["cameras.png"] = (out / "cameras.png").read_bytes()
     view = prepare_view(*multi_view_layers(names, recon.K, recon.image_size, recon.registered,
                                            recon.R, recon.t, recon.points3d, recon.colors))
     page = multi_view_report(names, recon.registered, summary, lines, figures, view)
     return atomic_write_bytes(out / "report.html", page.encode("utf-8"))
+
+
+def write_model(folder: Path, names: list[str], recon: MultiViewReconstruction,
+                model: SfMModel, plots: bool) -> list[Path]:
+    """The files of one model: PLY, cameras JSON, COLMAP text model, figure."""
+    folder.mkdir(exist_ok=True)
+    obs = model.observations
+    colmap = colmap_text_files(names, recon.K, recon.image_size, model.registered, model.R,
+                               model.t, model.points3d, model.colors, obs.view, obs.point,
+                               obs.xy, model.point_errors_px(recon.K))
+    written = [write_ply(folder / "points.ply", model.points3d, model.colors)]
+    cameras = {n: {"R": model.R[i], "t": model.t[i], "center": model.centers[i]}
+               for i, n in enumerate(names) if model.registered[i]}
+    written.append(write_json(folder / "cameras.json", cameras))
+    written += write_text_files(folder / "colmap", colmap)
+    if plots:
+        from ..plotting import plot_cameras_and_points
+
+        figure = plot_cameras_and_points(model.points3d, model.colors, model.R, model.t,
+                                         recon.K, recon.image_size)
+        written.append(save_figure(figure, folder / "cameras.png"))
+    return written
 
 
 def run(args: argparse.Namespace) -> int:
@@ -150,50 +206,59 @@ def run(args: argparse.Namespace) -> int:
         paths, K_native, camera.dist,
         max_width=None if args.no_pyr_down else args.max_width, names=names,
         feature=args.feature, pairs=args.pairs,
-        settings=SfMSettings(neighbours=args.neighbours), progress=progress)
+        settings=SfMSettings(neighbours=args.neighbours,
+                             retrieval_neighbours=args.retrieval_neighbours),
+        progress=progress)
     timings = {k: v for k, v in recon.timings_s.items() if k != "total"}
+    models = []
+    written: list[Path] = []
+    for m, model in enumerate(recon.models):
+        folder = out if m == 0 else out / f"model-{m}"
+        entry = {
+            "folder": "." if m == 0 else folder.name,
+            "views": [names[i] for i in model.views], "registered": len(model.views),
+            "points": len(model.points3d), "mean_track_length": model.mean_track_length,
+            "reprojection_rmse_px": model.reprojection_rmse_px,
+            "check": check_summary(model, names),
+        }
+        if args.ground_truth is not None:
+            entry["ground_truth"] = evaluate_against(args.ground_truth, names, model)
+        models.append(entry)
+        written += write_model(folder, names, recon, model, not args.no_plots)
+    main_model = models[0]
     summary = {
-        "views": len(names), "registered": int(recon.registered.sum()),
-        "unregistered": list(recon.unregistered), "points": len(recon.points3d),
+        "status": "ok" if recon.ok else "failed",
+        "views": len(names), "registered": main_model["registered"],
+        "unregistered": list(recon.unregistered),
+        "unregistered_reasons": recon.unregistered_reasons,
+        "models": models, "points": main_model["points"],
         "mean_track_length": recon.mean_track_length,
         "reprojection_rmse_px": recon.reprojection_rmse_px,
-        "pair_selection": recon.pair_selection, "verified_pairs": recon.verified_pairs,
+        "pair_selection": recon.pair_selection, "matched_pairs": recon.matched_pairs,
+        "verified_pairs": recon.verified_pairs,
         "image_size": list(recon.image_size), "K": recon.K, "feature": args.feature,
-        "conventions": "world = camera frame of the first view of the initial pair; "
-                       "x_cam = R @ X + t; arbitrary scale",
+        "conventions": "each model: world = camera frame of the first view of its initial "
+                       "pair; x_cam = R @ X + t; arbitrary scale",
     }
-    if args.ground_truth is not None:
-        summary["ground_truth"] = evaluate_against(args.ground_truth, names, recon)
-    figure = None
-    if not args.no_plots:
-        from ..plotting import plot_cameras_and_points
-
-        figure = plot_cameras_and_points(recon.points3d, recon.colors, recon.R, recon.t,
-                                         recon.K, recon.image_size)
-    obs = recon.observations
-    colmap = colmap_text_files(names, recon.K, recon.image_size, recon.registered, recon.R,
-                               recon.t, recon.points3d, recon.colors, obs.view, obs.point,
-                               obs.xy, recon.point_errors_px())
-    written = [write_ply(out / "points.ply", recon.points3d, recon.colors)]
-    cameras = {n: {"R": recon.R[i], "t": recon.t[i], "center": recon.centers[i]}
-               for i, n in enumerate(names) if recon.registered[i]}
-    written.append(write_json(out / "cameras.json", cameras))
-    written += write_text_files(out / "colmap", colmap)
-    if figure is not None:
-        written.append(save_figure(figure, out / "cameras.png"))
+    if "ground_truth" in main_model:
+        summary["ground_truth"] = main_model["ground_truth"]
     timings["total"] = time.perf_counter() - t_start
     summary["timings_s"] = timings
     written.append(write_json(out / "reconstruction.json", summary))
     if not args.no_report:
-        written.append(_write_report(out, names, recon, summary, figure))
+        written.append(_write_report(out, names, recon, summary, not args.no_plots))
 
     for name in recon.unregistered:
-        logger.warning("view '%s' could not be registered", name)
+        logger.warning("view '%s' could not be registered: %s", name,
+                       recon.unregistered_reasons.get(name, "unknown"))
     if not args.quiet:
         print(f"{summary['registered']} of {len(names)} views registered, "
               f"{summary['points']} points, mean track length "
               f"{recon.mean_track_length:.2f}, reprojection RMSE "
               f"{recon.reprojection_rmse_px:.3f} px, {timings['total']:.1f} s")
+        for m, entry in enumerate(models[1:], start=1):
+            print(f"model {m} ({entry['folder']}/): {entry['registered']} more views: "
+                  f"{', '.join(entry['views'])}")
         if "ground_truth" in summary:
             gt = summary["ground_truth"]
             print(f"against ground truth: camera centres within "
@@ -201,6 +266,12 @@ def run(args: argparse.Namespace) -> int:
                   f"rotations within {gt['max_rotation_error_deg']:.3f} deg")
     for path in written:
         print(f"Wrote '{path}'")
+    if not recon.ok:
+        bad = [f"{names[v]}" for model in recon.models for v in model.check.suspect_views]
+        print(f"error: the reconstruction failed its consistency check: the poses of "
+              f"{', '.join(bad)} contradict their pair geometry (see reconstruction.json; "
+              "the files are written for inspection only)", file=sys.stderr)
+        return EXIT_FAILED
     return EXIT_OK
 
 

@@ -1,0 +1,67 @@
+"""Incremental structure from motion over many views of one calibrated camera.
+
+The book ends with "repeat the procedure for different image pairs" and names
+bundle adjustment as the missing step. One module per stage, in pipeline order:
+
+- :mod:`~scene3D.multiview.features`: features once per image (a task per image);
+- :mod:`~scene3D.multiview.retrieval`: the collection's visual vocabulary, a VLAD
+  vector per view, views ranked by similarity;
+- :mod:`~scene3D.multiview.pairs`: which pairs to match (retrieval, sequential, all,
+  auto);
+- :mod:`~scene3D.multiview.matching`: matching through visual words and essential-
+  matrix verification (a task per pair);
+- :mod:`~scene3D.multiview.tracks`: verified matches chained into tracks;
+- :mod:`~scene3D.multiview.points`: many tracks triangulated at once;
+- :mod:`~scene3D.multiview.mapper`: registration, local and global bundle adjustment,
+  re-triangulation, several models;
+- :mod:`~scene3D.multiview.checks`: the model against its pairs' own geometry;
+- :mod:`~scene3D.multiview.models`: the data (settings, features, pairs, results);
+- :mod:`~scene3D.multiview.pipeline`: :func:`reconstruct_views`, the stages in order.
+
+The bundle adjustment itself is :mod:`scene3D.bundle` (on :mod:`scene3D.schur`).
+
+Frames: each model's world is the camera frame of the first view of its initial
+pair, poses world-to-camera ``x_cam = R X + t``; the scale is that of the initial
+pair (unit baseline) and is otherwise arbitrary.
+"""
+
+from .checks import check_model
+from .features import extract_features, view_features
+from .mapper import reconstruct_models
+from .matching import match_views, verify_pair
+from .models import (
+    ModelCheck,
+    MultiViewReconstruction,
+    PairMatches,
+    SfMModel,
+    SfMSettings,
+    ViewFeatures,
+)
+from .pairs import PAIR_MODES, select_pairs
+from .pipeline import reconstruct_views
+from .retrieval import Vocabulary, describe_view, similarity_ranking, train_vocabulary
+from .tracks import Tracks, build_tracks
+
+__all__ = [
+    "PAIR_MODES",
+    "ModelCheck",
+    "MultiViewReconstruction",
+    "PairMatches",
+    "SfMModel",
+    "SfMSettings",
+    "Tracks",
+    "ViewFeatures",
+    "Vocabulary",
+    "build_tracks",
+    "check_model",
+    "describe_view",
+    "extract_features",
+    "match_views",
+    "reconstruct_models",
+    "reconstruct_views",
+    "select_pairs",
+    "similarity_ranking",
+    "train_vocabulary",
+    "verify_pair",
+    "view_features",
+]

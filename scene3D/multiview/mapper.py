@@ -1,0 +1,488 @@
+"""Stage 5: the incremental mapper, one model after the other.
+
+1. Initialisation from the verified pair (among those with most matches) giving most
+   points under a good triangulation angle (the two-view core, trusted results only).
+2. Registration of the view that sees most reconstructed points next (PnP with
+   RANSAC, SQPnP, then Levenberg-Marquardt), triangulation of the tracks it opens.
+3. A local bundle adjustment after each registration: the new view and its most
+   co-visible views are refined with their points, the other views observing those
+   points held fixed. Its cost does not grow with the model.
+4. A global bundle adjustment whenever the model has grown by a factor
+   (``SfMSettings.global_ba_growth``) in views since the last one, then
+   re-triangulation (tracks that failed before are tried again with the refined
+   cameras, and reconstructed points gain the views that see them within the
+   threshold) and the consistency check (:mod:`scene3D.multiview.checks`): a view
+   that contradicts its pair geometry is taken out of the model and not put back.
+5. When no view can be registered, the views left are matched with further
+   candidates (a callback supplied by the pipeline) and tried again; then a final
+   global adjustment, re-triangulation and adjustment, and the final check, which is
+   recorded in the model.
+6. The views left start the next model, until no trusted pair remains among them.
+
+State: every keypoint of every view is a node (:mod:`scene3D.multiview.tracks`);
+``node_point[n]`` is the point it observes (-1: none), so the observations are
+exactly the nodes with a point, and ``track_point[k]`` is the point of track ``k``.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Sequence
+
+import cv2
+import numpy as np
+
+from ..bundle import Observations, bundle_adjust, reprojection_residuals
+from ..errors import ReconstructionError
+from ..geometry import FloatArray, camera_centers
+from ..twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
+from .checks import check_model
+from .models import ModelCheck, PairMatches, SfMModel, SfMSettings, ViewFeatures
+from .points import max_parallax_deg, observation_errors, triangulate_groups
+from .tracks import Tracks, build_tracks
+
+logger = logging.getLogger(__name__)
+
+#: ``more_pairs(view, model_views)``: verified pairs of ``view`` with further candidates
+#: among ``model_views`` (the pipeline matches them through its engine).
+MorePairs = Callable[[int, Sequence[int]], list[PairMatches]]
+
+
+class _Model:
+    """Mutable state of one growing model (private; see the module docstring)."""
+
+    def __init__(self, features: Sequence[ViewFeatures], pairs: list[PairMatches],
+                 K: FloatArray, settings: SfMSettings, allowed: np.ndarray,
+                 timings: dict[str, float]) -> None:
+        self.features, self.K, self.s, self.timings = features, K, settings, timings
+        self.allowed = allowed
+        self.pairs = [p for p in pairs if allowed[p.i] and allowed[p.j]]
+        V = len(features)
+        self.xy = np.concatenate([f.keypoints for f in features]).reshape(-1, 2)
+        self.R = np.full((V, 3, 3), np.nan)
+        self.t = np.full((V, 3), np.nan)
+        self.registered = np.zeros(V, dtype=bool)
+        self.blocked = np.zeros(V, dtype=bool)  # taken out by the check: not put back
+        self.X = np.zeros((0, 3))
+        self.reference = -1
+        self._set_tracks(build_tracks([len(f.keypoints) for f in features], self.pairs))
+        self.node_point = np.full(len(self.xy), -1, dtype=int)
+        self.track_point = np.full(self.tracks.num_tracks, -1, dtype=int)
+
+    # -- bookkeeping --------------------------------------------------------------------
+
+    def _set_tracks(self, tracks: Tracks) -> None:
+        self.tracks = tracks
+        self.node_view = tracks.node_view
+        self.track_nodes, self.track_starts = tracks.members()
+
+    def add_pairs(self, new: list[PairMatches]) -> None:
+        """Take further verified pairs: rebuild the tracks, keep every point."""
+        self.pairs += [p for p in new if self.allowed[p.i] and self.allowed[p.j]]
+        self._set_tracks(build_tracks([len(f.keypoints) for f in self.features], self.pairs))
+        self._relink_tracks()
+
+    def drop_pairs(self, bad: set[tuple[int, int]]) -> None:
+        """Forget pairs that contradict the model (false verifications, e.g. two different
+        windows): rebuild the tracks without them and keep, of each point, only the
+        observations in the track that holds most of them, so that nothing stays attached
+        through a false pair."""
+        self.pairs = [p for p in self.pairs if (p.i, p.j) not in bad]
+        self._set_tracks(build_tracks([len(f.keypoints) for f in self.features], self.pairs))
+        obs = np.flatnonzero(self.node_point >= 0)
+        point, track = self.node_point[obs], self.tracks.node_track[obs]
+        span = self.tracks.num_tracks + 1
+        keys, counts = np.unique(point * span + (track + 1), return_counts=True)
+        # Per point, the track with most of its observations (ties: the lower track).
+        order = np.lexsort((keys, -counts, keys // span))
+        first = order[np.r_[True, np.diff(keys[order] // span) != 0]]
+        owner = np.full(len(self.X), -2, dtype=int)
+        owner[keys[first] // span] = keys[first] % span - 1
+        stray = (track < 0) | (track != owner[point])
+        self._remove_observations(obs[stray])
+        self._relink_tracks()
+
+    def _relink_tracks(self) -> None:
+        """``track_point`` from the observations (a track gets the point of its nodes)."""
+        self.track_point = np.full(self.tracks.num_tracks, -1, dtype=int)
+        obs = np.flatnonzero(self.node_point >= 0)
+        tr = self.tracks.node_track[obs]
+        has = tr >= 0
+        self.track_point[tr[has]] = self.node_point[obs[has]]
+
+    def observations(self) -> tuple[np.ndarray, Observations]:
+        nodes = np.flatnonzero(self.node_point >= 0)
+        return nodes, Observations(self.node_view[nodes], self.node_point[nodes], self.xy[nodes])
+
+    def centers(self) -> FloatArray:
+        return camera_centers(self.R, self.t)
+
+    @property
+    def num_points(self) -> int:
+        return int(np.count_nonzero(np.bincount(self.node_point[self.node_point >= 0],
+                                                minlength=len(self.X)) >= 2))
+
+    def _remove_observations(self, nodes: np.ndarray) -> None:
+        """Drop observations; points left with fewer than two go (their nodes too)."""
+        self.node_point[nodes] = -1
+        counts = np.bincount(self.node_point[self.node_point >= 0], minlength=len(self.X))
+        thin = counts < 2
+        observed = self.node_point >= 0
+        self.node_point[observed & thin[np.maximum(self.node_point, 0)]] = -1
+        dead = np.flatnonzero(thin)
+        self.track_point[np.isin(self.track_point, dead)] = -1
+
+    def compact(self) -> None:
+        """Renumber the points that still have observations."""
+        counts = np.bincount(self.node_point[self.node_point >= 0], minlength=len(self.X))
+        keep = counts >= 2
+        remap = np.full(len(self.X) + 1, -1, dtype=int)
+        remap[np.flatnonzero(keep)] = np.arange(int(keep.sum()))
+        self.X = self.X[keep]
+        self.node_point = remap[self.node_point]
+        self.track_point = remap[self.track_point]
+
+    # -- triangulation --------------------------------------------------------------------
+
+    def triangulate(self, tracks: np.ndarray | None = None) -> int:
+        """Triangulate tracks without a point that two registered views see
+        (``tracks``: only these). Returns the number of new points."""
+        candidates = np.flatnonzero(self.track_point < 0) if tracks is None else tracks[
+            self.track_point[tracks] < 0]
+        if len(candidates) == 0:
+            return 0
+        counts = np.diff(self.track_starts)[candidates]
+        group = np.repeat(np.arange(len(candidates)), counts)
+        nodes = self.track_nodes[np.repeat(self.track_starts[candidates], counts)
+                                 + np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts,
+                                                                       counts)]
+        views = self.node_view[nodes]
+        ok = self.registered[views]
+        group, nodes, views = group[ok], nodes[ok], views[ok]
+        if len(nodes) == 0:
+            return 0
+        G = len(candidates)
+        X = triangulate_groups(group, self.xy[nodes], self.R[views], self.t[views], self.K, G)
+        err, depth = observation_errors(X[group], self.R[views], self.t[views], self.xy[nodes],
+                                        self.K)
+        good = (err <= self.s.max_reprojection_px) & (depth > 0)
+        group, nodes, views = group[good], nodes[good], views[good]
+        parallax = max_parallax_deg(group, X[group], self.centers()[views], G)
+        enough = (np.bincount(group, minlength=G) >= 2) & (parallax >= self.s.min_parallax_deg)
+        enough &= np.all(np.isfinite(X), axis=1)
+        new = np.flatnonzero(enough)
+        ids = np.full(G, -1, dtype=int)
+        ids[new] = len(self.X) + np.arange(len(new))
+        self.X = np.concatenate([self.X, X[new]])
+        take = enough[group]
+        self.node_point[nodes[take]] = ids[group[take]]
+        self.track_point[candidates[new]] = ids[new]
+        return len(new)
+
+    def complete_tracks(self) -> int:
+        """Add the registered views of each reconstructed track that see its point within
+        the threshold but do not observe it yet. Returns the observations added."""
+        tr = self.tracks.node_track
+        nodes = np.flatnonzero((tr >= 0) & (self.node_point < 0))
+        nodes = nodes[self.registered[self.node_view[nodes]]]
+        points = self.track_point[tr[nodes]]
+        nodes, points = nodes[points >= 0], points[points >= 0]
+        if len(nodes) == 0:
+            return 0
+        views = self.node_view[nodes]
+        err, depth = observation_errors(self.X[points], self.R[views], self.t[views],
+                                        self.xy[nodes], self.K)
+        good = (err <= self.s.max_reprojection_px) & (depth > 0)
+        self.node_point[nodes[good]] = points[good]
+        return int(good.sum())
+
+    # -- registration ------------------------------------------------------------------------
+
+    def correspondences(self, view: int) -> tuple[np.ndarray, np.ndarray]:
+        """Nodes of ``view`` whose track has a point, and those points."""
+        nodes = np.arange(self.tracks.offsets[view], self.tracks.offsets[view + 1])
+        tr = self.tracks.node_track[nodes]
+        nodes, tr = nodes[tr >= 0], tr[tr >= 0]
+        points = self.track_point[tr]
+        return nodes[points >= 0], points[points >= 0]
+
+    def register(self, view: int) -> bool:
+        nodes, points = self.correspondences(view)
+        if len(nodes) < self.s.min_registration_inliers:
+            return False
+        obj, img = self.X[points], self.xy[nodes]
+        ok, rvec, tvec, inliers = cv2.solvePnPRansac(
+            obj, img, self.K, None, iterationsCount=2000,
+            reprojectionError=self.s.pnp_threshold_px, confidence=0.9999,
+            flags=cv2.SOLVEPNP_SQPNP)
+        if not ok or inliers is None or len(inliers) < self.s.min_registration_inliers:
+            return False
+        inl = inliers.ravel()
+        rvec, tvec = cv2.solvePnPRefineLM(obj[inl], img[inl], self.K, None, rvec, tvec)
+        self.R[view] = cv2.Rodrigues(rvec)[0]
+        self.t[view] = tvec.ravel()
+        self.registered[view] = True
+        self.node_point[nodes[inl]] = points[inl]
+        return True
+
+    def deregister(self, view: int) -> None:
+        nodes = np.arange(self.tracks.offsets[view], self.tracks.offsets[view + 1])
+        self._remove_observations(nodes[self.node_point[nodes] >= 0])
+        self.registered[view] = False
+        self.R[view], self.t[view] = np.nan, np.nan
+
+    # -- bundle adjustment ---------------------------------------------------------------------
+
+    def _fixed_view(self) -> int:
+        return self.reference if self.registered[self.reference] else int(
+            np.flatnonzero(self.registered)[0])
+
+    def _adjust(self, nodes: np.ndarray, point_ids: np.ndarray, fixed: np.ndarray,
+                max_iterations: int, tolerance: float) -> None:
+        """Bundle-adjust the points ``point_ids`` and the free views observing them, then
+        drop observations among ``nodes`` that reproject badly or lie behind a camera."""
+        t0 = time.perf_counter()
+        local = np.searchsorted(point_ids, self.node_point[nodes])
+        obs = Observations(self.node_view[nodes], local, self.xy[nodes])
+        R, t, X = bundle_adjust(self.R, self.t, self.X[point_ids], obs, self.K, fixed,
+                                max_iterations=max_iterations, tolerance=tolerance)
+        free = np.setdiff1d(np.unique(obs.view), fixed)
+        self.R[free], self.t[free] = R[free], t[free]
+        self.X[point_ids] = X
+        err = np.linalg.norm(reprojection_residuals(R, t, X, obs, self.K), axis=1)
+        depth = np.einsum("oij,oj->oi", R[obs.view], X[obs.point])[:, 2] + t[obs.view, 2]
+        self._remove_observations(nodes[(err > self.s.max_reprojection_px) | (depth <= 0)])
+        self.timings["bundle_adjustment"] += time.perf_counter() - t0
+
+    def adjust_local(self, view: int) -> None:
+        """The new view and its most co-visible views, with the points they see."""
+        obs_nodes = np.flatnonzero(self.node_point >= 0)
+        obs_view, obs_point = self.node_view[obs_nodes], self.node_point[obs_nodes]
+        seen = np.zeros(len(self.X) + 1, dtype=bool)
+        seen[obs_point[obs_view == view]] = True
+        covisible = np.bincount(obs_view[seen[obs_point]], minlength=len(self.registered))
+        covisible[view] = 0
+        ranked = np.argsort(-covisible, kind="stable")
+        ranked = ranked[covisible[ranked] > 0][:self.s.local_ba_views]
+        free = np.r_[view, ranked]
+        in_free = np.zeros(len(self.registered), dtype=bool)
+        in_free[free] = True
+        point_ids = np.unique(obs_point[in_free[obs_view]])
+        chosen = np.zeros(len(self.X), dtype=bool)
+        chosen[point_ids] = True
+        nodes = obs_nodes[chosen[obs_point]]
+        fixed = np.setdiff1d(np.unique(self.node_view[nodes]), free)
+        if len(fixed) == 0:
+            fixed = np.array([self._fixed_view()])
+        self._adjust(nodes, point_ids, fixed, max_iterations=8, tolerance=1e-5)
+
+    def adjust_global(self, max_iterations: int, tolerance: float = 1e-5) -> None:
+        nodes = np.flatnonzero(self.node_point >= 0)
+        point_ids = np.unique(self.node_point[nodes])
+        if len(point_ids):
+            self._adjust(nodes, point_ids, np.array([self._fixed_view()]), max_iterations,
+                         tolerance)
+
+    def retriangulate(self) -> None:
+        self.complete_tracks()
+        self.triangulate()
+        self.compact()
+
+    def check(self) -> ModelCheck:
+        return check_model(self.registered, self.R, self.t, self.pairs, self.features, self.K,
+                           self.s.consistency_px, self._fixed_view())
+
+    def result(self, check: ModelCheck) -> SfMModel:
+        self.compact()
+        nodes, obs = self.observations()
+        colors = np.zeros((len(self.X), 3), np.uint8)
+        all_colors = np.concatenate([f.colors for f in self.features]).reshape(-1, 3)
+        colors[obs.point[::-1]] = all_colors[nodes[::-1]]  # the first observation's colour
+        res = reprojection_residuals(self.R, self.t, self.X, obs, self.K)
+        rmse = float(np.sqrt(np.mean(res**2))) if len(res) else float("nan")
+        return SfMModel(self.registered.copy(), self.R.copy(), self.t.copy(), self.X.copy(),
+                        colors, obs, rmse, check)
+
+
+def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches], K: FloatArray,
+                 candidates: int = 6) -> tuple[PairMatches, TwoViewGeometry] | str:
+    """The verified pair (among those with most inliers) giving most reliable points.
+
+    Returns the pair and its two-view geometry, or, when no candidate is trusted, the
+    reason (quoting the doubt about the best-scoring one, e.g. a calibration that does
+    not fit).
+    """
+    ranked = sorted(pairs, key=lambda p: (-p.num_inliers, p.i, p.j))
+    best, best_score = None, -1.0
+    doubt, doubt_score = "", -1.0
+    for pair in ranked[:candidates]:
+        try:
+            r = reconstruct_from_matches(features[pair.i].keypoints[pair.idx_i],
+                                         features[pair.j].keypoints[pair.idx_j], K,
+                                         TwoViewSettings())
+        except ReconstructionError:
+            continue
+        # Favour many points seen under a good angle (a wide but well-matched baseline).
+        score = r.points3d.shape[0] * min(r.median_parallax_deg, 8.0)
+        if r.trusted and score > best_score:
+            best, best_score = (pair, r), score
+        elif not r.trusted and score > doubt_score:
+            doubt, doubt_score = f"; the best candidate pair: {r.warnings[0]}", score
+    if best is None:
+        return "no pair of views gives a trustworthy two-view start" + doubt
+    return best
+
+
+def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: FloatArray,
+               settings: SfMSettings, allowed: np.ndarray, start: tuple[PairMatches,
+                                                                           TwoViewGeometry],
+               more_pairs: MorePairs | None, say: Callable[[str], None],
+               timings: dict[str, float], names: Sequence[str]
+               ) -> tuple[SfMModel, dict[int, str]]:
+    """Grow one model from its initial pair over the ``allowed`` views (steps 2-5).
+
+    Returns the model and, for the allowed views left out, why.
+    """
+    s = settings
+    model = _Model(features, pairs, K, s, allowed, timings)
+    pair, r = start
+    model.reference = pair.i
+    model.R[pair.i], model.t[pair.i] = np.eye(3), np.zeros(3)
+    model.R[pair.j], model.t[pair.j] = r.R, r.t
+    model.registered[[pair.i, pair.j]] = True
+    model.triangulate()
+    model.adjust_global(max_iterations=30)
+    say(f"initialised from views {names[pair.i]} and {names[pair.j]}: "
+        f"{model.num_points} points")
+    last_views = 2
+    failed: set[int] = set()
+    reasons: dict[int, str] = {}
+    rounds = 0
+    while True:
+        open_views = np.flatnonzero(allowed & ~model.registered & ~model.blocked)
+        candidates = [int(v) for v in open_views if v not in failed]
+        counts = [len(model.correspondences(v)[0]) for v in candidates]
+        if not candidates or max(counts) < s.min_registration_inliers:
+            if len(open_views) and more_pairs is not None and rounds < s.retry_rounds:
+                rounds += 1
+                t0 = time.perf_counter()
+                found = [p for v in open_views for p in more_pairs(int(v), np.flatnonzero(
+                    model.registered).tolist())]
+                timings["matching"] += time.perf_counter() - t0
+                say(f"{len(open_views)} views not registered yet: {len(found)} further pairs "
+                    f"verified (round {rounds})")
+                if found:
+                    model.add_pairs(found)
+                    failed.clear()
+                    continue
+            for v in open_views:
+                reasons[int(v)] = (f"too few 2D-3D matches ({len(model.correspondences(v)[0])})"
+                                   if v not in failed else "PnP found no consistent pose")
+            break
+        view = candidates[int(np.argmax(counts))]
+        t0 = time.perf_counter()
+        if not model.register(view):
+            failed.add(view)
+            say(f"view {names[view]}: cannot be registered ({max(counts)} 2D-3D matches)")
+            timings["registration"] += time.perf_counter() - t0
+            continue
+        nodes = np.arange(model.tracks.offsets[view], model.tracks.offsets[view + 1])
+        tr = np.unique(model.tracks.node_track[nodes])
+        added = model.triangulate(tr[tr >= 0])
+        timings["registration"] += time.perf_counter() - t0
+        model.adjust_local(view)
+        n_views = int(model.registered.sum())
+        if n_views >= s.global_ba_growth * last_views:
+            model.adjust_global(max_iterations=10)
+            t0 = time.perf_counter()
+            model.retriangulate()
+            timings["registration"] += time.perf_counter() - t0
+            t0 = time.perf_counter()
+            check = model.check()
+            model.drop_pairs({(i, j) for i, j, _ in check.inconsistent_pairs
+                              if i not in check.suspect_views and j not in check.suspect_views})
+            timings["checks"] += time.perf_counter() - t0
+            for v in check.suspect_views:
+                model.deregister(v)
+                model.blocked[v] = True
+                reasons[v] = "its pose contradicted its pair geometry"
+                say(f"view {names[v]}: taken out, its pose contradicts its pair geometry")
+            last_views = int(model.registered.sum())
+        say(f"registered view {names[view]} ({int(model.registered.sum())}/"
+            f"{int(allowed.sum())}), "
+            f"+{added} points, {model.num_points} in all")
+        failed.clear()  # new points may let a failed view register now
+    model.adjust_global(max_iterations=30, tolerance=1e-6)
+    t0 = time.perf_counter()
+    model.retriangulate()
+    timings["registration"] += time.perf_counter() - t0
+    model.adjust_global(max_iterations=30, tolerance=1e-8)
+    t0 = time.perf_counter()
+    check = model.check()
+    timings["checks"] += time.perf_counter() - t0
+    false_pairs = {(i, j) for i, j, _ in check.inconsistent_pairs
+                   if i not in check.suspect_views and j not in check.suspect_views}
+    if false_pairs and check.ok:  # the model stands; its last false pairs go, then again
+        model.drop_pairs(false_pairs)
+        model.adjust_global(max_iterations=30, tolerance=1e-8)
+        model.retriangulate()
+        model.adjust_global(max_iterations=30, tolerance=1e-8)
+        t0 = time.perf_counter()
+        check = model.check()
+        timings["checks"] += time.perf_counter() - t0
+    return model.result(check), reasons
+
+
+def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches],
+                       K: FloatArray, settings: SfMSettings | None = None,
+                       more_pairs: MorePairs | None = None,
+                       progress: Callable[[str], None] | None = None,
+                       names: Sequence[str] | None = None,
+                       ) -> tuple[list[SfMModel], dict[int, str], dict[str, float]]:
+    """Steps 1-6 on verified pairs: every model the views allow, largest first.
+
+    Returns
+    -------
+    models : list of SfMModel
+    reasons : dict[int, str]
+        For each view in no model, why.
+    timings : dict[str, float]
+
+    Raises
+    ------
+    ReconstructionError
+        When not even the first model can start (no trusted pair).
+    """
+    s = settings or SfMSettings()
+    say = progress or (lambda message: logger.info("%s", message))
+    timings = dict.fromkeys(("tracks", "initialisation", "registration", "bundle_adjustment",
+                             "checks", "matching"), 0.0)
+    V = len(features)
+    names = [str(v) for v in range(V)] if names is None else list(names)
+    remaining = np.ones(V, dtype=bool)
+    models: list[SfMModel] = []
+    reasons: dict[int, str] = {}
+    while remaining.sum() >= 2:
+        t0 = time.perf_counter()
+        inside = [p for p in pairs if remaining[p.i] and remaining[p.j]]
+        start = initial_pair(features, inside, K) if inside else "no verified pair left"
+        timings["initialisation"] += time.perf_counter() - t0
+        if isinstance(start, str):
+            if not models:
+                raise ReconstructionError("no_initial_pair", start, verified_pairs=len(pairs))
+            break
+        model, left_out = grow_model(features, pairs, K, s, remaining.copy(), start,
+                                     more_pairs if not models else None, say, timings, names)
+        if model.registered.sum() < s.min_model_views:
+            break
+        models.append(model)
+        remaining &= ~model.registered
+        reasons = {v: why for v, why in {**reasons, **left_out}.items() if remaining[v]}
+        if remaining.any():
+            say(f"model {len(models) - 1}: {int(model.registered.sum())} views; "
+                f"{int(remaining.sum())} views left for another model")
+    for v in np.flatnonzero(remaining):
+        reasons.setdefault(int(v), "no verified pair with the views left")
+    models.sort(key=lambda m: -int(m.registered.sum()))
+    return models, reasons, timings

@@ -1,0 +1,310 @@
+"""The data of a multi-view reconstruction: settings, features, verified pairs, models.
+
+Frames: each model has its own world frame (the camera frame of the first view of
+its initial pair) and scale (that pair's baseline). Poses are world-to-camera,
+``x_cam = R X + t``; pixels are those of the working images (OpenCV convention).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from ..bundle import Observations, reprojection_residuals
+from ..geometry import FloatArray, camera_centers
+
+
+@dataclass(frozen=True)
+class ViewFeatures:
+    """Keypoints of one working image.
+
+    Attributes
+    ----------
+    keypoints : (N, 2) float64
+        Pixels.
+    descriptors : (N, D)
+        float32 (SIFT) or uint8 (binary descriptors).
+    colors : (N, 3) uint8
+        RGB at each keypoint.
+    norm : int
+        The descriptor distance, ``cv2.NORM_L2`` or ``cv2.NORM_HAMMING``.
+    words : (N, p) int16 or None
+        The ``p`` visual words nearest to each descriptor, nearest first
+        (:mod:`scene3D.multiview.retrieval`); set once the collection's vocabulary is
+        known, None before.
+    """
+
+    keypoints: FloatArray
+    descriptors: np.ndarray
+    colors: np.ndarray
+    norm: int = cv2.NORM_L2
+    words: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class SfMSettings:
+    """Choices and thresholds of the reconstruction (pixels of the working images).
+
+    Attributes
+    ----------
+    threshold_px : float
+        Essential-matrix inlier threshold for pair verification.
+    min_pair_inliers : int
+        A pair with fewer verified matches is not used.
+    max_verify_iterations : int
+        Robust iterations at most per pair. Matches are tried best first (PROSAC
+        order by their ratio test), so a pair that overlaps is found in a few
+        hundred; the cap bounds the time lost on pairs that do not overlap.
+    pnp_threshold_px : float
+        RANSAC reprojection threshold when registering a view.
+    min_registration_inliers : int
+        A view needs this many PnP inliers to be registered.
+    max_reprojection_px : float
+        Observations reprojecting worse are removed (after triangulation and BA).
+    min_parallax_deg : float
+        New points need at least this triangulation angle.
+    neighbours : int
+        Sequential pairs: each view is matched with this many following views.
+    retrieval_neighbours : int
+        Retrieval: each view is matched with its this many most similar views.
+    retry_candidates : int
+        A view that does not register is matched with this many further candidates
+        (the next most similar views of the model) per round, ``retry_rounds`` times.
+    retry_rounds : int
+    vocabulary_words : int
+        Visual words of the collection's vocabulary (retrieval and matching).
+    probe_words : int
+        Matching: a descriptor is compared with those of the other view in its this
+        many nearest words.
+    local_ba_views : int
+        A local bundle adjustment refines the new view and its this many most
+        co-visible registered views (the other views observing their points fixed).
+    global_ba_growth : float
+        A global bundle adjustment (then re-triangulation) runs when the model has
+        grown by this factor (in views) since the last one, and at the end.
+    consistency_px : float
+        The check: a verified pair whose inliers lie further than this from the model's
+        epipolar geometry (median Sampson distance) contradicts the model. Correct pairs
+        lie within a few tenths of a pixel of correct cameras (castle-P19 under its true
+        cameras: median 0.14 px); a pair that contradicts a model that is otherwise
+        consistent is a false verification and is dropped, with what it attached.
+    min_model_views : int
+        Smallest model that is kept (a model of two views is one trusted pair).
+    """
+
+    threshold_px: float = 1.0
+    min_pair_inliers: int = 30
+    max_verify_iterations: int = 1000
+    pnp_threshold_px: float = 3.0
+    min_registration_inliers: int = 30
+    max_reprojection_px: float = 2.0
+    min_parallax_deg: float = 1.5
+    neighbours: int = 3
+    retrieval_neighbours: int = 8
+    retry_candidates: int = 5
+    retry_rounds: int = 2
+    vocabulary_words: int = 64
+    probe_words: int = 3
+    local_ba_views: int = 6
+    global_ba_growth: float = 1.5
+    consistency_px: float = 2.0
+    min_model_views: int = 2
+
+
+@dataclass(frozen=True)
+class PairMatches:
+    """Verified matches of views ``i < j``: keypoint ``idx_i[k]`` of ``i`` is ``idx_j[k]`` of ``j``.
+
+    Attributes
+    ----------
+    i, j : int
+    idx_i, idx_j : (M,) int
+        Inliers of one essential matrix.
+    num_matches : int
+        Descriptor matches before verification.
+    """
+
+    i: int
+    j: int
+    idx_i: np.ndarray
+    idx_j: np.ndarray
+    num_matches: int
+
+    @property
+    def num_inliers(self) -> int:
+        return len(self.idx_i)
+
+
+@dataclass(frozen=True)
+class ModelCheck:
+    """What the final consistency check found (:func:`scene3D.multiview.checks.check_model`).
+
+    Attributes
+    ----------
+    pairs_checked : int
+        Verified pairs with both views in the model.
+    inconsistent_pairs : tuple[tuple[int, int, float], ...]
+        ``(i, j, median Sampson distance px)`` of the pairs whose matches contradict the
+        model's cameras.
+    suspect_views : tuple[int, ...]
+        Views whose pose contradicts most of their pair geometry (weighted by inliers),
+        or that only inconsistent pairs tie to the rest of the model (a fold).
+    """
+
+    pairs_checked: int
+    inconsistent_pairs: tuple[tuple[int, int, float], ...] = ()
+    suspect_views: tuple[int, ...] = ()
+
+    @property
+    def ok(self) -> bool:
+        return not self.suspect_views
+
+
+@dataclass(frozen=True)
+class SfMModel:
+    """One connected reconstruction: some views' cameras and the points they see.
+
+    Attributes
+    ----------
+    registered : (V,) bool
+        Which of all input views are in this model.
+    R, t : (V, 3, 3), (V, 3) float64
+        World-to-camera poses (NaN for views not in the model).
+    points3d : (P, 3) float64
+    colors : (P, 3) uint8
+    observations : Observations
+        Every measurement kept, as (view, point, pixel).
+    reprojection_rmse_px : float
+    check : ModelCheck
+    """
+
+    registered: np.ndarray
+    R: FloatArray
+    t: FloatArray
+    points3d: FloatArray
+    colors: np.ndarray
+    observations: Observations
+    reprojection_rmse_px: float
+    check: ModelCheck
+
+    @property
+    def centers(self) -> FloatArray:
+        """Camera centres ``C = -R^T t`` in world coordinates ``(V, 3)``."""
+        return camera_centers(self.R, self.t)
+
+    @property
+    def views(self) -> tuple[int, ...]:
+        return tuple(int(v) for v in np.flatnonzero(self.registered))
+
+    @property
+    def mean_track_length(self) -> float:
+        return float(len(self.observations.view) / max(len(self.points3d), 1))
+
+    def point_errors_px(self, K: FloatArray) -> FloatArray:
+        """Mean reprojection error of each point over its observations ``(P,)``."""
+        err = np.linalg.norm(reprojection_residuals(self.R, self.t, self.points3d,
+                                                    self.observations, K), axis=1)
+        sums = np.bincount(self.observations.point, err, minlength=len(self.points3d))
+        counts = np.bincount(self.observations.point, minlength=len(self.points3d))
+        return sums / np.maximum(counts, 1)
+
+
+@dataclass(frozen=True)
+class MultiViewReconstruction:
+    """Cameras and points of a multi-view reconstruction: one model or several.
+
+    The pose and point attributes (``registered``, ``R``, ``t``, ``points3d``, ...)
+    are those of the largest model, ``models[0]``; views that could not be joined to
+    it are in further models when they connect among themselves.
+
+    Attributes
+    ----------
+    names : tuple[str, ...]
+        One per input view, in the input order (every per-view array follows it).
+    K : (3, 3) float64
+        Intrinsics of the working images.
+    image_size : tuple[int, int]
+        (width, height) of the working images.
+    models : tuple[SfMModel, ...]
+        Largest first.
+    unregistered_reasons : dict[str, str]
+        Why each view in no model was left out.
+    pair_selection : str
+        How pairs were chosen (e.g. "retrieval (8 most similar views)").
+    matched_pairs, verified_pairs : int
+    timings_s : dict[str, float]
+    """
+
+    names: tuple[str, ...]
+    K: FloatArray
+    image_size: tuple[int, int]
+    models: tuple[SfMModel, ...]
+    unregistered_reasons: dict[str, str]
+    pair_selection: str
+    matched_pairs: int
+    verified_pairs: int
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def main(self) -> SfMModel:
+        return self.models[0]
+
+    @property
+    def registered(self) -> np.ndarray:
+        return self.main.registered
+
+    @property
+    def R(self) -> FloatArray:
+        return self.main.R
+
+    @property
+    def t(self) -> FloatArray:
+        return self.main.t
+
+    @property
+    def points3d(self) -> FloatArray:
+        return self.main.points3d
+
+    @property
+    def colors(self) -> np.ndarray:
+        return self.main.colors
+
+    @property
+    def observations(self) -> Observations:
+        return self.main.observations
+
+    @property
+    def reprojection_rmse_px(self) -> float:
+        return self.main.reprojection_rmse_px
+
+    @property
+    def centers(self) -> FloatArray:
+        return self.main.centers
+
+    @property
+    def mean_track_length(self) -> float:
+        return self.main.mean_track_length
+
+    def point_errors_px(self) -> FloatArray:
+        """Mean reprojection error of each point of the main model ``(P,)``."""
+        return self.main.point_errors_px(self.K)
+
+    @property
+    def model_of_view(self) -> np.ndarray:
+        """Index of the model holding each view, -1 for none ``(V,)``."""
+        out = np.full(len(self.names), -1, dtype=int)
+        for m, model in reversed(list(enumerate(self.models))):
+            out[model.registered] = m
+        return out
+
+    @property
+    def unregistered(self) -> tuple[str, ...]:
+        """Views in no model."""
+        return tuple(n for n, m in zip(self.names, self.model_of_view) if m < 0)
+
+    @property
+    def ok(self) -> bool:
+        """Every model passed the consistency check."""
+        return all(model.check.ok for model in self.models)

@@ -1,0 +1,208 @@
+"""``reconstruct_views``: the stages in order, the independent ones through an engine.
+
+Features (one task per image) and pair verification (one task per pair) run through
+an :class:`scene3D.engines.Engine`; vocabulary, pair selection, tracks, registration,
+triangulation and bundle adjustment stay here.
+
+Views are processed in an order fixed by their content (a digest of each view's
+keypoints and descriptors), not by their names or input order: the same photos under
+other names give the same reconstruction. Only ``--pairs sequential`` (and ``auto``
+when the images themselves say the input order is a sequence) use the input order.
+Every per-view array of the result follows the input order.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import os
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..bundle import Observations
+from ..camera import scale_intrinsics_halved, validate_distortion, validate_intrinsics
+from ..engines import Engine, LocalEngine
+from ..errors import ReconstructionError
+from ..imageio import BOOK_MAX_WIDTH_PX, ImageSource
+from .features import content_key, view_features
+from .mapper import reconstruct_models
+from .matching import verify_pair
+from .models import (
+    ModelCheck,
+    MultiViewReconstruction,
+    PairMatches,
+    SfMModel,
+    SfMSettings,
+    ViewFeatures,
+)
+from .pairs import select_pairs
+from .retrieval import describe_view, similarity_ranking, train_vocabulary
+
+logger = logging.getLogger(__name__)
+
+
+def _to_input_order(model: SfMModel, order: np.ndarray) -> SfMModel:
+    """A model computed on views ``order`` (canonical position -> input index), with every
+    per-view array and view index put back in the input order."""
+    def per_view(a: np.ndarray) -> np.ndarray:
+        out = np.empty_like(a)
+        out[order] = a
+        return out
+
+    obs = model.observations
+    check = model.check
+    return dataclasses.replace(
+        model, registered=per_view(model.registered), R=per_view(model.R), t=per_view(model.t),
+        observations=Observations(order[obs.view], obs.point, obs.xy),
+        check=ModelCheck(check.pairs_checked,
+                         tuple((int(order[i]), int(order[j]), r)
+                               for i, j, r in check.inconsistent_pairs),
+                         tuple(sorted(int(order[v]) for v in check.suspect_views))))
+
+
+def reconstruct_views(
+    images: Sequence[ImageSource],
+    K: ArrayLike,
+    dist: ArrayLike | None = None,
+    *,
+    max_width: int | None = 2 * BOOK_MAX_WIDTH_PX,
+    names: Sequence[str] | None = None,
+    feature: str = "SIFT",
+    pairs: str = "auto",
+    settings: SfMSettings | None = None,
+    progress: Callable[[str], None] | None = None,
+    engine: Engine | None = None,
+) -> MultiViewReconstruction:
+    """Reconstruct cameras and points from several photos of one calibrated camera.
+
+    Parameters
+    ----------
+    images : sequence of paths or (H, W[, C]) arrays
+        Photos of the same size, in any order.
+    K : (3, 3) array_like
+        Intrinsics of the **native** images.
+    dist : array_like, optional
+        OpenCV distortion coefficients; the images are undistorted first.
+    max_width : int or None
+        Halve while wider than this (default 2400: 3072 -> 1536);
+        None keeps the native size. The result's ``K`` is for the working size.
+    names : sequence of str, optional
+        Names for the report (default: file names, or view0, view1, ...).
+    feature : str
+        Detector (:data:`scene3D.features.FEATURE_MODES`, not ``"flow"``).
+    pairs : str
+        ``"auto"``, ``"retrieval"``, ``"sequential"`` or ``"all"``
+        (:func:`scene3D.multiview.pairs.select_pairs`).
+    settings : SfMSettings, optional
+    progress : callable, optional
+        Called with one line of text per step (default: logging at INFO).
+    engine : Engine, optional
+        Where feature extraction and pair verification run (default: in this process,
+        :class:`scene3D.engines.LocalEngine`).
+
+    Returns
+    -------
+    MultiViewReconstruction
+        One model, or several when parts of the view graph cannot be joined; check
+        ``ok`` (the consistency check) and ``unregistered_reasons``.
+
+    Raises
+    ------
+    ReconstructionError
+        Fewer than two views, or no pair gives a trustworthy start.
+    FileNotFoundError, ValueError
+        Unreadable images or images of different sizes.
+    """
+    s = settings or SfMSettings()
+    engine = engine or LocalEngine()
+    say = progress or (lambda message: logger.info("%s", message))
+    if names is None:
+        names = [Path(src).name if isinstance(src, (str, os.PathLike)) else f"view{i}"
+                 for i, src in enumerate(images)]
+    names = tuple(names)
+    if len(images) < 2:
+        raise ReconstructionError("too_few_views", "need at least two images",
+                                  views=len(images))
+    K_native = validate_intrinsics(K)
+    dist = validate_distortion(dist)
+    timings: dict[str, float] = {}
+
+    t0 = time.perf_counter()
+    found = list(engine.map(view_features,
+                            [(src, K_native, dist, max_width, name, feature)
+                             for src, name in zip(images, names)], label="features"))
+    first = found[0][1]
+    for (_, size, _, _), src, name in zip(found, images, names):
+        if size != first:
+            label = src if isinstance(src, (str, os.PathLike)) else name
+            raise ValueError(f"'{label}' is {size[0]}x{size[1]}, not {first[0]}x{first[1]} "
+                             "like the first image: the images must have the same size "
+                             "(one camera, one size)")
+    working_size, levels = found[0][2], found[0][3]
+    K_work = scale_intrinsics_halved(K_native, levels)
+    timings["features"] = time.perf_counter() - t0
+    say(f"features: {', '.join(str(len(f[0].keypoints)) for f in found)} keypoints")
+
+    # Canonical order: by content, so that names and input order change nothing.
+    keys = [content_key(f[0]) for f in found]
+    order = np.array(sorted(range(len(found)), key=lambda v: (keys[v], v)), dtype=int)
+    position = np.empty_like(order)
+    position[order] = np.arange(len(order))
+    features: list[ViewFeatures] = [found[v][0] for v in order]
+    canonical_names = [names[v] for v in order]
+
+    t0 = time.perf_counter()
+    vocabulary = train_vocabulary(features, s.vocabulary_words)
+    described = list(engine.map(describe_view, [(f, vocabulary, s.probe_words)
+                                                for f in features], label="retrieval"))
+    features = [dataclasses.replace(f, words=w) for f, (w, _) in zip(features, described)]
+    ranking, _ = similarity_ranking(np.array([vlad for _, vlad in described]))
+    timings["retrieval"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    pair_list, selection = select_pairs(len(features), pairs, s.neighbours, ranking,
+                                        s.retrieval_neighbours, sequence=position)
+    handles = [engine.share(f) for f in features]
+    num_words = vocabulary.size if not vocabulary.binary else 0
+    matched = {(i, j) for i, j in pair_list}
+
+    def verify(batch: list[tuple[int, int]], label: str) -> list[PairMatches]:
+        results = engine.map(verify_pair, [(handles[i], handles[j], K_work, s, i, j, num_words)
+                                           for i, j in batch], label=label)
+        return [r for r in results if r is not None]
+
+    verified = verify(pair_list, "pairs")
+    timings["matching"] = time.perf_counter() - t0
+    say(f"{len(verified)} of {len(pair_list)} pairs verified ({selection})")
+
+    def more_pairs(view: int, model_views: Sequence[int]) -> list[PairMatches]:
+        """The view's next most similar model views it was not matched with yet."""
+        inside = set(model_views)
+        batch = []
+        for other in ranking[view]:
+            key = (min(view, int(other)), max(view, int(other)))
+            if int(other) in inside and key not in matched:
+                batch.append(key)
+                if len(batch) == s.retry_candidates:
+                    break
+        matched.update(batch)
+        new = verify(batch, "more pairs")
+        verified.extend(new)
+        return new
+
+    models, reasons, sfm_timings = reconstruct_models(features, verified, K_work, s, more_pairs,
+                                                      say, canonical_names)
+    timings["matching"] += sfm_timings.pop("matching")
+    timings.update(sfm_timings)
+    timings["total"] = sum(timings.values())
+    return MultiViewReconstruction(
+        names=names, K=np.asarray(K_work, np.float64), image_size=working_size,
+        models=tuple(_to_input_order(m, order) for m in models),
+        unregistered_reasons={names[order[v]]: why for v, why in sorted(
+            reasons.items(), key=lambda item: order[item[0]])},
+        pair_selection=selection, matched_pairs=len(matched), verified_pairs=len(verified),
+        timings_s=timings)

@@ -1,0 +1,90 @@
+"""Triangulation of many tracks at once, and the checks a new point must pass.
+
+Conventions: world-to-camera poses ``x_cam = R X + t``; pixels of the working images.
+Each observation row belongs to one group (a track); every function works on all
+groups in one pass of array operations.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry import FloatArray
+from ..schur import pairs_within_groups
+
+
+def _sum_rows(group: np.ndarray, values: FloatArray, num_groups: int) -> FloatArray:
+    flat = values.reshape(len(values), -1)
+    out = np.stack([np.bincount(group, flat[:, k], minlength=num_groups)
+                    for k in range(flat.shape[1])], axis=1)
+    return out.reshape((num_groups,) + values.shape[1:])
+
+
+def triangulate_groups(group: np.ndarray, xy: FloatArray, R: FloatArray, t: FloatArray,
+                       K: FloatArray, num_groups: int) -> FloatArray:
+    """Linear triangulation (DLT, H&Z section 12.2) of every group of observations.
+
+    Parameters
+    ----------
+    group : (M,) int
+        Group (track) of each observation, ``0 <= group < num_groups``.
+    xy : (M, 2)
+        Pixels.
+    R, t : (M, 3, 3), (M, 3)
+        World-to-camera pose of each observation's camera.
+    K : (3, 3)
+
+    Returns
+    -------
+    (G, 3) float64
+        World points (NaN for a group with fewer than two observations or at infinity).
+        The DLT rows use normalised image coordinates (``K^-1 x``), which keeps the
+        4x4 systems well conditioned.
+    """
+    rays = np.column_stack([xy, np.ones(len(xy))]) @ np.linalg.inv(K).T
+    P = np.concatenate([R, t[:, :, None]], axis=2)  # (M, 3, 4)
+    rows = np.concatenate([rays[:, 0:1] * P[:, 2] - P[:, 0], rays[:, 1:2] * P[:, 2] - P[:, 1]])
+    rows /= np.linalg.norm(rows, axis=1, keepdims=True)
+    both = np.concatenate([group, group])
+    A = _sum_rows(both, rows[:, :, None] * rows[:, None, :], num_groups)  # (G, 4, 4)
+    counts = np.bincount(group, minlength=num_groups)
+    X = np.full((num_groups, 3), np.nan)
+    ok = counts >= 2
+    if ok.any():
+        h = np.linalg.eigh(A[ok])[1][:, :, 0]  # eigenvector of the smallest eigenvalue
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pts = h[:, :3] / h[:, 3:4]
+        pts[np.abs(h[:, 3]) < 1e-12] = np.nan
+        X[ok] = pts
+    return X
+
+
+def observation_errors(X: FloatArray, R: FloatArray, t: FloatArray, xy: FloatArray,
+                       K: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Reprojection error (px) and depth of each observation of its point ``X`` ``(M, 3)``.
+
+    Returns ``errors (M,)`` and ``depths (M,)``; NaN points give NaN errors.
+    """
+    cam = np.einsum("mij,mj->mi", R, X) + t
+    proj = cam @ K.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        err = np.linalg.norm(proj[:, :2] / proj[:, 2:3] - xy, axis=1)
+    return err, cam[:, 2]
+
+
+def max_parallax_deg(group: np.ndarray, X: FloatArray, centers: FloatArray,
+                     num_groups: int) -> FloatArray:
+    """Largest angle (deg) between two rays of each group ``(G,)`` (0 for fewer than two).
+
+    ``X`` ``(M, 3)``: the point of each observation; ``centers`` ``(M, 3)``: its camera.
+    """
+    order = np.argsort(group, kind="stable")
+    g = group[order]
+    rays = X[order] - centers[order]
+    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    starts = np.flatnonzero(np.r_[True, g[1:] != g[:-1], True]) if len(g) else np.zeros(1, int)
+    a, b = pairs_within_groups(starts)
+    cos = np.full(num_groups, 1.0)
+    if len(a):
+        np.minimum.at(cos, g[a], np.einsum("ij,ij->i", rays[a], rays[b]))
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
