@@ -95,6 +95,11 @@ def test_default_run_is_the_book_pair_against_ground_truth(tmp_path, data_root):
                         proc.stdout)
     R_true, t_true = relative_pose(cam4, cam5)
     assert angle_between_deg([float(v) for v in printed.groups()], -R_true.T @ t_true) < 3.0
+    # The printed 1-sigma uncertainty is the JSON's, rounded.
+    sigmas = re.search(r"pose uncertainty \(1 sigma\): rotation \+-([.\d]+) deg, translation "
+                       r"direction \+-([.\d]+) deg", proc.stdout)
+    assert float(sigmas.group(1)) == pytest.approx(summary["rotation_sigma_deg"], abs=6e-4)
+    assert float(sigmas.group(2)) == pytest.approx(summary["translation_sigma_deg"], abs=6e-4)
 
 
 def test_synthetic_pair_with_calibration_file(tmp_path, synthetic_files, rendered_pair):

@@ -223,6 +223,9 @@ def _result_lines(scene: SceneReconstruction3D, result, paths: tuple[Path, Path]
     lines.append(f"camera 2: rotated {rotation_angle_deg(result.R):.2f} deg, centre at "
                  f"({center[0]:+.3f}, {center[1]:+.3f}, {center[2]:+.3f}) in camera 1's frame "
                  "(x right, y down, z forward; unit baseline)")
+    if np.isfinite(result.rotation_sigma_deg) and np.isfinite(result.translation_sigma_deg):
+        lines.append(f"pose uncertainty (1 sigma): rotation +-{result.rotation_sigma_deg:.3f} "
+                     f"deg, translation direction +-{result.translation_sigma_deg:.3f} deg")
     if not result.trusted:
         lines.append("warning: the pose may not be trustworthy: " + "; ".join(result.warnings))
     return lines
