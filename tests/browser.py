@@ -116,25 +116,13 @@ def _inspect_view(page, result: PageVisit) -> None:
     page.mouse.up()
     page.wait_for_timeout(500)
     result.relayout_keys = page.evaluate("() => window.__relayouts")
-    page.evaluate("""() => {
-        const gd = document.getElementById('view3d');
-        const clouds = gd.data.map((t, i) => i).filter(i => !gd.data[i].name.startsWith('camera'));
-        return Plotly.restyle(gd, {visible: false}, clouds);
-    }""")
+    _show_clouds(page, False)
     page.wait_for_timeout(1000)
     # After the drag the camera has moved: compare with the clouds hidden, same camera.
-    page.evaluate("""() => {
-        const gd = document.getElementById('view3d');
-        const clouds = gd.data.map((t, i) => i).filter(i => !gd.data[i].name.startsWith('camera'));
-        return Plotly.restyle(gd, {visible: true}, clouds);
-    }""")
+    _show_clouds(page, True)
     page.wait_for_timeout(1000)
     result.canvas_after_drag = _shot(view)
-    page.evaluate("""() => {
-        const gd = document.getElementById('view3d');
-        const clouds = gd.data.map((t, i) => i).filter(i => !gd.data[i].name.startsWith('camera'));
-        return Plotly.restyle(gd, {visible: false}, clouds);
-    }""")
+    _show_clouds(page, False)
     page.wait_for_timeout(1000)
     result.canvas_without_clouds = _shot(view)
 
@@ -143,3 +131,12 @@ def changed_fraction(a: np.ndarray, b: np.ndarray, threshold: int = 40) -> float
     """Fraction of pixels whose colour differs by more than ``threshold`` in some channel."""
     diff = np.abs(a.astype(np.int16) - b.astype(np.int16)).max(axis=2)
     return float(np.mean(diff > threshold))
+
+
+def _show_clouds(page, visible: bool) -> None:
+    """Show or hide every trace of the 3D view but the cameras."""
+    page.evaluate("""visible => {
+        const gd = document.getElementById('view3d');
+        const clouds = gd.data.map((t, i) => i).filter(i => !gd.data[i].name.startsWith('camera'));
+        return Plotly.restyle(gd, {visible: visible}, clouds);
+    }""", visible)

@@ -1,9 +1,11 @@
-"""Helpers for the tests: synthetic correspondences with known geometry."""
+"""Helpers for the tests: synthetic correspondences with known geometry, board detections."""
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
+from scene3D.calibration import detect_board
 from scene3D.geometry import project
 from scene3D.synthetic import random_points
 
@@ -70,3 +72,13 @@ def scipy_bundle_adjust(R, t, points3d, obs, K, fixed_view, loss, scale_px, max_
                            max_nfev=max_evaluations, x_scale="jac", method="trf",
                            tr_solver="lsmr")
     return unpack(result.x)
+
+
+def detect_folder(folder, board):
+    """The board's detections in every ``*.jpg`` of ``folder`` (sorted; misses left out)."""
+    dets = []
+    for path in sorted(folder.glob("*.jpg")):
+        d = detect_board(cv2.imread(str(path), cv2.IMREAD_GRAYSCALE), board, path.name)
+        if d is not None:
+            dets.append(d)
+    return dets

@@ -21,6 +21,7 @@ from scene3D.cli.calibrate import main
 from scene3D.synthetic import render_board
 
 from .conftest import REPO
+from .helpers import detect_folder
 
 # OpenCV's modules/python/test/test_calibration.py, for opencv-left (9x6).
 OPENCV_LEFT_K = np.array([[532.80992189, 0, 342.4952186], [0, 532.93346422, 233.8879292],
@@ -33,15 +34,6 @@ POSES = [((0.4 * np.sin(a), 0.4 * np.cos(a), 0.1 * np.sin(2 * a)),
          for a in np.linspace(0, 2 * np.pi, 10, endpoint=False)]
 
 
-def _detect_folder(folder, board):
-    dets = []
-    for path in sorted(folder.glob("*.jpg")):
-        d = detect_board(cv2.imread(str(path), cv2.IMREAD_GRAYSCALE), board, path.name)
-        if d is not None:
-            dets.append(d)
-    return dets
-
-
 @pytest.fixture(scope="module")
 def board_views():
     return [render_board(TRUE_K, TRUE_DIST, np.array(r), np.array(t), supersample=2)
@@ -50,7 +42,7 @@ def board_views():
 
 def test_opencv_left_matches_the_published_calibration(chessboards):
     board = BoardSpec()
-    dets = _detect_folder(chessboards / "opencv-left", board)
+    dets = detect_folder(chessboards / "opencv-left", board)
     assert len(dets) == 13
     result = calibrate(dets, (640, 480), board)
     assert result.rms_px < 0.25
@@ -65,7 +57,7 @@ def test_charuco_matches_its_published_calibration(chessboards):
     published = fs.getNode("camera_matrix").mat()
     fs.release()
     board = BoardSpec("charuco", (5, 7), 0.04, 0.02, "DICT_6X6_250")
-    dets = _detect_folder(folder, board)
+    dets = detect_folder(folder, board)
     assert len(dets) == 4
     result = calibrate(dets, (640, 480), board, reject_outliers=False)
     assert result.rms_px < 0.25

@@ -5,7 +5,7 @@ import cv2
 import numpy as np
 import pytest
 
-from scene3D.calibration import BoardSpec, calibrate, detect_board
+from scene3D.calibration import BoardSpec, calibrate
 from scene3D.calibration_uncertainty import (
     IntrinsicsCovariance,
     intrinsics_covariance,
@@ -16,23 +16,16 @@ from scene3D.calibration_uncertainty import (
 )
 from scene3D.imageio import read_image_size
 
+from .helpers import detect_folder
+
 # The map's key positions on a 640x480 image: centre, then the four corners.
 KEY_PIXELS = np.array([[319.5, 239.5], [0.0, 0.0], [639.0, 0.0], [639.0, 479.0], [0.0, 479.0]])
-
-
-def _detections(folder, board):
-    dets = []
-    for path in sorted(folder.glob("*.jpg")):
-        d = detect_board(cv2.imread(str(path), cv2.IMREAD_GRAYSCALE), board, path.name)
-        if d is not None:
-            dets.append(d)
-    return dets
 
 
 @pytest.fixture(scope="module")
 def left(chessboards):
     board = BoardSpec()
-    dets = _detections(chessboards / "opencv-left", board)
+    dets = detect_folder(chessboards / "opencv-left", board)
     result = calibrate(dets, (640, 480), board, reject_outliers=False)
     return dets, result
 
@@ -134,7 +127,7 @@ def monte_carlo(folder, size, runs=200, seed=23):
     key pixel's camera-frame ray projected with the new intrinsics. Returns (predicted,
     empirical), each (5,) px (worst-direction 1 sigma)."""
     board = BoardSpec()
-    dets = [d for d in _detections(folder, board)
+    dets = [d for d in detect_folder(folder, board)
             if read_image_size(folder / d.name) == size]
     result = calibrate(dets, size, board, reject_outliers=False)
     kept = [d for d in dets if d.name in result.per_view_errors_px]
