@@ -154,9 +154,10 @@ class SelfCalibrationSettings:
     rival_z : float
         A fit at a focal length more than three sigmas away whose cost over all
         matches is not higher by ``rival_z`` standard errors (blocked by the
-        jackknife's cells, :func:`blocked_difference_z`) and whose pose differs by more
-        than ``TwoViewSettings.uncertainty_limit_deg`` makes the result untrusted
-        (:func:`focal_rivals`): about a 2.5 % one-sided test.
+        jackknife's cells, :func:`blocked_difference_z`; about a 2.5 % one-sided
+        test) is a rival (:func:`focal_rivals`): the focal length's sigma is widened
+        to reach it, and when its pose differs by more than
+        ``TwoViewSettings.uncertainty_limit_deg`` the result is untrusted.
     """
 
     search_sigmas: float = 2.0
@@ -255,7 +256,9 @@ class SelfCalibration:
         ``K[0, 0]`` (= ``K[1, 1]``).
     focal_sigma_px : float
         Its standard deviation: the fit's and the principal point's share combined
-        with the prior's, or the prior's alone when the photos did not determine it.
+        with the prior's, or the prior's alone when the photos did not determine it;
+        at least the distance (in ``log f``) to the farthest focal length the matches
+        do not tell apart from it (:func:`focal_rivals`).
     source : str
         ``"exif+refined"`` / ``"prior+refined"`` (the photos determined it), or
         ``"exif"`` / ``"prior"`` (they did not; the value is the start's).
@@ -434,9 +437,8 @@ class Rival(NamedTuple):
 def focal_rivals(pts1: FloatArray, pts2: FloatArray, chosen: TwoViewGeometry,
                  focal_px: float, sigma_log: float,
                  fits: list[tuple[float, FloatArray]], threshold_px: float,
-                 max_z: float, min_pose_difference_deg: float,
-                 cells: int = 3) -> list[Rival]:
-    """The fits at other focal lengths that fit the matches about as well, with another pose.
+                 max_z: float, cells: int = 3) -> list[Rival]:
+    """The fits at other focal lengths that fit the matches about as well.
 
     ``fits`` are ``(focal_px, E)`` pairs (the profile's points and the other basins'
     converged fits), ``chosen`` the selected geometry (focal length ``focal_px``,
@@ -445,12 +447,11 @@ def focal_rivals(pts1: FloatArray, pts2: FloatArray, chosen: TwoViewGeometry,
     describe it), its cost over all matches ``pts1, pts2`` ``(N, 2)``
     (:func:`scene3D.epipolar.essential_costs` at ``threshold_px``) is not
     significantly higher (:func:`blocked_difference_z` below ``max_z``, with
-    ``cells`` x ``cells`` cells of image 1 as blocks), and its pose (decomposed with
-    cheirality on its inliers) differs from the chosen one by more than
-    ``min_pose_difference_deg``: the pair then supports two answers and the local
-    sigma describes only one of them (a facade with repeated windows at 768 px:
+    ``cells`` x ``cells`` cells of image 1 as blocks): the local sigma describes only
+    one of the answers the pair supports (a facade with repeated windows at 768 px:
     castle-P19 14-15, 15-16, 16-17 ended 6 to 10 deg off with the focal length 20 to
-    28 % off and its sigma 2 to 3 %).
+    28 % off and its sigma 2 to 3 %). Each rival's pose is decomposed with cheirality
+    on its inliers and compared with the chosen one (``Rival.pose_difference_deg``).
     """
     base = essential_costs(chosen.E, pts1, pts2, chosen.K, threshold_px)
     blocks = image_cells(pts1, cells)
@@ -469,8 +470,7 @@ def focal_rivals(pts1: FloatArray, pts2: FloatArray, chosen: TwoViewGeometry,
             continue
         R, t, _, _ = choose_pose(E, pts1[inliers], pts2[inliers], K_f)
         difference = max(rotation_error_deg(R, chosen.R), angle_between_deg(t, chosen.t))
-        if difference > min_pose_difference_deg:
-            rivals.append(Rival(float(focal), z, difference))
+        rivals.append(Rival(float(focal), z, difference))
     return rivals
 
 
@@ -692,7 +692,8 @@ def self_calibrate_pair(
         p1, p2, best, f_data, sigma_data,
         [(float(f), E) for f, E in zip(profile.focal_px, profile.essentials)]
         + [(float(g.K[0, 0]), g.E) for _, g in runs[1:]],
-        profile.threshold_px, s.rival_z, tv.uncertainty_limit_deg, s.jackknife_cells)
+        profile.threshold_px, s.rival_z, s.jackknife_cells)
+    pose_rivals = [r for r in rivals if r.pose_difference_deg > tv.uncertainty_limit_deg]
     # Photos and EXIF that disagree beyond their sigmas: one of them is wrong. An EXIF
     # value can be wrong outright (a cropped or resized copy, digital zoom), so beyond
     # three sigmas photos that know the focal length well enough overrule it (the
@@ -719,6 +720,9 @@ def self_calibrate_pair(
         if disagree:
             warnings.append(f"the photos call for a focal length {f_data / f0:.2f} times the "
                             "EXIF one: the EXIF value may be wrong")
+    if determined and rivals:
+        # The focal lengths the matches do not tell apart bound what is known of it.
+        sigma = max(sigma, max(abs(math.log(r.focal_px / f_data)) for r in rivals))
     if sigma > s.max_trusted_sigma_log:
         warnings.append(f"the focal length ({focal:.1f} px) is known only to +-{sigma:.0%}: "
                         "the pose may be off by degrees")
@@ -726,13 +730,14 @@ def self_calibrate_pair(
         other = ", ".join(f"{g.K[0, 0]:.1f} px" for g in ambiguous)
         warnings.append(f"other focal lengths fit the matches about as well ({other} against "
                         f"{f_data:.1f} px): the focal length, and the pose, may be wrong")
-    if rivals:
-        worst_rival = max(rivals, key=lambda r: r.pose_difference_deg)
+    if pose_rivals:
+        worst_rival = max(pose_rivals, key=lambda r: r.pose_difference_deg)
         warnings.append(
             f"the matches do not tell {f_data:.1f} px from {worst_rival.focal_px:.1f} px "
             f"(cost difference {worst_rival.z:.1f} standard errors), whose pose differs by "
             f"{worst_rival.pose_difference_deg:.1f} deg: the focal length, and the pose, may "
-            "be wrong" + (f" ({len(rivals)} such focal lengths)" if len(rivals) > 1 else ""))
+            "be wrong" + (f" ({len(pose_rivals)} such focal lengths)"
+                          if len(pose_rivals) > 1 else ""))
     geometry = best
     if abs(math.log(focal / best.K[0, 0])) >= s.tolerance_log:
         geometry = reconstruct_from_matches(p1, p2, with_focal(K0, focal), tv)
@@ -758,7 +763,7 @@ def self_calibrate_pair(
             f"is included: translation direction +-{geometry.translation_sigma_deg:.2g} deg, "
             f"rotation +-{geometry.rotation_sigma_deg:.2g} deg (1 sigma), more than "
             f"{tv.uncertainty_limit_deg:g} deg at {tv.uncertainty_sigmas:g} sigma")
-    trusted = (geometry.trusted and not ambiguous and not rivals and not disagree
+    trusted = (geometry.trusted and not ambiguous and not pose_rivals and not disagree
                and not uncertain and sigma <= s.max_trusted_sigma_log)
     return SelfCalibration(
         K=geometry.K, focal_px=float(geometry.K[0, 0]), focal_sigma_px=focal * sigma,
