@@ -156,6 +156,8 @@ def test_degenerate_motions_keep_the_prior_and_say_so(motion):
     assert result.source == "prior" and not result.determined
     assert result.focal_px == start[0, 0]  # kept exactly
     assert not result.trusted
+    # Resting on the default prior (0.5 in log f), the pose's marginal sigma says so.
+    assert max(result.geometry.rotation_sigma_deg, result.geometry.translation_sigma_deg) > 2
     assert any("do not determine" in w for w in result.warnings)
     # With an EXIF value the same pair keeps it and is not doubted for the focal length.
     exif = self_calibrate_pair(pts1, pts2, prior_K(0.99 * F_TRUE), EXIF_SIGMA_LOG, "exif")
