@@ -566,6 +566,11 @@ def marginal_pose_covariance(geometry: TwoViewGeometry, intrinsics_cov: FloatArr
     return marginal_covariance(geometry.pose_covariance, sensitivity, intrinsics_cov)
 
 
+def _deg(angle: float) -> str:
+    """An angle in degrees to two significant digits below 1: '112.3', '2.4', '0.31'."""
+    return f"{angle:.1f}" if angle >= 1 else f"{angle:.2g}"
+
+
 def _main_doubt(uncertainty: FocalUncertainty) -> str:
     """What limits the focal length most, in words."""
     parts = {"little rotation, or optical axes that meet": uncertainty.fit,
@@ -724,7 +729,8 @@ def self_calibrate_pair(
         # The focal lengths the matches do not tell apart bound what is known of it.
         sigma = max(sigma, max(abs(math.log(r.focal_px / f_data)) for r in rivals))
     if sigma > s.max_trusted_sigma_log:
-        warnings.append(f"the focal length ({focal:.1f} px) is known only to +-{sigma:.0%}: "
+        known = (f"+-{sigma:.0%}" if sigma < 0.5 else f"a factor of {math.exp(sigma):.1f}")
+        warnings.append(f"the focal length ({focal:.1f} px) is known only to {known}: "
                         "the pose may be off by degrees")
     if ambiguous:
         other = ", ".join(f"{g.K[0, 0]:.1f} px" for g in ambiguous)
@@ -760,8 +766,8 @@ def self_calibrate_pair(
     if uncertain:
         warnings.append(
             f"uncertain pose once the focal length's and the principal point's uncertainty "
-            f"is included: translation direction +-{geometry.translation_sigma_deg:.2g} deg, "
-            f"rotation +-{geometry.rotation_sigma_deg:.2g} deg (1 sigma), more than "
+            f"is included: translation direction +-{_deg(geometry.translation_sigma_deg)} deg, "
+            f"rotation +-{_deg(geometry.rotation_sigma_deg)} deg (1 sigma), more than "
             f"{tv.uncertainty_limit_deg:g} deg at {tv.uncertainty_sigmas:g} sigma")
     trusted = (geometry.trusted and not ambiguous and not pose_rivals and not disagree
                and not uncertain and sigma <= s.max_trusted_sigma_log)
