@@ -49,9 +49,10 @@ covariance (:func:`intrinsics_covariance`) is added, and the two-view trust rule
 to it. And a pair can fit two focal lengths about equally well, each with its own
 pose (repeated windows on a facade): a fit of the profile, or another basin, whose
 cost over all matches is not significantly higher, judged with a standard error
-measured over cells of the image (:func:`blocked_difference_z`), and whose pose
-differs by more than the trust limit, makes the result untrusted
-(:func:`focal_rivals`).
+measured over cells of the image (:func:`blocked_difference_z`), is a rival
+(:func:`focal_rivals`): the focal length's sigma is widened to reach the farthest
+rival, and a rival whose pose differs by more than the trust limit makes the result
+untrusted.
 
 The result is combined with the prior (inverse-variance, in ``log f``): with the
 default prior the photos decide; with EXIF both count, unless they contradict each

@@ -284,3 +284,25 @@ def test_blocked_difference_z_counts_blocks_not_matches():
     assert blocked_difference_z(spread, blocks) > 10
     assert blocked_difference_z(-spread, blocks) < -10
     assert blocked_difference_z(np.ones(10), np.zeros(10, int)) == math.inf
+
+
+def test_rival_focal_lengths_widen_the_sigma_and_flag_the_pose():
+    """A pair that determines its focal length poorly (5 deg of rotation, depths 5-7, 2 px
+    of noise): focal lengths far from the one found fit the matches about as well, with
+    poses degrees away. The sigma reaches them (the truth lies within its 90 % bound), and
+    the result is not trusted (here its translation direction is 4.7 deg off). (A
+    well-determined pair has no rival: the noise-free test above sees only the principal
+    point's warning.)"""
+    K = intrinsics_from_focal(F_TRUE, SIZE)
+    seed = 1
+    rng = np.random.default_rng(seed)
+    points = random_points(400, seed, (5.0, 7.0))
+    R, t = asymmetric_pose(angle_deg=5.0)
+    pts1 = project(points, K, np.eye(3), np.zeros(3)) + rng.normal(0, 2.0, (400, 2))
+    pts2 = project(points, K, R, t) + rng.normal(0, 2.0, (400, 2))
+    result = self_calibrate_pair(pts1, pts2, prior_K(), DEFAULT_PRIOR_SIGMA_LOG)
+    sigma_log = result.focal_sigma_px / result.focal_px
+    assert not result.trusted
+    assert any("do not tell" in w for w in result.warnings)
+    assert sigma_log > 0.5 > 3 * result.data_sigma_log  # widened well beyond the local sigma
+    assert abs(math.log(result.focal_px / F_TRUE)) < 1.645 * sigma_log
