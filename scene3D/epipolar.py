@@ -347,6 +347,14 @@ def essential_distances(E: ArrayLike, pts1: ArrayLike, pts2: ArrayLike,
     return np.abs(sampson_residuals(fundamental_from_essential(E, K), pts1, pts2))
 
 
+def essential_costs(E: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: ArrayLike,
+                    threshold_px: float) -> FloatArray:
+    """Each correspondence's share ``(N,)`` of :func:`essential_cost`."""
+    distances = np.minimum(essential_distances(E, pts1, pts2, K), threshold_px)
+    scale = LOSS_SCALE_OF_THRESHOLD * threshold_px
+    return _loss((distances / scale) ** 2, "cauchy")[0]
+
+
 def essential_cost(E: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: ArrayLike,
                    threshold_px: float) -> float:
     """Robust cost of an essential matrix over all correspondences (lower is better).
@@ -356,9 +364,7 @@ def essential_cost(E: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: ArrayLike,
     that an outlier costs the same whatever its distance (an MSAC-style score): it
     compares models that were refined on different inlier sets.
     """
-    distances = np.minimum(essential_distances(E, pts1, pts2, K), threshold_px)
-    scale = LOSS_SCALE_OF_THRESHOLD * threshold_px
-    return float(np.sum(_loss((distances / scale) ** 2, "cauchy")[0]))
+    return float(np.sum(essential_costs(E, pts1, pts2, K, threshold_px)))
 
 
 def polish_essential(E: FloatArray, p1: FloatArray, p2: FloatArray, K: FloatArray,

@@ -37,7 +37,7 @@ from .geometry import (
     to_homogeneous,
 )
 from .schur import normal_equations, solve_damped
-from .uncertainty import sandwich_covariance, tangent_basis
+from .uncertainty import nuisance_sensitivity, sandwich_covariance, tangent_basis
 
 
 def sampson_residuals(F: FloatArray, pts1: FloatArray, pts2: FloatArray) -> FloatArray:
@@ -318,6 +318,54 @@ def relative_pose_covariance(
     F = K_inv.T @ skew(t) @ R @ K_inv
     J = _sampson_jacobian(F, _fundamental_derivatives(R, t, tangent_basis(t), K_inv), h1, h2)
     return _robust_covariance(J, _sampson(F, h1, h2), loss, scale_px)
+
+
+def pose_intrinsics_sensitivity(
+    R: ArrayLike,
+    t: ArrayLike,
+    pts1: ArrayLike,
+    pts2: ArrayLike,
+    K: ArrayLike,
+    loss: str = "cauchy",
+    scale_px: float = 0.5,
+) -> FloatArray:
+    """How the refined pose moves with the intrinsics it was refined under ``(5, 3)``.
+
+    At the optimum ``(R, t)`` of the robust Sampson cost over the inliers
+    ``pts1, pts2`` ``(N, 2)`` under ``K`` (as :func:`relative_pose_covariance`), the
+    first-order change of the pose step ``x`` (5, parametrisation of
+    :mod:`scene3D.uncertainty`: rotation vector in the camera-2 frame, then the
+    direction step along ``tangent_basis(t)``, radians) per unit change of the
+    intrinsics ``theta = (log f, c_x, c_y)``: both focal lengths scaled by
+    ``exp(log f)``, the principal point (both views, pixels) moved. Columns: by
+    ``log f``, by ``c_x``, by ``c_y``
+    (:func:`scene3D.uncertainty.nuisance_sensitivity`). With a covariance of
+    ``theta`` it turns the pose's covariance under a known ``K`` into one for a
+    ``K`` known only that well (:func:`scene3D.uncertainty.marginal_covariance`).
+    """
+    R = np.asarray(R, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64).reshape(3)
+    t = t / np.linalg.norm(t)
+    K = np.asarray(K, dtype=np.float64)
+    K_inv = np.linalg.inv(K)
+    h1 = to_homogeneous(np.asarray(pts1, dtype=np.float64))
+    h2 = to_homogeneous(np.asarray(pts2, dtype=np.float64))
+    E = skew(t) @ R
+    F = K_inv.T @ E @ K_inv
+    dK = [np.diag([K[0, 0], K[1, 1], 0.0]), np.zeros((3, 3)), np.zeros((3, 3))]
+    dK[1][0, 2] = dK[2][1, 2] = 1.0
+    # d(K^-1) = -K^-1 dK K^-1, and F = K^-T E K^-1.
+    dF_theta = []
+    for d in dK:
+        dK_inv = -K_inv @ d @ K_inv
+        dF_theta.append(dK_inv.T @ E @ K_inv + K_inv.T @ E @ dK_inv)
+    J_pose = _sampson_jacobian(F, _fundamental_derivatives(R, t, tangent_basis(t), K_inv),
+                               h1, h2)
+    J_theta = _sampson_jacobian(F, np.stack(dF_theta), h1, h2)
+    r = _sampson(F, h1, h2)
+    z = (r / scale_px) ** 2
+    _, rho1, rho2 = _loss(z, loss)
+    return nuisance_sensitivity(J_pose, J_theta, rho1 + 2.0 * rho2 * z)
 
 
 def _scaled_fundamental(R: FloatArray, t: FloatArray, log_s: float,

@@ -31,6 +31,7 @@ from .features import Matches, find_matches, normalize_feature_mode
 from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, load_working_images
 from .rectification import RectifiedPair, rectify_pair
 from .twoview import TwoViewReconstruction, TwoViewSettings, reconstruct_two_view
+from .uncertainty import depth_sigmas
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -190,8 +191,16 @@ class SceneReconstruction3D:
         self._dense.clear()
         self.self_calibration = calibration
         result = reconstruct_two_view(self._require_images()[0], matches, self.K, self.settings)
+        # The pose's uncertainty includes the focal length's (the calibration's geometry).
+        marginal = calibration.geometry
         self._results[mode] = replace(result, trusted=result.trusted and calibration.trusted,
-                                      warnings=result.warnings + calibration.warnings)
+                                      warnings=result.warnings + calibration.warnings,
+                                      pose_covariance=marginal.pose_covariance,
+                                      rotation_sigma_deg=marginal.rotation_sigma_deg,
+                                      translation_sigma_deg=marginal.translation_sigma_deg,
+                                      depth_sigmas=depth_sigmas(
+                                          result.points3d, result.K, result.R, result.t,
+                                          marginal.pose_covariance, result.noise_sigma_px))
         for warning in calibration.warnings:
             logger.warning("%s", warning)
         self.reconstruct(mode)

@@ -39,6 +39,21 @@ repeated with it moved by :attr:`SelfCalibrationSettings.principal_point_sigma`.
 And a delete-a-cell jackknife over the inliers in image 1 measures how much the
 estimate rests on one part of the scene.
 
+Two things the local sigma cannot see. The pose's own covariance is conditional on
+``K``: under a focal length 20 % off it still says hundredths of a degree. So the
+pose covariance reported is marginal over the intrinsics
+(:func:`marginal_pose_covariance`): how the pose moves with ``log f`` and the
+principal point (:func:`scene3D.refinement.pose_intrinsics_sensitivity`) times their
+covariance (:func:`intrinsics_covariance`) is added, and the two-view trust rule
+(``TwoViewSettings.uncertainty_sigmas`` within ``uncertainty_limit_deg``) is applied
+to it. And a pair can fit two focal lengths about equally well, each with its own
+pose (repeated windows on a facade): a fit of the profile, or another basin, whose
+cost over all matches is not significantly higher, judged with a standard error
+measured over cells of the image (:func:`blocked_difference_z`), is a rival
+(:func:`focal_rivals`): the focal length's sigma is widened to reach the farthest
+rival, and a rival whose pose differs by more than the trust limit makes the result
+untrusted.
+
 The result is combined with the prior (inverse-variance, in ``log f``): with the
 default prior the photos decide; with EXIF both count, unless they contradict each
 other by more than three sigmas (an EXIF value can be plain wrong: a crop, a resized
@@ -60,7 +75,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -68,15 +83,25 @@ from numpy.typing import ArrayLike
 
 from .epipolar import (
     essential_cost,
+    essential_costs,
     essential_distances,
     fit_essential,
     loss_scale_px,
     noise_sigma_px,
 )
 from .errors import ReconstructionError
-from .geometry import FloatArray, as_matrix, as_points2d, check_same_length
-from .refinement import fit_focal_scale
+from .geometry import (
+    FloatArray,
+    angle_between_deg,
+    as_matrix,
+    as_points2d,
+    check_same_length,
+    rotation_error_deg,
+)
+from .pose import choose_pose
+from .refinement import fit_focal_scale, pose_intrinsics_sensitivity
 from .twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
+from .uncertainty import depth_sigmas, largest_sigma_deg, marginal_covariance
 
 logger = logging.getLogger(__name__)
 
@@ -121,6 +146,19 @@ class SelfCalibrationSettings:
         the units of :func:`scene3D.epipolar.essential_cost`, where an outlier costs
         2.3) and whose focal length differs by more than three standard deviations
         makes the result ambiguous (untrusted).
+    pose_principal_point : bool
+        The pose's covariance includes the principal point's uncertainty
+        (``principal_point_sigma``) besides the focal length's
+        (:func:`marginal_pose_covariance`). It dominates the translation direction's
+        sigma: a principal point 1 % of the longer side off turns the camera frame by
+        about 0.6 deg whatever the resolution. False: the focal length's alone.
+    rival_z : float
+        A fit at a focal length more than three sigmas away whose cost over all
+        matches is not higher by ``rival_z`` standard errors (blocked by the
+        jackknife's cells, :func:`blocked_difference_z`; about a 2.5 % one-sided
+        test) is a rival (:func:`focal_rivals`): the focal length's sigma is widened
+        to reach it, and when its pose differs by more than
+        ``TwoViewSettings.uncertainty_limit_deg`` the result is untrusted.
     """
 
     search_sigmas: float = 2.0
@@ -134,6 +172,8 @@ class SelfCalibrationSettings:
     jackknife_cells: int = 3
     max_trusted_sigma_log: float = 0.1
     ambiguity_cost: float = 10.0
+    pose_principal_point: bool = True
+    rival_z: float = 2.0
 
 
 @dataclass(frozen=True)
@@ -152,12 +192,15 @@ class FocalProfile:
         noise (``noise_px``), within the limits of :class:`SelfCalibrationSettings`.
     noise_px : float
         The smallest robust noise sigma of the fits' inliers.
+    essentials : (n, 3, 3) float64
+        Each focal length's essential matrix (NaN where no fit was found).
     """
 
     focal_px: FloatArray
     cost: FloatArray
     threshold_px: float
     noise_px: float
+    essentials: FloatArray = field(default_factory=lambda: np.zeros((0, 3, 3)))
 
     def basins(self) -> list[int]:
         """Indices of the profile's local minima, lowest cost first."""
@@ -182,11 +225,17 @@ class FocalUncertainty(NamedTuple):
     principal_point : float
         How much it moves with the principal point one standard deviation away from
         the centre, in x and in y (root of the sum of squares).
+    principal_point_shifts : tuple[float, float]
+        The signed moves of ``log f`` with the principal point one standard
+        deviation along x, and along y (their root sum of squares is
+        ``principal_point``): how the focal length's error goes with the principal
+        point's (:func:`intrinsics_covariance`).
     """
 
     fit: float
     jackknife: float
     principal_point: float
+    principal_point_shifts: tuple[float, float] = (0.0, 0.0)
 
     @property
     def total(self) -> float:
@@ -208,7 +257,9 @@ class SelfCalibration:
         ``K[0, 0]`` (= ``K[1, 1]``).
     focal_sigma_px : float
         Its standard deviation: the fit's and the principal point's share combined
-        with the prior's, or the prior's alone when the photos did not determine it.
+        with the prior's, or the prior's alone when the photos did not determine it;
+        at least the distance (in ``log f``) to the farthest focal length the matches
+        do not tell apart from it (:func:`focal_rivals`).
     source : str
         ``"exif+refined"`` / ``"prior+refined"`` (the photos determined it), or
         ``"exif"`` / ``"prior"`` (they did not; the value is the start's).
@@ -225,7 +276,11 @@ class SelfCalibration:
     start_focal_px, start_sigma_log : float
         The prior it started from.
     geometry : TwoViewGeometry
-        The two-view estimate under ``K``.
+        The two-view estimate under ``K``; its ``pose_covariance``,
+        ``rotation_sigma_deg``, ``translation_sigma_deg`` and ``depth_sigmas`` are
+        marginal over the focal length and the principal point
+        (:func:`marginal_pose_covariance`), not conditional on ``K``; its ``trusted``
+        and ``warnings`` are the two-view pipeline's under ``K``.
     profile : FocalProfile
         The profile the starting basins came from.
     candidates : tuple[tuple[float, float], ...]
@@ -238,8 +293,11 @@ class SelfCalibration:
     trusted : bool
         ``geometry.trusted``, and the focal length known to
         ``SelfCalibrationSettings.max_trusted_sigma_log`` (so not resting on the
-        default prior alone), no other focal length fitting about as well, and the
-        photos not contradicting an EXIF value (by more than three sigmas).
+        default prior alone), no other focal length fitting about as well (another
+        basin, or a rival, :func:`focal_rivals`), the photos not contradicting an EXIF
+        value (by more than three sigmas), and the pose certain enough for
+        ``TwoViewSettings`` (``uncertainty_sigmas`` of its marginal sigmas within
+        ``uncertainty_limit_deg``).
     seconds : float
         Time spent.
     """
@@ -297,7 +355,9 @@ def focal_profile(pts1: FloatArray, pts2: FloatArray, K: FloatArray, factors: Fl
     cost = np.array([essential_cost(fit.E, pts1, pts2, with_focal(K, f), threshold)
                      if np.all(np.isfinite(fit.E)) and fit.inliers.sum() >= min_inliers
                      else np.inf for f, fit in zip(focal, fits)])
-    return FocalProfile(focal, cost, threshold, float(sigma))
+    essentials = np.array([fit.E if np.all(np.isfinite(fit.E)) else np.full((3, 3), np.nan)
+                           for fit in fits])
+    return FocalProfile(focal, cost, threshold, float(sigma), essentials)
 
 
 def converge_focal(pts1: FloatArray, pts2: FloatArray, K: FloatArray,
@@ -326,6 +386,95 @@ def converge_focal(pts1: FloatArray, pts2: FloatArray, K: FloatArray,
     return geometry, max_iterations, False
 
 
+def image_cells(pts: FloatArray, cells: int = 3) -> np.ndarray:
+    """The cell ``(N,) int`` of each pixel ``(N, 2)`` among ``cells`` x ``cells`` equal
+    cells of the points' bounding box."""
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    cell = np.minimum(((pts - lo) / np.maximum(hi - lo, 1e-9) * cells).astype(int), cells - 1)
+    return cell[:, 0] * cells + cell[:, 1]
+
+
+def blocked_difference_z(differences: ArrayLike, blocks: ArrayLike) -> float:
+    """How significant a summed difference is when its terms are correlated within blocks.
+
+    ``differences`` ``(N,)`` are per-match differences of two models' costs (the
+    rival's minus the chosen one's), ``blocks`` ``(N,) int`` the cell of each match.
+    Matches on one facade, one repeated window pattern or one cluster of wrong matches
+    err together, so the standard error of the sum is measured from the ``g`` block
+    sums ``D_b``: ``se^2 = g / (g - 1) * sum (D_b - mean D_b)^2``. Returns
+    ``sum / se``: small (below about 2) when the data do not tell the two models apart;
+    inf when fewer than three blocks hold matches.
+    """
+    d = np.asarray(differences, dtype=np.float64)
+    b = np.asarray(blocks)
+    sums = np.array([d[b == k].sum() for k in np.unique(b)])
+    g = len(sums)
+    if g < 3:
+        return math.inf
+    se = math.sqrt(g / (g - 1) * float(np.sum((sums - sums.mean()) ** 2)))
+    total = float(sums.sum())
+    return total / se if se > 0 else (math.inf if total > 0 else -math.inf)
+
+
+class Rival(NamedTuple):
+    """Another focal length whose fit the matches do not tell apart from the chosen one.
+
+    Attributes
+    ----------
+    focal_px : float
+        Its focal length (a point of the profile, or another basin's converged value).
+    z : float
+        :func:`blocked_difference_z` of its cost over the chosen fit's.
+    pose_difference_deg : float
+        The larger of the rotation angle and the translation-direction angle between
+        its pose and the chosen one.
+    """
+
+    focal_px: float
+    z: float
+    pose_difference_deg: float
+
+
+def focal_rivals(pts1: FloatArray, pts2: FloatArray, chosen: TwoViewGeometry,
+                 focal_px: float, sigma_log: float,
+                 fits: list[tuple[float, FloatArray]], threshold_px: float,
+                 max_z: float, cells: int = 3) -> list[Rival]:
+    """The fits at other focal lengths that fit the matches about as well.
+
+    ``fits`` are ``(focal_px, E)`` pairs (the profile's points and the other basins'
+    converged fits), ``chosen`` the selected geometry (focal length ``focal_px``,
+    known to ``sigma_log`` by the local analysis). A fit is a rival when its focal
+    length lies more than three ``sigma_log`` away (so the local sigma does not
+    describe it), its cost over all matches ``pts1, pts2`` ``(N, 2)``
+    (:func:`scene3D.epipolar.essential_costs` at ``threshold_px``) is not
+    significantly higher (:func:`blocked_difference_z` below ``max_z``, with
+    ``cells`` x ``cells`` cells of image 1 as blocks): the local sigma describes only
+    one of the answers the pair supports (a facade with repeated windows at 768 px:
+    castle-P19 14-15, 15-16, 16-17 ended 6 to 10 deg off with the focal length 20 to
+    28 % off and its sigma 2 to 3 %). Each rival's pose is decomposed with cheirality
+    on its inliers and compared with the chosen one (``Rival.pose_difference_deg``).
+    """
+    base = essential_costs(chosen.E, pts1, pts2, chosen.K, threshold_px)
+    blocks = image_cells(pts1, cells)
+    rivals = []
+    for focal, E in fits:
+        if (not np.all(np.isfinite(E))
+                or abs(math.log(focal / focal_px)) <= 3.0 * sigma_log):
+            continue
+        K_f = with_focal(chosen.K, focal)
+        z = blocked_difference_z(essential_costs(E, pts1, pts2, K_f, threshold_px) - base,
+                                 blocks)
+        if z >= max_z:
+            continue
+        inliers = essential_distances(E, pts1, pts2, K_f) <= threshold_px
+        if inliers.sum() < 6:
+            continue
+        R, t, _, _ = choose_pose(E, pts1[inliers], pts2[inliers], K_f)
+        difference = max(rotation_error_deg(R, chosen.R), angle_between_deg(t, chosen.t))
+        rivals.append(Rival(float(focal), z, difference))
+    return rivals
+
+
 def focal_uncertainty(geometry: TwoViewGeometry, settings: TwoViewSettings,
                       principal_point_shift_px: float, cells: int = 3) -> FocalUncertainty:
     """How well the pair's inliers determine the focal length of ``geometry.K``.
@@ -350,9 +499,7 @@ def focal_uncertainty(geometry: TwoViewGeometry, settings: TwoViewSettings,
                                             scale).scale)
 
     base = fit_focal_scale(geometry.R, geometry.t, in1, in2, K, "cauchy", scale)
-    lo, hi = in1.min(axis=0), in1.max(axis=0)
-    cell = np.minimum(((in1 - lo) / np.maximum(hi - lo, 1e-9) * cells).astype(int), cells - 1)
-    cell_id = cell[:, 0] * cells + cell[:, 1]
+    cell_id = image_cells(in1, cells)
     estimates = []
     for c in np.unique(cell_id):
         keep = cell_id != c
@@ -362,13 +509,67 @@ def focal_uncertainty(geometry: TwoViewGeometry, settings: TwoViewSettings,
     jackknife = (math.sqrt((g - 1) / g * float(np.sum((np.array(estimates)
                                                         - np.mean(estimates)) ** 2)))
                  if g >= 3 else math.inf)
-    moved = 0.0
+    shifts = [0.0, 0.0]
     if principal_point_shift_px > 0:
         for axis in (0, 1):
             K_moved = K.copy()
             K_moved[axis, 2] += principal_point_shift_px
-            moved += (fit(in1, in2, K_moved) - math.log(base.scale)) ** 2
-    return FocalUncertainty(base.sigma_log, jackknife, math.sqrt(moved))
+            shifts[axis] = fit(in1, in2, K_moved) - math.log(base.scale)
+    return FocalUncertainty(base.sigma_log, jackknife, math.hypot(*shifts),
+                            (shifts[0], shifts[1]))
+
+
+def intrinsics_covariance(focal_sigma_log: float, principal_point_sigma_px: float,
+                          focal_shifts: tuple[float, float] = (0.0, 0.0),
+                          weight: float = 1.0) -> FloatArray:
+    """Covariance ``(3, 3)`` of the intrinsics a pair's pose was estimated under.
+
+    The parameters are ``theta = (log f, c_x, c_y)`` (the principal point in
+    pixels), as in :func:`scene3D.refinement.pose_intrinsics_sensitivity`. The
+    principal point is the image centre, assumed within ``principal_point_sigma_px``
+    (each axis, independent) of the true one; ``log f`` is known to
+    ``focal_sigma_log``. The fitted focal length moves with the principal point
+    (``focal_shifts``: the moves of ``log f`` for a one-sigma shift along x and
+    along y, :attr:`FocalUncertainty.principal_point_shifts`), so their errors are
+    correlated: ``cov(log f, c_x) = weight * shift_x * sigma_pp``. ``weight`` is the
+    photos' share of a focal length combined with a prior
+    (``sigma_combined^2 / sigma_photos^2``; 0 when the value is the prior's).
+    """
+    sigma_pp = principal_point_sigma_px
+    cov = np.diag([focal_sigma_log**2, sigma_pp**2, sigma_pp**2])
+    for axis in (0, 1):
+        cov[0, axis + 1] = cov[axis + 1, 0] = weight * focal_shifts[axis] * sigma_pp
+    return cov
+
+
+def marginal_pose_covariance(geometry: TwoViewGeometry, intrinsics_cov: FloatArray,
+                             settings: TwoViewSettings) -> FloatArray:
+    """The pose covariance ``(5, 5)`` of ``geometry`` with its intrinsics' uncertainty added.
+
+    ``geometry.pose_covariance`` is conditional on ``geometry.K``: it describes the
+    noise of the matches as if ``K`` were exact. Without a calibration the focal
+    length and the principal point are estimates and guesses, and a pose estimated
+    under a focal length 20 % off is off by degrees while its conditional sigma says
+    hundredths. The marginal covariance adds how the pose moves with the intrinsics
+    (:func:`scene3D.refinement.pose_intrinsics_sensitivity`, on the geometry's
+    inliers under the loss of its refinement) times their covariance
+    ``intrinsics_cov`` ``(3, 3)`` over ``(log f, c_x, c_y)``
+    (:func:`intrinsics_covariance`; :func:`scene3D.uncertainty.marginal_covariance`).
+    Parametrisation and frames of :mod:`scene3D.uncertainty` (rotation vector in the
+    camera-2 frame, then the direction step along ``tangent_basis(geometry.t)``).
+    """
+    in1, in2, K = geometry.inlier_pts1, geometry.inlier_pts2, geometry.K
+    if len(in1) < 6:
+        return np.full((5, 5), np.inf)
+    scale = loss_scale_px(essential_distances(geometry.E, in1, in2, K), settings.threshold_px)
+    sensitivity = pose_intrinsics_sensitivity(geometry.R, geometry.t, in1, in2, K, "cauchy",
+                                              scale)
+    return marginal_covariance(geometry.pose_covariance, sensitivity, intrinsics_cov)
+
+
+def _deg(angle: float) -> str:
+    """An angle in degrees to two significant digits below 1: '112.3', '2.4', '0.31'."""
+    return f"{angle:.1f}" if angle >= 1 else f"{angle:.2g}"
 
 
 def _main_doubt(uncertainty: FocalUncertainty) -> str:
@@ -493,6 +694,12 @@ def self_calibrate_pair(
     determined = sigma_data <= prior_sigma_log
     ambiguous = [g for c, g in runs[1:] if c - best_cost < s.ambiguity_cost
                  and abs(math.log(g.K[0, 0] / f_data)) > 3.0 * sigma_data]
+    rivals = focal_rivals(
+        p1, p2, best, f_data, sigma_data,
+        [(float(f), E) for f, E in zip(profile.focal_px, profile.essentials)]
+        + [(float(g.K[0, 0]), g.E) for _, g in runs[1:]],
+        profile.threshold_px, s.rival_z, s.jackknife_cells)
+    pose_rivals = [r for r in rivals if r.pose_difference_deg > tv.uncertainty_limit_deg]
     # Photos and EXIF that disagree beyond their sigmas: one of them is wrong. An EXIF
     # value can be wrong outright (a cropped or resized copy, digital zoom), so beyond
     # three sigmas photos that know the focal length well enough overrule it (the
@@ -519,19 +726,52 @@ def self_calibrate_pair(
         if disagree:
             warnings.append(f"the photos call for a focal length {f_data / f0:.2f} times the "
                             "EXIF one: the EXIF value may be wrong")
+    if determined and rivals:
+        # The focal lengths the matches do not tell apart bound what is known of it.
+        sigma = max(sigma, max(abs(math.log(r.focal_px / f_data)) for r in rivals))
     if sigma > s.max_trusted_sigma_log:
-        warnings.append(f"the focal length ({focal:.1f} px) is known only to +-{sigma:.0%}: "
+        known = (f"+-{sigma:.0%}" if sigma < 0.5 else f"a factor of {math.exp(sigma):.1f}")
+        warnings.append(f"the focal length ({focal:.1f} px) is known only to {known}: "
                         "the pose may be off by degrees")
     if ambiguous:
         other = ", ".join(f"{g.K[0, 0]:.1f} px" for g in ambiguous)
         warnings.append(f"other focal lengths fit the matches about as well ({other} against "
                         f"{f_data:.1f} px): the focal length, and the pose, may be wrong")
+    if pose_rivals:
+        worst_rival = max(pose_rivals, key=lambda r: r.pose_difference_deg)
+        warnings.append(
+            f"the matches do not tell {f_data:.1f} px from {worst_rival.focal_px:.1f} px "
+            f"(cost difference {worst_rival.z:.1f} standard errors), whose pose differs by "
+            f"{worst_rival.pose_difference_deg:.1f} deg: the focal length, and the pose, may "
+            "be wrong" + (f" ({len(pose_rivals)} such focal lengths)"
+                          if len(pose_rivals) > 1 else ""))
     geometry = best
     if abs(math.log(focal / best.K[0, 0])) >= s.tolerance_log:
         geometry = reconstruct_from_matches(p1, p2, with_focal(K0, focal), tv)
         iterations += 1
-    trusted = (geometry.trusted and not ambiguous and not disagree
-               and sigma <= s.max_trusted_sigma_log)
+    # The pose's uncertainty with the focal length's and the principal point's added.
+    weight = (0.0 if not determined or not math.isfinite(sigma_data)
+              else min(1.0, (sigma / sigma_data) ** 2))
+    pp_sigma = (s.principal_point_sigma * longer_side if s.pose_principal_point else 0.0)
+    covariance = marginal_pose_covariance(
+        geometry, intrinsics_covariance(sigma, pp_sigma, uncertainty.principal_point_shifts,
+                                        weight), tv)
+    geometry = replace(
+        geometry, pose_covariance=covariance,
+        rotation_sigma_deg=largest_sigma_deg(covariance[:3, :3]),
+        translation_sigma_deg=largest_sigma_deg(covariance[3:, 3:]),
+        depth_sigmas=depth_sigmas(geometry.points3d, geometry.K, geometry.R, geometry.t,
+                                  covariance, geometry.noise_sigma_px))
+    worst = max(geometry.rotation_sigma_deg, geometry.translation_sigma_deg)
+    uncertain = worst * tv.uncertainty_sigmas > tv.uncertainty_limit_deg
+    if uncertain:
+        warnings.append(
+            f"uncertain pose once the focal length's and the principal point's uncertainty "
+            f"is included: translation direction +-{_deg(geometry.translation_sigma_deg)} deg, "
+            f"rotation +-{_deg(geometry.rotation_sigma_deg)} deg (1 sigma), more than "
+            f"{tv.uncertainty_limit_deg:g} deg at {tv.uncertainty_sigmas:g} sigma")
+    trusted = (geometry.trusted and not ambiguous and not pose_rivals and not disagree
+               and not uncertain and sigma <= s.max_trusted_sigma_log)
     return SelfCalibration(
         K=geometry.K, focal_px=float(geometry.K[0, 0]), focal_sigma_px=focal * sigma,
         source=source, determined=determined, data_focal_px=f_data,

@@ -110,6 +110,64 @@ def sandwich_covariance(J: FloatArray, influence: FloatArray,
     return 0.5 * (cov + cov.T)
 
 
+def nuisance_sensitivity(J_pose: FloatArray, J_nuisance: FloatArray,
+                         slope: FloatArray) -> FloatArray:
+    """How the optimum of a robust fit moves with parameters held fixed in it.
+
+    A cost ``sum rho(r_i(x, theta))`` minimised over ``x`` (``k`` parameters) with
+    ``theta`` (``m`` nuisance parameters, such as the intrinsics) held at an assumed
+    value has its optimum at ``x*(theta)``; to first order (implicit function
+    theorem) ``dx*/dtheta = -H_xx^-1 H_xtheta`` with the Gauss-Newton blocks
+    ``H_xx = sum psi'_i J_x,i^T J_x,i`` and ``H_xtheta = sum psi'_i J_x,i^T J_theta,i``
+    (the loss's curvature included, as in :func:`sandwich_covariance`).
+
+    Parameters
+    ----------
+    J_pose : (n, k) array
+        Jacobian of the residuals by the fitted parameters, at the optimum.
+    J_nuisance : (n, m) array
+        Jacobian of the residuals by the parameters held fixed.
+    slope : (n,) array
+        ``psi'(r_i)``.
+
+    Returns
+    -------
+    (k, m) float64
+        ``dx*/dtheta``; infinite when ``H_xx`` is not positive definite.
+    """
+    H = J_pose.T @ (slope[:, None] * J_pose)
+    H_cross = J_pose.T @ (slope[:, None] * J_nuisance)
+    try:
+        np.linalg.cholesky(H)
+        return -np.linalg.solve(H, H_cross)
+    except np.linalg.LinAlgError:
+        return np.full((J_pose.shape[1], J_nuisance.shape[1]), np.inf)
+
+
+def marginal_covariance(covariance: ArrayLike, sensitivity: ArrayLike,
+                        nuisance_covariance: ArrayLike) -> FloatArray:
+    """Covariance ``(k, k)`` of a fit once the uncertainty of what it held fixed is added.
+
+    ``covariance`` ``(k, k)`` is the fit's own, conditional on the nuisance
+    parameters ``theta`` (``m``) it assumed; ``sensitivity`` ``(k, m)`` how its
+    optimum moves with them (:func:`nuisance_sensitivity`); ``nuisance_covariance``
+    ``(m, m)`` how well they are known. To first order, with the assumed ``theta``'s
+    error independent of the fit's noise, the marginal covariance is
+    ``C + S Sigma S^T``. For a parameter estimated from the same residuals (the
+    focal length fitted with the pose) and known to its own sandwich variance, this
+    is the ``(k, k)`` block of the joint ``(k + m)`` covariance (exactly, when the
+    sandwich reduces to ``H^-1``); a larger variance (a jackknife's, or a prior's
+    when the data do not determine it) widens it accordingly.
+    """
+    C = np.asarray(covariance, dtype=np.float64)
+    S = np.asarray(sensitivity, dtype=np.float64)
+    Sigma = np.asarray(nuisance_covariance, dtype=np.float64)
+    if not (np.all(np.isfinite(C)) and np.all(np.isfinite(S)) and np.all(np.isfinite(Sigma))):
+        return np.full(C.shape, np.inf)
+    out = C + S @ Sigma @ S.T
+    return 0.5 * (out + out.T)
+
+
 def largest_sigma_deg(block: FloatArray) -> float:
     """Square root of the largest eigenvalue of a covariance block (radians^2), in degrees.
 

@@ -14,11 +14,12 @@ from scene3D.refinement import (
     _update_pose,
     bundle_adjust_two_view,
     fit_focal_scale,
+    pose_intrinsics_sensitivity,
     refine_relative_pose,
 )
 from scene3D.triangulation import reprojection_errors, triangulate_points
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches
-from scene3D.uncertainty import tangent_basis
+from scene3D.uncertainty import rotation_vector, tangent_basis
 
 from .helpers import correspondences, scipy_bundle_adjust
 
@@ -212,3 +213,25 @@ def test_focal_scale_is_undetermined_without_rotation(camera):
     _, pts1, pts2 = correspondences(camera, R, t, n=200, noise_px=0.3)
     fit = fit_focal_scale(R, t / np.linalg.norm(t), pts1, pts2, camera)
     assert fit.sigma_log > 0.3 or not np.isfinite(fit.sigma_log)
+
+
+def test_the_pose_moves_with_the_intrinsics_as_refits_show():
+    """pose_intrinsics_sensitivity against refinements under a perturbed K (log f, c_x, c_y)."""
+    K = np.array([[780.0, 0.0, 331.0], [0.0, 780.0, 228.0], [0.0, 0.0, 1.0]])
+    R = rotation_about_axis([0.25, 1.0, 0.12], 10.0)
+    t = np.array([-0.9, 0.1, 0.3])
+    t /= np.linalg.norm(t)
+    _, pts1, pts2 = correspondences(K, R, t, 300, 0.5, 1)
+    R0, t0 = refine_relative_pose(R, t, pts1, pts2, K, "cauchy", 0.5, 100)
+    S = pose_intrinsics_sensitivity(R0, t0, pts1, pts2, K, "cauchy", 0.5)
+    assert S.shape == (5, 3)
+    basis = tangent_basis(t0)
+    for j, h in enumerate([1e-3, 0.5, 0.5]):
+        K_moved = K.copy()
+        if j == 0:
+            K_moved[:2, :2] *= np.exp(h)
+        else:
+            K_moved[j - 1, 2] += h
+        R1, t1 = refine_relative_pose(R0, t0, pts1, pts2, K_moved, "cauchy", 0.5, 100)
+        moved = np.concatenate([rotation_vector(R1 @ R0.T), basis @ (t1 - t0)]) / h
+        np.testing.assert_allclose(S[:, j], moved, rtol=0.03, atol=2e-3 * np.abs(S[:, j]).max())

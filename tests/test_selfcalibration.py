@@ -15,6 +15,8 @@ from scene3D.intrinsics_prior import (
     intrinsics_from_focal,
 )
 from scene3D.selfcalibration import (
+    SelfCalibrationSettings,
+    blocked_difference_z,
     combine_log_normal,
     converge_focal,
     focal_profile,
@@ -50,7 +52,17 @@ def test_from_the_default_prior_without_noise_the_focal_length_is_exact():
     start = prior_K()
     assert start[0, 0] / F_TRUE == pytest.approx(1.333, abs=1e-3)  # 33 % too long
     result = self_calibrate_pair(pts1, pts2, start, DEFAULT_PRIOR_SIGMA_LOG, "prior")
-    assert result.source == "prior+refined" and result.determined and result.trusted
+    assert result.source == "prior+refined" and result.determined
+    # A principal point guessed to 1 % of the longer side (6.4 px) turns the camera
+    # frame by about 0.6 deg: the translation direction's marginal sigma says so, and
+    # three of it exceed the 2 deg limit: untrusted, for that reason alone.
+    assert 0.5 < result.geometry.translation_sigma_deg < 1.0
+    assert not result.trusted
+    assert [w for w in result.warnings if "principal point" in w] == list(result.warnings)
+    # A camera whose principal point is known to be centred (to 0.2 %) is trusted.
+    known = self_calibrate_pair(pts1, pts2, start, DEFAULT_PRIOR_SIGMA_LOG, "prior",
+                                search=SelfCalibrationSettings(principal_point_sigma=0.002))
+    assert known.trusted and known.geometry.translation_sigma_deg < 0.2
     assert result.focal_px == pytest.approx(F_TRUE, rel=1e-3)
     np.testing.assert_allclose(result.K, with_focal(start, result.focal_px))
     np.testing.assert_allclose(result.geometry.K, result.K)
@@ -103,7 +115,8 @@ def test_an_exif_value_within_its_sigma_is_combined():
     K = intrinsics_from_focal(F_TRUE, SIZE)
     R, t = asymmetric_pose(angle_deg=10.0)
     pts1, pts2 = pair(K, R, t, noise_px=0.3)
-    result = self_calibrate_pair(pts1, pts2, prior_K(1.04 * F_TRUE), EXIF_SIGMA_LOG, "exif")
+    result = self_calibrate_pair(pts1, pts2, prior_K(1.04 * F_TRUE), EXIF_SIGMA_LOG, "exif",
+                                 search=SelfCalibrationSettings(principal_point_sigma=0.002))
     # The photos know it to 0.7 %, better than EXIF's 3 %: combined, mostly theirs.
     assert result.determined and result.source == "exif+refined"
     assert result.data_sigma_log < EXIF_SIGMA_LOG
@@ -143,6 +156,8 @@ def test_degenerate_motions_keep_the_prior_and_say_so(motion):
     assert result.source == "prior" and not result.determined
     assert result.focal_px == start[0, 0]  # kept exactly
     assert not result.trusted
+    # Resting on the default prior (0.5 in log f), the pose's marginal sigma says so.
+    assert max(result.geometry.rotation_sigma_deg, result.geometry.translation_sigma_deg) > 2
     assert any("do not determine" in w for w in result.warnings)
     # With an EXIF value the same pair keeps it and is not doubted for the focal length.
     exif = self_calibrate_pair(pts1, pts2, prior_K(0.99 * F_TRUE), EXIF_SIGMA_LOG, "exif")
@@ -223,3 +238,71 @@ def test_the_profile_keeps_a_facade_pair_out_of_the_prior_basin(data_root):
     assert result.focal_px == pytest.approx(f_true, rel=0.02) and result.trusted
     err = relative_pose_error(result.geometry.R, result.geometry.t, *relative_pose(*cams))
     assert err.rotation_deg < 0.5 and err.translation_deg < 1.0
+
+
+def _strecha_matches(scene, views, width):
+    from scene3D.datasets import read_strecha_camera
+    from scene3D.features import image_features, match_features
+    from scene3D.imageio import load_working_image
+
+    cams = [read_strecha_camera(scene / "gt_dense_cameras" / f"{i:04d}.jpg.camera")
+            for i in views]
+    images = [load_working_image(scene / "images" / f"{i:04d}.jpg", cam.K, np.zeros(5),
+                                 width)[0] for i, cam in zip(views, cams)]
+    return cams, match_features(*(image_features(img) for img in images))
+
+
+def test_a_focal_length_the_pair_determines_poorly_is_not_trusted(data_root):
+    """castle-P19 4-5 at 768 px without a calibration: the matches call for a focal length
+    about 20 % short with a local sigma of a few percent, and the pose ends degrees off.
+    Before, the result was trusted with a rotation sigma of 0.02 deg (conditional on the
+    wrong focal length). The pose's sigma is now marginal over the intrinsics, and the
+    result is not trusted."""
+    from scene3D.datasets import relative_pose
+
+    cams, matches = _strecha_matches(data_root / "castle-P19", (4, 5), 768)
+    f_true = math.sqrt(cams[0].K[0, 0] * cams[0].K[1, 1]) / 4
+    start = intrinsics_from_focal(1.2 * 768, (768, 512))
+    result = self_calibrate_pair(matches.pts1, matches.pts2, start, DEFAULT_PRIOR_SIGMA_LOG)
+    geometry = result.geometry
+    err = relative_pose_error(geometry.R, geometry.t, *relative_pose(*cams))
+    assert not result.trusted
+    # Whatever the focal length found, the marginal sigmas are not hundredths of a degree,
+    # and a pose off by more than 2 deg is not within three of them of the truth unflagged.
+    assert max(geometry.rotation_sigma_deg, geometry.translation_sigma_deg) > 0.2
+    if abs(math.log(result.focal_px / f_true)) > 0.1:
+        assert max(err.rotation_deg, err.translation_deg) > 1.0  # the case it guards
+
+
+def test_blocked_difference_z_counts_blocks_not_matches():
+    """A difference carried by one block of matches is not significant however many
+    matches it has; the same difference spread evenly over the blocks is."""
+    blocks = np.repeat(np.arange(9), 100)
+    concentrated = np.where(blocks == 4, 1.0, 0.0)
+    spread = np.full(900, 1.0 / 9.0) + np.random.default_rng(0).normal(0, 0.01, 900)
+    assert blocked_difference_z(concentrated, blocks) == pytest.approx(1.0)
+    assert blocked_difference_z(spread, blocks) > 10
+    assert blocked_difference_z(-spread, blocks) < -10
+    assert blocked_difference_z(np.ones(10), np.zeros(10, int)) == math.inf
+
+
+def test_rival_focal_lengths_widen_the_sigma_and_flag_the_pose():
+    """A pair that determines its focal length poorly (5 deg of rotation, depths 5-7, 2 px
+    of noise): focal lengths far from the one found fit the matches about as well, with
+    poses degrees away. The sigma reaches them (the truth lies within its 90 % bound), and
+    the result is not trusted (here its translation direction is 4.7 deg off). (A
+    well-determined pair has no rival: the noise-free test above sees only the principal
+    point's warning.)"""
+    K = intrinsics_from_focal(F_TRUE, SIZE)
+    seed = 1
+    rng = np.random.default_rng(seed)
+    points = random_points(400, seed, (5.0, 7.0))
+    R, t = asymmetric_pose(angle_deg=5.0)
+    pts1 = project(points, K, np.eye(3), np.zeros(3)) + rng.normal(0, 2.0, (400, 2))
+    pts2 = project(points, K, R, t) + rng.normal(0, 2.0, (400, 2))
+    result = self_calibrate_pair(pts1, pts2, prior_K(), DEFAULT_PRIOR_SIGMA_LOG)
+    sigma_log = result.focal_sigma_px / result.focal_px
+    assert not result.trusted
+    assert any("do not tell" in w for w in result.warnings)
+    assert sigma_log > 0.5 > 3 * result.data_sigma_log  # widened well beyond the local sigma
+    assert abs(math.log(result.focal_px / F_TRUE)) < 1.645 * sigma_log
