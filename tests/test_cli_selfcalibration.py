@@ -128,3 +128,22 @@ def test_photos_of_two_cameras_are_refused(tmp_path, synthetic_jpegs, exif_a, ex
     assert proc.returncode == 2 and message in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1 and "Traceback" not in proc.stderr
     assert not (tmp_path / "out" / "reconstruction.json").exists()
+
+
+def test_a_focal_length_the_pair_cannot_tell_is_printed_as_a_factor_and_untrusted(tmp_path,
+                                                                                    castle):
+    # castle-P19 0004/0005 at 768 px: the matches fit 549 px about as well as 1470 px (the
+    # truth is 690 px), with poses 12.6 deg apart: the result must not be trusted, and
+    # the printed sigma is a factor, not a symmetric +-px.
+    images = castle / "images"
+    proc = run([images / "0004.jpg", images / "0005.jpg", "--no-plots", "--no-report",
+                "--out", tmp_path / "out"], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((tmp_path / "out" / "reconstruction.json").read_text())
+    assert summary["trusted"] is False
+    sigma_log = summary["focal_px_sigma"] / summary["K"][0][0]
+    true_focal = read_strecha_camera(castle / "gt_dense_cameras" / "0004.jpg.camera").K[0, 0] / 4
+    # The truth lies within two sigmas in log f of the estimate.
+    assert abs(math.log(summary["K"][0][0] / true_focal)) < 2 * sigma_log
+    assert f"a factor of {math.exp(sigma_log):.1f}" in proc.stdout
+    assert "may not be trustworthy" in proc.stdout

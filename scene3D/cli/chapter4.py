@@ -142,7 +142,11 @@ def _self_calibrate(scene: SceneReconstruction3D, camera: _Camera, mode: str) ->
     calibration = scene.self_calibrate(mode, camera.prior.sigma_log, camera.prior.source)
     how = "refined by the photos" if calibration.determined else \
         "kept: the photos could not refine it"
-    return [f"focal length {calibration.focal_px:.1f} px +-{calibration.focal_sigma_px:.1f} "
+    sigma_log = calibration.focal_sigma_px / calibration.focal_px
+    # A sigma in log f beyond a quarter reads as a factor; +-px would suggest a symmetric bound.
+    sigma = (f"+-{calibration.focal_sigma_px:.1f}" if sigma_log <= 0.25
+             else f"(1 sigma: a factor of {np.exp(sigma_log):.1f})")
+    return [f"focal length {calibration.focal_px:.1f} px {sigma} "
             f"at the working size ({camera.prior.description}; {how})"]
 
 
