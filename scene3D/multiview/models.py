@@ -81,6 +81,11 @@ class SfMSettings:
     local_ba_views : int
         A local bundle adjustment refines the new view and its this many most
         co-visible registered views (the other views observing their points fixed).
+    min_multiview_observations : int
+        Bundle adjustment holds a view by the points that three or more views observe
+        (they verify themselves) when it observes at least this many of them; its
+        two-view points then follow the cameras instead of steering them
+        (:meth:`scene3D.multiview.mapper._Model.adjustment_nodes`).
     global_ba_growth : float
         A global bundle adjustment (then re-triangulation) runs when the model has
         grown by this factor (in views) since the last one, and at the end.
@@ -108,6 +113,7 @@ class SfMSettings:
     vocabulary_words: int = 64
     probe_words: int = 3
     local_ba_views: int = 6
+    min_multiview_observations: int = 100
     global_ba_growth: float = 1.5
     consistency_px: float = 2.0
     min_model_views: int = 2
