@@ -2,6 +2,7 @@
 
     python benchmarks/exact_truth.py [--sizes 1536 768] [--gaps 1 2] [--noise ...]
                                      [--draws 5] [--outliers 0.05] [--fixed-scale]
+                                     [--methods ...]
 
 The Strecha cameras are themselves estimates: at 1536 px the fountain's ground-truth
 poses explain scene3D's matches worse (median Sampson distance 0.08 px) than scene3D's
@@ -17,6 +18,12 @@ uniform outliers; scene3D (``reconstruct_from_matches``), PoseLib and plain Open
 and the errors are measured against the exact pose. ``--fixed-scale`` adds scene3D
 with the loss of its previous version (Cauchy scale a third of the threshold, the
 threshold never raised) as ``scene3D-fixed``.
+
+A second table checks scene3D's predicted uncertainty against the exact truth: for
+each noise model and size, the share of poses whose rotation error (3 dof) and
+translation-direction error (2 dof) lie within the predicted 90 % bound (their
+Mahalanobis distance under the pose covariance within the chi-square 90 % quantile;
+``scene3D.uncertainty.pose_error_chi2``). About 90 % means calibrated sigmas.
 
 Noise models (per coordinate, both images): ``g0.1``, ``g0.25``, ``g0.5`` Gaussian of
 that many px; ``mix`` 80 % at 0.07 px and 20 % at 0.35 px (what scene3D's 1536-px
@@ -43,11 +50,17 @@ from scene3D import epipolar, twoview
 from scene3D.datasets import FOUNTAIN_P11, default_data_root, strecha_views
 from scene3D.epipolar import essential_distances, essential_from_pose
 from scene3D.errors import ReconstructionError
-from scene3D.evaluation import paired_auc_difference, pose_auc, relative_pose_error
+from scene3D.evaluation import (
+    paired_auc_difference,
+    pose_auc,
+    relative_pose_error,
+    sigma_calibration,
+)
 from scene3D.features import find_matches
 from scene3D.geometry import project
 from scene3D.triangulation import in_front_mask, triangulate_points
 from scene3D.twoview import reconstruct_from_matches
+from scene3D.uncertainty import pose_error_chi2
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from two_view import REPO, _has, load_pair, run_opencv, run_poselib  # noqa: E402
@@ -96,19 +109,58 @@ def fixed_loss():
 
 
 def estimate(method: str, q1, q2, K, size):
-    """``(R, t)`` of one method, or ``None`` when it refuses or fails."""
+    """``(R, t, covariance)`` of one method (covariance None for the peers), or ``None``
+    when it refuses or fails."""
     try:
         if method.startswith("scene3D"):
             with fixed_loss() if method == "scene3D-fixed" else nullcontext():
                 result = reconstruct_from_matches(q1, q2, K)
-            return result.R, result.t
+            return result.R, result.t, result.pose_covariance
         if method == "poselib":
-            return run_poselib(q1, q2, K, size)[:2]
-        return run_opencv(q1, q2, K)[:2]
+            return (*run_poselib(q1, q2, K, size)[:2], None)
+        return (*run_opencv(q1, q2, K)[:2], None)
     except ReconstructionError:
         return None
     except cv2.error:
         return None
+
+
+def _errors(pose, R, t) -> tuple[float, ...]:
+    """Rotation and direction errors (deg), their chi-squares under the pose's covariance
+    and its sigmas (deg); infinite errors when refused, NaN where no covariance exists."""
+    if pose is None:
+        return (np.inf, np.inf) + (np.nan,) * 4
+    R_est, t_est, covariance = pose
+    err = relative_pose_error(R_est, t_est, R, t)
+    if covariance is None:
+        return (err.rotation_deg, err.translation_deg) + (np.nan,) * 4
+    rot_chi2, t_chi2 = pose_error_chi2(R_est, t_est, R, t, covariance)
+    sigmas = [np.degrees(np.sqrt(np.linalg.eigvalsh(covariance[k, k])[-1]))
+              for k in (slice(0, 3), slice(3, 5))]
+    return (err.rotation_deg, err.translation_deg, rot_chi2, t_chi2, *sigmas)
+
+
+def _print_calibration(rows: list[tuple], noise_models: list[str]) -> None:
+    """scene3D's predicted 90 % bounds against the exact errors, per noise model and size."""
+    print("\nscene3D's uncertainty against the exact truth: share of poses within the "
+          "predicted 90 % bound (rotation 3 dof, translation direction 2 dof; calibrated: "
+          "about 90 %), the median predicted 1-sigma angles, and the median error in units "
+          "of sigma along the worst axis.\n")
+    print("| noise | width | poses | within 90 %: rotation | within 90 %: t-dir "
+          "| median sigma rot / t-dir (deg) | median error / sigma rot / t-dir |")
+    print("|---" * 7 + "|")
+    for model in noise_models:
+        for width in sorted({r[1] for r in rows}, reverse=True):
+            ours = [r for r in rows if r[0] == model and r[1] == width and r[4] == "scene3D"
+                    and np.isfinite(r[5])]
+            if not ours:
+                continue
+            calib = sigma_calibration([r[7] for r in ours], [r[8] for r in ours])
+            rs, ts = (np.array([r[k] for r in ours]) for k in (9, 10))
+            re_, te = (np.array([r[k] for r in ours]) for k in (5, 6))
+            print(f"| {model} | {width} | {len(ours)} | {calib['rotation_within90']:.1%} | "
+                  f"{calib['translation_within90']:.1%} | {np.median(rs):.4f} / "
+                  f"{np.median(ts):.4f} | {np.median(re_ / rs):.2f} / {np.median(te / ts):.2f} |")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -128,6 +180,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="fraction of image-2 points replaced by uniform outliers")
     parser.add_argument("--fixed-scale", action="store_true",
                         help="also run scene3D with its previous, fixed loss scale")
+    parser.add_argument("--methods", nargs="+", default=["scene3D", "poselib", "opencv"],
+                        choices=METHODS[:3],
+                        help="methods to run (default: all three; scene3D alone for the "
+                             "calibration table)")
     parser.add_argument("--csv", type=Path, default=REPO / "out" / "bench" / "exact_truth.csv",
                         help="per-draw rows (default: out/bench/exact_truth.csv)")
     args = parser.parse_args(argv)
@@ -141,13 +197,16 @@ def main(argv: list[str] | None = None) -> int:
     except (FileNotFoundError, ValueError) as exc:
         parser.error(str(exc))
     cv2.setNumThreads(1)
+    if "scene3D" not in args.methods:
+        parser.error("--methods must include scene3D (the others are compared with it)")
     methods = [m for m in METHODS if (m != "poselib" or _has("poselib"))
-               and (m != "scene3D-fixed" or args.fixed_scale)]
+               and (m in args.methods or (m == "scene3D-fixed" and args.fixed_scale))]
     pairs = [(i, i + gap) for gap in args.gaps for i in range(len(views) - gap)]
     if not pairs:
         parser.error(f"--gaps {' '.join(map(str, args.gaps))} selects no pair of the "
                      f"{len(views)} views")
-    rows = []  # (noise, width, pair, draw, method, rot_deg, t_deg)
+    rows = []  # (noise, width, pair, draw, method, rot_deg, t_deg, rot_chi2, t_chi2,
+    #          rot_sigma_deg, t_sigma_deg)
     for width in args.sizes:
         for a, b in pairs:
             x1, x2, K, (R, t), size = exact_structure(views, a, b, width)
@@ -160,23 +219,22 @@ def main(argv: list[str] | None = None) -> int:
                     q2[bad] = rng.random((len(bad), 2)) * np.array(size)
                     for method in methods:
                         pose = estimate(method, q1, q2, K, size)
-                        err = relative_pose_error(*pose, R, t) if pose is not None else None
                         rows.append((model, size[0], f"{a}-{b}", draw, method,
-                                     *((err.rotation_deg, err.translation_deg) if err
-                                       else (np.inf, np.inf))))
+                                     *_errors(pose, R, t)))
             print(f"width {width} pair {a}-{b} done ({len(x1)} points)", file=sys.stderr)
     args.csv.parent.mkdir(parents=True, exist_ok=True)
     with open(args.csv, "w", newline="") as f:
         writer = csv.writer(f)
-        writer.writerow(["noise", "width", "pair", "draw", "method", "rot_deg", "t_deg"])
+        writer.writerow(["noise", "width", "pair", "draw", "method", "rot_deg", "t_deg",
+                         "rot_chi2", "t_chi2", "rot_sigma_deg", "t_sigma_deg"])
         writer.writerows(rows)
     print(f"fountain-P11 structure, exact poses; gaps {' '.join(map(str, args.gaps))}, "
           f"{len(pairs)} pairs x {args.draws} draws, {args.outliers:.0%} outliers; errors in "
           "degrees; a refused pair counts as a failure. Differences: scene3D's AUC@5deg minus "
           "the other's, with a 95 % interval (pairs resampled, each with all its draws).\n")
     peers = methods[1:]
-    print("| noise | width | AUC@5deg: " + " | ".join(methods) + " | scene3D median rot / t-dir | "
-          + " | ".join(f"minus {m}" for m in peers) + " |")
+    print("| noise | width | AUC@5deg: " + " | ".join(methods) + " | scene3D median rot / t-dir |"
+          + "".join(f" minus {m} |" for m in peers))
     print("|---" * (3 + len(methods) + len(peers)) + "|")
     failures = []
     for model in args.noise:
@@ -191,10 +249,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"| {model} | {width} | "
                   + " | ".join(f"{pose_auc(worst[m].ravel()):.2f}" for m in methods)
                   + f" | {np.median([r[5] for r in ours]):.4f} / "
-                  f"{np.median([r[6] for r in ours]):.4f} | " + " | ".join(diffs) + " |")
+                  f"{np.median([r[6] for r in ours]):.4f} |" + "".join(f" {d} |" for d in diffs))
             failures += [f"{m} {model} {width}: {int(np.isinf(worst[m]).sum())}"
                          for m in methods if np.isinf(worst[m]).any()]
     print("\nFailed or refused: " + ("; ".join(failures) if failures else "none"))
+    _print_calibration(rows, args.noise)
     print(f"\nPer-draw rows: {args.csv}")
     return 0
 

@@ -1,14 +1,16 @@
 """Two-view accuracy and speed: scene3D against the book, plain OpenCV, PoseLib and pycolmap.
 
     python benchmarks/two_view.py [--scene DIR] [--sizes 1536 768] [--methods ...] [--gaps 1 2]
-                                  [--quick]
+                                  [--quick] [--no-process]
 
 Runs fountain-P11 pairs (i, i+1) and (i, i+2) (``--gaps 3 4 5``: wider baselines; ``--scene``:
 any other Strecha-format scene, images/ + gt_dense_cameras/) at each working width, compares
 every
-estimated relative pose with the Strecha ground truth and prints a markdown table
-(rows per method and size) plus the whole-process time of ``chapter4.py --no-plots``
-against a hand-written plain-OpenCV script. Per-pair rows go to a CSV.
+estimated relative pose with the Strecha ground truth and prints markdown tables (rows per
+method and size): accuracy and stage times; trust (how the flag follows the error, and
+how often scene3D's errors fall within its predicted 90 % bounds); then the whole-process
+time of ``chapter4.py --no-plots`` against a hand-written plain-OpenCV script (not with
+``--no-process``). Per-pair rows go to a CSV.
 
 Every method gets the same working images (scene3D's loading: halved by area
 averaging). Thread settings, the same for every method: one thread each, i.e. OpenCV
@@ -53,12 +55,14 @@ from scene3D.errors import ReconstructionError
 from scene3D.evaluation import (
     paired_auc_difference,
     relative_pose_error,
+    sigma_calibration,
     summarize_pose_errors,
 )
 from scene3D.features import find_matches
 from scene3D.imageio import load_working_image
 from scene3D.pose import choose_pose
 from scene3D.twoview import reconstruct_two_view
+from scene3D.uncertainty import pose_error_chi2
 
 REPO = Path(__file__).resolve().parents[1]
 METHODS = ("book", "opencv", "poselib", "pycolmap", "scene3D")
@@ -74,6 +78,10 @@ class Outcome:
     inliers: int = 0
     flagged: bool = False  # refused or marked untrusted by the method
     error: str = ""
+    rotation_sigma_deg: float = float("nan")  # scene3D's predicted uncertainty (1 sigma)
+    translation_sigma_deg: float = float("nan")
+    rotation_chi2: float = float("nan")  # the error's Mahalanobis distance under it
+    translation_chi2: float = float("nan")
     timings_s: dict[str, float] = field(default_factory=dict)
 
     @property
@@ -175,6 +183,10 @@ def evaluate_pair(views, a, b, width, methods) -> list[Outcome]:
                 result = reconstruct_two_view(img1, matches, K)
                 R, t, out.inliers = result.R, result.t, result.num_inliers
                 out.flagged = not result.trusted
+                out.rotation_sigma_deg = result.rotation_sigma_deg
+                out.translation_sigma_deg = result.translation_sigma_deg
+                out.rotation_chi2, out.translation_chi2 = pose_error_chi2(
+                    R, t, R_true, t_true, result.pose_covariance)
                 out.timings_s = {k: v for k, v in result.timings_s.items() if k != "total"}
             elif method == "pycolmap":
                 R, t, out.inliers, out.timings_s = run_pycolmap(img1, img2, K)
@@ -203,6 +215,8 @@ def summarize(outcomes: list[Outcome]) -> dict:
                                   [o.translation_deg for o in outcomes],
                                   [o.flagged for o in outcomes])
     stats["inliers"] = float(np.mean([o.inliers for o in outcomes]))
+    stats.update({f"sigma_{k}": v for k, v in sigma_calibration(
+        [o.rotation_chi2 for o in outcomes], [o.translation_chi2 for o in outcomes]).items()})
     for stage in ("features", "matching", "geometry", "refinement", "total"):
         stats[f"t_{stage}"] = float(np.mean([o.timings_s.get(stage, 0.0) for o in outcomes]))
     return stats
@@ -257,6 +271,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--csv", type=Path, default=REPO / "out" / "bench" / "two_view.csv")
     parser.add_argument("--process-only", action="store_true",
                         help="only the whole-process comparison with the plain-OpenCV script")
+    parser.add_argument("--no-process", action="store_true",
+                        help="skip the whole-process comparison (the accuracy, trust and "
+                             "stage-time tables only)")
     args = parser.parse_args(argv)
     root = args.data or default_data_root()
     fountain = root / FOUNTAIN_P11 if root is not None else None
@@ -289,34 +306,61 @@ def main(argv: list[str] | None = None) -> int:
     with open(args.csv, "w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(["method", "width", "pair", "rot_deg", "t_deg", "inliers", "flagged",
-                         "error", "t_features", "t_matching", "t_geometry", "t_refinement",
-                         "t_total"])
+                         "error", "rot_sigma_deg", "t_sigma_deg", "rot_chi2", "t_chi2",
+                         "t_features", "t_matching", "t_geometry", "t_refinement", "t_total"])
         for o in outcomes:
             writer.writerow([o.method, o.width, f"{o.pair[0]}-{o.pair[1]}", o.rotation_deg,
                              o.translation_deg, o.inliers, o.flagged, o.error,
+                             o.rotation_sigma_deg, o.translation_sigma_deg, o.rotation_chi2,
+                             o.translation_chi2,
                              *(o.timings_s.get(s, 0.0) for s in
                                ("features", "matching", "geometry", "refinement", "total"))])
-    print(f"{scene.resolve().name}, {len(pairs)} pairs per size; errors in degrees against the "
-          "Strecha cameras; a failed pair counts as 180 deg (zero for AUC).\n")
+    print(f"{scene.resolve().name}, {len(pairs)} pairs per size (gaps "
+          f"{' '.join(map(str, args.gaps))}); errors in degrees against the Strecha cameras; a "
+          "failed pair counts as 180 deg (zero for AUC).\n")
     print("| method | width | median rot | p90 rot | median t-dir | p90 t-dir | both < 2 deg "
-          "| both < 5 deg | AUC@5deg | inliers | flagged | wrong & unflagged | features s "
-          "| matching s | geometry s | refinement s | total s |")
-    print("|---" * 17 + "|")
-    for width in sorted({o.width for o in outcomes}, reverse=True):
+          "| both < 5 deg | AUC@5deg | inliers | features s | matching s | geometry s "
+          "| refinement s | total s |")
+    print("|---" * 15 + "|")
+    widths = sorted({o.width for o in outcomes}, reverse=True)
+    for width in widths:
         for method in methods:
             s = summarize([o for o in outcomes if o.method == method and o.width == width])
             print(f"| {method} | {width} | {s['median_rotation_deg']:.3f} | "
                   f"{s['p90_rotation_deg']:.3f} | {s['median_translation_deg']:.3f} | "
                   f"{s['p90_translation_deg']:.3f} | {s['within_2deg']:.0%} | "
                   f"{s['within_5deg']:.0%} | {s['auc_5deg']:.1f} | {s['inliers']:.0f} | "
-                  f"{s['flagged']:.0f} | {s['wrong_unflagged']:.0f} | {s['t_features']:.2f} | "
-                  f"{s['t_matching']:.2f} | {s['t_geometry']:.3f} | {s['t_refinement']:.3f} | "
-                  f"{s['t_total']:.2f} |")
+                  f"{s['t_features']:.2f} | {s['t_matching']:.2f} | {s['t_geometry']:.3f} | "
+                  f"{s['t_refinement']:.3f} | {s['t_total']:.2f} |")
+    _print_trust(outcomes, methods, widths)
     if "scene3D" in methods:
         _print_auc_differences(outcomes, [m for m in methods if m != "scene3D"])
-    _print_process_ratio(fountain)
+    if not args.no_process:
+        _print_process_ratio(fountain)
     print(f"Per-pair rows: {args.csv}")
     return 0
+
+
+def _print_trust(outcomes: list[Outcome], methods: list[str], widths: list[int]) -> None:
+    """The flag against the error, per method and size, and scene3D's sigma calibration."""
+    print("\nTrust: 'flagged' is refused or marked untrusted (peers without a trust flag: "
+          "refused or failed). Right: both errors < 1 deg; > 2 deg and > 5 deg include "
+          "failures. Within 90 %: share of scene3D's poses whose rotation (3 dof) and "
+          "translation-direction (2 dof) errors lie within the predicted 90 % bound "
+          "(chi-square on the covariance; the Strecha cameras' own error counts in).\n")
+    print("| method | width | pairs | flagged | right flagged (< 1 deg) | > 2 deg flagged "
+          "| > 5 deg not flagged | within 90 %: rotation | within 90 %: t-dir |")
+    print("|---" * 9 + "|")
+    for width in widths:
+        for method in methods:
+            s = summarize([o for o in outcomes if o.method == method and o.width == width])
+            right = f"{s['right_flagged']:.0f} ({s['right_flagged'] / s['pairs']:.0%} of pairs)"
+            off2 = (f"{s['off2_flagged']:.0f} of {s['off2']:.0f} "
+                    f"({s['off2_flagged'] / s['off2']:.0%})" if s["off2"] else "0 of 0")
+            calib = (f"{s['sigma_rotation_within90']:.0%} | {s['sigma_translation_within90']:.0%}"
+                     if s["sigma_pairs"] else "- | -")
+            print(f"| {method} | {width} | {s['pairs']:.0f} | {s['flagged']:.0f} | {right} | "
+                  f"{off2} | {s['wrong_unflagged']:.0f} | {calib} |")
 
 
 def _print_auc_differences(outcomes: list[Outcome], peers: list[str]) -> None:

@@ -26,6 +26,10 @@ class ReconstructionError(RuntimeError):
         self.counts = dict(counts)
         details = ", ".join(f"{k}={_fmt(v)}" for k, v in self.counts.items())
         super().__init__(f"{message} ({details})" if details else message)
+        self._message = message
+
+    def __reduce__(self) -> tuple:  # picklable, for tasks run in other processes
+        return _rebuild_reconstruction_error, (self.reason, self._message, self.counts)
 
 
 class CalibrationError(RuntimeError):
@@ -42,9 +46,22 @@ class CalibrationError(RuntimeError):
         self.reason = reason
         super().__init__(message)
 
+    def __reduce__(self) -> tuple:
+        return type(self), (self.args[0], self.reason)
+
 
 class DatasetError(RuntimeError):
     """A dataset file is not available locally and could not be downloaded and verified."""
+
+
+class EngineError(RuntimeError):
+    """An execution engine could not run its tasks: a task was given up after the workers
+    running it died too often, or the cluster went away (see :mod:`scene3D.engines`)."""
+
+
+def _rebuild_reconstruction_error(reason: str, message: str, counts: dict
+                                  ) -> ReconstructionError:
+    return ReconstructionError(reason, message, **counts)
 
 
 def _fmt(value: int | float) -> str:

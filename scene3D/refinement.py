@@ -12,6 +12,9 @@
   ``least_squares``: the same optimum for convex losses, a lower cost under Cauchy).
 - :func:`fit_focal_scale` refines the pose with a common factor on the focal
   lengths, to tell whether the calibration fits the matches.
+- :func:`relative_pose_covariance` gives the first-order covariance of the refined
+  pose; it and the focal fit's standard deviation share one sandwich estimate
+  (:func:`scene3D.uncertainty.sandwich_covariance`).
 
 In all, ``t`` ends on the unit sphere, since a two-view translation has no scale. Frames as in
 :mod:`scene3D.geometry`: ``x_cam2 = R x_cam1 + t``.
@@ -34,6 +37,7 @@ from .geometry import (
     to_homogeneous,
 )
 from .schur import normal_equations, solve_damped
+from .uncertainty import sandwich_covariance, tangent_basis
 
 
 def sampson_residuals(F: FloatArray, pts1: FloatArray, pts2: FloatArray) -> FloatArray:
@@ -50,19 +54,11 @@ def _sampson(F: FloatArray, h1: FloatArray, h2: FloatArray) -> FloatArray:
     return algebraic / np.maximum(norm, 1e-300)
 
 
-def _tangent_basis(t: FloatArray) -> FloatArray:
-    """Two unit vectors ``(2, 3)`` orthogonal to the unit vector ``t`` and to each other."""
-    helper = np.eye(3)[int(np.argmin(np.abs(t)))]
-    b1 = skew(t) @ helper
-    b1 /= np.linalg.norm(b1)
-    return np.vstack([b1, skew(t) @ b1])
-
-
 def _update_pose(
     R: FloatArray, t: FloatArray, dx: FloatArray, basis: FloatArray | None = None
 ) -> tuple[FloatArray, FloatArray]:
     """Apply a 5-vector step: rotation vector (3) and tangent step of ``t`` (2)."""
-    basis = _tangent_basis(t) if basis is None else basis
+    basis = tangent_basis(t) if basis is None else basis
     R_new = rotations_from_vectors(dx[None, :3])[0] @ R
     t_new = t + dx[3:] @ basis
     return R_new, t_new / np.linalg.norm(t_new)
@@ -167,6 +163,19 @@ def _damped_steps(J: FloatArray, r: FloatArray, loss: str,
     return lambda damping: np.linalg.solve(H + damping * damped, -g)
 
 
+def _robust_covariance(J: FloatArray, r: FloatArray, loss: str, scale: float) -> FloatArray:
+    """Covariance ``(k, k)`` of the robust fit whose residuals ``r`` ``(N,)`` have Jacobian
+    ``J`` ``(N, k)`` at the optimum (:func:`scene3D.uncertainty.sandwich_covariance`).
+
+    The cost ``scale^2 rho((r / scale)^2)`` has the influence ``psi = rho' r`` and
+    its slope ``psi' = rho' + 2 rho'' z`` (the row scales of :func:`_robust_scaling`,
+    squared, here without their clamp at zero).
+    """
+    z = (r / scale) ** 2
+    _, rho1, rho2 = _loss(z, loss)
+    return sandwich_covariance(J, rho1 * r, rho1 + 2.0 * rho2 * z)
+
+
 def _robust_cost(r: FloatArray, loss: str, scale: float) -> float:
     """``scale^2 * sum rho((r / scale)^2)``, the cost the refinement minimises."""
     return float(scale**2 * np.sum(_loss((r / scale) ** 2, loss)[0]))
@@ -250,7 +259,7 @@ def refine_relative_pose(
 
     def linearize(state: tuple) -> Callable[[float], tuple]:
         R_, t_, F_, r_ = state
-        basis = _tangent_basis(t_)
+        basis = tangent_basis(t_)
         J = _sampson_jacobian(F_, _fundamental_derivatives(R_, t_, basis, K_inv), h1, h2)
         step = _damped_steps(J, r_, loss, scale_px)
         return lambda damping: evaluate(*_update_pose(R_, t_, step(damping), basis))
@@ -258,6 +267,57 @@ def refine_relative_pose(
     state, cost = evaluate(R, t)
     R, t, _, _ = _levenberg_marquardt(state, cost, linearize, max_iterations, 1e-8)
     return R, t
+
+
+def relative_pose_covariance(
+    R: ArrayLike,
+    t: ArrayLike,
+    pts1: ArrayLike,
+    pts2: ArrayLike,
+    K: ArrayLike,
+    loss: str = "cauchy",
+    scale_px: float = 0.5,
+) -> FloatArray:
+    """First-order covariance ``(5, 5)`` of the pose that :func:`refine_relative_pose` found.
+
+    At the optimum ``(R, t)`` of the robust Sampson cost over the inliers
+    ``pts1, pts2`` (the same ``loss`` and ``scale_px``), the sandwich covariance of
+    the M-estimate (:func:`scene3D.uncertainty.sandwich_covariance`) from the
+    Jacobian of the Sampson distances, the loss's weights and the distances
+    themselves: the noise is measured by the residuals, not assumed. The
+    parametrisation is the refinement's step (:mod:`scene3D.uncertainty`):
+    ``R <- exp([w]x) R`` (``w`` in the camera-2 frame) and ``t`` along the rows of
+    :func:`scene3D.uncertainty.tangent_basis` ``(t)``, in radians^2. The Sampson
+    distance is the reprojection error with the points eliminated, to first order
+    (H&Z section 11.4.3), so this is also the first-order covariance of a two-view
+    bundle adjustment's pose.
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array_like
+        The refined pose, ``x_cam2 = R x_cam1 + t`` (any of the decompositions of
+        its essential matrix: the covariance refers to the one given).
+    pts1, pts2 : (N, 2) array_like
+        The inlier pixels it was refined on.
+    K : (3, 3) array_like
+    loss, scale_px : str, float
+        The refinement's robust loss and scale.
+
+    Returns
+    -------
+    (5, 5) float64
+        Infinite when the matches do not determine the pose (fewer than six, or a
+        singular Hessian).
+    """
+    R = np.asarray(R, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64).reshape(3)
+    t = t / np.linalg.norm(t)
+    K_inv = np.linalg.inv(np.asarray(K, dtype=np.float64))
+    h1 = to_homogeneous(np.asarray(pts1, dtype=np.float64))
+    h2 = to_homogeneous(np.asarray(pts2, dtype=np.float64))
+    F = K_inv.T @ skew(t) @ R @ K_inv
+    J = _sampson_jacobian(F, _fundamental_derivatives(R, t, tangent_basis(t), K_inv), h1, h2)
+    return _robust_covariance(J, _sampson(F, h1, h2), loss, scale_px)
 
 
 def _scaled_fundamental(R: FloatArray, t: FloatArray, log_s: float,
@@ -351,7 +411,7 @@ def fit_focal_scale(
 
     def jacobian(state: tuple) -> tuple[FloatArray, FloatArray]:
         R_, t_, log_s, F_, _ = state
-        basis = _tangent_basis(t_)
+        basis = tangent_basis(t_)
         dF = _focal_fundamental_derivatives(R_, t_, log_s, basis, K_inv)
         return _sampson_jacobian(F_, dF, h1, h2), basis
 
@@ -368,17 +428,9 @@ def fit_focal_scale(
     state, cost = evaluate(R, t, float(np.log(initial_scale)))
     state = _levenberg_marquardt(state, cost, linearize, max_iterations, 1e-10)
     log_s, r = state[2], state[4]
-    # Covariance sigma^2 (J^T W J)^-1 with the loss's weights W and sigma^2 their
-    # weighted residual variance (Gauss-Newton, first order).
-    J, _ = jacobian(state)
-    weight_sqrt, rw = _reweighting(r, loss, scale_px)
-    Jw = J * weight_sqrt[:, None]
-    dof = max(len(r) - 6, 1)
-    try:
-        cov = np.linalg.inv(Jw.T @ Jw) * float(rw @ rw) / dof
-        sigma_log = float(np.sqrt(cov[5, 5])) if cov[5, 5] > 0 else np.inf
-    except np.linalg.LinAlgError:
-        sigma_log = np.inf
+    # The same first-order covariance as the pose's (relative_pose_covariance).
+    variance = _robust_covariance(jacobian(state)[0], r, loss, scale_px)[5, 5]
+    sigma_log = float(np.sqrt(variance)) if 0 < variance < np.inf else np.inf
     return FocalFit(float(np.exp(log_s)), sigma_log, state[0], state[1])
 
 
@@ -478,7 +530,7 @@ def bundle_adjust_two_view(
         rotated = X_ @ R_.T
         _, J1 = project_with_jacobian(X_, K)
         _, J2 = project_with_jacobian(rotated + t_, K)
-        basis = _tangent_basis(t_)
+        basis = tangent_basis(t_)
         # R <- exp([w]x) R moves R X by -[R X]x w; t moves along the tangent basis.
         dY_dpose = np.concatenate(
             [-skews(rotated), np.broadcast_to(basis.T, (n, 3, 2))], axis=2)  # (N, 3, 5)

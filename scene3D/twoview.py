@@ -1,19 +1,25 @@
-"""Two-view reconstruction from matches: E, pose, triangulation and sanity checks.
+"""Two-view reconstruction from matches: E, pose, triangulation, uncertainty and trust.
 
 The pipeline (book chapter 4, done right):
 
 1. essential matrix from calibrated points (5-point, USAC), then a local
    optimisation of the pose on its inliers (robust Sampson refinement),
    restarted until the best fit is found twice (:func:`scene3D.epipolar.fit_essential`),
-2. homography check: a pure rotation is refused, and so is a planar scene
+2. model selection: a pure rotation (no baseline) is refused when a rotation
+   homography explains the matches as well as the essential matrix
+   (:func:`scene3D.degeneracy.motion_model_choice`); a planar scene is refused
    unless matches off the plane rule out the other pose a plane allows,
 3. pose by cheirality over all inliers; ``F = K^-T E K^-1`` for epipolar lines,
 4. triangulation, keeping points in front of both cameras with small
    reprojection error and enough parallax,
-5. checks that refuse degenerate pairs instead of returning a wrong pose, and
-   doubts that mark a result untrusted (few inliers, weak parallax, a nearly
-   planar scene, restarts that disagree, a focal length that does not fit the
-   calibration: :func:`check_focal_length`).
+5. the pose's first-order covariance (:func:`scene3D.refinement.relative_pose_covariance`,
+   parametrisation in :mod:`scene3D.uncertainty`) and each point's depth uncertainty,
+6. trust (:func:`trust_warnings`): a pose is untrusted when its uncertainty is too
+   large for the purpose (``TwoViewSettings.uncertainty_sigmas`` standard
+   deviations beyond ``uncertainty_limit_deg``), or when something the covariance
+   cannot see is at work: restarts that end at distinct optima, a focal length
+   that does not fit the calibration (:func:`check_focal_length`), too few inliers
+   for the covariance to be estimated or for wrong matches not to agree by chance.
 
 Frames: points are in the camera-1 frame, ``x_cam2 = R x_cam1 + t``, ``|t| = 1``
 (the scale is unknown).
@@ -25,13 +31,19 @@ import logging
 import time
 from dataclasses import dataclass, field, fields
 
-import cv2
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .degeneracy import (
+    MotionModelChoice,
+    is_rotation_homography,
+    lower_cost_plane_pose,
+    motion_model_choice,
+    off_plane_evidence,
+    plane_poses,
+)
 from .epipolar import (
     EssentialFit,
-    essential_cost,
     essential_distances,
     essential_from_pose,
     estimate_homography,
@@ -39,27 +51,32 @@ from .epipolar import (
     fundamental_from_essential,
     inlier_threshold_px,
     loss_scale_px,
-    polish_essential,
+    noise_sigma_px,
 )
 from .errors import ReconstructionError
 from .features import Matches
 from .geometry import (
     FloatArray,
-    angle_between_deg,
     as_matrix,
     as_points2d,
     check_same_length,
     median,
-    rotation_error_deg,
 )
 from .pose import choose_pose
-from .refinement import FocalFit, bundle_adjust_two_view, fit_focal_scale
-from .triangulation import (
-    in_front_mask,
-    parallax_angles_deg,
-    reprojection_errors,
-    triangulate_points,
+from .refinement import (
+    FocalFit,
+    bundle_adjust_two_view,
+    fit_focal_scale,
+    relative_pose_covariance,
 )
+from .triangulation import parallax_angles_deg, reprojection_errors
+from .uncertainty import PoseUncertainty, depth_sigmas, tangent_basis
+
+__all__ = [  # the plane checks lived here before scene3D.degeneracy
+    "TwoViewGeometry", "TwoViewReconstruction", "TwoViewSettings", "check_focal_length",
+    "is_rotation_homography", "off_plane_evidence", "plane_poses", "reconstruct_from_matches",
+    "reconstruct_two_view", "sample_colors", "trust_warnings",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -81,36 +98,56 @@ class TwoViewSettings:
     restart_agreement_deg : float
         When no pose was found twice, the result is still trusted if every start's
         optimum lies within this angle of the best (distinct optima, one pose to
-        that accuracy); beyond it the result is marked untrusted.
+        that accuracy); beyond it the result is marked untrusted: a covariance
+        describes one optimum and cannot see the others.
     min_matches, min_inliers, min_points : int
         Below these counts the pair is refused.
-    min_median_parallax_deg : float
-        Median triangulation angle below which the pair has no usable baseline
-        (pure rotation, tiny motion).
     min_point_parallax_deg : float
-        Points seen under a smaller angle are dropped (their depth is unreliable).
+        Points seen under a smaller angle are dropped (their depth is unreliable),
+        unless that leaves fewer than ``min_points`` (a small baseline): then every
+        point in front of both cameras is kept, with its depth uncertainty.
     max_reprojection_px : float
         Points reprojecting worse than this in either view are dropped.
     planar_ratio : float
-        Homography inliers / essential inliers above which the pair is refused as a
-        pure rotation (when the homography is one) or checked for the planar
-        ambiguity (:func:`off_plane_evidence`).
+        Homography inliers / essential inliers above which the pair is checked for
+        the planar ambiguity (:func:`scene3D.degeneracy.off_plane_evidence`).
     min_off_plane_matches : int
         A (nearly) planar pair is refused unless at least this many matches off the
         plane rule out the other pose that the plane allows.
-    planar_warning_ratio : float
-        Above this ratio the result is kept but marked untrusted.
+    uncertainty_limit_deg, uncertainty_sigmas : float, float
+        The purpose: a pose is untrusted when ``uncertainty_sigmas`` standard
+        deviations of its rotation or of its translation direction
+        (``rotation_sigma_deg``, ``translation_sigma_deg`` of the result) exceed
+        ``uncertainty_limit_deg``. The default, 3 sigma within 2 deg, keeps the
+        direction within 2 deg with at least 98.9 % probability.
+    max_rotation_share : float
+        The pose is untrusted when a rotation alone explains more than this share of
+        the inliers (within three noise standard deviations;
+        :func:`scene3D.degeneracy.motion_model_choice`): most matches show no
+        parallax, and the translation rests on the others, which a moving object
+        would explain as well as a camera that moved (on OpenCV's ``left*.jpg``, a
+        still camera and a chessboard moved by hand, 5 of 78 pairs came back
+        trusted, with translation sigmas of 0.001-0.5 deg, without this check).
+    trusted_inliers : int
+        Fewer inliers leave the pose untrusted whatever its covariance says: a
+        covariance estimated from few residuals is itself uncertain, and random
+        matches can agree on a wrong pose by chance (a few dozen of them among a
+        few hundred; ``tests/test_twoview.py``).
+    trusted_inlier_ratio, trusted_parallax_deg, planar_warning_ratio : float
+        Not verdicts: when the uncertainty is too large, the warning names the
+        likely causes, an inlier share of the matches below ``trusted_inlier_ratio``
+        (wide baseline, repeated texture), a median parallax below
+        ``trusted_parallax_deg`` (short baseline), a homography explaining more
+        than ``planar_warning_ratio`` of the inliers (a nearly planar scene).
     max_focal_mismatch, focal_mismatch_sigmas : float, float
         The result is marked untrusted when the matches call for a focal length more
         than ``1 + max_focal_mismatch`` times larger or smaller than the
         calibration's, by more than ``focal_mismatch_sigmas`` standard deviations
         (:func:`scene3D.refinement.fit_focal_scale`): the calibration is probably
-        for another camera, lens or zoom, and the pose is off by degrees.
-    trusted_inliers, trusted_inlier_ratio, trusted_parallax_deg : int, float, float
-        A result with fewer inliers, a smaller inlier fraction of the matches or
-        a smaller median parallax is kept but marked untrusted: such pairs (wide
-        baselines with few matches, repeated texture, short baselines) are where
-        wrong poses come from.
+        for another camera, lens or zoom, and the pose is off by degrees. Three
+        standard deviations of the sandwich estimate (five of the optimistic IRLS
+        estimate before it): with the true K no right pose of the three Strecha
+        scenes is flagged for its focal length (gaps 1-5, 768 and 1536 px).
     bundle_adjust : bool
         Finish with a two-view bundle adjustment of pose and points
         (:func:`scene3D.refinement.bundle_adjust_two_view`) with the same Cauchy
@@ -126,17 +163,19 @@ class TwoViewSettings:
     min_matches: int = 20
     min_inliers: int = 15
     min_points: int = 10
-    min_median_parallax_deg: float = 1.0
     min_point_parallax_deg: float = 0.5
     max_reprojection_px: float = 2.0
     planar_ratio: float = 0.95
     min_off_plane_matches: int = 10
-    planar_warning_ratio: float = 0.85
+    uncertainty_limit_deg: float = 2.0
+    uncertainty_sigmas: float = 3.0
+    max_rotation_share: float = 0.5
     trusted_inliers: int = 50
     trusted_inlier_ratio: float = 0.25
     trusted_parallax_deg: float = 2.0
+    planar_warning_ratio: float = 0.85
     max_focal_mismatch: float = 0.15
-    focal_mismatch_sigmas: float = 5.0
+    focal_mismatch_sigmas: float = 3.0
     bundle_adjust: bool = False
 
 
@@ -187,6 +226,23 @@ class TwoViewGeometry:
         and its standard deviation (:func:`scene3D.refinement.fit_focal_scale`;
         near 1 when the calibration fits, the sigma infinite when the pair cannot
         tell).
+    pose_covariance : (5, 5) float64
+        First-order covariance of the pose (radians^2) in the parametrisation of
+        :mod:`scene3D.uncertainty`: rows 0-2 the rotation vector ``w`` of
+        ``R <- exp([w]x) R`` (camera-2 frame), rows 3-4 the step of ``t`` along the
+        rows of ``tangent_basis(t)`` (:attr:`pose_uncertainty` has both). Infinite
+        when the matches do not determine the pose.
+    rotation_sigma_deg, translation_sigma_deg : float
+        1-sigma angles of the rotation and of the translation direction along their
+        worst axes (square roots of the largest eigenvalues of the covariance's
+        rotation and direction blocks), in degrees.
+    noise_sigma_px : float
+        Robust standard deviation of the keypoint noise, per coordinate, measured on
+        the inliers (:func:`scene3D.epipolar.noise_sigma_px`).
+    depth_sigmas : (N,) float64
+        1-sigma depth of each point in camera 1, in units of the baseline, from the
+        pose covariance and the keypoint noise (:func:`scene3D.uncertainty.depth_sigmas`);
+        divide by ``points3d[:, 2]`` for a relative uncertainty.
     """
 
     R: FloatArray
@@ -211,6 +267,16 @@ class TwoViewGeometry:
     robust_spread_deg: float = 0.0
     focal_scale: float = 1.0
     focal_scale_sigma: float = float("inf")
+    pose_covariance: FloatArray = field(default_factory=lambda: np.full((5, 5), np.inf))
+    rotation_sigma_deg: float = float("inf")
+    translation_sigma_deg: float = float("inf")
+    noise_sigma_px: float = float("nan")
+    depth_sigmas: FloatArray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def pose_uncertainty(self) -> PoseUncertainty:
+        """The covariance with the tangent basis of ``t`` it refers to."""
+        return PoseUncertainty(self.pose_covariance, tangent_basis(self.t), self.noise_sigma_px)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -257,115 +323,77 @@ def sample_colors(img_bgr: np.ndarray, points: FloatArray) -> np.ndarray:
     return img_bgr[y, x, ::-1].astype(np.uint8)
 
 
-def is_rotation_homography(H: FloatArray, K: FloatArray, tolerance: float = 0.02) -> bool:
-    """True when ``H`` is (close to) ``K R K^-1``, the homography of a camera that only turned.
-
-    ``K^-1 H K`` is then a rotation up to scale: its singular values are equal
-    (within ``tolerance``, relative). A plane seen from two centres gives
-    ``R + t n^T / d`` instead, whose singular values differ by about ``|t| / d``.
-    """
-    if not np.all(np.isfinite(H)):
-        return False
-    singular = np.linalg.svd(np.linalg.inv(K) @ H @ K, compute_uv=False)
-    return bool(singular[0] / singular[2] - 1.0 < tolerance)
+def _deg(angle: float) -> str:
+    """An angle in degrees to two significant digits: '2.4', '0.31', '0.037'."""
+    return f"{angle:.1f}" if angle >= 1 else f"{angle:.2g}"
 
 
-def plane_poses(H: FloatArray, K: FloatArray, pts1: FloatArray,
-                pts2: FloatArray) -> list[tuple[FloatArray, FloatArray]]:
-    """The physically valid poses ``(R, t)`` (``|t| = 1``) of a plane's homography.
-
-    ``cv2.decomposeHomographyMat`` gives up to four; those that put the plane's
-    points ``pts1, pts2`` ``(N, 2)`` in front of both cameras remain (two for a
-    plane seen with a baseline, Faugeras & Lustman 1988).
-    """
-    _, rotations, translations, _ = cv2.decomposeHomographyMat(H, K)
-    poses = []
-    for R, t in zip(rotations, translations):
-        t = t.ravel()
-        if np.linalg.norm(t) < 1e-12:
-            continue
-        t = t / np.linalg.norm(t)
-        if in_front_mask(triangulate_points(pts1, pts2, K, R, t), R, t).mean() >= 0.5:
-            poses.append((R, t))
-    return poses
+def _sigmas_text(uncertainty: PoseUncertainty) -> str:
+    """'translation direction +-2.4 deg, rotation +-0.31 deg (1 sigma)'."""
+    return (f"translation direction +-{_deg(uncertainty.translation_sigma_deg)} deg, rotation "
+            f"+-{_deg(uncertainty.rotation_sigma_deg)} deg (1 sigma)")
 
 
-def off_plane_evidence(H: FloatArray, K: FloatArray, R: FloatArray, t: FloatArray,
-                       pts1: FloatArray, pts2: FloatArray, on_plane: np.ndarray,
-                       threshold_px: float) -> int:
-    """How many matches off the plane rule out every other pose the plane allows.
-
-    Two views of a plane admit two physically valid poses (:func:`plane_poses`):
-    the plane's points cannot choose between them. Matches off the plane can: this
-    counts those among ``pts1, pts2`` (inliers of the chosen pose ``(R, t)``) that
-    are not ``on_plane`` and whose Sampson distance to the other valid pose
-    exceeds ``threshold_px``; with several other poses, the smallest count. A
-    large count means the pose is not ambiguous.
-
-    Parameters
-    ----------
-    H : (3, 3)
-        Homography of the plane, ``x2 ~ H x1``.
-    R, t : (3, 3), (3,)
-        The chosen pose.
-    pts1, pts2 : (N, 2)
-        Inlier pixels of the chosen pose.
-    on_plane : (N,) bool
-        The matches ``H`` explains.
-    """
-    poses = plane_poses(H, K, pts1[on_plane], pts2[on_plane])
-    # The plane's pose nearest to the chosen one is that pose; the others are the doubt.
-    poses.sort(key=lambda pose: rotation_error_deg(pose[0], R) + angle_between_deg(pose[1], t))
-    off = ~on_plane
-    evidence = len(pts1)
-    for R_other, t_other in poses[1:]:
-        distances = essential_distances(essential_from_pose(R_other, t_other), pts1[off],
-                                        pts2[off], K)
-        evidence = min(evidence, int(np.sum(distances > threshold_px)))
-    return evidence
-
-
-def _lower_cost_plane_pose(E: FloatArray, inliers: np.ndarray, on_plane: np.ndarray,
-                           H: FloatArray, p1: FloatArray, p2: FloatArray, K: FloatArray,
-                           threshold_px: float) -> tuple[FloatArray, np.ndarray] | None:
-    """A pose of the plane, polished on all matches, that costs less than ``E``; else None.
-
-    When one plane holds most matches, USAC's random samples come from the plane
-    and its models may fit the plane alone, dropping the matches off it as
-    outliers; starting the local optimisation from the plane's own poses lets those
-    matches count (:func:`scene3D.epipolar.polish_essential` gives the costs).
-    ``inliers`` are those of ``E`` among ``p1, p2``; ``on_plane`` those of ``H``
-    among them.
-    """
-    best_cost, better = essential_cost(E, p1, p2, K, threshold_px), None
-    in1, in2 = p1[inliers], p2[inliers]
-    for R, t in plane_poses(H, K, in1[on_plane], in2[on_plane]):
-        cost, E_plane, plane_inliers = polish_essential(essential_from_pose(R, t), p1, p2, K,
-                                                        threshold_px)
-        if cost < best_cost:
-            best_cost, better = cost, (E_plane, plane_inliers)
-    return better
-
-
-def trust_warnings(num_matches: int, num_inliers: int, median_parallax_deg: float,
-                   homography_ratio: float, s: TwoViewSettings,
-                   fit: EssentialFit | None = None,
-                   focal: FocalFit | None = None) -> list[str]:
+def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: int,
+                   median_parallax_deg: float, homography_ratio: float, s: TwoViewSettings,
+                   fit: EssentialFit | None = None, focal: FocalFit | None = None,
+                   rotation_share: float = 0.0) -> list[str]:
     """Reasons to doubt a pose that passed every hard check (empty: trusted).
 
-    ``fit``: the robust estimate the pose came from; doubtful when its restarts
-    never reached the best pose twice and their optima lie further apart than
-    ``s.restart_agreement_deg``. ``focal``: the focal length the matches call for
-    (:func:`scene3D.refinement.fit_focal_scale`); doubtful when it differs from the
-    calibration's by more than ``s.max_focal_mismatch`` and
-    ``s.focal_mismatch_sigmas`` standard deviations.
+    The verdicts:
+
+    - the uncertainty (``uncertainty``, :class:`scene3D.uncertainty.PoseUncertainty`)
+      is too large for the purpose: ``s.uncertainty_sigmas`` standard deviations of
+      the rotation or the translation direction exceed ``s.uncertainty_limit_deg``.
+      The warning names the likely causes among few inliers, a small inlier share of
+      the matches, weak parallax and a nearly planar scene (``s.trusted_inliers``,
+      ``s.trusted_inlier_ratio``, ``s.trusted_parallax_deg``,
+      ``s.planar_warning_ratio``), which are explanations, not verdicts of their own;
+    - what a covariance cannot see: the robust restarts of ``fit`` never reached the
+      best pose twice and their optima lie further apart than
+      ``s.restart_agreement_deg`` (several optima); the focal length the matches call
+      for (``focal``, :func:`scene3D.refinement.fit_focal_scale`) differs from the
+      calibration's by more than ``s.max_focal_mismatch`` and
+      ``s.focal_mismatch_sigmas`` standard deviations; fewer than
+      ``s.trusted_inliers`` inliers, too few to estimate a covariance from and few
+      enough for wrong matches to agree by chance; a rotation alone explains more than
+      ``s.max_rotation_share`` of the inliers (``rotation_share``,
+      :func:`scene3D.degeneracy.motion_model_choice`), so the translation rests on
+      the few that show parallax.
+
+    Every warning quotes the uncertainty.
     """
+    sigmas = _sigmas_text(uncertainty)
     warnings = []
+    limit = s.uncertainty_limit_deg / s.uncertainty_sigmas
+    if max(uncertainty.rotation_sigma_deg, uncertainty.translation_sigma_deg) > limit:
+        causes = []
+        if num_inliers < s.trusted_inliers:
+            causes.append(f"only {num_inliers} inliers")
+        if num_inliers < s.trusted_inlier_ratio * num_matches:
+            causes.append(f"only {num_inliers / num_matches:.0%} of the {num_matches} matches "
+                          "are inliers (wide baseline or repeated texture)")
+        if median_parallax_deg < s.trusted_parallax_deg:
+            causes.append(f"weak parallax ({_deg(median_parallax_deg)} deg median)")
+        if homography_ratio > s.planar_warning_ratio:
+            causes.append(f"a homography explains {homography_ratio:.0%} of the inliers "
+                          "(a nearly planar scene or a short baseline)")
+        warnings.append(f"uncertain pose: {sigmas}, more than {s.uncertainty_limit_deg:g} deg "
+                        f"at {s.uncertainty_sigmas:g} sigma"
+                        + (f"; {', '.join(causes)}" if causes else ""))
+    elif num_inliers < s.trusted_inliers:
+        warnings.append(f"only {num_inliers} inliers: too few to rely on the pose's "
+                        f"{sigmas}")
+    if rotation_share > s.max_rotation_share:
+        warnings.append(f"a rotation alone explains {rotation_share:.0%} of the inliers: the "
+                        f"translation rests on the other {1 - rotation_share:.0%}, which a "
+                        "moving object would explain as well as a camera that moved (the "
+                        f"{sigmas} assume a rigid scene)")
     if (fit is not None and s.max_starts > 1 and not fit.confirmed
             and fit.spread_deg > s.restart_agreement_deg):
         warnings.append(f"no pose was found twice in {fit.starts} robust starts: poses "
                         f"up to {fit.spread_deg:.1f} deg apart fit the matches about "
-                        "equally well")
+                        f"equally well (the best one's {sigmas} cannot show this)")
     if focal is not None:
         log_scale = abs(np.log(focal.scale))
         if (log_scale > np.log1p(s.max_focal_mismatch)
@@ -373,20 +401,7 @@ def trust_warnings(num_matches: int, num_inliers: int, median_parallax_deg: floa
             warnings.append(
                 f"the matches fit a focal length {focal.scale:.2f} times the calibration's "
                 f"(+-{focal.scale * focal.sigma_log:.2f}): is the calibration for this camera, "
-                "lens and zoom? The pose may be off by degrees")
-    if num_inliers < s.trusted_inliers:
-        warnings.append(f"only {num_inliers} inliers: the pose rests on few matches")
-    if num_inliers < s.trusted_inlier_ratio * num_matches:
-        warnings.append(f"only {num_inliers / num_matches:.0%} of the {num_matches} matches "
-                        "are inliers (wide baseline or repeated texture)")
-    if median_parallax_deg < s.trusted_parallax_deg:
-        warnings.append(f"weak parallax ({median_parallax_deg:.1f} deg median): depth and "
-                        "translation direction are poorly determined")
-    if homography_ratio > s.planar_warning_ratio:
-        warnings.append(
-            f"a homography explains {homography_ratio:.0%} of the inliers (nearly planar "
-            "scene or weak baseline): the pose may be inaccurate"
-        )
+                f"lens and zoom? The pose may be off by degrees, beyond its {sigmas}")
     return warnings
 
 
@@ -415,6 +430,19 @@ def check_focal_length(R: FloatArray, t: FloatArray, p1: FloatArray, p2: FloatAr
     return focal
 
 
+def _motion(E: FloatArray, in1: FloatArray, in2: FloatArray, K: FloatArray, H: FloatArray,
+            threshold_px: float) -> MotionModelChoice:
+    """:func:`scene3D.degeneracy.motion_model_choice` on the inliers of ``E``.
+
+    The noise is floored at a thousandth of the threshold (as the loss scale is,
+    :func:`scene3D.epipolar.loss_scale_px`): exact matches leave a homography fitted
+    in float arithmetic with errors of 1e-6 px that would otherwise count as misfit.
+    """
+    distances = essential_distances(E, in1, in2, K)
+    noise = max(noise_sigma_px(distances), 1e-3 * threshold_px)
+    return motion_model_choice(in1, in2, K, distances, noise, H)
+
+
 def reconstruct_from_matches(
     pts1: ArrayLike,
     pts2: ArrayLike,
@@ -437,7 +465,8 @@ def reconstruct_from_matches(
     Raises
     ------
     ReconstructionError
-        Too few matches / inliers / points, no parallax, or no cheirality winner.
+        Too few matches / inliers / points, a pure rotation (``"no_parallax"``), a
+        planar scene, or no cheirality winner.
     """
     s = settings or TwoViewSettings()
     p1 = as_points2d(pts1, "pts1")
@@ -462,23 +491,29 @@ def reconstruct_from_matches(
     in1, in2 = p1[inliers], p2[inliers]
     H, h_inliers = estimate_homography(in1, in2, s.threshold_px)
     h_ratio = float(h_inliers.sum()) / num_inliers
-
-    if h_ratio > s.planar_ratio and is_rotation_homography(H, K):
+    motion = _motion(E, in1, in2, K, H, s.threshold_px)
+    if motion.pure_rotation:
         raise ReconstructionError(
             "no_parallax",
-            "the images are related by a pure rotation (no baseline): depth cannot be "
-            "recovered", inliers=num_inliers, homography_inlier_ratio=h_ratio,
+            "the images are related by a pure rotation (no baseline): a rotation explains "
+            "the matches as well as an essential matrix, and depth cannot be recovered",
+            inliers=num_inliers, rotation_gric=motion.rotation_gric,
+            essential_gric=motion.essential_gric,
         )
     if h_ratio > s.planar_ratio:
-        better = _lower_cost_plane_pose(E, inliers, h_inliers, H, p1, p2, K, s.threshold_px)
+        better = lower_cost_plane_pose(E, inliers, h_inliers, H, p1, p2, K, s.threshold_px)
         if better is not None:
             E, inliers = better
             num_inliers = int(inliers.sum())
             in1, in2 = p1[inliers], p2[inliers]
             H, h_inliers = estimate_homography(in1, in2, s.threshold_px)
             h_ratio = float(h_inliers.sum()) / num_inliers
+            motion = _motion(E, in1, in2, K, H, s.threshold_px)
+    # A plane allows two poses, unless the depth off it is measurable (the essential
+    # matrix explains the matches better than the homography: a short baseline).
+    planar = h_ratio > s.planar_ratio and motion.planar
     R, t, points, front = choose_pose(E, in1, in2, K)
-    if h_ratio > s.planar_ratio:
+    if planar:
         evidence = off_plane_evidence(H, K, R, t, in1, in2, h_inliers, s.threshold_px)
         if evidence < s.min_off_plane_matches:
             raise ReconstructionError(
@@ -489,21 +524,14 @@ def reconstruct_from_matches(
                 required=s.min_off_plane_matches,
             )
     parallax = np.where(front, parallax_angles_deg(np.nan_to_num(points), R, t), 0.0)
-    median_parallax = median(parallax)
-    if median_parallax < s.min_median_parallax_deg:
-        raise ReconstructionError(
-            "no_parallax",
-            "the views have (almost) no parallax: pure rotation or too small a baseline",
-            inliers=num_inliers, median_parallax_deg=median_parallax,
-            homography_inlier_ratio=h_ratio,
-        )
     errors = np.full((len(in1), 2), np.inf)
     errors[front] = reprojection_errors(points[front], in1[front], in2[front], K, R, t)
-    keep = (
-        front
-        & (parallax >= s.min_point_parallax_deg)
-        & (errors.max(axis=1) <= s.max_reprojection_px)
-    )
+    valid = front & (errors.max(axis=1) <= s.max_reprojection_px)
+    keep = valid & (parallax >= s.min_point_parallax_deg)
+    if keep.sum() < s.min_points:
+        # A small baseline: every point is weakly triangulated; keep them all, each with
+        # its depth uncertainty, rather than refuse a pose that the model selection found.
+        keep = valid
     if keep.sum() < s.min_points:
         raise ReconstructionError(
             "too_few_points", "too few points triangulate reliably",
@@ -519,7 +547,6 @@ def reconstruct_from_matches(
     focal = check_focal_length(R, t, p1, p2, inliers, K,
                                inlier_threshold_px(distances, s.threshold_px), loss_scale)
     refine_s += time.perf_counter() - t_focal
-    warnings = trust_warnings(n, num_inliers, median_kept_parallax, h_ratio, s, fit, focal)
     points, pts1_kept, pts2_kept = points[keep], in1[keep], in2[keep]
     kept_errors = errors[keep]
     if s.bundle_adjust:
@@ -530,6 +557,15 @@ def reconstruct_from_matches(
         E = E / np.linalg.norm(E)
         kept_errors = reprojection_errors(points, pts1_kept, pts2_kept, K, R, t)
         refine_s += time.perf_counter() - t_ba
+    # The covariance at the final pose: the Sampson cost is the bundle adjustment's with
+    # the points eliminated, to first order, so it serves after an adjustment too.
+    uncertainty = PoseUncertainty(
+        relative_pose_covariance(R, t, in1, in2, K, "cauchy", loss_scale), tangent_basis(t),
+        noise_sigma_px(distances))
+    point_sigmas = depth_sigmas(points, K, R, t, uncertainty.covariance,
+                                uncertainty.noise_sigma_px)
+    warnings = trust_warnings(uncertainty, n, num_inliers, median_kept_parallax, h_ratio, s,
+                              fit, focal, motion.rotation_share)
     F = fundamental_from_essential(E, K)  # the epipolar geometry the final pose obeys
     return TwoViewGeometry(
         R=R, t=t, points3d=points, pts1=pts1_kept, pts2=pts2_kept, K=K, F=F, E=E,
@@ -540,6 +576,10 @@ def reconstruct_from_matches(
         inlier_pts1=in1, inlier_pts2=in2, refinement_s=refine_s, robust_starts=fit.starts,
         robust_spread_deg=fit.spread_deg, focal_scale=focal.scale,
         focal_scale_sigma=focal.scale * focal.sigma_log,
+        pose_covariance=uncertainty.covariance,
+        rotation_sigma_deg=uncertainty.rotation_sigma_deg,
+        translation_sigma_deg=uncertainty.translation_sigma_deg,
+        noise_sigma_px=uncertainty.noise_sigma_px, depth_sigmas=point_sigmas,
     )
 
 

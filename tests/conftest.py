@@ -39,6 +39,17 @@ def fountain(data_root: Path) -> Path:
 
 
 @pytest.fixture(scope="session")
+def castle(data_root: Path) -> Path:
+    """castle-P19 (Strecha): a courtyard of repeated windows; skipped where it is missing."""
+    path = data_root / "castle-P19"
+    if not path.is_dir():
+        if os.environ.get("CI"):
+            pytest.fail(f"castle-P19 is missing from {data_root}")
+        pytest.skip(f"castle-P19 not found in {data_root}")
+    return path
+
+
+@pytest.fixture(scope="session")
 def chessboards(data_root: Path) -> Path:
     return data_root / "chessboard"
 

@@ -69,6 +69,21 @@ def test_default_run_is_the_book_pair_against_ground_truth(tmp_path, data_root):
     assert summary["robust_spread_deg"] < 5e-3
     assert abs(summary["focal_scale"] - 1.0) < 0.05 and 0 < summary["focal_scale_sigma"] < 0.05
     assert summary["reprojection_rmse_px"] < 0.5
+    # The pose's uncertainty, and the error within its 3-sigma bound (the Strecha cameras
+    # are themselves accurate to a few hundredths of a degree; the book pair's error is
+    # within that bound).
+    cov = np.array(summary["pose_covariance"])
+    basis = np.array(summary["pose_covariance_basis"])
+    assert cov.shape == (5, 5) and np.allclose(cov, cov.T) and basis.shape == (2, 3)
+    np.testing.assert_allclose(basis @ np.array(summary["t"]), 0.0, atol=1e-12)
+    assert summary["rotation_sigma_deg"] == pytest.approx(
+        np.degrees(np.sqrt(np.linalg.eigvalsh(cov[:3, :3])[-1])))
+    assert summary["translation_sigma_deg"] == pytest.approx(
+        np.degrees(np.sqrt(np.linalg.eigvalsh(cov[3:, 3:])[-1])))
+    assert 0 < summary["rotation_sigma_deg"] < 0.1 and 0 < summary["translation_sigma_deg"] < 0.2
+    assert err.translation_deg < 3 * summary["translation_sigma_deg"] + 0.05
+    assert "pose_covariance in radians^2" in summary["conventions"]
+    assert 0.03 < summary["noise_sigma_px"] < 0.5
     assert {"features", "matching", "geometry", "plots", "total"} <= set(summary["timings_s"])
     assert summary["inputs"]["image1"].endswith("0004.jpg")
     points, colors = read_ply(out / "point_cloud.ply")

@@ -3,6 +3,8 @@ import pytest
 
 from scene3D import epipolar
 from scene3D.epipolar import (
+    NOISE_PROBE_OF_THRESHOLD,
+    comparison_threshold_px,
     epipolar_lines,
     epipolar_residuals,
     essential_angle_deg,
@@ -17,9 +19,10 @@ from scene3D.epipolar import (
     loss_scale_px,
     noise_sigma_px,
     refine_essential,
+    rival_spread_deg,
 )
 from scene3D.evaluation import relative_pose_error
-from scene3D.geometry import normalize_points, rotation_about_axis, to_homogeneous
+from scene3D.geometry import normalize_points, project, rotation_about_axis, to_homogeneous
 from scene3D.pose import choose_pose
 
 from .helpers import correspondences
@@ -209,3 +212,76 @@ def test_noise_adaptive_loss_beats_a_fixed_third_of_the_threshold(camera, true_p
     # Sharp matches: the fixed scale is nearly least squares; adaptive costs at most
     # its 5 % of efficiency.
     assert adaptive[0.1].mean() < 1.1 * fixed[0.1].mean()
+
+
+def test_comparison_threshold_is_three_sigma_of_the_noise_within_bounds():
+    rng = np.random.default_rng(8)
+    sharp = np.abs(rng.normal(0.0, 0.1, 800))
+    far = rng.uniform(1.5, 50.0, 300)  # mismatches beyond the threshold do not count
+    assert comparison_threshold_px(np.concatenate([sharp, far]), 1.0) == pytest.approx(
+        0.3, rel=0.1)
+    # Noise-free matches: the floor, a fraction of the threshold.
+    assert comparison_threshold_px(np.zeros(50), 2.0) == pytest.approx(
+        NOISE_PROBE_OF_THRESHOLD * 2.0)
+    # Noisier than the threshold allows: never above it.
+    assert comparison_threshold_px(np.abs(rng.normal(0.0, 0.5, 800)), 1.0) == 1.0
+    # Too few matches near the model to measure any noise: the threshold itself.
+    assert comparison_threshold_px(np.array([0.1, 0.2, 5.0, 7.0]), 1.0) == 1.0
+
+
+def _wall_with_repeated_windows(camera, R, t, seed, n_true=300, n_repeated=100,
+                                n_outliers=60, noise_px=0.1, spacing=0.5):
+    """Matches on a wall with relief, a quarter of them one window off along the wall.
+
+    ``n_true`` points match themselves; ``n_repeated`` image-1 points are matched
+    to the point ``spacing`` further along the wall (the next of a row of identical
+    windows), which a rigid motion other than ``(R, t)`` explains; ``n_outliers``
+    are random. Returns ``pts1, pts2`` in that order.
+    """
+    rng = np.random.default_rng(seed)
+
+    def wall(n):
+        x, y = rng.uniform(-3.0, 3.0, n), rng.uniform(-2.0, 2.0, n)
+        return np.column_stack([x, y, 6.0 + 0.25 * x + rng.uniform(-0.3, 0.3, n)])
+
+    along = np.array([1.0, 0.0, 0.25]) / np.hypot(1.0, 0.25)
+    same, repeated = wall(n_true), wall(n_repeated)
+    pts1 = project(np.vstack([same, repeated]), camera, np.eye(3), np.zeros(3))
+    pts2 = project(np.vstack([same, repeated + spacing * along]), camera, R, t)
+    pts1 = pts1 + rng.normal(0.0, noise_px, pts1.shape)
+    pts2 = pts2 + rng.normal(0.0, noise_px, pts2.shape)
+    size = np.array([640.0, 480.0])
+    return (np.vstack([pts1, rng.uniform(0, size, (n_outliers, 2))]),
+            np.vstack([pts2, rng.uniform(0, size, (n_outliers, 2))]))
+
+
+@pytest.mark.parametrize("seed", [0, 2])
+def test_mismatched_repeated_windows_do_not_pull_the_pose(camera, true_pose, seed):
+    """Matches one window off fit a pose several degrees away within 1 px, together
+    with the right matches (fitted a little worse). A single MAGSAC++ start at 1 px
+    takes that compromise; the restarts, compared at three sigma of the noise, do not.
+    """
+    R, t = true_pose
+    pts1, pts2 = _wall_with_repeated_windows(camera, R, t, seed)
+    repeated = slice(300, 400)
+
+    def error_deg(fit):
+        R_est, t_est, _, _ = choose_pose(fit.E, pts1[fit.inliers], pts2[fit.inliers], camera)
+        return relative_pose_error(R_est, t_est, R, t).max_deg
+
+    single = fit_essential(pts1, pts2, camera, max_starts=1)
+    assert error_deg(single) > 2.0 and single.inliers[repeated].sum() > 90
+    fit = fit_essential(pts1, pts2, camera)
+    assert error_deg(fit) < 0.2
+    assert not fit.inliers[repeated].any() and fit.inliers[:300].sum() >= 295
+    assert 0.2 < fit.comparison_threshold_px < 0.4  # 3 sigma of the 0.1 px noise
+
+
+def test_rivals_that_fit_measurably_worse_do_not_count_in_the_spread(true_pose):
+    R, t = true_pose
+    E = essential_from_pose(R, t)
+    turned = essential_from_pose(rotation_about_axis([0.0, 1.0, 0.2], 1.0) @ R, t)
+    assert rival_spread_deg([(100.0, E)]) == pytest.approx(0.0, abs=1e-6)
+    assert rival_spread_deg([(100.0, E), (150.0, turned)]) == pytest.approx(0.0, abs=1e-6)
+    assert rival_spread_deg([(100.0, E), (103.0, turned)]) == pytest.approx(1.0, abs=1e-6)
+    assert rival_spread_deg([(103.0, turned), (100.0, E)]) == pytest.approx(1.0, abs=1e-6)

@@ -35,6 +35,6 @@ def test_evaluate_no_calib_refuses_a_pair_of_two_cameras(fountain, tmp_path, cap
             fountain / "gt_dense_cameras" / f"{name}.camera")
     assert main([str(tmp_path), "--no-calib", "-q"]) == 0
     out = capsys.readouterr().out
-    assert "| 0004.jpg-0005.jpg | inf | inf | 0 | 0 | - | no |" in out
+    assert "| 0004.jpg-0005.jpg | inf | inf | - | - | 0 | 0 | - | no |" in out
     assert "refused: '0005.jpg' was taken with a Canon EOS 6D" in out
     assert "no pair gave a focal length" in out

@@ -9,6 +9,7 @@ from scene3D.evaluation import (
     paired_auc_difference,
     pose_auc,
     relative_pose_error,
+    sigma_calibration,
     summarize_pose_errors,
 )
 from scene3D.geometry import rotation_about_axis
@@ -31,6 +32,22 @@ def test_auc_and_summary():
                                   flagged=[False, False, False, True])
     assert stats["within_2deg"] == 0.25 and stats["within_5deg"] == 0.5
     assert stats["wrong_unflagged"] == 1  # the 9 deg pair; the failed one was flagged
+    assert stats["right_flagged"] == 0 and stats["off2"] == 3 and stats["off2_flagged"] == 1
+    flags = summarize_pose_errors([0.1, 0.5, 3.0], [0.1, 0.2, 0.1], [True, False, True])
+    assert flags["right_flagged"] == 1 and flags["off2_flagged"] == flags["off2"] == 1
+
+
+def test_sigma_calibration_counts_errors_within_the_90_percent_bounds():
+    # Chi-square 3 and 2 dof: 6.25 and 4.61 bound 90 %; NaN (no pose) is left out.
+    calib = sigma_calibration([1.0, 7.0, 2.0, np.nan], [5.0, 1.0, 4.0, 0.1])
+    assert calib["pairs"] == 3
+    assert calib["rotation_within90"] == pytest.approx(2 / 3)
+    assert calib["translation_within90"] == pytest.approx(2 / 3)
+    rng = np.random.default_rng(0)  # calibrated Gaussian errors: about 90 %
+    calib = sigma_calibration(np.sum(rng.normal(size=(4000, 3)) ** 2, axis=1),
+                              np.sum(rng.normal(size=(4000, 2)) ** 2, axis=1))
+    assert calib["rotation_within90"] == pytest.approx(0.9, abs=0.015)
+    assert calib["translation_within90"] == pytest.approx(0.9, abs=0.015)
 
 
 def test_evaluate_command_on_fountain(fountain, tmp_path, capsys):
@@ -49,6 +66,14 @@ def test_evaluate_command_on_fountain(fountain, tmp_path, capsys):
         assert r["width"] == "768" and r["flagged"] == "False"
         assert float(r["rotation_deg"]) < 1.0 and float(r["translation_deg"]) < 3.0
         assert abs(float(r["focal_scale"]) - 1.0) < 0.05  # the Strecha K fits the photos
+        assert 0 < float(r["rotation_sigma_deg"]) < 0.1
+        assert 0 < float(r["translation_sigma_deg"]) < 0.2
+        assert float(r["rotation_chi2"]) >= 0 and float(r["translation_chi2"]) >= 0
+    assert "| rotation sigma (deg) | t-dir sigma (deg) |" in out
+    assert "Trust: 0 right poses (< 1 deg) flagged; 0 of 0 poses more than 2 deg" in out
+    assert re.search(r"Sigma calibration: \d+% of the rotation errors and \d+% of the "
+                     r"translation-direction errors within their predicted 90 % bounds \(2 "
+                     r"poses", out)
     median_focal = float(re.search(r"focal length: median ([0-9.]+) times", out).group(1))
     assert abs(median_focal - 1.0) < 0.05
 
@@ -66,27 +91,44 @@ def test_evaluate_refuses_a_pair_of_two_cameras(fountain, tmp_path, capsys):
         (tmp_path / "gt_dense_cameras" / f"{name}.camera").write_text(text)
     assert main([str(tmp_path), "-q"]) == 0
     out = capsys.readouterr().out
-    assert "| 0004.jpg-0005.jpg | inf | inf | 0 | 0 | - | no |" in out
+    assert "| 0004.jpg-0005.jpg | inf | inf | - | - | 0 | 0 | - | no |" in out
     assert "refused: the two views have different intrinsics" in out
     assert "flagged 1, wrong and unflagged 0" in out
 
 
-def test_evaluate_views_are_computed_once_and_dropped_after_their_last_pair(fountain):
-    from scene3D.cli.evaluate import _Views, _views
+def test_evaluate_maps_one_task_per_view_and_one_per_pair(fountain):
+    from scene3D.cli.evaluate import _views, evaluate_pairs
     from scene3D.datasets import read_strecha_camera
+    from scene3D.engines import LocalEngine
+    from scene3D.twoview import TwoViewSettings
 
-    views = _views(fountain)[:3]
-    pairs = [(0, 1), (0, 2)]
-    data = _Views(views, [read_strecha_camera(c) for _, c in views], 400, "SIFT", pairs)
-    first = data.matches(0, 1)
-    data.done(0)
-    assert sorted(data.features) == [0]  # view 1 had no pair left
-    features_0 = data.features[0]
-    data.matches(0, 2)
-    assert data.features[0] is features_0  # view 0 was not detected again
-    data.done(1)
-    assert not data.features and not data.images
-    assert len(first) > 50 and first.feature == "SIFT"
+    class Recording(LocalEngine):
+        def __init__(self):
+            self.tasks, self.shared = [], []
+
+        def map(self, fn, arguments, *, label="tasks", progress=None):
+            arguments = list(arguments)
+            self.tasks.append((label, len(arguments)))
+            return super().map(fn, arguments, label=label, progress=progress)
+
+        def share(self, value):
+            self.shared.append(value)
+            return value
+
+    views = _views(fountain)[:4]
+    engine, seen = Recording(), []
+    rows = list(evaluate_pairs(engine, [image for image, _ in views],
+                               [read_strecha_camera(c) for _, c in views],
+                               [(0, 1), (0, 2), (2, 0)], 400, "SIFT", TwoViewSettings(),
+                               lambda label, done, total: seen.append((label, done, total))))
+    # Views 0, 1, 2 once each (view 3 is in no pair, view 0 in three), then the pairs.
+    assert engine.tasks == [("views", 3), ("pairs", 3)]
+    assert len(engine.shared) == 3 and all(v.features.feature == "SIFT" for v in engine.shared)
+    assert [r["pair"] for r in rows] == ["0000.jpg-0001.jpg", "0000.jpg-0002.jpg",
+                                         "0002.jpg-0000.jpg"]
+    assert seen[-1] == ("pairs", 3, 3) and ("views", 3, 3) in seen
+    for row in rows:  # each pair (the last one reversed) against the truth
+        assert row["inliers"] > 40 and row["rotation_deg"] < 1.0
 
 
 def test_evaluate_names_the_detector_that_ran(fountain, capsys):

@@ -11,6 +11,7 @@ from scene3D.epipolar import essential_cost, fit_essential
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import Matches, detect_features, match_descriptors, to_gray
 from scene3D.geometry import project
+from scene3D.pose import choose_pose
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches
 
 
@@ -116,9 +117,14 @@ def test_restarts_escape_a_poor_optimum_on_a_wide_pair(fountain):
     matches = Matches(px1[idx1], px2[idx2], "SIFT", (len(px1), len(px2)))
     single = fit_essential(matches.pts1, matches.pts2, scene.K, max_starts=1)
     restarted = fit_essential(matches.pts1, matches.pts2, scene.K, max_starts=8)
-    assert restarted.starts > 2 and restarted.confirmed  # the first two starts disagree
+    assert restarted.starts > 2  # the first two starts disagree
     assert (essential_cost(restarted.E, matches.pts1, matches.pts2, scene.K, 1.0)
             <= essential_cost(single.E, matches.pts1, matches.pts2, scene.K, 1.0))
+    truth = relative_pose(cams[5], cams[10])
+    R, t, _, _ = choose_pose(single.E, matches.pts1, matches.pts2, scene.K)
+    assert relative_pose_error(R, t, *truth).max_deg > 2.0
+    R, t, _, _ = choose_pose(restarted.E, matches.pts1, matches.pts2, scene.K)
+    assert relative_pose_error(R, t, *truth).max_deg < 1.0
     result = scene.reconstruct("SIFT")
     err = relative_pose_error(result.R, result.t, *relative_pose(cams[5], cams[10]))
     assert max(err.rotation_deg, err.translation_deg) < 1.0
@@ -129,21 +135,22 @@ def test_restarts_escape_a_poor_optimum_on_a_wide_pair(fountain):
 
 
 def test_restarts_that_end_close_together_leave_the_pose_trusted(fountain):
-    """Pair 4-8 at 768 px: in eight starts no optimum is reached twice.
+    """Pair 0-4 at 1536 px: in eight starts no optimum is reached twice.
 
-    But the optima lie within 0.05 deg of each other, well inside 0.5 deg
+    But the optima lie within 0.1 deg of each other, well inside 0.5 deg
     (TwoViewSettings.restart_agreement_deg): the pose is known to that accuracy,
     so the result is trusted, and it is accurate.
     """
     cams = _cameras(fountain)
-    scene = SceneReconstruction3D(cams[4].K, cams[4].dist)
-    scene.load_image_pair(fountain / "images" / "0004.jpg", fountain / "images" / "0008.jpg")
+    scene = SceneReconstruction3D(cams[0].K, cams[0].dist)
+    scene.load_image_pair(fountain / "images" / "0000.jpg", fountain / "images" / "0004.jpg",
+                          max_width=1536)
     result = scene.reconstruct("SIFT")
     matches = scene.matches("SIFT")
     fit = fit_essential(matches.pts1, matches.pts2, scene.K)
     assert fit.starts == 8 and not fit.confirmed
-    assert 0.01 < fit.spread_deg < 0.05 < TwoViewSettings().restart_agreement_deg
+    assert 0.01 < fit.spread_deg < 0.1 < TwoViewSettings().restart_agreement_deg
     assert result.trusted, result.warnings
     assert result.robust_spread_deg == pytest.approx(fit.spread_deg)
-    err = relative_pose_error(result.R, result.t, *relative_pose(cams[4], cams[8]))
+    err = relative_pose_error(result.R, result.t, *relative_pose(cams[0], cams[4]))
     assert max(err.rotation_deg, err.translation_deg) < 0.3

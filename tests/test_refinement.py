@@ -11,7 +11,6 @@ from scene3D.refinement import (
     _sampson,
     _sampson_jacobian,
     _scaled_fundamental,
-    _tangent_basis,
     _update_pose,
     bundle_adjust_two_view,
     fit_focal_scale,
@@ -19,6 +18,7 @@ from scene3D.refinement import (
 )
 from scene3D.triangulation import reprojection_errors, triangulate_points
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches
+from scene3D.uncertainty import tangent_basis
 
 from .helpers import correspondences, scipy_bundle_adjust
 
@@ -48,7 +48,7 @@ def test_sampson_jacobian_matches_finite_differences(camera, true_pose):
     def sampson_at(R_, t_):
         return _sampson(K_inv.T @ skew(t_) @ R_ @ K_inv, h1, h2)
 
-    basis = _tangent_basis(t)
+    basis = tangent_basis(t)
     J = _sampson_jacobian(K_inv.T @ skew(t) @ R @ K_inv,
                           _fundamental_derivatives(R, t, basis, K_inv), h1, h2)
     step = 1e-6
@@ -71,7 +71,7 @@ def test_robust_refinement_ends_at_a_minimum_of_its_cost(camera, true_pose, loss
     def cost(R_, t_):
         return _robust_cost(_sampson(K_inv.T @ skew(t_) @ R_ @ K_inv, h1, h2), loss, 0.5)
 
-    basis = _tangent_basis(t1)
+    basis = tangent_basis(t1)
     at_result = cost(R1, t1)
     for e in np.vstack([np.eye(5), -np.eye(5)]):
         assert cost(*_update_pose(R1, t1, 1e-4 * e, basis)) > at_result
@@ -115,7 +115,7 @@ def test_two_view_bundle_adjustment_reaches_a_minimum_scipy_does_not_beat(camera
     assert np.linalg.norm(t1) == pytest.approx(1.0)
     # A minimum: moving the pose or the points a little costs more.
     at_result = cost(R1, t1, X1)
-    basis = _tangent_basis(t1)
+    basis = tangent_basis(t1)
     for e in np.vstack([np.eye(5), -np.eye(5)]):
         assert cost(*_update_pose(R1, t1, 1e-5 * e, basis), X1) > at_result
     rng = np.random.default_rng(0)
@@ -184,7 +184,7 @@ def test_focal_jacobian_matches_finite_differences(camera, true_pose):
         R_, t_ = _update_pose(R, t, x[:5], basis)
         return _sampson(_scaled_fundamental(R_, t_, log_s + x[5], K_inv), h1, h2)
 
-    basis = _tangent_basis(t)
+    basis = tangent_basis(t)
     J = _sampson_jacobian(_scaled_fundamental(R, t, log_s, K_inv),
                           _focal_fundamental_derivatives(R, t, log_s, basis, K_inv), h1, h2)
     step = 1e-6

@@ -199,22 +199,26 @@ def test_combine_log_normal():
 
 
 def test_the_profile_keeps_a_facade_pair_out_of_the_prior_basin(data_root):
-    """castle-P19 16-17 at 1536 px: from the 1.2 x prior (34 % too long) the plain iteration
-    settles 30 % off with a small sigma; the profile's basin gives the focal length."""
+    """castle-P19 5-6 at 1536 px: from the 1.2 x prior (34 % too long) the plain iteration
+    settles 18 % off with a small sigma; the profile's basin gives the focal length.
+
+    (Pair 16-17 did the same, 30 % off, until the robust restarts were compared at the
+    keypoints' noise, issue #19; the plain iteration now finds its focal length.)
+    """
     from scene3D.datasets import read_strecha_camera, relative_pose
     from scene3D.features import image_features, match_features
     from scene3D.imageio import load_working_image
 
     scene = data_root / "castle-P19"
-    cams = [read_strecha_camera(scene / "gt_dense_cameras" / f"00{i}.jpg.camera")
-            for i in (16, 17)]
-    images = [load_working_image(scene / "images" / f"00{i}.jpg", cam.K, np.zeros(5), 1536)[0]
-              for i, cam in zip((16, 17), cams)]
+    cams = [read_strecha_camera(scene / "gt_dense_cameras" / f"{i:04d}.jpg.camera")
+            for i in (5, 6)]
+    images = [load_working_image(scene / "images" / f"{i:04d}.jpg", cam.K, np.zeros(5), 1536)[0]
+              for i, cam in zip((5, 6), cams)]
     matches = match_features(*(image_features(img) for img in images))
     f_true = math.sqrt(cams[0].K[0, 0] * cams[0].K[1, 1]) / 2
     start = intrinsics_from_focal(1.2 * 1536, (1536, 1024))
     plain, _, _ = converge_focal(matches.pts1, matches.pts2, start, TwoViewSettings(), 8, 1e-3)
-    assert plain.K[0, 0] / f_true > 1.2 and plain.focal_scale_sigma < 0.02
+    assert plain.K[0, 0] / f_true > 1.15 and plain.focal_scale_sigma < 0.02
     result = self_calibrate_pair(matches.pts1, matches.pts2, start, DEFAULT_PRIOR_SIGMA_LOG)
     assert result.focal_px == pytest.approx(f_true, rel=0.02) and result.trusted
     err = relative_pose_error(result.geometry.R, result.geometry.t, *relative_pose(*cams))

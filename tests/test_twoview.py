@@ -13,6 +13,7 @@ from scene3D.twoview import (
     plane_poses,
     reconstruct_from_matches,
     reconstruct_two_view,
+    trust_warnings,
 )
 
 from .helpers import correspondences
@@ -63,12 +64,35 @@ def test_pure_rotation_points_are_refused(camera, true_pose):
     assert info.value.reason == "no_parallax"
 
 
-def test_tiny_baseline_is_refused(camera, true_pose):
+def test_a_baseline_below_the_noise_is_refused_as_a_rotation(camera, true_pose):
+    """A baseline of 1 % of the depth range seen through 0.3 px noise: the rotation
+    homography explains the matches as well as an essential matrix (GRIC)."""
     R, t = true_pose
     _, pts1, pts2 = correspondences(camera, R, 0.01 * t, n=300, noise_px=0.3)
     with pytest.raises(ReconstructionError) as info:
         reconstruct_from_matches(pts1, pts2, camera)
     assert info.value.reason == "no_parallax"
+    assert info.value.counts["rotation_gric"] <= info.value.counts["essential_gric"]
+
+
+@pytest.mark.parametrize("baseline, noise_px", [(0.02, 0.1), (0.02, 0.3), (0.05, 0.3)])
+def test_a_small_real_baseline_is_answered_with_a_large_sigma_and_flagged(
+        camera, true_pose, baseline, noise_px):
+    """Parallax of 0.1-0.6 deg that model selection can still see: a pose comes back,
+    untrusted, its warning quoting the uncertainty and naming the weak parallax, and
+    the error lies within three of its standard deviations."""
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, baseline * t, n=300, noise_px=noise_px)
+    r = reconstruct_from_matches(pts1, pts2, camera)
+    assert r.median_parallax_deg < 1.0
+    assert r.translation_sigma_deg > 1.0 and not r.trusted
+    text = " ".join(r.warnings)
+    assert f"translation direction +-{r.translation_sigma_deg:.1f} deg" in text
+    assert "(1 sigma)" in text and "weak parallax" in text
+    err = relative_pose_error(r.R, r.t, R, t)
+    assert err.translation_deg < 3 * r.translation_sigma_deg
+    assert err.rotation_deg < 3 * r.rotation_sigma_deg
+    assert len(r.depth_sigmas) == len(r.points3d) >= 10
 
 
 def test_random_matches_are_refused(camera):
@@ -104,15 +128,20 @@ def _plane_and_points(camera, R, t, n_plane, n_off, noise_px, seed=0):
             pts2 + rng.normal(0, noise_px, pts2.shape))
 
 
-def test_a_dominant_plane_with_depth_off_it_is_kept_but_untrusted(camera, true_pose):
-    """96 % of the matches on one plane, 16 spread in depth: the pose is not ambiguous."""
+def test_a_dominant_plane_with_depth_off_it_is_kept_with_its_uncertainty(camera, true_pose):
+    """96 % of the matches on one plane, 16 spread in depth: the pose is not ambiguous.
+
+    The homography ratio is no verdict of its own: the 16 points pin the pose to
+    +-0.1 deg, the covariance says so, and the result is trusted."""
     R, t = true_pose
     pts1, pts2 = _plane_and_points(camera, R, t, 400, 16, noise_px=0.2)
     result = reconstruct_from_matches(pts1, pts2, camera)
     assert result.homography_inlier_ratio > TwoViewSettings().planar_ratio
     err = relative_pose_error(result.R, result.t, R, t)
     assert max(err.rotation_deg, err.translation_deg) < 0.5
-    assert not result.trusted and any("homography" in w for w in result.warnings)
+    assert err.translation_deg < 3 * result.translation_sigma_deg
+    assert err.rotation_deg < 3 * result.rotation_sigma_deg
+    assert result.translation_sigma_deg < 0.3 and result.trusted
 
 
 def test_plane_poses_are_two_and_one_is_the_truth(camera, true_pose):
@@ -134,7 +163,8 @@ def test_matches_off_a_dominant_plane_get_their_vote(camera, true_pose, seed):
     result = reconstruct_from_matches(pts1, pts2, camera)
     err = relative_pose_error(result.R, result.t, R, t)
     assert max(err.rotation_deg, err.translation_deg) < 0.5
-    assert result.num_inliers >= 310 and not result.trusted
+    assert err.translation_deg < 3 * result.translation_sigma_deg
+    assert result.num_inliers >= 310
 
 
 def test_off_plane_evidence_counts_the_matches_that_settle_the_ambiguity(camera, true_pose):
@@ -183,15 +213,45 @@ def test_weak_pairs_are_marked_untrusted(camera, true_pose):
                                  camera)
     assert not r.trusted
     text = " ".join(r.warnings)
-    assert "inliers" in text and "of the 200 matches" in text
+    assert f"only {r.num_inliers} inliers" in text and "(1 sigma)" in text
 
 
-def test_short_baseline_is_marked_untrusted(camera, true_pose):
+def test_random_matches_never_give_a_trusted_pose(camera):
+    """800 uniform random matches: whatever model agrees with some of them by chance
+    (up to about 30 inliers here) is refused or untrusted."""
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        pts1 = rng.uniform(0, 640, (800, 2))
+        pts2 = rng.uniform(0, 640, (800, 2))
+        try:
+            r = reconstruct_from_matches(pts1, pts2, camera)
+        except ReconstructionError:
+            continue
+        assert not r.trusted and r.num_inliers < TwoViewSettings().trusted_inliers
+
+
+def test_a_short_baseline_with_a_small_uncertainty_is_trusted(camera, true_pose):
+    """Weak parallax (1.1 deg median) is no verdict of its own: with 0.1 px noise the
+    translation direction is known to +-0.2 deg, and it is that accurate."""
     R, t = true_pose
     _, pts1, pts2 = correspondences(camera, R, 0.15 * t, n=300, noise_px=0.1)
     r = reconstruct_from_matches(pts1, pts2, camera)
     assert 1.0 <= r.median_parallax_deg < 2.0
-    assert not r.trusted and "weak parallax" in " ".join(r.warnings)
+    assert r.translation_sigma_deg < 0.3 and r.trusted
+    err = relative_pose_error(r.R, r.t, R, t)
+    assert err.translation_deg < 3 * r.translation_sigma_deg
+
+
+def test_the_uncertainty_limit_is_the_purpose(camera, true_pose):
+    """The same pair is trusted or not depending on what the caller needs."""
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, 0.15 * t, n=300, noise_px=0.3)
+    loose = reconstruct_from_matches(pts1, pts2, camera)
+    strict = reconstruct_from_matches(pts1, pts2, camera,
+                                      TwoViewSettings(uncertainty_limit_deg=1.0))
+    assert 1.0 / 3 < loose.translation_sigma_deg < 2.0 / 3
+    assert loose.trusted and not strict.trusted
+    assert "more than 1 deg at 3 sigma" in strict.warnings[0]
 
 
 @pytest.mark.parametrize("factor", [0.6, 1.6])
@@ -217,3 +277,33 @@ def test_a_near_miss_of_the_focal_length_is_not_flagged(camera, true_pose):
     near[:2, :2] *= 1.1
     r = reconstruct_from_matches(pts1, pts2, near)
     assert r.focal_scale == pytest.approx(1 / 1.1, rel=0.03) and r.trusted
+
+
+def test_trust_follows_the_uncertainty_and_what_it_cannot_see():
+    """trust_warnings on constructed cases: the sigma limit, explanations attached to a
+    large sigma and never verdicts of their own, and the guards."""
+    from scene3D.refinement import FocalFit
+    from scene3D.uncertainty import PoseUncertainty, tangent_basis
+
+    s = TwoViewSettings()
+    t = np.array([1.0, 0.0, 0.0])
+
+    def uncertainty(rot_deg, dir_deg):
+        return PoseUncertainty(np.diag(np.radians([rot_deg] * 3 + [dir_deg] * 2)) ** 2,
+                               tangent_basis(t))
+
+    # 3 x 0.6 = 1.8 deg: trusted, even with weak parallax and a dominant homography.
+    assert trust_warnings(uncertainty(0.1, 0.6), 500, 400, 0.5, 0.97, s) == []
+    # 3 x 0.7 = 2.1 deg: untrusted, the warning quotes the sigma and names the causes.
+    (warning,) = trust_warnings(uncertainty(0.1, 0.7), 500, 400, 0.5, 0.97, s)
+    assert warning.startswith("uncertain pose: translation direction +-0.7 deg, rotation "
+                              "+-0.1 deg (1 sigma)")
+    assert "weak parallax" in warning and "homography explains 97%" in warning
+    # Few inliers: untrusted whatever the sigma.
+    (warning,) = trust_warnings(uncertainty(0.01, 0.02), 100, 40, 10.0, 0.5, s)
+    assert "only 40 inliers" in warning and "+-0.02 deg" in warning
+    # A focal length 25 % off, tightly fitted: untrusted, quoting the pose's sigma too.
+    focal = FocalFit(1.25, 0.01, np.eye(3), t)
+    (warning,) = trust_warnings(uncertainty(0.01, 0.02), 1000, 900, 10.0, 0.5, s,
+                                focal=focal)
+    assert "focal length 1.25 times" in warning and "+-0.02 deg" in warning

@@ -42,6 +42,11 @@ logger = logging.getLogger("scene3D.cli")
 
 REPO_DATA = Path(__file__).resolve().parents[2] / "data"
 DEFAULT_CALIB = REPO_DATA / "fountain_P11_intrinsics.yaml"
+POSE_COVARIANCE_DOC = (
+    "pose_covariance in radians^2 of (w, d) for the poses exp([w]x) R (w in the camera-2 "
+    "frame, rows 0-2) and (t + d @ pose_covariance_basis) / |t + d @ pose_covariance_basis| "
+    "(rows 3-4); rotation_sigma_deg and translation_sigma_deg are the square roots of the "
+    "largest eigenvalues of its two blocks, in degrees")
 PLOT_FILES = ("optic_flow.png", "epipolar_lines.png", "rectified.png", "point_cloud.png")
 REPORT_FILE = "report.html"
 
@@ -173,7 +178,8 @@ def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path],
     return {
         "scene3D_version": __version__,
         "conventions": "x_cam2 = R @ x_cam1 + t; |t| = 1 (scale unknown); points3d in the "
-                       "camera-1 frame; pixels with integer coordinates at pixel centres",
+                       "camera-1 frame; pixels with integer coordinates at pixel centres; "
+                       + POSE_COVARIANCE_DOC,
         "inputs": {"image1": str(paths[0]), "image2": str(paths[1]),
                    "calibration": None if calib is None else str(calib)},
         "R": result.R, "t": result.t, "K": result.K,
@@ -188,6 +194,11 @@ def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path],
         "homography_inlier_ratio": result.homography_inlier_ratio,
         "robust_starts": result.robust_starts, "robust_spread_deg": result.robust_spread_deg,
         "focal_scale": result.focal_scale, "focal_scale_sigma": result.focal_scale_sigma,
+        "rotation_sigma_deg": result.rotation_sigma_deg,
+        "translation_sigma_deg": result.translation_sigma_deg,
+        "pose_covariance": result.pose_covariance,
+        "pose_covariance_basis": result.pose_uncertainty.basis,
+        "noise_sigma_px": result.noise_sigma_px,
         "trusted": result.trusted, "warnings": list(result.warnings),
         "timings_s": timings,
     }

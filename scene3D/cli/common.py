@@ -6,10 +6,14 @@ import argparse
 import logging
 import os
 import sys
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
-from ..errors import CalibrationError, DatasetError, ReconstructionError
+from ..engines import Engine, LocalEngine, Progress
+from ..errors import CalibrationError, DatasetError, EngineError, ReconstructionError
 
 EXIT_OK = 0
 EXIT_FAILED = 1  # valid input, but the reconstruction / calibration failed
@@ -115,6 +119,98 @@ def add_bundle_adjust_arg(parser: argparse.ArgumentParser) -> None:
                              "the default refinement)")
 
 
+def add_engine_args(parser: argparse.ArgumentParser) -> None:
+    """``--scheduler ADDRESS`` or ``--workers N``: where the independent tasks run
+    (built by :func:`open_engine`)."""
+    group = parser.add_argument_group(
+        "where the tasks run (features per image, pairs; default: in this process)")
+    where = group.add_mutually_exclusive_group()
+    where.add_argument("--scheduler", metavar="ADDRESS",
+                       help="on the workers of a running Dask cluster, such as "
+                            "tcp://10.0.0.5:8786 ('dask scheduler', then 'dask worker "
+                            "ADDRESS' on each machine); needs the extra 'distributed'")
+    where.add_argument("--workers", type=positive_int, metavar="N",
+                       help="on N worker processes started on this machine (a Dask "
+                            "LocalCluster, one thread each); needs the extra 'distributed'")
+
+
+class _Reporting:
+    """An engine whose tasks report their progress (``StderrProgress``) unless a caller
+    passes its own ``progress``: the pipelines map without one."""
+
+    def __init__(self, engine: Engine, progress: Progress) -> None:
+        self._engine, self._progress = engine, progress
+        self.name = engine.name
+
+    def map(self, fn: Callable[..., Any], arguments: Iterable[tuple], *, label: str = "tasks",
+            progress: Progress | None = None) -> Iterator[Any]:
+        return self._engine.map(fn, arguments, label=label, progress=progress or self._progress)
+
+    def share(self, value: Any) -> Any:
+        return self._engine.share(value)
+
+
+@contextmanager
+def open_engine(args: argparse.Namespace) -> Iterator[Engine]:
+    """The engine that ``--scheduler`` / ``--workers`` ask for (in this process without
+    either), its tasks' progress on stderr ("pairs: 12 of 40 done", not with ``-q``),
+    closed (with the workers it started) when the block ends.
+
+    Raises :class:`UsageError` in one line when Dask is not installed.
+    """
+    scheduler, workers = getattr(args, "scheduler", None), getattr(args, "workers", None)
+    progress = StderrProgress(not args.quiet)
+    if scheduler is None and workers is None:
+        yield _Reporting(LocalEngine(), progress)
+        return
+    from ..engines.dask_engine import (
+        INSTALL_HINT,
+        DaskEngine,
+        MissingExtraError,
+        require_distributed,
+    )
+
+    option = "--scheduler" if scheduler is not None else "--workers"
+    try:
+        require_distributed()
+    except MissingExtraError:
+        raise UsageError(f"{option} needs Dask: {INSTALL_HINT}") from None
+    # Dask's own log (its handler, its format): warnings, its INFO lines with -vv.
+    logging.getLogger("distributed").setLevel(
+        logging.ERROR if args.quiet else logging.INFO if args.verbose >= 2 else logging.WARNING)
+    engine = DaskEngine.connect(scheduler) if scheduler is not None else \
+        DaskEngine.local(workers)
+    log = logging.getLogger("scene3D.cli")
+    try:
+        if not args.quiet:
+            print(f"tasks on {engine.describe()}", file=sys.stderr)
+        yield _Reporting(engine, progress)
+        for worker, counts in sorted(engine.task_counts().items()):
+            log.info("worker %s ran %s", worker,
+                     ", ".join(f"{n} {label} tasks" for label, n in sorted(counts.items()))
+                     or "no tasks")
+    finally:
+        engine.close()
+
+
+class StderrProgress:
+    """``progress(label, done, total)`` for :meth:`scene3D.engines.Engine.map`: lines such
+    as "pairs: 12 of 40 done" on stderr, at most one a ``interval_s`` per label, and the
+    last one always. Silent when ``enabled`` is False."""
+
+    def __init__(self, enabled: bool = True, interval_s: float = 1.0) -> None:
+        self.enabled, self.interval_s = enabled, interval_s
+        self._last: dict[str, float] = {}
+
+    def __call__(self, label: str, done: int, total: int) -> None:
+        now = time.monotonic()
+        if not self.enabled or (done < total and
+                                now - self._last.get(label, -1e9) < self.interval_s):
+            return
+        self._last[label] = now
+        print(f"{label}: {done} of {total} done", file=sys.stderr, flush=True)
+
+
 def configure_logging(args: argparse.Namespace) -> None:
     if args.quiet:
         level = logging.ERROR
@@ -149,7 +245,7 @@ def run_command(args: argparse.Namespace, body: Callable[[argparse.Namespace], i
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)
         return 130
-    except (ReconstructionError, CalibrationError) as exc:
+    except (ReconstructionError, CalibrationError, EngineError) as exc:
         if args.debug:
             raise
         print(f"error: {exc}", file=sys.stderr)

@@ -5,18 +5,22 @@ from __future__ import annotations
 import argparse
 import csv
 import io
+import logging
 import math
 import re
 import sys
 import time
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..camera import scale_intrinsics_halved
 from ..datasets import StrechaCamera, read_strecha_camera, relative_pose, strecha_views
+from ..engines import Engine, Progress
 from ..errors import ReconstructionError
-from ..evaluation import relative_pose_error, summarize_pose_errors
+from ..evaluation import relative_pose_error, sigma_calibration, summarize_pose_errors
 from ..export import atomic_write_bytes
 from ..features import (
     FEATURE_MODES,
@@ -28,17 +32,22 @@ from ..features import (
     normalize_feature_mode,
 )
 from ..imageio import BOOK_MAX_WIDTH_PX, load_working_image
-from ..twoview import TwoViewSettings, reconstruct_two_view
+from ..twoview import TwoViewSettings, reconstruct_from_matches
+from ..uncertainty import pose_error_chi2
 from .common import (
     EXIT_CODES_HELP,
     EXIT_OK,
     UsageError,
     add_bundle_adjust_arg,
     add_common_args,
+    add_engine_args,
     add_feature_arg,
     add_size_args,
+    open_engine,
     run_command,
 )
+
+logger = logging.getLogger(__name__)
 
 
 def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
@@ -51,6 +60,9 @@ def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
         ),
         epilog=("Errors are in degrees: rotation angle of R_est R_true^T and the angle "
                 "between translation directions; failed pairs count as infinite error. "
+                "Sigmas are each pose's predicted 1-sigma rotation and translation-direction "
+                "angles (worst axis); the summary says how often the errors fall within the "
+                "predicted 90 %% bounds (chi-square on the full covariance). "
                 f"{EXIT_CODES_HELP}."),
     )
     parser.add_argument("dataset", type=Path, metavar="DATASET_DIR",
@@ -73,6 +85,7 @@ def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
                         help="also write the per-pair rows (with notes) to this CSV file")
     parser.add_argument("--force", action="store_true",
                         help="overwrite an existing --csv file")
+    add_engine_args(parser)
     add_common_args(parser)
     return parser
 
@@ -106,113 +119,174 @@ def _pairs(specs: list[str], count: int) -> list[tuple[int, int]]:
     return pairs
 
 
-class _Views:
-    """Working images and features of a dataset's views, each computed once.
+@dataclass(frozen=True)
+class _View:
+    """What the pairs need of one view, computed once (one task per image).
 
-    A view is dropped after the last pair that uses it, so memory holds the views
-    of the pairs in flight, not the whole dataset.
+    Attributes
+    ----------
+    shape : tuple[int, ...]
+        ``(h, w, 3)`` of the working image.
+    K : (3, 3) float64
+        Intrinsics of the working image, from the view's camera file.
+    features : ImageFeatures or None
+        Keypoints and descriptors; None with ``--feature flow``.
+    image : (h, w, 3) uint8 or None
+        The working image, kept only for ``--feature flow`` (the tracks belong to
+        the pair); otherwise dropped once its features are taken.
+    photo : (name, ExifCamera or None, (width, height)) or None
+        With ``--no-calib``: what :func:`scene3D.intrinsics_prior.camera_prior`
+        needs of the photo (its EXIF and stored size).
     """
 
-    def __init__(self, views: list[tuple[Path, Path]], cameras: list[StrechaCamera],
-                 max_width: int | None, feature: str, pairs: list[tuple[int, int]],
-                 no_calib: bool = False) -> None:
-        self.paths = [image for image, _ in views]
-        self.no_calib = no_calib  # load without the camera files' distortion
-        self.cameras, self.max_width, self.feature = cameras, max_width, feature
-        self.last_use = {i: k for k, pair in enumerate(pairs) for i in pair}
-        self.images: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        self.features: dict[int, ImageFeatures] = {}
-
-    def image(self, i: int) -> tuple[np.ndarray, np.ndarray]:
-        """The working image of view ``i`` (BGR) and its intrinsics."""
-        if i not in self.images:
-            cam = self.cameras[i]
-            dist = np.zeros(5) if self.no_calib else cam.dist
-            img, _, levels = load_working_image(self.paths[i], cam.K, dist, self.max_width)
-            self.images[i] = img, scale_intrinsics_halved(cam.K, levels)
-        return self.images[i]
-
-    def matches(self, a: int, b: int) -> Matches:
-        (img_a, _), (img_b, _) = self.image(a), self.image(b)
-        if self.feature == "flow":  # tracks belong to the pair
-            return find_matches(img_a, img_b, "flow")
-        for i, img in ((a, img_a), (b, img_b)):
-            if i not in self.features:
-                self.features[i] = image_features(img, self.feature)
-        return match_features(self.features[a], self.features[b])
-
-    def done(self, k: int) -> None:
-        """Forget the views whose last pair was pair ``k``."""
-        for i in [i for i, last in self.last_use.items() if last == k]:
-            self.images.pop(i, None)
-            self.features.pop(i, None)
+    shape: tuple[int, ...]
+    K: np.ndarray
+    features: ImageFeatures | None
+    image: np.ndarray | None
+    photo: tuple | None = None
 
 
-def _evaluate_pair(data: _Views, a: int, b: int, settings: TwoViewSettings) -> dict:
-    """One row of the table: the pose errors of pair (a, b), or why it was refused."""
-    row = {"pair": f"{data.paths[a].name}-{data.paths[b].name}", "width": 0, "feature": "",
+def _load_view(path: Path, K: np.ndarray, dist: np.ndarray, max_width: int | None,
+               feature: str, no_calib: bool = False) -> _View:
+    """The working image of one view and its features (a task: see :func:`evaluate_pairs`).
+
+    With ``no_calib`` the camera file's distortion is not removed and the photo's EXIF
+    and size are kept for the pair's focal-length prior.
+    """
+    if no_calib:
+        from ..exif import read_exif
+        from ..imageio import read_image_size
+
+        dist = np.zeros(5)
+        photo = (path.name, read_exif(path), read_image_size(path))
+    else:
+        photo = None
+    img, _, levels = load_working_image(path, K, dist, max_width)
+    K_working = scale_intrinsics_halved(K, levels)
+    if feature == "flow":
+        return _View(img.shape, K_working, None, img, photo)
+    return _View(img.shape, K_working, image_features(img, feature), None, photo)
+
+
+def _matches(view_a: _View, view_b: _View) -> Matches:
+    if view_a.features is None:  # flow: tracks belong to the pair
+        return find_matches(view_a.image, view_b.image, "flow")
+    return match_features(view_a.features, view_b.features)
+
+
+def _evaluate_pair(name: str, view_a: _View, view_b: _View,
+                   truth: tuple[np.ndarray, np.ndarray], settings: TwoViewSettings) -> dict:
+    """One row of the table: the pose errors of a pair against the true relative pose
+    ``truth`` = (R, t), or why it was refused (a task: see :func:`evaluate_pairs`)."""
+    t0 = time.perf_counter()
+    row = {"pair": name, "width": view_a.shape[1], "feature": "",
            "rotation_deg": np.inf, "translation_deg": np.inf, "inliers": 0, "points": 0,
+           "rotation_sigma_deg": np.nan, "translation_sigma_deg": np.nan,
+           "rotation_chi2": np.nan, "translation_chi2": np.nan,
            "focal_scale": np.nan, "flagged": True, "note": ""}
-    (img_a, K_a), (img_b, K_b) = data.image(a), data.image(b)
-    row["width"] = img_a.shape[1]
-    if img_a.shape != img_b.shape or not np.allclose(K_a, K_b, rtol=1e-6, atol=1e-6):
-        row["note"] = "refused: the two views have different intrinsics or sizes " \
-                      "(the two-view pipeline assumes one camera)"
-        return row
-    matches = data.matches(a, b)
-    row["feature"] = matches.feature
     try:
-        result = reconstruct_two_view(img_a, matches, K_a, settings)
-    except ReconstructionError as exc:
-        row["note"] = f"refused: {exc.reason}"
+        if view_a.shape != view_b.shape or not np.allclose(view_a.K, view_b.K, rtol=1e-6,
+                                                           atol=1e-6):
+            row["note"] = "refused: the two views have different intrinsics or sizes " \
+                          "(the two-view pipeline assumes one camera)"
+            return row
+        matches = _matches(view_a, view_b)
+        row["feature"] = matches.feature
+        try:
+            result = reconstruct_from_matches(matches.pts1, matches.pts2, view_a.K, settings)
+        except ReconstructionError as exc:
+            row["note"] = f"refused: {exc.reason}"
+            return row
+        err = relative_pose_error(result.R, result.t, *truth)
+        rotation_chi2, translation_chi2 = pose_error_chi2(result.R, result.t, *truth,
+                                                          result.pose_covariance)
+        row.update(rotation_deg=err.rotation_deg, translation_deg=err.translation_deg,
+                   rotation_sigma_deg=result.rotation_sigma_deg,
+                   translation_sigma_deg=result.translation_sigma_deg,
+                   rotation_chi2=rotation_chi2, translation_chi2=translation_chi2,
+                   inliers=result.num_inliers, points=len(result.points3d),
+                   focal_scale=result.focal_scale, flagged=not result.trusted,
+                   note="; ".join(result.warnings))
         return row
-    err = relative_pose_error(result.R, result.t,
-                              *relative_pose(data.cameras[a], data.cameras[b]))
-    row.update(rotation_deg=err.rotation_deg, translation_deg=err.translation_deg,
-               inliers=result.num_inliers, points=result.num_points,
-               focal_scale=result.focal_scale, flagged=not result.trusted,
-               note="; ".join(result.warnings))
-    return row
+    finally:  # the row's last column, whichever way it ends
+        row["seconds"] = time.perf_counter() - t0
 
 
-def _evaluate_pair_no_calib(data: _Views, a: int, b: int, settings: TwoViewSettings) -> dict:
+def _evaluate_pair_no_calib(name: str, view_a: _View, view_b: _View,
+                            truth: tuple[np.ndarray, np.ndarray],
+                            settings: TwoViewSettings) -> dict:
     """One row without the camera files' intrinsics: the pair self-calibrates its focal length
     from its photos' EXIF or the default prior (:mod:`scene3D.selfcalibration`), and
-    ``focal_scale`` is the focal length found over the camera file's."""
-    from ..exif import read_camera_prior
+    ``focal_scale`` is the focal length found over the camera file's (a task: see
+    :func:`evaluate_pairs`)."""
+    from ..intrinsics_prior import camera_prior
     from ..selfcalibration import self_calibrate_pair
 
-    row = {"pair": f"{data.paths[a].name}-{data.paths[b].name}", "width": 0, "feature": "",
+    t0 = time.perf_counter()
+    row = {"pair": name, "width": view_a.shape[1], "feature": "",
            "rotation_deg": np.inf, "translation_deg": np.inf, "inliers": 0, "points": 0,
+           "rotation_sigma_deg": np.nan, "translation_sigma_deg": np.nan,
+           "rotation_chi2": np.nan, "translation_chi2": np.nan,
            "focal_scale": np.nan, "flagged": True, "note": "", "focal_error": np.nan,
            "calibration_source": ""}
-    img_a, K_a = data.image(a)
-    row["width"] = img_a.shape[1]
     try:
-        prior = read_camera_prior([data.paths[a], data.paths[b]])
-    except ValueError as exc:
-        row["note"] = f"refused: {exc}"
+        try:
+            prior = camera_prior([view_a.photo, view_b.photo])
+        except ValueError as exc:
+            row["note"] = f"refused: {exc}"
+            return row
+        for message in prior.warnings:
+            logger.warning("%s", message)
+        levels = round(math.log2(prior.image_size[0] / view_a.shape[1]))
+        matches = _matches(view_a, view_b)
+        row["feature"] = matches.feature
+        try:
+            calibration = self_calibrate_pair(matches.pts1, matches.pts2,
+                                              scale_intrinsics_halved(prior.K, levels),
+                                              prior.sigma_log, prior.source, settings)
+        except ReconstructionError as exc:
+            row["note"] = f"refused: {exc.reason}"
+            return row
+        result = calibration.geometry
+        err = relative_pose_error(result.R, result.t, *truth)
+        rotation_chi2, translation_chi2 = pose_error_chi2(result.R, result.t, *truth,
+                                                          result.pose_covariance)
+        scale = calibration.focal_px / math.sqrt(view_a.K[0, 0] * view_a.K[1, 1])
+        row.update(rotation_sigma_deg=result.rotation_sigma_deg,
+                   translation_sigma_deg=result.translation_sigma_deg,
+                   rotation_chi2=rotation_chi2, translation_chi2=translation_chi2)
+        row.update(rotation_deg=err.rotation_deg, translation_deg=err.translation_deg,
+                   inliers=result.num_inliers, points=len(result.points3d), focal_scale=scale,
+                   flagged=not calibration.trusted, focal_error=scale - 1.0,
+                   calibration_source=calibration.source,
+                   note="; ".join(calibration.warnings + result.warnings))
         return row
-    levels = round(math.log2(prior.image_size[0] / img_a.shape[1]))
-    matches = data.matches(a, b)
-    row["feature"] = matches.feature
-    try:
-        calibration = self_calibrate_pair(matches.pts1, matches.pts2,
-                                          scale_intrinsics_halved(prior.K, levels),
-                                          prior.sigma_log, prior.source, settings)
-    except ReconstructionError as exc:
-        row["note"] = f"refused: {exc.reason}"
-        return row
-    result = calibration.geometry
-    err = relative_pose_error(result.R, result.t,
-                              *relative_pose(data.cameras[a], data.cameras[b]))
-    scale = calibration.focal_px / math.sqrt(K_a[0, 0] * K_a[1, 1])
-    row.update(rotation_deg=err.rotation_deg, translation_deg=err.translation_deg,
-               inliers=result.num_inliers, points=len(result.points3d), focal_scale=scale,
-               flagged=not calibration.trusted, focal_error=scale - 1.0,
-               calibration_source=calibration.source,
-               note="; ".join(calibration.warnings + result.warnings))
-    return row
+    finally:  # the row's last column, whichever way it ends
+        row["seconds"] = time.perf_counter() - t0
+
+
+def evaluate_pairs(engine: Engine, images: list[Path], cameras: list[StrechaCamera],
+                   pairs: list[tuple[int, int]], max_width: int | None, feature: str,
+                   settings: TwoViewSettings, progress: Progress | None = None,
+                   no_calib: bool = False) -> Iterator[dict]:
+    """The rows of the table, in the order of ``pairs``, computed by ``engine``.
+
+    Each view used by a pair is one task (its working image and features), each
+    pair another (matching, two-view reconstruction or self-calibration with
+    ``no_calib``, errors against the truth); the pairs take their views as shared
+    handles, so a view's features travel to a worker once, not with every pair.
+    """
+    used = sorted({i for pair in pairs for i in pair})
+    views = engine.map(_load_view, [(images[i], cameras[i].K, cameras[i].dist, max_width,
+                                     feature, no_calib) for i in used],
+                       label="views", progress=progress)
+    shared = {i: engine.share(view) for i, view in zip(used, views)}
+    rows = engine.map(_evaluate_pair_no_calib if no_calib else _evaluate_pair,
+                      [(f"{images[a].name}-{images[b].name}", shared[a], shared[b],
+                        relative_pose(cameras[a], cameras[b]), settings) for a, b in pairs],
+                      label="pairs", progress=progress)
+    del shared, views  # a view is kept (here or on the cluster) while a pair needs it
+    yield from rows
 
 
 def _focal_summary(rows: list[dict]) -> str:
@@ -254,35 +328,36 @@ def run(args: argparse.Namespace) -> int:
     views = _views(args.dataset)
     pairs = _pairs(args.pairs, len(views))
     cameras = [read_strecha_camera(cam) for _, cam in views]
-    data = _Views(views, cameras, None if args.no_pyr_down else args.max_width,
-                  normalize_feature_mode(args.feature), pairs, args.no_calib)
-    evaluate_pair = _evaluate_pair_no_calib if args.no_calib else _evaluate_pair
-    settings = TwoViewSettings(bundle_adjust=args.bundle_adjust)
     rows = []
-    for k, (a, b) in enumerate(pairs):
-        t0 = time.perf_counter()
-        row = evaluate_pair(data, a, b, settings)
-        data.done(k)
-        row["seconds"] = time.perf_counter() - t0
-        rows.append(row)
-        if not args.quiet:
-            print(f"{row['pair']}: rot {row['rotation_deg']:.3f} deg, t-dir "
-                  f"{row['translation_deg']:.3f} deg, {row['inliers']} inliers, "
-                  f"{row['seconds']:.2f} s {row['note']}", file=sys.stderr)
+    with open_engine(args) as engine:
+        for row in evaluate_pairs(engine, [image for image, _ in views], cameras, pairs,
+                                  None if args.no_pyr_down else args.max_width,
+                                  normalize_feature_mode(args.feature),
+                                  TwoViewSettings(bundle_adjust=args.bundle_adjust),
+                                  no_calib=args.no_calib):
+            rows.append(row)
+            if not args.quiet:
+                print(f"{row['pair']}: rot {row['rotation_deg']:.3f} deg, t-dir "
+                      f"{row['translation_deg']:.3f} deg, {row['inliers']} inliers, "
+                      f"{row['seconds']:.2f} s {row['note']}", file=sys.stderr)
     fitted = [r["focal_scale"] for r in rows if np.isfinite(r["focal_scale"])]
     stats = summarize_pose_errors([r["rotation_deg"] for r in rows],
                                   [r["translation_deg"] for r in rows],
                                   [r["flagged"] for r in rows])
+    calibration = sigma_calibration([r["rotation_chi2"] for r in rows],
+                                    [r["translation_chi2"] for r in rows])
     widths = "/".join(str(w) for w in sorted({r["width"] for r in rows}))
     # The detector that ran (SIFT when SURF is not in this OpenCV build).
     feature = "/".join(sorted({r["feature"] for r in rows if r["feature"]})) or args.feature
-    print("| pair | rotation err (deg) | t-dir err (deg) | inliers | points | focal fit | "
-          "trusted | s | note |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| pair | rotation err (deg) | t-dir err (deg) | rotation sigma (deg) | "
+          "t-dir sigma (deg) | inliers | points | focal fit | trusted | s | note |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         focal = f"{r['focal_scale']:.3f}" if np.isfinite(r["focal_scale"]) else "-"
+        sigmas = [f"{r[k]:.3f}" if np.isfinite(r[k]) else "-"
+                  for k in ("rotation_sigma_deg", "translation_sigma_deg")]
         print(f"| {r['pair']} | {r['rotation_deg']:.3f} | {r['translation_deg']:.3f} | "
-              f"{r['inliers']} | {r['points']} | {focal} | "
+              f"{sigmas[0]} | {sigmas[1]} | {r['inliers']} | {r['points']} | {focal} | "
               f"{'no' if r['flagged'] else 'yes'} | {r['seconds']:.2f} | {r['note']} |")
     print(f"\n{len(rows)} pair{'s' * (len(rows) != 1)} at {widths} px, {feature}: median rotation "
           f"{stats['median_rotation_deg']:.3f} deg (p90 {stats['p90_rotation_deg']:.3f}), "
@@ -292,6 +367,15 @@ def run(args: argparse.Namespace) -> int:
           f"flagged {int(stats['flagged'])}, wrong and unflagged {int(stats['wrong_unflagged'])}"
           + (f"; the matches' focal length: median {float(np.median(fitted)):.3f} times the "
              "calibration's" if fitted else ""))
+    print(f"Trust: {int(stats['right_flagged'])} right poses (< 1 deg) flagged; "
+          f"{int(stats['off2_flagged'])} of {int(stats['off2'])} poses more than 2 deg off (or "
+          f"refused) flagged; {int(stats['wrong_unflagged'])} more than 5 deg off not flagged.")
+    if calibration["pairs"]:
+        print(f"Sigma calibration: {calibration['rotation_within90']:.0%} of the rotation errors "
+              f"and {calibration['translation_within90']:.0%} of the translation-direction "
+              f"errors within their predicted 90 % bounds ({int(calibration['pairs'])} poses; "
+              "about 90 % when the sigmas are right, less when the camera files' own error "
+              "is comparable to them)")
     if args.no_calib:
         print(_focal_summary(rows))
     if args.csv is not None:

@@ -31,10 +31,12 @@ from .common import (
     EXIT_OK,
     UsageError,
     add_common_args,
+    add_engine_args,
     add_feature_arg,
     add_size_args,
     check_distinct_images,
     check_report_viewer,
+    open_engine,
     positive_int,
     prepare_output_dir,
     run_command,
@@ -92,6 +94,7 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
     parser.add_argument("--no-report", action="store_true",
                         help="skip report.html (one self-contained page: the numbers, the "
                              "figure and an interactive 3D view of the points and cameras)")
+    add_engine_args(parser)
     add_common_args(parser)
     return parser
 
@@ -202,13 +205,14 @@ def run(args: argparse.Namespace) -> int:
             print(message, file=sys.stderr)
 
     names = [p.name for p in paths]
-    recon = reconstruct_views(
-        paths, K_native, camera.dist,
-        max_width=None if args.no_pyr_down else args.max_width, names=names,
-        feature=args.feature, pairs=args.pairs,
-        settings=SfMSettings(neighbours=args.neighbours,
-                             retrieval_neighbours=args.retrieval_neighbours),
-        progress=progress)
+    with open_engine(args) as engine:
+        recon = reconstruct_views(
+            paths, K_native, camera.dist,
+            max_width=None if args.no_pyr_down else args.max_width, names=names,
+            feature=args.feature, pairs=args.pairs,
+            settings=SfMSettings(neighbours=args.neighbours,
+                                 retrieval_neighbours=args.retrieval_neighbours),
+            progress=progress, engine=engine)
     timings = {k: v for k, v in recon.timings_s.items() if k != "total"}
     models = []
     written: list[Path] = []

@@ -7,6 +7,9 @@ and bundle adjustment stay with the caller. The geometry never imports an engine
 library: it receives an :class:`Engine` and calls :meth:`Engine.map`.
 
 - :class:`LocalEngine` (the default): in this process, one task after the other.
+- :class:`scene3D.engines.dask_engine.DaskEngine`: tasks on the workers of a Dask
+  cluster, or of worker processes it starts on this machine (the optional extra
+  ``distributed``).
 
 An engine for a cluster lives in its own module and imports its library only when
 it is built, so that a missing optional extra is a one-line error at the command,

@@ -1,0 +1,446 @@
+"""The Dask engine: independent tasks on the workers of a ``dask.distributed`` cluster.
+
+:class:`DaskEngine` implements :class:`scene3D.engines.Engine` with a
+``distributed.Client``: :meth:`~DaskEngine.map` submits one task per argument
+tuple, reports progress as tasks finish and yields the results in the order of
+the arguments; :meth:`~DaskEngine.share` leaves a value on the cluster for later
+tasks. Dask (the optional extra ``distributed``) is imported when an engine is
+built, never when this module is imported, and the geometry never imports it.
+
+Workers
+    Every worker needs scene3D installed (tasks name module-level functions of
+    scene3D, which the workers import). A task runs on one core: the engine sets
+    ``cv2.setNumThreads(1)`` on the workers, and the Dask nanny starts workers
+    with one BLAS thread, so start one single-threaded worker process per core
+    (``dask worker ADDRESS --nworkers N --nthreads 1``; :meth:`DaskEngine.local`
+    does the same on this machine).
+
+Files
+    A task argument that is a :class:`pathlib.Path` is a file the task reads.
+    The engine makes it absolute (a worker's working folder is not the
+    client's) and, before the first task that names it, asks every worker for
+    the file's size (``files="auto"``, the default). Workers that all see it
+    with the client's size (a shared filesystem, or one machine) get the path;
+    otherwise the client reads the file and sends its bytes with the task, and
+    the worker hands the task a temporary copy under the same name. A file
+    that the client cannot read either is left to the workers (it may exist on
+    the cluster only). ``files="shared"`` always sends paths, ``files="send"``
+    always bytes. A file a worker cannot read raises the task's ``OSError``
+    naming the file and the worker.
+
+Failures
+    A worker that dies (killed, out of memory, its machine gone) takes its
+    running tasks and the results it held with it. The scheduler runs those
+    tasks again on the other workers, and recomputes lost results that later
+    tasks still need: :meth:`~DaskEngine.share` hands on the task that made a
+    :meth:`~DaskEngine.map` result, and sends any other value as a task that
+    returns it (the scheduler keeps it), never as scattered data, which would be
+    lost with its last worker. A task that
+    was running on ``distributed.scheduler.allowed-failures`` + 1 dying workers
+    (3 + 1 by default) is given up (:class:`scene3D.errors.EngineError`). An
+    exception raised by the task itself is not retried: the tasks are
+    deterministic, a second run would raise it again.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import socket
+import tempfile
+import uuid
+import weakref
+from collections import Counter
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import CancelledError
+from contextlib import nullcontext
+from dataclasses import dataclass
+from pathlib import Path, PurePath
+from typing import Any, Literal, TypeVar
+
+from ..errors import EngineError
+from . import Progress
+
+logger = logging.getLogger(__name__)
+
+R = TypeVar("R")
+
+FileMode = Literal["auto", "shared", "send"]
+
+#: How to get the extra, quoted by every error about a missing Dask.
+INSTALL_HINT = "pip install 'scene3D[distributed]' (dask.distributed)"
+
+
+class MissingExtraError(ImportError):
+    """``dask.distributed`` is not installed (the optional extra ``distributed``)."""
+
+
+def require_distributed() -> Any:
+    """The ``distributed`` module, or :class:`MissingExtraError` saying how to install it."""
+    try:
+        import distributed
+    except ImportError:
+        raise MissingExtraError(f"Dask is not installed: {INSTALL_HINT}") from None
+    return distributed
+
+
+# -- on the workers ---------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class _FileBytes:
+    """A file's content sent with a task, for a worker that cannot read the file itself."""
+
+    path: str
+    data: bytes
+
+
+_TASK_COUNTS: Counter[str] = Counter()  # tasks finished in this process, by engine/label
+_OPENCV_THREADS: list[int | None] = []  # the setting made in this process, once
+
+
+def _configure_process(opencv_threads: int | None) -> None:
+    if _OPENCV_THREADS == [opencv_threads]:
+        return
+    if opencv_threads is not None:
+        import cv2
+
+        cv2.setNumThreads(opencv_threads)
+    _OPENCV_THREADS[:] = [opencv_threads]
+
+
+def _worker_address() -> str:
+    try:
+        from distributed import get_worker
+
+        return get_worker().address
+    except (ImportError, ValueError):
+        return "this process"
+
+
+def _with_worker(exc: Exception, staged: dict[str, str]) -> Exception:
+    """``exc`` with the worker named (and staged copies named as the original files);
+    ``exc`` itself when its type takes more than a message."""
+    message = str(exc)
+    for copy, original in staged.items():
+        message = message.replace(copy, original)
+    try:
+        return type(exc)(f"{message} (on worker {_worker_address()})")
+    except TypeError:  # e.g. UnicodeDecodeError
+        return exc
+
+
+def _run_task(fn: Callable[..., R], tag: str, opencv_threads: int | None, *args: Any) -> R:
+    """Run ``fn(*args)`` on a worker: files staged, OpenCV's threads set, errors located."""
+    _configure_process(opencv_threads)
+    staged: dict[str, str] = {}
+    sends = any(isinstance(a, _FileBytes) for a in args)
+    with tempfile.TemporaryDirectory(prefix="scene3D-") if sends else nullcontext("") as folder:
+        real_args = []
+        for k, arg in enumerate(args):
+            if isinstance(arg, _FileBytes):
+                copy = Path(folder) / str(k) / PurePath(arg.path).name
+                copy.parent.mkdir()
+                copy.write_bytes(arg.data)
+                staged[str(copy)] = arg.path
+                arg = copy
+            real_args.append(arg)
+        try:
+            result = fn(*real_args)
+        except (OSError, ValueError) as exc:
+            if type(exc).__module__ != "builtins":  # a library's own error: left as it is
+                raise
+            located = _with_worker(exc, staged)
+            if located is exc:
+                raise
+            raise located from None
+    _TASK_COUNTS[tag] += 1
+    return result
+
+
+def _shared_value(value: Any) -> Any:
+    """The task of a value shared from the client: the value itself."""
+    return value
+
+
+def _file_sizes(paths: list[str]) -> list[int | None]:
+    """The size of each file as this process sees it (None: cannot read it)."""
+    sizes: list[int | None] = []
+    for path in paths:
+        try:
+            sizes.append(os.stat(path).st_size if os.access(path, os.R_OK) else None)
+        except OSError:
+            sizes.append(None)
+    return sizes
+
+
+def _task_counts(engine_id: str) -> dict[str, int]:
+    return {tag.split("/", 1)[1]: n for tag, n in _TASK_COUNTS.items()
+            if tag.startswith(engine_id + "/")}
+
+
+# -- on the client ----------------------------------------------------------------------
+
+class DaskEngine:
+    """Tasks on the workers of a Dask cluster (see the module docstring).
+
+    Parameters
+    ----------
+    client : distributed.Client
+        A connected client. Build one with :meth:`connect` (a scheduler's address)
+        or :meth:`local` (worker processes on this machine), or pass your own.
+    files : {"auto", "shared", "send"}
+        How :class:`pathlib.Path` arguments reach the workers: checked per file,
+        always as paths, or always as bytes.
+    opencv_threads : int or None
+        ``cv2.setNumThreads`` on the workers (default 1: a task is one core's
+        work); None leaves OpenCV's setting alone.
+    owns : bool
+        Close the client (and its local cluster) on :meth:`close`.
+    name : str, optional
+        How the engine is described (default: "dask" and the scheduler's address).
+
+    Examples
+    --------
+    >>> from scene3D.imageio import read_image_size
+    >>> with DaskEngine.connect("tcp://10.0.0.5:8786") as engine:   # doctest: +SKIP
+    ...     sizes = list(engine.map(read_image_size, [(p,) for p in paths], label="sizes"))
+    """
+
+    def __init__(self, client: Any, *, files: FileMode = "auto", opencv_threads: int | None = 1,
+                 owns: bool = False, name: str | None = None) -> None:
+        if files not in ("auto", "shared", "send"):
+            raise ValueError(f"`files` must be 'auto', 'shared' or 'send', got {files!r}")
+        self._client = client
+        self._files: FileMode = files
+        self._opencv_threads = opencv_threads
+        self._owns = owns
+        self.name = name or f"dask {client.scheduler.address}"
+        self._sent: dict[str, bool] = {}  # absolute path -> send bytes (True) or the path
+        self._origins: dict[int, tuple[weakref.ref, Any]] = {}  # id(result) -> its future
+        self._id = uuid.uuid4().hex
+
+    # -- building and closing -----------------------------------------------------------
+
+    @classmethod
+    def connect(cls, address: str, *, timeout_s: float = 10.0, wait_for_workers_s: float = 30.0,
+                **options: Any) -> DaskEngine:
+        """Connect to a running scheduler (``dask scheduler``) at ``address``.
+
+        Waits up to ``wait_for_workers_s`` for a first worker.
+
+        Raises
+        ------
+        MissingExtraError
+            Dask is not installed.
+        ValueError
+            ``address`` is not an address.
+        OSError
+            Nothing answers at ``address`` within ``timeout_s``, or no worker
+            joined in time.
+        """
+        distributed = require_distributed()
+        try:
+            scheme, _ = distributed.comm.parse_address(address)
+            host, port = distributed.comm.get_address_host_port(address)
+        except ValueError as exc:
+            raise ValueError(f"bad Dask scheduler address {address!r} ({exc}); expected "
+                             "such as tcp://10.0.0.5:8786") from None
+        if scheme == "tcp":  # a quick look first: nothing listening is said at once
+            try:
+                socket.create_connection((host, port), timeout=timeout_s).close()
+            except OSError as exc:
+                raise OSError(f"cannot connect to the Dask scheduler at {address!r}: "
+                              f"{exc.strerror or exc}") from None
+        try:
+            client = distributed.Client(address, timeout=f"{timeout_s}s",
+                                        set_as_default=False)
+        except (OSError, TimeoutError) as exc:
+            raise OSError(f"cannot connect to the Dask scheduler at {address!r}: "
+                          f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
+                          ) from None
+        try:
+            client.wait_for_workers(1, timeout=wait_for_workers_s)
+        except (OSError, TimeoutError):
+            client.close()
+            raise OSError(f"no worker joined the Dask scheduler at {address!r} within "
+                          f"{wait_for_workers_s:g} s (start one with 'dask worker {address}')"
+                          ) from None
+        engine = cls(client, owns=True, **options)
+        logger.debug("connected to %s", engine.describe())
+        return engine
+
+    @classmethod
+    def local(cls, workers: int, *, threads_per_worker: int = 1, **options: Any) -> DaskEngine:
+        """Start ``workers`` worker processes on this machine (a ``distributed.LocalCluster``
+        on 127.0.0.1; its web server on a free port, the workers' profiler off) and use
+        them."""
+        if workers < 1:
+            raise ValueError(f"`workers` must be at least 1, got {workers}")
+        distributed = require_distributed()
+        import dask
+
+        # Without a dashboard to show them, the workers' statistical profiles (a stack
+        # sample every 10 ms) are CPU spent for nothing: about 0.01 core per worker here.
+        with dask.config.set({"distributed.worker.profile.enabled": False}):
+            cluster = distributed.LocalCluster(
+                n_workers=workers, threads_per_worker=threads_per_worker, processes=True,
+                host="127.0.0.1", dashboard_address=":0", silence_logs=logging.ERROR)
+        try:
+            client = distributed.Client(cluster, set_as_default=False)
+        except BaseException:
+            cluster.close()
+            raise
+        engine = cls(client, owns=True,
+                     name=f"dask local ({workers} worker process{'es' * (workers > 1)})",
+                     **options)
+        logger.debug("started %s", engine.describe())
+        return engine
+
+    def close(self) -> None:
+        """Forget shared values; close the client and its cluster if this engine made them."""
+        self._origins.clear()
+        if self._owns:
+            cluster = self._client.cluster
+            self._client.close()
+            if cluster is not None:
+                cluster.close()
+
+    def __enter__(self) -> DaskEngine:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def client(self) -> Any:
+        """The ``distributed.Client``."""
+        return self._client
+
+    def workers(self) -> dict[str, int]:
+        """The workers now connected: ``{address: threads}``."""
+        return dict(self._client.nthreads())
+
+    def describe(self) -> str:
+        """The engine's name with its workers and threads."""
+        workers = self.workers()
+        return (f"{self.name}: {len(workers)} worker{'s' * (len(workers) != 1)}, "
+                f"{sum(workers.values())} thread{'s' * (sum(workers.values()) != 1)}")
+
+    def task_counts(self) -> dict[str, dict[str, int]]:
+        """Tasks of this engine finished by each connected worker process, by label:
+        ``{worker address: {label: count}}`` (a worker that died took its counts along)."""
+        return self._client.run(_task_counts, self._id)
+
+    # -- the Engine interface -----------------------------------------------------------
+
+    def map(self, fn: Callable[..., R], arguments: Iterable[tuple], *, label: str = "tasks",
+            progress: Progress | None = None) -> Iterator[R]:
+        """Submit ``fn(*a)`` for every tuple ``a`` now; yield the results in order.
+
+        ``progress(label, done, total)`` is called on this thread as tasks finish, in
+        any order. A task's exception is raised when its turn comes; the tasks not
+        yet yielded are then cancelled.
+        """
+        calls = [self._prepare(tuple(args)) for args in arguments]
+        token = uuid.uuid4().hex[:12]
+        tag = f"{self._id}/{label}"
+        futures = [self._client.submit(_run_task, fn, tag, self._opencv_threads, *args,
+                                       key=f"{label}-{token}-{i}", pure=False)
+                   for i, args in enumerate(calls)]
+        del calls
+        return self._results(futures, label, progress)
+
+    def share(self, value: Any) -> Any:
+        """A handle to ``value`` on the cluster, for later tasks' arguments.
+
+        A result of :meth:`map` is handed on as the task that made it (nothing is
+        sent, and a worker's death only means that the task runs again). Any other
+        value (a map result's part, or one built on the client) is sent once, as a
+        task that returns it: the scheduler keeps it, so that it too can be made
+        again after a worker's death. Shared values are taken as immutable.
+        """
+        origin = self._origins.get(id(value))
+        if origin is not None and origin[0]() is value:
+            return origin[1]
+        # A task that returns the value, rather than scatter(): the scheduler keeps the
+        # task and runs it again if the worker holding the value dies, where scattered
+        # data would be lost with its last worker.
+        return self._client.submit(_shared_value, value, key=f"shared-{uuid.uuid4().hex}",
+                                   pure=False)
+
+    # -- internals ----------------------------------------------------------------------
+
+    def _results(self, futures: list[Any], label: str, progress: Progress | None
+                 ) -> Iterator[Any]:
+        distributed = require_distributed()
+        total = len(futures)
+        position = {future.key: i for i, future in enumerate(futures)}
+        finished = [False] * total
+        done = upcoming = 0
+        try:
+            for future in distributed.as_completed(futures, loop=self._client.loop):
+                finished[position[future.key]] = True
+                done += 1
+                if progress is not None:
+                    progress(label, done, total)
+                while upcoming < total and finished[upcoming]:
+                    value = self._result(futures[upcoming], label, upcoming)
+                    self._remember(value, futures[upcoming])
+                    futures[upcoming] = None
+                    upcoming += 1
+                    yield value
+        finally:
+            left = [f for f in futures if f is not None and not f.done()]
+            if left and self._client.status == "running":
+                self._client.cancel(left)
+
+    def _result(self, future: Any, label: str, index: int) -> Any:
+        distributed = require_distributed()
+        try:
+            return future.result()
+        except distributed.KilledWorker as exc:
+            deaths = exc.allowed_failures + 1
+            raise EngineError(f"{label} task {index} was given up: the worker running it died "
+                              f"{deaths} time{'s' * (deaths > 1)} (the last: "
+                              f"{exc.last_worker.address})") from None
+        except CancelledError as exc:  # distributed's FutureCancelledError and older ones
+            raise EngineError(f"{label} task {index} was cancelled: {exc}") from None
+
+    def _remember(self, value: Any, future: Any) -> None:
+        """Keep ``future`` as the handle of ``value`` while the caller keeps ``value``."""
+        try:
+            ref = weakref.ref(value)
+        except TypeError:  # e.g. a tuple: shared by scattering it
+            return
+        key = id(value)
+        self._origins[key] = (ref, future)
+        weakref.finalize(value, self._origins.pop, key, None)
+
+    def _prepare(self, args: tuple) -> tuple:
+        """Path arguments as absolute paths, or as bytes for workers that cannot read them."""
+        paths = [str(Path(a).absolute()) for a in args if isinstance(a, PurePath)]
+        unknown = [p for p in dict.fromkeys(paths) if p not in self._sent]
+        if unknown:
+            self._decide(unknown)
+        prepared = []
+        for arg in args:
+            if isinstance(arg, PurePath):
+                path = str(Path(arg).absolute())
+                arg = _FileBytes(path, Path(path).read_bytes()) if self._sent[path] \
+                    else Path(path)
+            prepared.append(arg)
+        return tuple(prepared)
+
+    def _decide(self, paths: list[str]) -> None:
+        """Whether each file goes to the workers as its path or as its bytes."""
+        if self._files != "auto":
+            self._sent.update(dict.fromkeys(paths, self._files == "send"))
+            return
+        here = _file_sizes(paths)
+        there = self._client.run(_file_sizes, paths)
+        for k, path in enumerate(paths):
+            blind = sorted(w for w, sizes in there.items() if sizes[k] != here[k])
+            self._sent[path] = here[k] is not None and bool(blind)
+            if self._sent[path]:
+                logger.info("'%s': sent to the workers as bytes (%s cannot read it as "
+                            "this machine does)", path, ", ".join(blind))
