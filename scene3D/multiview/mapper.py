@@ -26,6 +26,7 @@ exactly the nodes with a point, and ``track_point[k]`` is the point of track ``k
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from collections.abc import Callable, Sequence
@@ -33,12 +34,19 @@ from collections.abc import Callable, Sequence
 import cv2
 import numpy as np
 
-from ..bundle import Observations, bundle_adjust, reprojection_residuals
+from ..bundle import Observations, bundle_adjust, bundle_adjust_focal, reprojection_residuals
 from ..errors import ReconstructionError
 from ..geometry import FloatArray, camera_centers
 from ..twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
 from .checks import check_model
-from .models import ModelCheck, PairMatches, SfMModel, SfMSettings, ViewFeatures
+from .focal import (
+    FocalSettings,
+    focal_estimate,
+    longer_side_px,
+    prior_intrinsics,
+    self_calibrated_start,
+)
+from .models import FocalEstimate, ModelCheck, PairMatches, SfMModel, SfMSettings, ViewFeatures
 from .points import max_parallax_deg, observation_errors, refine_points, triangulate_groups
 from .tracks import Tracks, build_tracks, connected_components
 
@@ -54,8 +62,10 @@ class _Model:
 
     def __init__(self, features: Sequence[ViewFeatures], pairs: list[PairMatches],
                  K: FloatArray, settings: SfMSettings, allowed: np.ndarray,
-                 timings: dict[str, float]) -> None:
+                 timings: dict[str, float], focal: FocalSettings | None = None) -> None:
         self.features, self.K, self.s, self.timings = features, K, settings, timings
+        self.focal = focal  # photos without a calibration: global adjustments refine f
+        self.focal_adjustment = None  # the last one's scene3D.bundle.FocalAdjustment
         self.allowed = allowed
         self.pairs = [p for p in pairs if allowed[p.i] and allowed[p.j]]
         V = len(features)
@@ -275,13 +285,15 @@ class _Model:
         return use[local]
 
     def _adjust(self, nodes: np.ndarray, fixed: np.ndarray, max_iterations: int,
-                tolerance: float, anchors: np.ndarray | None = None) -> None:
+                tolerance: float, anchors: np.ndarray | None = None,
+                refine_focal: bool = False) -> None:
         """Bundle-adjust the points observed at ``nodes`` (all their observations) that
         :meth:`adjustment_nodes` admits and the views observing them but ``fixed``
         (only the observations of free views and of the fixed ``anchors``, when
         given); then the other points follow the cameras (a 3x3 refinement each), and
         observations among ``nodes`` that reproject badly or lie behind a camera are
-        dropped."""
+        dropped. With ``refine_focal`` the one focal length is adjusted too (``self.K``
+        changes; :mod:`scene3D.multiview.focal`)."""
         t0 = time.perf_counter()
         admitted = self.adjustment_nodes(nodes)
         if anchors is not None:
@@ -297,8 +309,17 @@ class _Model:
         if len(inside):
             local = np.searchsorted(point_ids, self.node_point[inside])
             obs = Observations(self.node_view[inside], local, self.xy[inside])
-            R, t, X = bundle_adjust(self.R, self.t, self.X[point_ids], obs, self.K, fixed,
-                                    max_iterations=max_iterations, tolerance=tolerance)
+            if refine_focal and self.focal is not None:
+                fa = bundle_adjust_focal(
+                    self.R, self.t, self.X[point_ids], obs, self.K, fixed,
+                    self.focal.prior_focal_px, self.focal.prior_sigma_log,
+                    max_iterations=max_iterations, tolerance=tolerance,
+                    principal_point_shift_px=self.focal.principal_point_sigma
+                    * longer_side_px(self.K))
+                R, t, X, self.K, self.focal_adjustment = fa.R, fa.t, fa.points3d, fa.K, fa
+            else:
+                R, t, X = bundle_adjust(self.R, self.t, self.X[point_ids], obs, self.K, fixed,
+                                        max_iterations=max_iterations, tolerance=tolerance)
             free = np.setdiff1d(np.unique(obs.view), fixed)
             self.R[free], self.t[free] = R[free], t[free]
             self.X[point_ids] = X
@@ -345,8 +366,10 @@ class _Model:
 
     def adjust_global(self, max_iterations: int, tolerance: float = 1e-5) -> None:
         nodes = np.flatnonzero(self.node_point >= 0)
+        refine = self.focal is not None and self.registered.sum() >= self.focal.min_views
         if len(nodes):
-            self._adjust(nodes, np.array([self._fixed_view()]), max_iterations, tolerance)
+            self._adjust(nodes, np.array([self._fixed_view()]), max_iterations, tolerance,
+                         refine_focal=refine)
 
     def retriangulate(self) -> None:
         self.complete_tracks()
@@ -357,7 +380,7 @@ class _Model:
         return check_model(self.registered, self.R, self.t, self.pairs, self.features, self.K,
                            self.s.consistency_px, self._fixed_view())
 
-    def result(self, check: ModelCheck) -> SfMModel:
+    def result(self, check: ModelCheck, focal: FocalEstimate | None = None) -> SfMModel:
         self.compact()
         nodes, obs = self.observations()
         colors = np.zeros((len(self.X), 3), np.uint8)
@@ -366,7 +389,7 @@ class _Model:
         res = reprojection_residuals(self.R, self.t, self.X, obs, self.K)
         rmse = float(np.sqrt(np.mean(res**2))) if len(res) else float("nan")
         return SfMModel(self.registered.copy(), self.R.copy(), self.t.copy(), self.X.copy(),
-                        colors, obs, rmse, check)
+                        colors, obs, rmse, check, None if focal is None else self.K.copy(), focal)
 
 
 def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches], K: FloatArray,
@@ -402,14 +425,19 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
                settings: SfMSettings, allowed: np.ndarray, start: tuple[PairMatches,
                                                                            TwoViewGeometry],
                more_pairs: MorePairs | None, say: Callable[[str], None],
-               timings: dict[str, float], names: Sequence[str]
+               timings: dict[str, float], names: Sequence[str],
+               focal: FocalSettings | None = None, focal_start: FocalEstimate | None = None,
                ) -> tuple[SfMModel, dict[int, str]]:
     """Grow one model from its initial pair over the ``allowed`` views (steps 2-5).
+
+    With ``focal`` (photos without a calibration; ``focal_start`` says where ``K``'s
+    focal length comes from) the global adjustments refine it
+    (:mod:`scene3D.multiview.focal`).
 
     Returns the model and, for the allowed views left out, why.
     """
     s = settings
-    model = _Model(features, pairs, K, s, allowed, timings)
+    model = _Model(features, pairs, K, s, allowed, timings, focal)
     pair, r = start
     model.reference = pair.i
     model.R[pair.i], model.t[pair.i] = np.eye(3), np.zeros(3)
@@ -495,7 +523,16 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
         t0 = time.perf_counter()
         check = model.check()
         timings["checks"] += time.perf_counter() - t0
-    return model.result(check), reasons
+    estimate = focal_start
+    if focal is not None and focal_start is not None and model.focal_adjustment is not None:
+        estimate = focal_estimate(model.focal_adjustment, focal, focal_start)
+        if not estimate.determined:  # keep the prior's focal length, adjusted under it
+            say(estimate.warnings[0])
+            model.focal, model.K = None, prior_intrinsics(model.K, focal)
+            model.adjust_global(max_iterations=30, tolerance=1e-8)
+            model.retriangulate()
+            check = model.check()
+    return model.result(check, estimate), reasons
 
 
 def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches],
@@ -503,8 +540,15 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
                        more_pairs: MorePairs | None = None,
                        progress: Callable[[str], None] | None = None,
                        names: Sequence[str] | None = None,
+                       focal: FocalSettings | None = None,
                        ) -> tuple[list[SfMModel], dict[int, str], dict[str, float]]:
     """Steps 1-6 on verified pairs: every model the views allow, largest first.
+
+    ``K`` is the calibration's; with ``focal`` (photos without a calibration) it is the
+    prior's, the first model's start pair is self-calibrated and every model refines one
+    focal length in its global adjustments; a further model starts from the previous
+    one's (:mod:`scene3D.multiview.focal`). Each model's ``K`` and ``focal`` say what it
+    ended with.
 
     Returns
     -------
@@ -530,14 +574,28 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
     while remaining.sum() >= 2:
         t0 = time.perf_counter()
         inside = [p for p in pairs if remaining[p.i] and remaining[p.j]]
-        start = initial_pair(features, inside, K) if inside else "no verified pair left"
+        focal_start = None
+        if focal is not None and not models and inside:
+            start, K, focal_start = self_calibrated_start(features, inside, K, focal,
+                                                          initial_pair)
+            if not isinstance(start, str):
+                say(f"focal length {K[0, 0]:.1f} px to start with, from views "
+                    f"{names[start[0].i]} and {names[start[0].j]} ({focal_start.source})")
+        elif focal is not None and inside:
+            K = models[-1].K if models[-1].K is not None else K
+            focal_start = dataclasses.replace(models[-1].focal, start_focal_px=float(K[0, 0]),
+                                              start_pair=None)
+            start = initial_pair(features, inside, K)
+        else:
+            start = initial_pair(features, inside, K) if inside else "no verified pair left"
         timings["initialisation"] += time.perf_counter() - t0
         if isinstance(start, str):
             if not models:
                 raise ReconstructionError("no_initial_pair", start, verified_pairs=len(pairs))
             break
         model, left_out = grow_model(features, pairs, K, s, remaining.copy(), start,
-                                     more_pairs if not models else None, say, timings, names)
+                                     more_pairs if not models else None, say, timings, names,
+                                     focal, focal_start)
         if model.registered.sum() < s.min_model_views:
             break
         models.append(model)
