@@ -76,18 +76,18 @@ def test_schur_solve_with_a_global_unknown_equals_the_dense_solve():
     Rs, ts, X, obs = _orbit_observations(views=4, points=40)
     ids, point = np.unique(obs.point, return_inverse=True)
     obs = Observations(obs.view, point, obs.xy)
-    O, P = len(obs.view), len(ids)
-    J_camera = rng.normal(size=(O, 2, 6))
-    J_point = rng.normal(size=(O, 2, 3))
-    J_global = rng.normal(size=(O, 2, 1))
-    r = rng.normal(size=(O, 2))
+    n_obs, P = len(obs.view), len(ids)
+    J_camera = rng.normal(size=(n_obs, 2, 6))
+    J_point = rng.normal(size=(n_obs, 2, 3))
+    J_global = rng.normal(size=(n_obs, 2, 1))
+    r = rng.normal(size=(n_obs, 2))
     camera = obs.view - 1  # view 0 fixed: -1
     C = 3
     ne = normal_equations(J_camera, camera, J_point, obs.point, r, C, P, J_global)
     # Dense: columns = cameras (6 each), global, points (3 each).
     n = 6 * C + 1 + 3 * P
-    J = np.zeros((2 * O, n))
-    for o in range(O):
+    J = np.zeros((2 * n_obs, n))
+    for o in range(n_obs):
         rows = slice(2 * o, 2 * o + 2)
         if camera[o] >= 0:
             J[rows, 6 * camera[o]:6 * camera[o] + 6] = J_camera[o]
