@@ -380,7 +380,7 @@ class _Model:
         return check_model(self.registered, self.R, self.t, self.pairs, self.features, self.K,
                            self.s.consistency_px, self._fixed_view())
 
-    def result(self, check: ModelCheck, focal: FocalEstimate | None = None) -> SfMModel:
+    def result(self, check: ModelCheck) -> SfMModel:
         self.compact()
         nodes, obs = self.observations()
         colors = np.zeros((len(self.X), 3), np.uint8)
@@ -389,7 +389,7 @@ class _Model:
         res = reprojection_residuals(self.R, self.t, self.X, obs, self.K)
         rmse = float(np.sqrt(np.mean(res**2))) if len(res) else float("nan")
         return SfMModel(self.registered.copy(), self.R.copy(), self.t.copy(), self.X.copy(),
-                        colors, obs, rmse, check, None if focal is None else self.K.copy(), focal)
+                        colors, obs, rmse, check)
 
 
 def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches], K: FloatArray,
@@ -532,7 +532,10 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
             model.adjust_global(max_iterations=30, tolerance=1e-8)
             model.retriangulate()
             check = model.check()
-    return model.result(check, estimate), reasons
+    result = model.result(check)
+    if estimate is not None:
+        result = dataclasses.replace(result, K=model.K.copy(), focal=estimate)
+    return result, reasons
 
 
 def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches],
