@@ -170,3 +170,44 @@ def test_photos_of_two_cameras_are_refused(tmp_path, second, message):
     assert proc.returncode == 2 and message in proc.stderr, proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1 and "Traceback" not in proc.stderr
     assert not (tmp_path / "out" / "reconstruction.json").exists()
+
+
+@pytest.fixture(scope="module")
+def fountain_with_exif(fountain, tmp_path_factory):
+    """Five fountain views re-saved with a 35 mm-equivalent EXIF focal length: 32 mm (the
+    true 32.34 mm rounded, as the tag stores it) and 23 mm (29 % short, as a cropped copy
+    would carry)."""
+    folders = {}
+    for focal_35mm in (32, 23):
+        folder = tmp_path_factory.mktemp(f"exif{focal_35mm}")
+        exif = Image.Exif()
+        exif[ExifTags.Base.Make], exif[ExifTags.Base.Model] = "Canon", "EOS 5D"
+        exif.get_ifd(ExifTags.IFD.Exif)[ExifTags.Base.FocalLengthIn35mmFilm] = focal_35mm
+        for i in range(3, 8):
+            with Image.open(fountain / "images" / f"{i:04d}.jpg") as img:
+                img.save(folder / f"{i:04d}.jpg", quality=95, subsampling=0, exif=exif.tobytes())
+        folders[focal_35mm] = folder
+    return folders
+
+
+@pytest.mark.parametrize("focal_35mm, trusted", [(32, True), (23, False)])
+def test_an_exif_focal_length_is_refined_and_a_wrong_one_overruled(fountain, fountain_with_exif,
+                                                                    tmp_path, focal_35mm,
+                                                                    trusted):
+    out = tmp_path / "out"
+    proc = _run([fountain_with_exif[focal_35mm], "--max-width", "800", "--out", out,
+                 "--no-plots", "--no-report"])
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((out / "reconstruction.json").read_text())
+    assert summary["registered"] == 5 and summary["calibration_source"] == "exif+refined"
+    cal = summary["self_calibration"]
+    assert cal["camera"] == "Canon EOS 5D" and "FocalLengthIn35mmFilm" in cal["start"]
+    assert cal["prior_sigma_log"] == pytest.approx(0.03)
+    truth = read_strecha_camera(fountain / "gt_dense_cameras" / "0003.jpg.camera").K
+    f_true = math.sqrt(truth[0, 0] * truth[1, 1]) / 4  # 3072 -> 768
+    assert summary["image_size"] == [768, 512]
+    assert abs(summary["K"][0][0] / f_true - 1) < 0.01
+    assert cal["trusted"] is trusted
+    if not trusted:
+        assert any("times the EXIF one" in w for w in cal["warnings"])
+        assert "times the EXIF one" in proc.stderr and "untrusted" in proc.stdout
