@@ -23,13 +23,13 @@ K_TRUE = np.array([[520.0, 0, 329.0], [0, 520.0, 229.0], [0, 0, 1]])
 SIZE = (640, 480)
 
 
-def _orbit_views(noise_px, seed=0, views=10):
+def _orbit_views(noise_px, seed=0, views=8):
     """Points of a courtyard seen from :func:`scene3D.synthetic.orbit_poses` cameras, as
     keypoints in an order unrelated to the points, and every pair's true matches."""
     rng = np.random.default_rng(seed)
     Rs, ts = orbit_poses(2 * views)
     Rs, ts = Rs[:views], ts[:views]  # half an orbit: neighbours overlap
-    X = rng.uniform([-7, -4, -7], [7, 2, 7], (1500, 3))
+    X = rng.uniform([-7, -4, -7], [7, 2, 7], (1000, 3))
     features, ids = [], []
     for R, t in zip(Rs, ts):
         pix = project(X, K_TRUE, R, t)
