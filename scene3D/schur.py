@@ -108,11 +108,12 @@ def normal_equations(
     free = camera >= 0
     Jc, cam = J_camera[free], camera[free]
     r = residuals[:, :, None]
+    U, g_camera = _camera_sums(cam, Jc, residuals[free], num_cameras)
     ne = NormalEquations(
-        U=_sum_by(cam, _gram(Jc, Jc), num_cameras),
+        U=U,
         V=_sum_by(point, _gram(J_point, J_point), num_points),
         W=_gram(Jc, J_point[free]),
-        g_camera=_sum_by(cam, _gram(Jc, r[free])[:, :, 0], num_cameras),
+        g_camera=g_camera,
         g_point=_sum_by(point, _gram(J_point, r)[:, :, 0], num_points),
         camera=cam, point=point[free])
     if J_global is None:
@@ -123,6 +124,23 @@ def normal_equations(
         U_camera_global=_sum_by(cam, _gram(Jc, Jg[free]), num_cameras),
         W_global=_sum_by(point, _gram(Jg, J_point), num_points),
         g_global=_gram(Jg, r)[:, :, 0].sum(axis=0))
+
+
+def _camera_sums(camera: np.ndarray, J: FloatArray, residuals: FloatArray, num_cameras: int
+                 ) -> tuple[FloatArray, FloatArray]:
+    """``U = sum J[o]^T J[o]`` ``(C, c, c)`` and ``g = sum J[o]^T r[o]`` ``(C, c)`` by camera:
+    one matrix product per camera over its observations' rows stacked (a few hundred
+    cameras at most, thousands of rows each)."""
+    c = J.shape[2]
+    order = np.argsort(camera, kind="stable")
+    J, residuals = J[order].reshape(-1, c), residuals[order].reshape(-1)
+    bounds = 2 * np.searchsorted(camera[order], np.arange(num_cameras + 1))
+    U, g = np.zeros((num_cameras, c, c)), np.zeros((num_cameras, c))
+    for k in np.flatnonzero(np.diff(bounds)):
+        rows = J[bounds[k]:bounds[k + 1]]
+        U[k] = rows.T @ rows
+        g[k] = rows.T @ residuals[bounds[k]:bounds[k + 1]]
+    return U, g
 
 
 def _schur_product_dense(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
@@ -171,47 +189,45 @@ def pairs_within_groups(starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _schur_product_sparse(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
-                          num_cameras: int, chunk_pairs: int = 1 << 18) -> FloatArray:
-    """:func:`schur_product` for many cameras: one ``(c, 3) x (3, c)`` product per pair of
-    observations of the same point, summed into the camera blocks they connect.
+                          num_cameras: int) -> FloatArray:
+    """:func:`schur_product` for many cameras: one matrix product per pair of cameras that
+    share points, over the points they share.
 
-    ``Y[o] = W[o] V_p^-1`` with ``V_p`` symmetric (as in the Schur complement), so the
-    block of the pair ``(b, a)`` is the transpose of that of ``(a, b)``: only pairs with
-    ``a <= b`` are multiplied. The cost grows with the points times the square of their
-    track lengths, not with the square of the cameras.
+    A table ``(C, P)`` holds each camera's observation of each point (-1: none). For
+    camera ``a``, the observations by cameras ``b >= a`` of ``a``'s points are read
+    from it (grouped by ``b``), and the block ``(a, b)`` is ``sum Y[o_a] W[o_b]^T`` over
+    them, one ``(c, 3k) x (3k, c)`` product. ``Y[o] = W[o] V_p^-1`` with ``V_p``
+    symmetric (as in the Schur complement), so the block ``(b, a)`` is the transpose of
+    ``(a, b)``. The work grows with the points times the square of their track lengths,
+    not with the square of the cameras; no block per pair of observations is stored.
     """
     c = Y.shape[1]
     size = num_cameras * c
     if len(point) == 0:
         return np.zeros((size, size))
-    order = np.argsort(point, kind="stable")
-    cam, Y, W = camera[order], Y[order], W[order]
-    starts = np.flatnonzero(np.r_[True, np.diff(point[order]) != 0, True])
-    off = np.zeros((num_cameras * num_cameras, c, c))  # pairs a < b
-    diagonal = np.zeros((num_cameras, c, c))  # a == b
-    np.add.at(diagonal, cam, Y @ W.transpose(0, 2, 1))
-    # Chunks of whole points, each holding about chunk_pairs observation pairs.
-    groups = len(starts) - 1
-    total = np.cumsum(np.diff(starts) ** 2)
-    cuts = np.unique(np.r_[0, np.searchsorted(total, np.arange(chunk_pairs, total[-1],
-                                                               chunk_pairs)), groups])
-    for g0, g1 in zip(cuts[:-1], cuts[1:]):
-        a, b = pairs_within_groups(starts[g0:g1 + 1])
-        upper = a < b
-        a, b = a[upper], b[upper]
-        if len(a) == 0:
+    _, local = np.unique(point, return_inverse=True)
+    slot = np.full((num_cameras, int(local.max()) + 1), -1, dtype=np.int32 if len(point) < 2**31
+                   else np.int64)
+    slot[camera, local] = np.arange(len(point))
+    by_camera = np.argsort(camera, kind="stable")
+    starts = np.searchsorted(camera[by_camera], np.arange(num_cameras + 1))
+    Yt = np.ascontiguousarray(Y.transpose(0, 2, 1))  # (O, 3, c): rows of a (3k, c) stack
+    Wt = np.ascontiguousarray(W.transpose(0, 2, 1))
+    S = np.zeros((num_cameras, c, num_cameras, c))
+    for a in range(num_cameras):
+        mine = by_camera[starts[a]:starts[a + 1]]
+        if len(mine) == 0:
             continue
-        key = cam[a] * num_cameras + cam[b]
-        blocks = Y[a] @ W[b].transpose(0, 2, 1)
-        by_key = np.argsort(key, kind="stable")
-        key = key[by_key]
-        first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-        off[key[first]] += np.add.reduceat(blocks[by_key], first, axis=0)
-    S = off.reshape(num_cameras, num_cameras, c, c).transpose(0, 2, 1, 3).reshape(size, size)
-    S = S + S.T
-    for k in range(num_cameras):
-        S[k * c:(k + 1) * c, k * c:(k + 1) * c] += diagonal[k]
-    return S
+        theirs = slot[a:, local[mine]]  # (C - a, n_a): cameras b >= a on a's points
+        rows, cols = np.nonzero(theirs >= 0)  # grouped by b
+        Ya, Wb = Yt[mine[cols]], Wt[theirs[rows, cols]]
+        bounds = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1], True])
+        for lo, hi in zip(bounds[:-1], bounds[1:]):
+            S[a, :, a + rows[lo]] = Ya[lo:hi].reshape(-1, c).T @ Wb[lo:hi].reshape(-1, c)
+    diagonal = S[np.arange(num_cameras), :, np.arange(num_cameras)].copy()  # (C, c, c)
+    S += S.transpose(2, 3, 0, 1)
+    S[np.arange(num_cameras), :, np.arange(num_cameras)] -= diagonal
+    return S.reshape(size, size)
 
 
 #: Above this many camera unknowns the Schur product is summed over observation pairs.

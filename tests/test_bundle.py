@@ -68,12 +68,13 @@ def test_jacobians_match_finite_differences():
         np.testing.assert_allclose((r - r0)[on] / eps, J_point[on, :, k], atol=1e-3)
 
 
-def test_schur_solve_with_a_global_unknown_equals_the_dense_solve():
-    """Cameras 1-3 free (0 fixed), the points, one global unknown: the step from the
-    reduced system equals the dense solve of the damped normal equations, and the
-    marginal information equals the dense one's."""
+@pytest.mark.parametrize("views, points", [(4, 40), (36, 120)])
+def test_schur_solve_with_a_global_unknown_equals_the_dense_solve(views, points):
+    """Every camera but 0 free, the points, one global unknown (4 views: the dense Schur
+    product; 36: the sparse one): the step from the reduced system equals the dense solve
+    of the damped normal equations, and the marginal information equals the dense one's."""
     rng = np.random.default_rng(1)
-    Rs, ts, X, obs = _orbit_observations(views=4, points=40)
+    Rs, ts, X, obs = _orbit_observations(views=views, points=points)
     ids, point = np.unique(obs.point, return_inverse=True)
     obs = Observations(obs.view, point, obs.xy)
     n_obs, P = len(obs.view), len(ids)
@@ -82,7 +83,7 @@ def test_schur_solve_with_a_global_unknown_equals_the_dense_solve():
     J_global = rng.normal(size=(n_obs, 2, 1))
     r = rng.normal(size=(n_obs, 2))
     camera = obs.view - 1  # view 0 fixed: -1
-    C = 3
+    C = views - 1
     ne = normal_equations(J_camera, camera, J_point, obs.point, r, C, P, J_global)
     # Dense: columns = cameras (6 each), global, points (3 each).
     n = 6 * C + 1 + 3 * P

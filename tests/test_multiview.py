@@ -223,8 +223,12 @@ def test_schur_product_sparse_equals_dense():
     W = rng.normal(size=(len(camera), 6, 3))
     Y = W @ V_inv[point]
     dense = _schur_product_dense(Y, W, camera, point, 30)
-    np.testing.assert_allclose(_schur_product_sparse(Y, W, camera, point, 30, chunk_pairs=500),
-                               dense, atol=1e-10)
+    np.testing.assert_allclose(_schur_product_sparse(Y, W, camera, point, 30), dense,
+                               atol=1e-10)
+    # Point numbers with gaps and cameras that see nothing (30 and 31) change nothing.
+    wider = _schur_product_sparse(Y, W, camera, 3 * point + 1, 32)
+    np.testing.assert_allclose(wider[:180, :180], dense, atol=1e-10)
+    assert not wider[180:].any() and not wider[:, 180:].any()
     # One point's contribution by hand: camera blocks (a, b) get Y_a W_b^T.
     obs = np.flatnonzero(point == 7)
     S = _schur_product_sparse(Y[obs], W[obs], camera[obs], point[obs], 30)
