@@ -52,7 +52,7 @@ def _orbit_views(noise_px, seed=0, views=8):
 @pytest.mark.parametrize("start", [1.3, 0.7])
 def test_synthetic_views_find_the_focal_length_from_30_percent_off(start):
     """The prior 30 % too long or too short (with the default prior's sigma): every view
-    registered, the focal length within 0.2 % of the truth (the principal point, 1.5-2 %
+    registered, the focal length within 0.5 % of the truth (the principal point, 1.5-2 %
     off the centre, is the model's error) and within its sigma's reach, the cameras
     close to the truth."""
     features, pairs, Rs, ts = _orbit_views(0.5)
@@ -64,7 +64,7 @@ def test_synthetic_views_find_the_focal_length_from_30_percent_off(start):
     assert model.focal.source == "prior+refined" and model.focal.determined
     assert model.focal.trusted and model.focal.prior_focal_px == 520.0 * start
     error = model.K[0, 0] / 520.0 - 1.0
-    assert abs(error) < 2e-3
+    assert abs(error) < 5e-3
     assert abs(math.log1p(error)) < 3 * model.focal.sigma_px / model.focal.focal_px
     assert model.K[0, 0] == model.K[1, 1] == model.focal.focal_px
     np.testing.assert_allclose(model.K[:2, 2], [319.5, 239.5])  # the centre, held

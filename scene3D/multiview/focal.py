@@ -7,11 +7,14 @@ length is found in two steps:
 1. **The start pair** (:func:`self_calibrated_start`). Under the prior's focal length
    (EXIF, or 1.2 times the longer side) no pair may look trustworthy: the two-view
    check sees that the matches call for another focal length. So the pair with most
-   verified matches is self-calibrated (:func:`scene3D.selfcalibration.self_calibrate_pair`),
-   the start pair is chosen under that focal length as with a calibration
+   verified matches is self-calibrated (:func:`scene3D.selfcalibration.self_calibrate_pair`;
+   when its photos do not determine the focal length or the result is untrusted, the
+   next, up to :attr:`FocalSettings.start_candidates` pairs, the surest kept), the
+   start pair is chosen under that focal length as with a calibration
    (:func:`scene3D.multiview.mapper.initial_pair`), and when it is another pair, that
    pair is self-calibrated too, from the first one's value; the mapping starts from
-   its focal length.
+   its focal length. When no pair is trusted under it, a self-calibrated pair whose
+   own geometry is trusted starts.
 2. **The bundle adjustments.** Every global adjustment of a model of three views or
    more refines one focal length shared by all views
    (:func:`scene3D.bundle.bundle_adjust_focal`: ``log f`` a global unknown, the
@@ -70,8 +73,9 @@ class FocalSettings:
         Global adjustments of models with fewer views hold the focal length (the start
         pair's self-calibration stands until then).
     start_candidates : int
-        Pairs with most verified matches among which the first self-calibrated pair is
-        taken (the first that self-calibrates).
+        At most this many pairs (those with most verified matches, in that order) are
+        self-calibrated for the start, until one determines its focal length and is
+        trusted.
     """
 
     prior_focal_px: float
@@ -129,19 +133,29 @@ def self_calibrated_start(
     """
     ranked = sorted(pairs, key=lambda p: (-p.num_inliers, p.i, p.j))
     K = np.asarray(K, np.float64)
-    calibration, pair = None, None
+    tried: list[tuple[PairMatches, SelfCalibration]] = []
     for candidate in ranked[:settings.start_candidates]:
         try:
-            calibration = _self_calibrate(features, candidate, K, settings)
+            tried.append((candidate, _self_calibrate(features, candidate, K, settings)))
         except ReconstructionError as exc:
             logger.debug("views %d-%d do not self-calibrate: %s", candidate.i, candidate.j, exc)
             continue
-        pair = candidate
-        break
+        if tried[-1][1].determined and tried[-1][1].trusted:
+            break
+    # The first pair that determines its focal length and is trusted; else the surest.
+    pair, calibration = min(tried, key=lambda pc: (not (pc[1].determined and pc[1].trusted),
+                                                   pc[1].data_sigma_log)) if tried else (None,
+                                                                                        None)
     K_start = K if calibration is None else calibration.K
     start = choose_start(features, pairs, K_start)
-    if not isinstance(start, str) and pair is not None and (start[0].i, start[0].j) != (
-            pair.i, pair.j):
+    if isinstance(start, str):
+        # No pair is trusted under that focal length: a self-calibrated pair whose own
+        # geometry is trusted (under its own focal length) can start.
+        for candidate, other in tried:
+            if other.geometry.trusted:
+                return ((candidate, other.geometry), other.K,
+                        start_estimate(other, settings, candidate))
+    elif pair is not None and (start[0].i, start[0].j) != (pair.i, pair.j):
         try:
             again = _self_calibrate(features, start[0], K_start, settings)
         except ReconstructionError:
