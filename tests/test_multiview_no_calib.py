@@ -225,3 +225,23 @@ def test_arrays_without_a_calibration_start_from_the_default_prior():
                      ["a", "b"])
     with pytest.raises(ValueError, match="`dist` needs `K`"):
         reconstruct_views([np.zeros((480, 640, 3), np.uint8)] * 2, None, np.zeros(5))
+
+
+def test_the_start_falls_back_on_a_pair_trusted_under_its_own_focal_length():
+    """When the mapper finds no trusted pair under the self-calibrated focal length, a
+    self-calibrated pair whose own geometry is trusted starts, with its focal length."""
+    from scene3D.multiview.focal import self_calibrated_start
+
+    features, pairs, _, _ = _orbit_views(0.5)
+    K0 = np.array([[676.0, 0, 319.5], [0, 676.0, 239.5], [0, 0, 1]])
+    settings = FocalSettings(676.0, 0.5, "prior")
+    start, K_start, estimate = self_calibrated_start(features, pairs, K0, settings,
+                                                     lambda *args: "no trusted pair")
+    pair, geometry = start
+    assert geometry.trusted and np.array_equal(geometry.K, K_start)
+    assert estimate.start_pair == (pair.i, pair.j) and estimate.source == "prior+refined"
+    assert K_start[0, 0] == estimate.focal_px == estimate.start_focal_px
+    # One pair, the principal point 1.5-2 % off the centre: within its sigma's reach.
+    assert abs(np.log(K_start[0, 0] / 520.0)) < 3 * estimate.sigma_px / estimate.focal_px
+    best = max(pairs, key=lambda p: p.num_inliers)
+    assert pair.num_inliers == best.num_inliers  # the first candidate, trusted
