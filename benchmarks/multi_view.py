@@ -2,6 +2,7 @@
 
     python benchmarks/multi_view.py [--scenes castle-P19 fountain-P11 Herz-Jesus-P8]
                                     [--orbit 50 100 200] [--no-shuffle] [--width 1536]
+                                    [--one-thread]
 
 Rows: each shared Strecha scene (``$SCENE3D_DATA``, default ../shared/data) under its own
 file names and under random ones (symlinks in a temporary folder, shuffled order), and a
@@ -11,11 +12,19 @@ every second and fourth). Each row runs in a fresh process, so that its peak mem
 (max RSS) is its own, with default options (``--pairs auto``). In that process the plain
 OpenCV SIFT extraction of the same images at the same size (``cv2.imread`` with the
 reduced decoding that gives the working size, ``cv2.SIFT_create().detectAndCompute``) is
-timed first, then ``reconstruct_views``; "x SIFT" is the second over the first.
+timed first, then ``reconstruct_views``; "x SIFT" is the second over the first, in wall
+time and in CPU seconds of the process (all its threads). ``--one-thread`` runs every row
+with one BLAS thread and one OpenCV thread (``OPENBLAS_NUM_THREADS=1``,
+``cv2.setNumThreads(1)``): the CPU ratio then compares the algorithms' work, which the
+load of a shared machine distorts less than wall time.
 
 Errors: registered cameras aligned to the truth by a similarity
 (``scene3D.evaluation.camera_set_error``), centres in % of the extent of the true
-centres, rotations in degrees, max / median. Prints a markdown table.
+centres, rotations in degrees, max / median. The rotation of that alignment comes from
+the camera orientations; the column "aligned by centres" repeats the errors with the
+whole similarity fitted to the centres (``align="centres"``), the alignment of COLMAP's
+model aligner and of the reference figures of issue #20 (see
+``benchmarks/multi_view_colmap.py``). Prints a markdown table.
 """
 
 from __future__ import annotations
@@ -38,20 +47,25 @@ from pathlib import Path  # noqa: E402
 ORBIT_VIEWS = 200
 
 
-def plain_sift_seconds(paths: list[Path], reduced: int) -> float:
-    """Plain OpenCV: read each image at the working size and extract its SIFT features."""
+def plain_sift_seconds(paths: list[Path], reduced: int) -> tuple[float, float]:
+    """Plain OpenCV: read each image at the working size and extract its SIFT features.
+    Returns the wall and the CPU seconds."""
     import cv2
 
     flag = {1: cv2.IMREAD_COLOR, 2: cv2.IMREAD_REDUCED_COLOR_2, 4: cv2.IMREAD_REDUCED_COLOR_4}
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for p in paths:
         img = cv2.imread(str(p), flag[reduced])
         cv2.SIFT_create().detectAndCompute(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), None)
-    return time.perf_counter() - t0
+    return time.perf_counter() - t0, time.process_time() - c0
 
 
 def measure(spec: dict) -> dict:
+    import cv2
     import numpy as np
+
+    if spec.get("one_thread"):
+        cv2.setNumThreads(1)
 
     from scene3D.datasets import default_data_root, read_strecha_camera
     from scene3D.evaluation import camera_set_error
@@ -88,12 +102,14 @@ def measure(spec: dict) -> dict:
                 link.symlink_to(paths[k])
                 shuffled.append(link)
             paths, R_true, C_true = shuffled, R_true[order], C_true[order]
-    plain = plain_sift_seconds(paths, reduced)
-    t0 = time.perf_counter()
+    plain, plain_cpu = plain_sift_seconds(paths, reduced)
+    t0, c0 = time.perf_counter(), time.process_time()
     r = reconstruct_views(paths, K, np.zeros(5), max_width=width)
-    total = time.perf_counter() - t0
+    total, total_cpu = time.perf_counter() - t0, time.process_time() - c0
     reg = np.flatnonzero(r.registered)
     err = camera_set_error(r.R[reg], r.centers[reg], R_true[reg], C_true[reg])
+    by_centres = camera_set_error(r.R[reg], r.centers[reg], R_true[reg], C_true[reg],
+                                  align="centres")
     timings = r.timings_s
     return {
         "views": len(paths), "registered": int(len(reg)), "models": len(r.models),
@@ -103,11 +119,16 @@ def measure(spec: dict) -> dict:
         "center_med": 100 * float(np.median(err.center_errors)),
         "rot_max": float(err.rotation_errors_deg.max()),
         "rot_med": float(np.median(err.rotation_errors_deg)),
+        "by_centres": (f"{100 * by_centres.center_errors.max():.3f} / "
+                       f"{100 * np.median(by_centres.center_errors):.3f} %, "
+                       f"{by_centres.rotation_errors_deg.max():.3f} / "
+                       f"{np.median(by_centres.rotation_errors_deg):.3f} deg"),
         "features": timings["features"], "retrieval": timings["retrieval"],
         "matching": timings["matching"],
         "mapping": timings["tracks"] + timings["initialisation"] + timings["registration"]
         + timings["checks"],
         "ba": timings["bundle_adjustment"], "total": total, "plain": plain,
+        "total_cpu": total_cpu, "plain_cpu": plain_cpu,
         "peak_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
     }
 
@@ -135,11 +156,17 @@ def main() -> int:
                         help="skip the runs under shuffled file names")
     parser.add_argument("--width", type=int, default=1536, choices=(768, 1536, 3072),
                         help="working width of the Strecha images (default 1536)")
+    parser.add_argument("--one-thread", action="store_true",
+                        help="one BLAS and one OpenCV thread in every row (CPU comparison)")
     parser.add_argument("--one", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.one:
         print(json.dumps(measure(json.loads(args.one))))
         return 0
+    load = os.getloadavg()[0]
+    env = dict(os.environ)
+    if args.one_thread:
+        env["OPENBLAS_NUM_THREADS"] = "1"
     specs = []
     for scene in args.scenes:
         specs.append({"kind": "scene", "scene": scene, "width": args.width,
@@ -159,11 +186,13 @@ def main() -> int:
             specs.append({"kind": "orbit", "views": n, "folder": tmp, "label": f"orbit {n}"})
         print("| case | registered | models | check | pairs verified/matched | centre max / "
               "median (% extent) | rotation max / median (deg) | features s | retrieval s | "
-              "matching s | mapping s | BA s | total s | plain SIFT s | x SIFT | peak MiB |")
-        print("|---" * 16 + "|")
+              "matching s | mapping s | BA s | total s | plain SIFT s | x SIFT | total CPU s | "
+              "plain SIFT CPU s | x SIFT (CPU) | peak MiB | aligned by centres |")
+        print("|---" * 20 + "|")
         for spec in specs:
+            spec["one_thread"] = args.one_thread
             out = subprocess.run([sys.executable, __file__, "--one", json.dumps(spec)],
-                                 capture_output=True, text=True)
+                                 capture_output=True, text=True, env=env)
             if out.returncode:
                 print(f"| {spec['label']} | failed: {out.stderr.strip().splitlines()[-1]} |")
                 continue
@@ -174,8 +203,13 @@ def main() -> int:
                   f"{r['rot_max']:.3f} / {r['rot_med']:.3f} | {r['features']:.1f} | "
                   f"{r['retrieval']:.1f} | {r['matching']:.1f} | {r['mapping']:.1f} | "
                   f"{r['ba']:.1f} | {r['total']:.1f} | {r['plain']:.1f} | "
-                  f"{r['total'] / r['plain']:.2f} | {r['peak_mib']:.0f} |", flush=True)
-    print(f"(Strecha scenes at {args.width} px, default options; {time.strftime('%Y-%m-%d')})")
+                  f"{r['total'] / r['plain']:.2f} | {r['total_cpu']:.1f} | "
+                  f"{r['plain_cpu']:.1f} | {r['total_cpu'] / r['plain_cpu']:.2f} | "
+                  f"{r['peak_mib']:.0f} | {r['by_centres']} |", flush=True)
+    threads = "one BLAS and OpenCV thread" if args.one_thread else "default threads"
+    print(f"(Strecha scenes at {args.width} px, default options, {threads}; "
+          f"{time.strftime('%Y-%m-%d')}, load average {load:.1f} at the start, "
+          f"{os.getloadavg()[0]:.1f} at the end)")
     return 0
 
 

@@ -13,10 +13,23 @@ with ``U`` block-diagonal over cameras and ``V`` block-diagonal over points
 section 6.1) leaves one ``(C c) x (C c)`` system for the cameras, then each
 point's step is a 3x3 solve: the cost grows linearly with the points (times the
 square of the cameras), not with the cube of all unknowns as a dense solve would.
+
+Global unknowns (``g`` of them, such as one focal length shared by every view) may
+join: every observation depends on them, fixed cameras' included, through
+``J_global[o]`` ``(2, g)``. They add one block row and column to the reduced system,
+outside the per-point blocks:
+
+    [ U    U_cg  W  ] [dc]     [g_c]
+    [ U_gc U_gg  W_g] [dg] = - [g_g]
+    [ W^T  W_g^T V  ] [dp]     [g_p]
+
+so eliminating the points leaves a ``(C c + g)`` system whose extra blocks are
+``U_cg - sum_p W_p V_p^-1 W_gp^T`` and ``U_gg - sum_p W_gp V_p^-1 W_gp^T``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,6 +54,11 @@ class NormalEquations:
     g_point : (P, 3)
     camera, point : (O',) int
         The camera and point of each block of ``W``.
+    U_global : (g, g) or None
+        Global unknowns (see the module docstring); None when there are none.
+    U_camera_global : (C, c, g) or None
+    W_global : (P, g, 3) or None
+    g_global : (g,) or None
     """
 
     U: FloatArray
@@ -50,6 +68,10 @@ class NormalEquations:
     g_point: FloatArray
     camera: np.ndarray
     point: np.ndarray
+    U_global: FloatArray | None = None
+    U_camera_global: FloatArray | None = None
+    W_global: FloatArray | None = None
+    g_global: FloatArray | None = None
 
 
 def _sum_by(index: np.ndarray, values: FloatArray, count: int) -> FloatArray:
@@ -69,6 +91,7 @@ def _gram(A: FloatArray, B: FloatArray) -> FloatArray:
 def normal_equations(
     J_camera: FloatArray, camera: np.ndarray, J_point: FloatArray, point: np.ndarray,
     residuals: FloatArray, num_cameras: int, num_points: int,
+    J_global: FloatArray | None = None,
 ) -> NormalEquations:
     """Accumulate the normal equations of row-scaled Jacobians and residuals.
 
@@ -79,17 +102,45 @@ def normal_equations(
     camera, point : (O,) int
     J_point : (O, 2, 3)
     residuals : (O, 2)
+    J_global : (O, 2, g), optional
+        Derivatives by the global unknowns (every observation, fixed cameras' too).
     """
     free = camera >= 0
     Jc, cam = J_camera[free], camera[free]
     r = residuals[:, :, None]
-    return NormalEquations(
-        U=_sum_by(cam, _gram(Jc, Jc), num_cameras),
+    U, g_camera = _camera_sums(cam, Jc, residuals[free], num_cameras)
+    ne = NormalEquations(
+        U=U,
         V=_sum_by(point, _gram(J_point, J_point), num_points),
         W=_gram(Jc, J_point[free]),
-        g_camera=_sum_by(cam, _gram(Jc, r[free])[:, :, 0], num_cameras),
+        g_camera=g_camera,
         g_point=_sum_by(point, _gram(J_point, r)[:, :, 0], num_points),
         camera=cam, point=point[free])
+    if J_global is None:
+        return ne
+    Jg = J_global
+    return dataclasses.replace(
+        ne, U_global=_gram(Jg, Jg).sum(axis=0),
+        U_camera_global=_sum_by(cam, _gram(Jc, Jg[free]), num_cameras),
+        W_global=_sum_by(point, _gram(Jg, J_point), num_points),
+        g_global=_gram(Jg, r)[:, :, 0].sum(axis=0))
+
+
+def _camera_sums(camera: np.ndarray, J: FloatArray, residuals: FloatArray, num_cameras: int
+                 ) -> tuple[FloatArray, FloatArray]:
+    """``U = sum J[o]^T J[o]`` ``(C, c, c)`` and ``g = sum J[o]^T r[o]`` ``(C, c)`` by camera:
+    one matrix product per camera over its observations' rows stacked (a few hundred
+    cameras at most, thousands of rows each)."""
+    c = J.shape[2]
+    order = np.argsort(camera, kind="stable")
+    J, residuals = J[order].reshape(-1, c), residuals[order].reshape(-1)
+    bounds = 2 * np.searchsorted(camera[order], np.arange(num_cameras + 1))
+    U, g = np.zeros((num_cameras, c, c)), np.zeros((num_cameras, c))
+    for k in np.flatnonzero(np.diff(bounds)):
+        rows = J[bounds[k]:bounds[k + 1]]
+        U[k] = rows.T @ rows
+        g[k] = rows.T @ residuals[bounds[k]:bounds[k + 1]]
+    return U, g
 
 
 def _schur_product_dense(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
@@ -138,47 +189,45 @@ def pairs_within_groups(starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _schur_product_sparse(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
-                          num_cameras: int, chunk_pairs: int = 1 << 18) -> FloatArray:
-    """:func:`schur_product` for many cameras: one ``(c, 3) x (3, c)`` product per pair of
-    observations of the same point, summed into the camera blocks they connect.
+                          num_cameras: int) -> FloatArray:
+    """:func:`schur_product` for many cameras: one matrix product per pair of cameras that
+    share points, over the points they share.
 
-    ``Y[o] = W[o] V_p^-1`` with ``V_p`` symmetric (as in the Schur complement), so the
-    block of the pair ``(b, a)`` is the transpose of that of ``(a, b)``: only pairs with
-    ``a <= b`` are multiplied. The cost grows with the points times the square of their
-    track lengths, not with the square of the cameras.
+    A table ``(C, P)`` holds each camera's observation of each point (-1: none). For
+    camera ``a``, the observations by cameras ``b >= a`` of ``a``'s points are read
+    from it (grouped by ``b``), and the block ``(a, b)`` is ``sum Y[o_a] W[o_b]^T`` over
+    them, one ``(c, 3k) x (3k, c)`` product. ``Y[o] = W[o] V_p^-1`` with ``V_p``
+    symmetric (as in the Schur complement), so the block ``(b, a)`` is the transpose of
+    ``(a, b)``. The work grows with the points times the square of their track lengths,
+    not with the square of the cameras; no block per pair of observations is stored.
     """
     c = Y.shape[1]
     size = num_cameras * c
     if len(point) == 0:
         return np.zeros((size, size))
-    order = np.argsort(point, kind="stable")
-    cam, Y, W = camera[order], Y[order], W[order]
-    starts = np.flatnonzero(np.r_[True, np.diff(point[order]) != 0, True])
-    off = np.zeros((num_cameras * num_cameras, c, c))  # pairs a < b
-    diagonal = np.zeros((num_cameras, c, c))  # a == b
-    np.add.at(diagonal, cam, Y @ W.transpose(0, 2, 1))
-    # Chunks of whole points, each holding about chunk_pairs observation pairs.
-    groups = len(starts) - 1
-    total = np.cumsum(np.diff(starts) ** 2)
-    cuts = np.unique(np.r_[0, np.searchsorted(total, np.arange(chunk_pairs, total[-1],
-                                                               chunk_pairs)), groups])
-    for g0, g1 in zip(cuts[:-1], cuts[1:]):
-        a, b = pairs_within_groups(starts[g0:g1 + 1])
-        upper = a < b
-        a, b = a[upper], b[upper]
-        if len(a) == 0:
+    _, local = np.unique(point, return_inverse=True)
+    slot = np.full((num_cameras, int(local.max()) + 1), -1, dtype=np.int32 if len(point) < 2**31
+                   else np.int64)
+    slot[camera, local] = np.arange(len(point))
+    by_camera = np.argsort(camera, kind="stable")
+    starts = np.searchsorted(camera[by_camera], np.arange(num_cameras + 1))
+    Yt = np.ascontiguousarray(Y.transpose(0, 2, 1))  # (O, 3, c): rows of a (3k, c) stack
+    Wt = np.ascontiguousarray(W.transpose(0, 2, 1))
+    S = np.zeros((num_cameras, c, num_cameras, c))
+    for a in range(num_cameras):
+        mine = by_camera[starts[a]:starts[a + 1]]
+        if len(mine) == 0:
             continue
-        key = cam[a] * num_cameras + cam[b]
-        blocks = Y[a] @ W[b].transpose(0, 2, 1)
-        by_key = np.argsort(key, kind="stable")
-        key = key[by_key]
-        first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-        off[key[first]] += np.add.reduceat(blocks[by_key], first, axis=0)
-    S = off.reshape(num_cameras, num_cameras, c, c).transpose(0, 2, 1, 3).reshape(size, size)
-    S = S + S.T
-    for k in range(num_cameras):
-        S[k * c:(k + 1) * c, k * c:(k + 1) * c] += diagonal[k]
-    return S
+        theirs = slot[a:, local[mine]]  # (C - a, n_a): cameras b >= a on a's points
+        rows, cols = np.nonzero(theirs >= 0)  # grouped by b
+        Ya, Wb = Yt[mine[cols]], Wt[theirs[rows, cols]]
+        bounds = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1], True])
+        for lo, hi in zip(bounds[:-1], bounds[1:]):
+            S[a, :, a + rows[lo]] = Ya[lo:hi].reshape(-1, c).T @ Wb[lo:hi].reshape(-1, c)
+    diagonal = S[np.arange(num_cameras), :, np.arange(num_cameras)].copy()  # (C, c, c)
+    S += S.transpose(2, 3, 0, 1)
+    S[np.arange(num_cameras), :, np.arange(num_cameras)] -= diagonal
+    return S.reshape(size, size)
 
 
 #: Above this many camera unknowns the Schur product is summed over observation pairs.
@@ -200,24 +249,87 @@ def schur_product(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.nd
     return _schur_product_sparse(Y, W, camera, point, num_cameras)
 
 
-def solve_damped(ne: NormalEquations, damping: float) -> tuple[FloatArray, FloatArray]:
-    """Steps ``(C, c)`` for the cameras and ``(P, 3)`` for the points.
+def _damped_inverse_points(ne: NormalEquations, damping: float) -> FloatArray:
+    """``(V + damping diag(V))^-1`` per point ``(P, 3, 3)``."""
+    return np.linalg.inv(ne.V + damping * (np.einsum("nii->ni", ne.V) + _TINY)[:, :, None]
+                         * np.eye(3))
 
-    Levenberg-Marquardt's damping scales the diagonals: ``U + damping diag(U)``
-    and likewise ``V``.
-    """
+
+def _reduced_system(ne: NormalEquations, damping: float, V_inv: FloatArray
+                    ) -> tuple[FloatArray, FloatArray]:
+    """The damped system left once the points are eliminated: the matrix
+    ``(C c + g, C c + g)`` (cameras first, then the global unknowns) and its right-hand
+    side ``(C c + g,)`` (the step solves ``S x = rhs``)."""
     num_cameras, c = ne.g_camera.shape
-    eye_c, eye_3 = np.eye(c), np.eye(3)
+    eye_c = np.eye(c)
     U = ne.U + damping * (np.einsum("nii->ni", ne.U) + _TINY)[:, :, None] * eye_c
-    V_inv = np.linalg.inv(ne.V + damping * (np.einsum("nii->ni", ne.V) + _TINY)[:, :, None]
-                          * eye_3)
     Y = ne.W @ V_inv[ne.point]  # (O', c, 3): W V^-1 per observation
     S = -schur_product(Y, ne.W, ne.camera, ne.point, num_cameras)  # U - W V^-1 W^T
     for k in range(num_cameras):
         S[k * c:(k + 1) * c, k * c:(k + 1) * c] += U[k]
-    rhs = _sum_by(ne.camera, (Y @ ne.g_point[ne.point][:, :, None])[:, :, 0], num_cameras)
-    step_camera = np.linalg.solve(S, (rhs - ne.g_camera).ravel()).reshape(num_cameras, c)
+    rhs = _sum_by(ne.camera, (Y @ ne.g_point[ne.point][:, :, None])[:, :, 0],
+                  num_cameras).ravel() - ne.g_camera.ravel()
+    if ne.U_global is None:
+        return S, rhs
+    g = len(ne.U_global)
+    size = num_cameras * c
+    Yg = ne.W_global @ V_inv  # (P, g, 3): W_g V^-1 per point
+    S_cg = ne.U_camera_global - _sum_by(ne.camera, Y @ ne.W_global[ne.point].transpose(0, 2, 1),
+                                        num_cameras)
+    S_gg = (ne.U_global + damping * np.diag(np.diag(ne.U_global) + _TINY)
+            - (Yg @ ne.W_global.transpose(0, 2, 1)).sum(axis=0))
+    full = np.empty((size + g, size + g))
+    full[:size, :size] = S
+    full[:size, size:] = S_cg.reshape(size, g)
+    full[size:, :size] = full[:size, size:].T
+    full[size:, size:] = S_gg
+    rhs_g = (Yg @ ne.g_point[:, :, None])[:, :, 0].sum(axis=0) - ne.g_global
+    return full, np.r_[rhs, rhs_g]
+
+
+def solve_damped_global(ne: NormalEquations, damping: float
+                        ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Steps ``(C, c)`` for the cameras, ``(g,)`` for the global unknowns (empty without
+    them) and ``(P, 3)`` for the points.
+
+    Levenberg-Marquardt's damping scales the diagonals: ``U + damping diag(U)``
+    and likewise ``V`` and ``U_gg``.
+    """
+    num_cameras, c = ne.g_camera.shape
+    V_inv = _damped_inverse_points(ne, damping)
+    S, rhs = _reduced_system(ne, damping, V_inv)
+    x = np.linalg.solve(S, rhs)
+    size = num_cameras * c
+    step_camera, step_global = x[:size].reshape(num_cameras, c), x[size:]
     back = ne.g_point + _sum_by(
         ne.point, _gram(ne.W, step_camera[ne.camera][:, :, None])[:, :, 0], len(ne.g_point))
+    if ne.W_global is not None:
+        back = back + (ne.W_global.transpose(0, 2, 1) @ step_global)
     step_point = -(V_inv @ back[:, :, None])[:, :, 0]
+    return step_camera, step_global, step_point
+
+
+def solve_damped(ne: NormalEquations, damping: float) -> tuple[FloatArray, FloatArray]:
+    """Steps ``(C, c)`` for the cameras and ``(P, 3)`` for the points
+    (:func:`solve_damped_global` without global unknowns)."""
+    step_camera, _, step_point = solve_damped_global(ne, damping)
     return step_camera, step_point
+
+
+def global_information(ne: NormalEquations) -> FloatArray:
+    """Information ``(g, g)`` of the global unknowns, the cameras and points marginalised:
+    the reduced system's global block after the cameras are eliminated too (undamped;
+    with residuals in units of their standard deviation its inverse is the covariance).
+
+    The cameras' block may be singular along the gauge (the scale a single fixed camera
+    leaves free); a gauge direction moves no residual, so it does not couple to the
+    global unknowns and a pseudo-inverse there gives the same marginal as any gauge fixing.
+    """
+    if ne.U_global is None:
+        raise ValueError("the normal equations have no global unknowns")
+    V_inv = np.linalg.pinv(ne.V, hermitian=True)  # a point without observations: zero
+    S, _ = _reduced_system(ne, 0.0, V_inv)
+    g = len(ne.U_global)
+    size = len(S) - g
+    S_cc, S_cg, S_gg = S[:size, :size], S[:size, size:], S[size:, size:]
+    return S_gg - S_cg.T @ np.linalg.pinv(S_cc, rcond=1e-12, hermitian=True) @ S_cg

@@ -6,6 +6,7 @@ import pytest
 
 from scene3D.cli.evaluate import main
 from scene3D.evaluation import (
+    camera_set_error,
     paired_auc_difference,
     pose_auc,
     relative_pose_error,
@@ -21,6 +22,53 @@ def test_pose_errors_of_a_known_perturbation():
     assert err.rotation_deg == pytest.approx(2.0)
     assert err.translation_deg == pytest.approx(0.0, abs=1e-6)  # scale does not matter
     assert relative_pose_error(R, [0, 0, -1], R, [0, 0, 1]).translation_deg == pytest.approx(180)
+
+
+def _cameras_on_a_line():
+    """Five views along the world x axis (centres slightly off it), oblique orientations."""
+    centers = np.array([[-2.0, 0.01, 0.0], [-0.7, 0.0, 0.02], [0.4, -0.01, 0.0],
+                        [1.5, 0.0, -0.01], [3.1, 0.02, 0.01]])
+    R = np.array([rotation_about_axis([0.2, 1, 0.1], a) @ rotation_about_axis([1, 0, 0.3], 7)
+                  for a in (-20, -8, 3, 15, 31)])
+    return R, centers
+
+
+def test_camera_set_error_both_alignments_undo_a_similarity():
+    R, centers = _cameras_on_a_line()
+    A, s, b = rotation_about_axis([0.3, -0.5, 1], 40), 2.5, np.array([1.0, -3.0, 0.5])
+    # X_est = A^T (X_true - b) / s: centres map likewise, orientations as R_est = R_true A.
+    c_est = (centers - b) @ A / s
+    for align in ("orientations", "centres"):
+        err = camera_set_error(R @ A, c_est, R, centers, align=align)
+        np.testing.assert_allclose(err.center_errors, 0.0, atol=1e-12)
+        np.testing.assert_allclose(err.rotation_errors_deg, 0.0, atol=1e-6)
+    with pytest.raises(ValueError, match="align"):
+        camera_set_error(R, centers, R, centers, align="points")
+
+
+def test_camera_set_error_roll_about_the_line_only_orientations_see():
+    """The world turned 0.5 deg about the line of centres: both alignments undo it while
+    the centres are exact; once the centres carry noise, the centre alignment's roll
+    follows the noise (the centres hardly constrain it) and every rotation error carries
+    it, while the orientation alignment still undoes the turn."""
+    R, centers = _cameras_on_a_line()
+    roll = rotation_about_axis([1, 0, 0], 0.5)
+    c_est = centers @ roll  # the world turned about x: R_est = R roll, C_est = roll^T C
+    by_orientations = camera_set_error(R @ roll, c_est, R, centers)
+    by_centres = camera_set_error(R @ roll, c_est, R, centers, align="centres")
+    np.testing.assert_allclose(by_orientations.rotation_errors_deg, 0.0, atol=1e-6)
+    np.testing.assert_allclose(by_orientations.center_errors, 0.0, atol=1e-12)
+    np.testing.assert_allclose(by_centres.center_errors, 0.0, atol=1e-12)
+    np.testing.assert_allclose(by_centres.rotation_errors_deg, 0.0, atol=1e-6)
+    # Now the centres move off the line by noise: the centre alignment follows the noise
+    # in its roll, the orientation alignment does not.
+    rng = np.random.default_rng(3)
+    noisy = c_est + rng.normal(scale=0.005, size=c_est.shape)
+    by_orientations = camera_set_error(R @ roll, noisy, R, centers)
+    by_centres = camera_set_error(R @ roll, noisy, R, centers, align="centres")
+    assert by_orientations.rotation_errors_deg.max() < 1e-6
+    assert by_centres.rotation_errors_deg.min() > 0.05
+    assert by_centres.center_errors.max() <= by_orientations.center_errors.max()
 
 
 def test_auc_and_summary():

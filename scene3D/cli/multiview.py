@@ -20,6 +20,7 @@ from ..features import FEATURE_MODES
 from ..imageio import BOOK_MAX_WIDTH_PX, IMAGE_SUFFIXES, read_image_size
 from ..multiview import (
     PAIR_MODES,
+    FocalEstimate,
     MultiViewReconstruction,
     SfMModel,
     SfMSettings,
@@ -49,8 +50,10 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
     parser = argparse.ArgumentParser(
         prog=prog,
         description=(
-            "Incremental structure from motion: register many photos of one calibrated "
-            "camera and triangulate their points, with bundle adjustment."
+            "Incremental structure from motion: register many photos of one camera and "
+            "triangulate their points, with bundle adjustment. Without --calib the camera's "
+            "focal length starts from the photos' EXIF (or 1.2 x the longer side) and is "
+            "refined by the photos."
         ),
         epilog=(
             "Writes into --out: points.ply (binary, RGB), cameras.json (world-to-camera "
@@ -68,8 +71,12 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
     )
     parser.add_argument("images", nargs="+", metavar="IMAGES",
                         help="image files, a folder, or quoted globs such as 'photos/*.jpg'")
-    parser.add_argument("--calib", type=Path, required=True, metavar="FILE",
-                        help="camera calibration (OpenCV YAML/XML as calibrate.py writes it)")
+    parser.add_argument("--calib", type=Path, metavar="FILE",
+                        help="camera calibration (OpenCV YAML/XML as calibrate.py writes it); "
+                             "without it the photos must come from one camera (one size, "
+                             "EXIF make, model and focal length) and one focal length is "
+                             "found from them (principal point at the centre, no "
+                             "distortion; see docs/own-photos.md)")
     add_size_args(parser, 2 * BOOK_MAX_WIDTH_PX, "3072 -> 1536, half resolution")
     parser.add_argument("--pairs", choices=PAIR_MODES, default="auto",
                         help="which pairs to match: 'retrieval' (each view with its "
@@ -119,13 +126,22 @@ def image_paths(specs: list[str]) -> list[Path]:
     return paths
 
 
-def evaluate_against(folder: Path, names: list[str], model: SfMModel) -> dict:
-    """Camera errors of a model's views against Strecha ground truth."""
+def evaluate_against(folder: Path, names: list[str], model: SfMModel,
+                     K: np.ndarray | None = None, image_size: tuple[int, int] | None = None
+                     ) -> dict:
+    """Camera errors of a model's views against Strecha ground truth; with the model's
+    self-calibrated ``K`` (working images of ``image_size``) also its focal error against
+    the camera files' (``sqrt(fx fy)``, scaled to the working width)."""
     reg = [i for i in range(len(names)) if model.registered[i]]
     truth = [read_strecha_camera(folder / f"{names[i]}.camera") for i in reg]
     err = camera_set_error(model.R[reg], model.centers[reg], np.array([c.R for c in truth]),
                            np.array([c.center for c in truth]))
-    return {
+    focal = {}
+    if K is not None and image_size is not None:
+        c = truth[0]
+        true_focal = float(np.sqrt(c.K[0, 0] * c.K[1, 1]) * image_size[0] / c.image_size[0])
+        focal = {"true_focal_px": true_focal, "focal_error_fraction": K[0, 0] / true_focal - 1}
+    return {**focal,
         "views": [names[i] for i in reg],
         "center_error_fraction_of_extent": err.center_errors,
         "rotation_error_deg": err.rotation_errors_deg,
@@ -147,6 +163,14 @@ def check_summary(model: SfMModel, names: list[str]) -> dict:
     }
 
 
+def _focal_sigma(focal: FocalEstimate) -> str:
+    """``+-1.4`` (px), or beyond a quarter in ``log f`` a factor, as chapter4.py prints it
+    (+-px would suggest a symmetric bound)."""
+    sigma_log = focal.sigma_px / focal.focal_px
+    return (f"+-{focal.sigma_px:.1f}" if sigma_log <= 0.25
+            else f"(1 sigma: a factor of {np.exp(sigma_log):.1f})")
+
+
 def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, summary: dict,
                   plots: bool) -> Path:
     """report.html: the summary, cameras.png and the interactive 3D view (scene3D.report)
@@ -157,6 +181,9 @@ def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, s
     lines = [f"{summary['registered']} of {len(names)} views registered, "
              f"{summary['points']} points, mean track length {recon.mean_track_length:.2f}, "
              f"reprojection RMSE {recon.reprojection_rmse_px:.3f} px"]
+    if recon.focal is not None:
+        lines.append(f"focal length {recon.K[0, 0]:.1f} px {_focal_sigma(recon.focal)} "
+                     f"({recon.calibration_source}; {recon.prior_description})")
     figures = {}
     if plots:
         figures["cameras.png"] = (out / "cameras.png").read_bytes()
@@ -171,9 +198,10 @@ def write_model(folder: Path, names: list[str], recon: MultiViewReconstruction,
     """The files of one model: PLY, cameras JSON, COLMAP text model, figure."""
     folder.mkdir(exist_ok=True)
     obs = model.observations
-    colmap = colmap_text_files(names, recon.K, recon.image_size, model.registered, model.R,
+    K = recon.model_K(model)
+    colmap = colmap_text_files(names, K, recon.image_size, model.registered, model.R,
                                model.t, model.points3d, model.colors, obs.view, obs.point,
-                               obs.xy, model.point_errors_px(recon.K))
+                               obs.xy, model.point_errors_px(K))
     written = [write_ply(folder / "points.ply", model.points3d, model.colors)]
     cameras = {n: {"R": model.R[i], "t": model.t[i], "center": model.centers[i]}
                for i, n in enumerate(names) if model.registered[i]}
@@ -183,22 +211,51 @@ def write_model(folder: Path, names: list[str], recon: MultiViewReconstruction,
         from ..plotting import plot_cameras_and_points
 
         figure = plot_cameras_and_points(model.points3d, model.colors, model.R, model.t,
-                                         recon.K, recon.image_size)
+                                         K, recon.image_size)
         written.append(save_figure(figure, folder / "cameras.png"))
     return written
+
+
+def focal_summary(recon: MultiViewReconstruction, model: SfMModel, camera: str | None
+                  ) -> dict:
+    """A model's ``self_calibration`` entry (photos without a calibration file)."""
+    f = model.focal
+    if f is None:
+        return {}
+    return {
+        "start": recon.prior_description, "camera": camera,
+        "prior_focal_px": f.prior_focal_px, "prior_sigma_log": f.prior_sigma_log,
+        "start_focal_px": f.start_focal_px,
+        "start_pair": None if f.start_pair is None else [recon.names[v] for v in f.start_pair],
+        "photos_focal_px": f.data_focal_px, "photos_sigma_log": f.data_sigma_log,
+        "adjustment_sigma_log": f.adjustment_sigma_log,
+        "principal_point_sigma_log": f.principal_point_sigma_log,
+        "determined": f.determined, "trusted": f.trusted, "warnings": list(f.warnings),
+    }
 
 
 def run(args: argparse.Namespace) -> int:
     t_start = time.perf_counter()
     paths = image_paths(args.images)
-    camera = load_calibration(args.calib)
+    prior = None
+    if args.calib is None:
+        from ..exif import read_camera_prior
+
+        prior = read_camera_prior(paths)  # one camera, or a one-line error (exit code 2)
+    else:
+        camera = load_calibration(args.calib)
     out = prepare_output_dir(args.out)
     if args.ground_truth is not None and not args.ground_truth.is_dir():
         raise UsageError(f"--ground-truth '{args.ground_truth}' is not a folder")
     if not args.no_report:
         check_report_viewer()
 
-    K_native = adapt_intrinsics_to_size(camera.K, camera.image_size, read_image_size(paths[0]))
+    if prior is None:
+        K_native = adapt_intrinsics_to_size(camera.K, camera.image_size,
+                                            read_image_size(paths[0]))
+        dist = camera.dist
+    else:
+        K_native, dist = None, None
 
     def progress(message: str) -> None:
         if not args.quiet:
@@ -207,12 +264,12 @@ def run(args: argparse.Namespace) -> int:
     names = [p.name for p in paths]
     with open_engine(args) as engine:
         recon = reconstruct_views(
-            paths, K_native, camera.dist,
+            paths, K_native, dist,
             max_width=None if args.no_pyr_down else args.max_width, names=names,
             feature=args.feature, pairs=args.pairs,
             settings=SfMSettings(neighbours=args.neighbours,
                                  retrieval_neighbours=args.retrieval_neighbours),
-            progress=progress, engine=engine)
+            progress=progress, engine=engine, focal_prior=prior)
     timings = {k: v for k, v in recon.timings_s.items() if k != "total"}
     models = []
     written: list[Path] = []
@@ -225,8 +282,14 @@ def run(args: argparse.Namespace) -> int:
             "reprojection_rmse_px": model.reprojection_rmse_px,
             "check": check_summary(model, names),
         }
+        if model.focal is not None:
+            entry["K"] = recon.model_K(model)
+            entry["focal_px_sigma"] = model.focal.sigma_px
+            entry["calibration_source"] = model.focal.source
         if args.ground_truth is not None:
-            entry["ground_truth"] = evaluate_against(args.ground_truth, names, model)
+            entry["ground_truth"] = evaluate_against(
+                args.ground_truth, names, model,
+                recon.model_K(model) if model.focal is not None else None, recon.image_size)
         models.append(entry)
         written += write_model(folder, names, recon, model, not args.no_plots)
     main_model = models[0]
@@ -240,7 +303,12 @@ def run(args: argparse.Namespace) -> int:
         "reprojection_rmse_px": recon.reprojection_rmse_px,
         "pair_selection": recon.pair_selection, "matched_pairs": recon.matched_pairs,
         "verified_pairs": recon.verified_pairs,
-        "image_size": list(recon.image_size), "K": recon.K, "feature": args.feature,
+        "image_size": list(recon.image_size), "K": recon.K,
+        "calibration_source": recon.calibration_source,
+        "focal_px_sigma": recon.focal_px_sigma,
+        "self_calibration": focal_summary(recon, recon.main, prior.camera_name)
+        if prior is not None else None,
+        "feature": args.feature,
         "conventions": "each model: world = camera frame of the first view of its initial "
                        "pair; x_cam = R @ X + t; arbitrary scale",
     }
@@ -255,11 +323,20 @@ def run(args: argparse.Namespace) -> int:
     for name in recon.unregistered:
         logger.warning("view '%s' could not be registered: %s", name,
                        recon.unregistered_reasons.get(name, "unknown"))
+    if recon.focal is not None:
+        for message in recon.focal.warnings:
+            logger.warning("focal length: %s", message)
     if not args.quiet:
         print(f"{summary['registered']} of {len(names)} views registered, "
               f"{summary['points']} points, mean track length "
               f"{recon.mean_track_length:.2f}, reprojection RMSE "
               f"{recon.reprojection_rmse_px:.3f} px, {timings['total']:.1f} s")
+        if recon.focal is not None:
+            how = "refined by the photos" if recon.focal.determined else \
+                "kept: the photos could not refine it"
+            print(f"focal length {recon.K[0, 0]:.1f} px {_focal_sigma(recon.focal)} at the "
+                  f"working size ({recon.prior_description}; {how}"
+                  + ("" if recon.focal.trusted else "; untrusted") + ")")
         for m, entry in enumerate(models[1:], start=1):
             print(f"model {m} ({entry['folder']}/): {entry['registered']} more views: "
                   f"{', '.join(entry['views'])}")
@@ -267,7 +344,9 @@ def run(args: argparse.Namespace) -> int:
             gt = summary["ground_truth"]
             print(f"against ground truth: camera centres within "
                   f"{100 * gt['max_center_error_fraction']:.3f} % of the scene extent, "
-                  f"rotations within {gt['max_rotation_error_deg']:.3f} deg")
+                  f"rotations within {gt['max_rotation_error_deg']:.3f} deg"
+                  + (f", focal length {100 * gt['focal_error_fraction']:+.2f} %"
+                     if "focal_error_fraction" in gt else ""))
     for path in written:
         print(f"Wrote '{path}'")
     if not recon.ok:

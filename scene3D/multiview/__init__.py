@@ -14,6 +14,8 @@ bundle adjustment as the missing step. One module per stage, in pipeline order:
 - :mod:`~scene3D.multiview.points`: many tracks triangulated at once;
 - :mod:`~scene3D.multiview.mapper`: registration, local and global bundle adjustment,
   re-triangulation, several models;
+- :mod:`~scene3D.multiview.focal`: without a calibration, one focal length for all
+  views (the start pair self-calibrated, then refined in the global adjustments);
 - :mod:`~scene3D.multiview.checks`: the model against its pairs' own geometry;
 - :mod:`~scene3D.multiview.models`: the data (settings, features, pairs, results);
 - :mod:`~scene3D.multiview.pipeline`: :func:`reconstruct_views`, the stages in order.
@@ -27,9 +29,11 @@ pair (unit baseline) and is otherwise arbitrary.
 
 from .checks import check_model
 from .features import extract_features, view_features
+from .focal import FocalSettings
 from .mapper import reconstruct_models
 from .matching import match_views, verify_pair
 from .models import (
+    FocalEstimate,
     ModelCheck,
     MultiViewReconstruction,
     PairMatches,
@@ -44,6 +48,8 @@ from .tracks import Tracks, build_tracks
 
 __all__ = [
     "PAIR_MODES",
+    "FocalEstimate",
+    "FocalSettings",
     "ModelCheck",
     "MultiViewReconstruction",
     "PairMatches",

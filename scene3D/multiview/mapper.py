@@ -26,6 +26,7 @@ exactly the nodes with a point, and ``track_point[k]`` is the point of track ``k
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from collections.abc import Callable, Sequence
@@ -33,14 +34,21 @@ from collections.abc import Callable, Sequence
 import cv2
 import numpy as np
 
-from ..bundle import Observations, bundle_adjust, reprojection_residuals
+from ..bundle import Observations, bundle_adjust, bundle_adjust_focal, reprojection_residuals
 from ..errors import ReconstructionError
 from ..geometry import FloatArray, camera_centers
 from ..twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
 from .checks import check_model
-from .models import ModelCheck, PairMatches, SfMModel, SfMSettings, ViewFeatures
-from .points import max_parallax_deg, observation_errors, triangulate_groups
-from .tracks import Tracks, build_tracks
+from .focal import (
+    FocalSettings,
+    focal_estimate,
+    longer_side_px,
+    prior_intrinsics,
+    self_calibrated_start,
+)
+from .models import FocalEstimate, ModelCheck, PairMatches, SfMModel, SfMSettings, ViewFeatures
+from .points import max_parallax_deg, observation_errors, refine_points, triangulate_groups
+from .tracks import Tracks, build_tracks, connected_components
 
 logger = logging.getLogger(__name__)
 
@@ -54,8 +62,10 @@ class _Model:
 
     def __init__(self, features: Sequence[ViewFeatures], pairs: list[PairMatches],
                  K: FloatArray, settings: SfMSettings, allowed: np.ndarray,
-                 timings: dict[str, float]) -> None:
+                 timings: dict[str, float], focal: FocalSettings | None = None) -> None:
         self.features, self.K, self.s, self.timings = features, K, settings, timings
+        self.focal = focal  # photos without a calibration: global adjustments refine f
+        self.focal_adjustment = None  # the last one's scene3D.bundle.FocalAdjustment
         self.allowed = allowed
         self.pairs = [p for p in pairs if allowed[p.i] and allowed[p.j]]
         V = len(features)
@@ -238,25 +248,99 @@ class _Model:
         return self.reference if self.registered[self.reference] else int(
             np.flatnonzero(self.registered)[0])
 
-    def _adjust(self, nodes: np.ndarray, point_ids: np.ndarray, fixed: np.ndarray,
-                max_iterations: int, tolerance: float) -> None:
-        """Bundle-adjust the points ``point_ids`` and the free views observing them, then
-        drop observations among ``nodes`` that reproject badly or lie behind a camera."""
+    def adjustment_nodes(self, nodes: np.ndarray) -> np.ndarray:
+        """Which of the observations ``nodes`` (every observation of their points) take
+        part in bundle adjustment ``(len(nodes),) bool``: those of the points it admits.
+
+        A point that three or more views observe verifies itself (its rays must meet
+        in one point); a point of two views does not: a false match that lies along
+        the epipolar line, such as the neighbouring window of a repeated facade, fits
+        its pair and nothing contradicts it. Where many such matches pass, they bend
+        the cameras by more than all the true ones can hold them (castle-P19: a
+        quarter of the verified matches of views 0013-0014 lie more than 2 px off
+        their true epipolar lines; with them the adjustment put view 0015 0.6 % of
+        the scene off, with the multi-view points alone 0.12 %). So, as GLOMAP
+        positions its cameras from tracks of three views or more, a two-view point
+        is adjusted only where the multi-view points among ``nodes`` do not hold its
+        views: when one of them observes fewer than ``min_multiview_observations``
+        of them, or they do not join the two (two parts of the model). The other
+        two-view points follow the cameras (:meth:`_adjust`).
+        """
+        point, view = self.node_point[nodes], self.node_view[nodes]
+        ids, local, counts = np.unique(point, return_inverse=True, return_counts=True)
+        use = counts >= 3
+        multi = use[local]
+        V = len(self.registered)
+        support = np.bincount(view[multi], minlength=V)
+        order = np.lexsort((view[multi], local[multi]))
+        p_m, v_m = local[multi][order], view[multi][order]
+        chain = np.flatnonzero(p_m[1:] == p_m[:-1])  # consecutive views of one point
+        label = connected_components(V, v_m[chain], v_m[chain + 1])
+        two = counts[local] == 2
+        order = np.lexsort((view[two], local[two]))
+        p_2, v_2 = local[two][order], view[two][order]
+        a, b = v_2[0::2], v_2[1::2]
+        weak = support < self.s.min_multiview_observations
+        use[p_2[0::2]] = weak[a] | weak[b] | (label[a] != label[b])
+        return use[local]
+
+    def _adjust(self, nodes: np.ndarray, fixed: np.ndarray, max_iterations: int,
+                tolerance: float, anchors: np.ndarray | None = None,
+                refine_focal: bool = False) -> None:
+        """Bundle-adjust the points observed at ``nodes`` (all their observations) that
+        :meth:`adjustment_nodes` admits and the views observing them but ``fixed``
+        (only the observations of free views and of the fixed ``anchors``, when
+        given); then the other points follow the cameras (a 3x3 refinement each), and
+        observations among ``nodes`` that reproject badly or lie behind a camera are
+        dropped. With ``refine_focal`` the one focal length is adjusted too (``self.K``
+        changes; :mod:`scene3D.multiview.focal`)."""
         t0 = time.perf_counter()
-        local = np.searchsorted(point_ids, self.node_point[nodes])
-        obs = Observations(self.node_view[nodes], local, self.xy[nodes])
-        R, t, X = bundle_adjust(self.R, self.t, self.X[point_ids], obs, self.K, fixed,
-                                max_iterations=max_iterations, tolerance=tolerance)
-        free = np.setdiff1d(np.unique(obs.view), fixed)
-        self.R[free], self.t[free] = R[free], t[free]
-        self.X[point_ids] = X
-        err = np.linalg.norm(reprojection_residuals(R, t, X, obs, self.K), axis=1)
-        depth = np.einsum("oij,oj->oi", R[obs.view], X[obs.point])[:, 2] + t[obs.view, 2]
-        self._remove_observations(nodes[(err > self.s.max_reprojection_px) | (depth <= 0)])
+        admitted = self.adjustment_nodes(nodes)
+        if anchors is not None:
+            taking = np.ones(len(self.registered), dtype=bool)
+            taking[fixed] = False
+            taking[anchors] = True
+            admitted &= taking[self.node_view[nodes]]
+            # A point needs two observations in the adjustment; else it follows.
+            counts = np.bincount(self.node_point[nodes[admitted]], minlength=len(self.X))
+            admitted &= counts[self.node_point[nodes]] >= 2
+        inside = nodes[admitted]
+        point_ids = np.unique(self.node_point[inside])
+        if len(inside):
+            local = np.searchsorted(point_ids, self.node_point[inside])
+            obs = Observations(self.node_view[inside], local, self.xy[inside])
+            if refine_focal and self.focal is not None:
+                fa = bundle_adjust_focal(
+                    self.R, self.t, self.X[point_ids], obs, self.K, fixed,
+                    self.focal.prior_focal_px, self.focal.prior_sigma_log,
+                    max_iterations=max_iterations, tolerance=tolerance,
+                    principal_point_shift_px=self.focal.principal_point_sigma
+                    * longer_side_px(self.K))
+                R, t, X, self.K, self.focal_adjustment = fa.R, fa.t, fa.points3d, fa.K, fa
+            else:
+                R, t, X = bundle_adjust(self.R, self.t, self.X[point_ids], obs, self.K, fixed,
+                                        max_iterations=max_iterations, tolerance=tolerance)
+            free = np.setdiff1d(np.unique(obs.view), fixed)
+            self.R[free], self.t[free] = R[free], t[free]
+            self.X[point_ids] = X
+        adjusted = np.zeros(len(self.X), dtype=bool)
+        adjusted[point_ids] = True
+        outside = nodes[~adjusted[self.node_point[nodes]]]
+        if len(outside):
+            ids, point = np.unique(self.node_point[outside], return_inverse=True)
+            views = self.node_view[outside]
+            self.X[ids] = refine_points(point, self.xy[outside], self.R[views], self.t[views],
+                                        self.K, self.X[ids])
+        views, points = self.node_view[nodes], self.node_point[nodes]
+        err, depth = observation_errors(self.X[points], self.R[views], self.t[views],
+                                        self.xy[nodes], self.K)
+        self._remove_observations(nodes[~(err <= self.s.max_reprojection_px) | (depth <= 0)])
         self.timings["bundle_adjustment"] += time.perf_counter() - t0
 
     def adjust_local(self, view: int) -> None:
-        """The new view and its most co-visible views, with the points they see."""
+        """The new view and its most co-visible views, with the points they see; of the
+        other views that see those points, the most co-visible hold them fixed (as many
+        as are free), so that the cost does not grow with the tracks' lengths."""
         obs_nodes = np.flatnonzero(self.node_point >= 0)
         obs_view, obs_point = self.node_view[obs_nodes], self.node_point[obs_nodes]
         seen = np.zeros(len(self.X) + 1, dtype=bool)
@@ -272,17 +356,20 @@ class _Model:
         chosen = np.zeros(len(self.X), dtype=bool)
         chosen[point_ids] = True
         nodes = obs_nodes[chosen[obs_point]]
-        fixed = np.setdiff1d(np.unique(self.node_view[nodes]), free)
+        shared = np.bincount(self.node_view[nodes], minlength=len(self.registered))
+        shared[free] = 0
+        fixed = np.flatnonzero(shared)
+        anchors = fixed[np.argsort(-shared[fixed], kind="stable")][:len(free)]
         if len(fixed) == 0:
-            fixed = np.array([self._fixed_view()])
-        self._adjust(nodes, point_ids, fixed, max_iterations=8, tolerance=1e-5)
+            fixed = anchors = np.array([self._fixed_view()])
+        self._adjust(nodes, fixed, max_iterations=8, tolerance=1e-5, anchors=anchors)
 
     def adjust_global(self, max_iterations: int, tolerance: float = 1e-5) -> None:
         nodes = np.flatnonzero(self.node_point >= 0)
-        point_ids = np.unique(self.node_point[nodes])
-        if len(point_ids):
-            self._adjust(nodes, point_ids, np.array([self._fixed_view()]), max_iterations,
-                         tolerance)
+        refine = self.focal is not None and self.registered.sum() >= self.focal.min_views
+        if len(nodes):
+            self._adjust(nodes, np.array([self._fixed_view()]), max_iterations, tolerance,
+                         refine_focal=refine)
 
     def retriangulate(self) -> None:
         self.complete_tracks()
@@ -338,14 +425,19 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
                settings: SfMSettings, allowed: np.ndarray, start: tuple[PairMatches,
                                                                            TwoViewGeometry],
                more_pairs: MorePairs | None, say: Callable[[str], None],
-               timings: dict[str, float], names: Sequence[str]
+               timings: dict[str, float], names: Sequence[str],
+               focal: FocalSettings | None = None, focal_start: FocalEstimate | None = None,
                ) -> tuple[SfMModel, dict[int, str]]:
     """Grow one model from its initial pair over the ``allowed`` views (steps 2-5).
+
+    With ``focal`` (photos without a calibration; ``focal_start`` says where ``K``'s
+    focal length comes from) the global adjustments refine it
+    (:mod:`scene3D.multiview.focal`).
 
     Returns the model and, for the allowed views left out, why.
     """
     s = settings
-    model = _Model(features, pairs, K, s, allowed, timings)
+    model = _Model(features, pairs, K, s, allowed, timings, focal)
     pair, r = start
     model.reference = pair.i
     model.R[pair.i], model.t[pair.i] = np.eye(3), np.zeros(3)
@@ -431,7 +523,19 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
         t0 = time.perf_counter()
         check = model.check()
         timings["checks"] += time.perf_counter() - t0
-    return model.result(check), reasons
+    estimate = focal_start
+    if focal is not None and focal_start is not None and model.focal_adjustment is not None:
+        estimate = focal_estimate(model.focal_adjustment, focal, focal_start)
+        if not estimate.determined:  # keep the prior's focal length, adjusted under it
+            say(estimate.warnings[0])
+            model.focal, model.K = None, prior_intrinsics(model.K, focal)
+            model.adjust_global(max_iterations=30, tolerance=1e-8)
+            model.retriangulate()
+            check = model.check()
+    result = model.result(check)
+    if estimate is not None:
+        result = dataclasses.replace(result, K=model.K.copy(), focal=estimate)
+    return result, reasons
 
 
 def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches],
@@ -439,8 +543,15 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
                        more_pairs: MorePairs | None = None,
                        progress: Callable[[str], None] | None = None,
                        names: Sequence[str] | None = None,
+                       focal: FocalSettings | None = None,
                        ) -> tuple[list[SfMModel], dict[int, str], dict[str, float]]:
     """Steps 1-6 on verified pairs: every model the views allow, largest first.
+
+    ``K`` is the calibration's; with ``focal`` (photos without a calibration) it is the
+    prior's, the first model's start pair is self-calibrated and every model refines one
+    focal length in its global adjustments; a further model starts from the previous
+    one's (:mod:`scene3D.multiview.focal`). Each model's ``K`` and ``focal`` say what it
+    ended with.
 
     Returns
     -------
@@ -466,14 +577,28 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
     while remaining.sum() >= 2:
         t0 = time.perf_counter()
         inside = [p for p in pairs if remaining[p.i] and remaining[p.j]]
-        start = initial_pair(features, inside, K) if inside else "no verified pair left"
+        focal_start = None
+        if focal is not None and not models and inside:
+            start, K, focal_start = self_calibrated_start(features, inside, K, focal,
+                                                          initial_pair)
+            if not isinstance(start, str):
+                say(f"focal length {K[0, 0]:.1f} px to start with, from views "
+                    f"{names[start[0].i]} and {names[start[0].j]} ({focal_start.source})")
+        elif focal is not None and inside:
+            K = models[-1].K if models[-1].K is not None else K
+            focal_start = dataclasses.replace(models[-1].focal, start_focal_px=float(K[0, 0]),
+                                              start_pair=None)
+            start = initial_pair(features, inside, K)
+        else:
+            start = initial_pair(features, inside, K) if inside else "no verified pair left"
         timings["initialisation"] += time.perf_counter() - t0
         if isinstance(start, str):
             if not models:
                 raise ReconstructionError("no_initial_pair", start, verified_pairs=len(pairs))
             break
         model, left_out = grow_model(features, pairs, K, s, remaining.copy(), start,
-                                     more_pairs if not models else None, say, timings, names)
+                                     more_pairs if not models else None, say, timings, names,
+                                     focal, focal_start)
         if model.registered.sum() < s.min_model_views:
             break
         models.append(model)

@@ -81,6 +81,11 @@ class SfMSettings:
     local_ba_views : int
         A local bundle adjustment refines the new view and its this many most
         co-visible registered views (the other views observing their points fixed).
+    min_multiview_observations : int
+        Bundle adjustment holds a view by the points that three or more views observe
+        (they verify themselves) when it observes at least this many of them; its
+        two-view points then follow the cameras instead of steering them
+        (:meth:`scene3D.multiview.mapper._Model.adjustment_nodes`).
     global_ba_growth : float
         A global bundle adjustment (then re-triangulation) runs when the model has
         grown by this factor (in views) since the last one, and at the end.
@@ -108,6 +113,7 @@ class SfMSettings:
     vocabulary_words: int = 64
     probe_words: int = 3
     local_ba_views: int = 6
+    min_multiview_observations: int = 100
     global_ba_growth: float = 1.5
     consistency_px: float = 2.0
     min_model_views: int = 2
@@ -163,6 +169,60 @@ class ModelCheck:
 
 
 @dataclass(frozen=True)
+class FocalEstimate:
+    """The focal length of photos without a calibration file, as a model found it
+    (:mod:`scene3D.multiview.focal`).
+
+    Attributes
+    ----------
+    focal_px : float
+        The focal length of the model's ``K`` (working images).
+    sigma_px : float
+        Its standard deviation: the adjustment's (the noise, cameras and points
+        marginalised, the prior included) and the guessed principal point's share
+        combined; the prior's when the views did not determine it.
+    source : str
+        ``"exif+refined"`` / ``"prior+refined"`` (the views determined it), or
+        ``"exif"`` / ``"prior"`` (they did not: the start's value was kept).
+    determined : bool
+        The views alone know ``log f`` at least as well as the prior does.
+    adjustment_sigma_log : float
+        Standard deviation of ``log f`` from the adjustment, the principal point known.
+    principal_point_sigma_log : float
+        How far ``log f`` moves with the principal point off by
+        ``FocalSettings.principal_point_sigma`` of the longer side.
+    data_focal_px, data_sigma_log : float
+        What the views call for (the adjusted value) and how well they alone know it
+        (the prior's share taken out, the principal point's added; inf: not at all).
+    prior_focal_px, prior_sigma_log : float
+        The prior (EXIF or the default, at the working size).
+    start_focal_px : float
+        Where the mapping started: the start pair's self-calibration (or the prior).
+    start_pair : tuple[int, int] or None
+        The pair self-calibrated (view indices of the mapper), None when none was.
+    warnings : tuple[str, ...]
+    trusted : bool
+        The focal length is known to ``FocalSettings.max_trusted_sigma_log`` from the
+        views, and the views do not contradict an EXIF value.
+    """
+
+    focal_px: float
+    sigma_px: float
+    source: str
+    determined: bool
+    adjustment_sigma_log: float
+    principal_point_sigma_log: float
+    data_focal_px: float
+    data_sigma_log: float
+    prior_focal_px: float
+    prior_sigma_log: float
+    start_focal_px: float
+    start_pair: tuple[int, int] | None = None
+    warnings: tuple[str, ...] = ()
+    trusted: bool = True
+
+
+@dataclass(frozen=True)
 class SfMModel:
     """One connected reconstruction: some views' cameras and the points they see.
 
@@ -178,6 +238,11 @@ class SfMModel:
         Every measurement kept, as (view, point, pixel).
     reprojection_rmse_px : float
     check : ModelCheck
+    K : (3, 3) float64 or None
+        The intrinsics this model was adjusted with, when it refined its focal length
+        (photos without a calibration file); None: the reconstruction's ``K``.
+    focal : FocalEstimate or None
+        How its focal length was found (None with a calibration file).
     """
 
     registered: np.ndarray
@@ -188,6 +253,8 @@ class SfMModel:
     observations: Observations
     reprojection_rmse_px: float
     check: ModelCheck
+    K: FloatArray | None = None
+    focal: FocalEstimate | None = None
 
     @property
     def centers(self) -> FloatArray:
@@ -224,7 +291,8 @@ class MultiViewReconstruction:
     names : tuple[str, ...]
         One per input view, in the input order (every per-view array follows it).
     K : (3, 3) float64
-        Intrinsics of the working images.
+        Intrinsics of the working images: the calibration's, or without one those the
+        largest model ended with (its focal length refined).
     image_size : tuple[int, int]
         (width, height) of the working images.
     models : tuple[SfMModel, ...]
@@ -235,6 +303,12 @@ class MultiViewReconstruction:
         How pairs were chosen (e.g. "retrieval (8 most similar views)").
     matched_pairs, verified_pairs : int
     timings_s : dict[str, float]
+    calibration_source : str
+        Where ``K``'s focal length comes from: ``"file"`` (a calibration), or
+        ``FocalEstimate.source`` of the largest model.
+    prior_description : str
+        Without a calibration, where the prior came from ("EXIF FocalLengthIn35mmFilm
+        32 mm", the default); empty with one.
     """
 
     names: tuple[str, ...]
@@ -246,10 +320,26 @@ class MultiViewReconstruction:
     matched_pairs: int
     verified_pairs: int
     timings_s: dict[str, float] = field(default_factory=dict)
+    calibration_source: str = "file"
+    prior_description: str = ""
 
     @property
     def main(self) -> SfMModel:
         return self.models[0]
+
+    @property
+    def focal(self) -> FocalEstimate | None:
+        """How the largest model found its focal length (None with a calibration file)."""
+        return self.main.focal
+
+    @property
+    def focal_px_sigma(self) -> float | None:
+        """Standard deviation of ``K``'s focal length in pixels (None with a calibration)."""
+        return None if self.main.focal is None else self.main.focal.sigma_px
+
+    def model_K(self, model: SfMModel) -> FloatArray:
+        """The intrinsics of ``model`` (its own when it refined its focal length)."""
+        return self.K if model.K is None else model.K
 
     @property
     def registered(self) -> np.ndarray:
@@ -289,7 +379,7 @@ class MultiViewReconstruction:
 
     def point_errors_px(self) -> FloatArray:
         """Mean reprojection error of each point of the main model ``(P,)``."""
-        return self.main.point_errors_px(self.K)
+        return self.main.point_errors_px(self.model_K(self.main))
 
     @property
     def model_of_view(self) -> np.ndarray:

@@ -28,7 +28,9 @@ from ..camera import scale_intrinsics_halved, validate_distortion, validate_intr
 from ..engines import Engine, LocalEngine
 from ..errors import ReconstructionError
 from ..imageio import BOOK_MAX_WIDTH_PX, ImageSource
+from ..intrinsics_prior import FocalPrior, camera_prior
 from .features import content_key, view_features
+from .focal import FocalSettings
 from .mapper import reconstruct_models
 from .matching import verify_pair
 from .models import (
@@ -55,18 +57,34 @@ def _to_input_order(model: SfMModel, order: np.ndarray) -> SfMModel:
 
     obs = model.observations
     check = model.check
+    focal = model.focal
+    if focal is not None and focal.start_pair is not None:
+        focal = dataclasses.replace(focal, start_pair=(int(order[focal.start_pair[0]]),
+                                                       int(order[focal.start_pair[1]])))
     return dataclasses.replace(
         model, registered=per_view(model.registered), R=per_view(model.R), t=per_view(model.t),
         observations=Observations(order[obs.view], obs.point, obs.xy),
         check=ModelCheck(check.pairs_checked,
                          tuple((int(order[i]), int(order[j]), r)
                                for i, j, r in check.inconsistent_pairs),
-                         tuple(sorted(int(order[v]) for v in check.suspect_views))))
+                         tuple(sorted(int(order[v]) for v in check.suspect_views))),
+        focal=focal)
+
+
+def _focal_prior(images: Sequence[ImageSource], names: Sequence[str]) -> FocalPrior:
+    """The prior of photos without a calibration: from their EXIF when they are files
+    (:func:`scene3D.exif.read_camera_prior`, one camera checked), else the default."""
+    if all(isinstance(src, (str, os.PathLike)) for src in images):
+        from ..exif import read_camera_prior
+
+        return read_camera_prior(images)  # type: ignore[arg-type]
+    sizes = [(int(np.shape(src)[1]), int(np.shape(src)[0])) for src in images]
+    return camera_prior([(name, None, size) for name, size in zip(names, sizes)])
 
 
 def reconstruct_views(
     images: Sequence[ImageSource],
-    K: ArrayLike,
+    K: ArrayLike | None,
     dist: ArrayLike | None = None,
     *,
     max_width: int | None = 2 * BOOK_MAX_WIDTH_PX,
@@ -76,17 +94,23 @@ def reconstruct_views(
     settings: SfMSettings | None = None,
     progress: Callable[[str], None] | None = None,
     engine: Engine | None = None,
+    focal_prior: FocalPrior | None = None,
 ) -> MultiViewReconstruction:
-    """Reconstruct cameras and points from several photos of one calibrated camera.
+    """Reconstruct cameras and points from several photos of one camera, calibrated or not.
 
     Parameters
     ----------
     images : sequence of paths or (H, W[, C]) arrays
         Photos of the same size, in any order.
-    K : (3, 3) array_like
-        Intrinsics of the **native** images.
+    K : (3, 3) array_like or None
+        Intrinsics of the **native** images; None for photos without a calibration:
+        one focal length (the principal point at the centre, no distortion) starts
+        from ``focal_prior`` and is refined by the photos
+        (:mod:`scene3D.multiview.focal`); the result's ``K`` is the one found, its
+        ``calibration_source`` and ``focal`` say how.
     dist : array_like, optional
-        OpenCV distortion coefficients; the images are undistorted first.
+        OpenCV distortion coefficients; the images are undistorted first (with ``K``
+        only).
     max_width : int or None
         Halve while wider than this (default 2400: 3072 -> 1536);
         None keeps the native size. The result's ``K`` is for the working size.
@@ -103,6 +127,10 @@ def reconstruct_views(
     engine : Engine, optional
         Where feature extraction and pair verification run (default: in this process,
         :class:`scene3D.engines.LocalEngine`).
+    focal_prior : FocalPrior, optional
+        Without ``K``: the focal length to start from, of the native images (default:
+        :func:`scene3D.exif.read_camera_prior` of the files, the EXIF focal length or
+        1.2 times the longer side; for arrays the default).
 
     Returns
     -------
@@ -115,7 +143,8 @@ def reconstruct_views(
     ReconstructionError
         Fewer than two views, or no pair gives a trustworthy start.
     FileNotFoundError, ValueError
-        Unreadable images or images of different sizes.
+        Unreadable images or images of different sizes; without ``K``, photos from
+        different cameras (EXIF make and model, or focal length).
     """
     s = settings or SfMSettings()
     engine = engine or LocalEngine()
@@ -127,6 +156,14 @@ def reconstruct_views(
     if len(images) < 2:
         raise ReconstructionError("too_few_views", "need at least two images",
                                   views=len(images))
+    if K is None:
+        if dist is not None:
+            raise ValueError("`dist` needs `K`: photos without a calibration are taken as "
+                             "undistorted")
+        focal_prior = focal_prior or _focal_prior(images, names)
+        K = focal_prior.K
+    else:
+        focal_prior = None
     K_native = validate_intrinsics(K)
     dist = validate_distortion(dist)
     timings: dict[str, float] = {}
@@ -144,6 +181,8 @@ def reconstruct_views(
                              "(one camera, one size)")
     working_size, levels = found[0][2], found[0][3]
     K_work = scale_intrinsics_halved(K_native, levels)
+    focal = None if focal_prior is None else FocalSettings(
+        float(K_work[0, 0]), focal_prior.sigma_log, focal_prior.source)
     timings["features"] = time.perf_counter() - t0
     say(f"features: {', '.join(str(len(f[0].keypoints)) for f in found)} keypoints")
 
@@ -195,14 +234,18 @@ def reconstruct_views(
         return new
 
     models, reasons, sfm_timings = reconstruct_models(features, verified, K_work, s, more_pairs,
-                                                      say, canonical_names)
+                                                      say, canonical_names, focal)
     timings["matching"] += sfm_timings.pop("matching")
     timings.update(sfm_timings)
     timings["total"] = sum(timings.values())
+    if focal is not None:
+        K_work = models[0].K if models[0].K is not None else K_work
     return MultiViewReconstruction(
         names=names, K=np.asarray(K_work, np.float64), image_size=working_size,
         models=tuple(_to_input_order(m, order) for m in models),
         unregistered_reasons={names[order[v]]: why for v, why in sorted(
             reasons.items(), key=lambda item: order[item[0]])},
         pair_selection=selection, matched_pairs=len(matched), verified_pairs=len(verified),
-        timings_s=timings)
+        timings_s=timings,
+        calibration_source="file" if focal is None else models[0].focal.source,
+        prior_description="" if focal_prior is None else focal_prior.description)
