@@ -187,7 +187,7 @@ def test_evaluate_names_the_detector_that_ran(fountain, capsys):
 
 
 def test_evaluate_bundle_adjusts_when_asked(fountain, capsys, monkeypatch):
-    from scene3D import twoview
+    from scene3D.twoview import core as twoview
 
     calls = []
     adjust = twoview.bundle_adjust_two_view

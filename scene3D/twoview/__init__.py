@@ -1,0 +1,37 @@
+"""Two-view reconstruction from matches: E, pose, triangulation, uncertainty and trust.
+
+The pipeline (book chapter 4, done right):
+
+1. essential matrix from calibrated points (5-point, USAC), then a local
+   optimisation of the pose on its inliers (robust Sampson refinement),
+   restarted until the best fit is found twice (:func:`scene3D.epipolar.fit_essential`),
+2. model selection: a pure rotation (no baseline) is refused when a rotation
+   homography explains the matches as well as the essential matrix
+   (:func:`scene3D.degeneracy.motion_model_choice`); a planar scene is refused
+   unless matches off the plane rule out the other pose a plane allows,
+3. pose by cheirality over all inliers; ``F = K^-T E K^-1`` for epipolar lines,
+4. triangulation, keeping points in front of both cameras with small
+   reprojection error and enough parallax,
+5. the pose's first-order covariance (:func:`scene3D.refinement.relative_pose_covariance`,
+   parametrisation in :mod:`scene3D.uncertainty`) and each point's depth uncertainty,
+6. trust (:func:`trust_warnings`): a pose is untrusted when its uncertainty is too
+   large for the purpose (``TwoViewSettings.uncertainty_sigmas`` standard
+   deviations beyond ``uncertainty_limit_deg``), or when something the covariance
+   cannot see is at work: restarts that end at distinct optima, a focal length
+   that does not fit the calibration (:func:`check_focal_length`), too few inliers
+   for the covariance to be estimated or for wrong matches not to agree by chance.
+
+Frames: points are in the camera-1 frame, ``x_cam2 = R x_cam1 + t``, ``|t| = 1``
+(the scale is unknown).
+"""
+
+from ..degeneracy import is_rotation_homography, off_plane_evidence, plane_poses
+from .core import reconstruct_from_matches, reconstruct_two_view, sample_colors
+from .results import TwoViewGeometry, TwoViewReconstruction, TwoViewSettings
+from .trust import check_focal_length, trust_warnings
+
+__all__ = [  # the plane checks lived here before scene3D.degeneracy
+    "TwoViewGeometry", "TwoViewReconstruction", "TwoViewSettings", "check_focal_length",
+    "is_rotation_homography", "off_plane_evidence", "plane_poses", "reconstruct_from_matches",
+    "reconstruct_two_view", "sample_colors", "trust_warnings",
+]

@@ -1,0 +1,228 @@
+"""The two-view reconstruction from matches (the pipeline of :mod:`scene3D.twoview`)."""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import fields
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..degeneracy import (
+    MotionModelChoice,
+    lower_cost_plane_pose,
+    motion_model_choice,
+    off_plane_evidence,
+)
+from ..epipolar import (
+    essential_distances,
+    essential_from_pose,
+    estimate_homography,
+    fit_essential,
+    fundamental_from_essential,
+    inlier_threshold_px,
+    loss_scale_px,
+    noise_sigma_px,
+)
+from ..errors import ReconstructionError
+from ..features import Matches
+from ..geometry import FloatArray, as_matrix, as_points2d, check_same_length, median
+from ..pose import choose_pose
+from ..refinement import bundle_adjust_two_view, relative_pose_covariance
+from ..triangulation import parallax_angles_deg, reprojection_errors
+from ..uncertainty import PoseUncertainty, depth_sigmas, tangent_basis
+from .results import TwoViewGeometry, TwoViewReconstruction, TwoViewSettings
+from .trust import check_focal_length, trust_warnings
+
+logger = logging.getLogger(__name__)
+
+
+def sample_colors(img_bgr: np.ndarray, points: FloatArray) -> np.ndarray:
+    """RGB ``uint8`` colours ``(N, 3)`` of a BGR image at pixels ``(N, 2)`` (nearest pixel)."""
+    h, w = img_bgr.shape[:2]
+    x = np.clip(np.rint(points[:, 0]).astype(int), 0, w - 1)
+    y = np.clip(np.rint(points[:, 1]).astype(int), 0, h - 1)
+    if img_bgr.ndim == 2:
+        grey = img_bgr[y, x]
+        return np.stack([grey, grey, grey], axis=1).astype(np.uint8)
+    return img_bgr[y, x, ::-1].astype(np.uint8)
+
+
+def _motion(E: FloatArray, in1: FloatArray, in2: FloatArray, K: FloatArray, H: FloatArray,
+            threshold_px: float) -> MotionModelChoice:
+    """:func:`scene3D.degeneracy.motion_model_choice` on the inliers of ``E``.
+
+    The noise is floored at a thousandth of the threshold (as the loss scale is,
+    :func:`scene3D.epipolar.loss_scale_px`): exact matches leave a homography fitted
+    in float arithmetic with errors of 1e-6 px that would otherwise count as misfit.
+    """
+    distances = essential_distances(E, in1, in2, K)
+    noise = max(noise_sigma_px(distances), 1e-3 * threshold_px)
+    return motion_model_choice(in1, in2, K, distances, noise, H)
+
+
+def reconstruct_from_matches(
+    pts1: ArrayLike,
+    pts2: ArrayLike,
+    K: ArrayLike,
+    settings: TwoViewSettings | None = None,
+) -> TwoViewGeometry:
+    """Estimate pose and structure from correspondences (the geometric core).
+
+    Parameters
+    ----------
+    pts1, pts2 : (N, 2) array_like
+        Matched pixels in image 1 and image 2.
+    K : (3, 3) array_like
+        Intrinsics shared by both images.
+
+    Returns
+    -------
+    TwoViewGeometry
+
+    Raises
+    ------
+    ReconstructionError
+        Too few matches / inliers / points, a pure rotation (``"no_parallax"``), a
+        planar scene, or no cheirality winner.
+    """
+    s = settings or TwoViewSettings()
+    p1 = as_points2d(pts1, "pts1")
+    p2 = as_points2d(pts2, "pts2")
+    check_same_length(p1, p2)
+    K = as_matrix(K, (3, 3), "K")
+    n = len(p1)
+    if n < s.min_matches:
+        raise ReconstructionError(
+            "too_few_matches", "too few matches between the images",
+            matches=n, required=s.min_matches,
+        )
+    fit = fit_essential(p1, p2, K, s.threshold_px, max_starts=s.max_starts)
+    E, inliers, refine_s = fit.E, fit.inliers, fit.refinement_s
+    logger.debug("essential matrix: %d robust starts", fit.starts)
+    num_inliers = int(inliers.sum())
+    if not np.all(np.isfinite(E)) or num_inliers < s.min_inliers:
+        raise ReconstructionError(
+            "too_few_inliers", "too few matches agree on an essential matrix",
+            matches=n, inliers=num_inliers, required=s.min_inliers,
+        )
+    in1, in2 = p1[inliers], p2[inliers]
+    H, h_inliers = estimate_homography(in1, in2, s.threshold_px)
+    h_ratio = float(h_inliers.sum()) / num_inliers
+    motion = _motion(E, in1, in2, K, H, s.threshold_px)
+    if motion.pure_rotation:
+        raise ReconstructionError(
+            "no_parallax",
+            "the images are related by a pure rotation (no baseline): a rotation explains "
+            "the matches as well as an essential matrix, and depth cannot be recovered",
+            inliers=num_inliers, rotation_gric=motion.rotation_gric,
+            essential_gric=motion.essential_gric,
+        )
+    if h_ratio > s.planar_ratio:
+        better = lower_cost_plane_pose(E, inliers, h_inliers, H, p1, p2, K, s.threshold_px)
+        if better is not None:
+            E, inliers = better
+            num_inliers = int(inliers.sum())
+            in1, in2 = p1[inliers], p2[inliers]
+            H, h_inliers = estimate_homography(in1, in2, s.threshold_px)
+            h_ratio = float(h_inliers.sum()) / num_inliers
+            motion = _motion(E, in1, in2, K, H, s.threshold_px)
+    # A plane allows two poses, unless the depth off it is measurable (the essential
+    # matrix explains the matches better than the homography: a short baseline).
+    planar = h_ratio > s.planar_ratio and motion.planar
+    R, t, points, front = choose_pose(E, in1, in2, K)
+    if planar:
+        evidence = off_plane_evidence(H, K, R, t, in1, in2, h_inliers, s.threshold_px)
+        if evidence < s.min_off_plane_matches:
+            raise ReconstructionError(
+                "planar_scene",
+                "one homography explains the matches (a planar scene): the relative pose is "
+                "ambiguous; add depth to the view", inliers=num_inliers,
+                homography_inlier_ratio=h_ratio, off_plane_evidence=evidence,
+                required=s.min_off_plane_matches,
+            )
+    parallax = np.where(front, parallax_angles_deg(np.nan_to_num(points), R, t), 0.0)
+    errors = np.full((len(in1), 2), np.inf)
+    errors[front] = reprojection_errors(points[front], in1[front], in2[front], K, R, t)
+    valid = front & (errors.max(axis=1) <= s.max_reprojection_px)
+    keep = valid & (parallax >= s.min_point_parallax_deg)
+    if keep.sum() < s.min_points:
+        # A small baseline: every point is weakly triangulated; keep them all, each with
+        # its depth uncertainty, rather than refuse a pose that the model selection found.
+        keep = valid
+    if keep.sum() < s.min_points:
+        raise ReconstructionError(
+            "too_few_points", "too few points triangulate reliably",
+            inliers=num_inliers, in_front=int(front.sum()), kept=int(keep.sum()),
+            required=s.min_points,
+        )
+    median_kept_parallax = median(parallax[keep])
+    t_focal = time.perf_counter()
+    # The noise of these inliers sets the losses of the focal check and the adjustment,
+    # as it does the local optimisation's (scene3D.epipolar.refine_essential).
+    distances = essential_distances(E, in1, in2, K)
+    loss_scale = loss_scale_px(distances, s.threshold_px)
+    focal = check_focal_length(R, t, p1, p2, inliers, K,
+                               inlier_threshold_px(distances, s.threshold_px), loss_scale)
+    refine_s += time.perf_counter() - t_focal
+    points, pts1_kept, pts2_kept = points[keep], in1[keep], in2[keep]
+    kept_errors = errors[keep]
+    if s.bundle_adjust:
+        t_ba = time.perf_counter()
+        R, t, points = bundle_adjust_two_view(R, t, points, pts1_kept, pts2_kept, K,
+                                              loss="cauchy", scale_px=loss_scale)
+        E = essential_from_pose(R, t)
+        E = E / np.linalg.norm(E)
+        kept_errors = reprojection_errors(points, pts1_kept, pts2_kept, K, R, t)
+        refine_s += time.perf_counter() - t_ba
+    # The covariance at the final pose: the Sampson cost is the bundle adjustment's with
+    # the points eliminated, to first order, so it serves after an adjustment too.
+    uncertainty = PoseUncertainty(
+        relative_pose_covariance(R, t, in1, in2, K, "cauchy", loss_scale), tangent_basis(t),
+        noise_sigma_px(distances))
+    point_sigmas = depth_sigmas(points, K, R, t, uncertainty.covariance,
+                                uncertainty.noise_sigma_px)
+    warnings = trust_warnings(uncertainty, n, num_inliers, median_kept_parallax, h_ratio, s,
+                              fit, focal, motion.rotation_share)
+    F = fundamental_from_essential(E, K)  # the epipolar geometry the final pose obeys
+    return TwoViewGeometry(
+        R=R, t=t, points3d=points, pts1=pts1_kept, pts2=pts2_kept, K=K, F=F, E=E,
+        num_matches=n, num_inliers=num_inliers,
+        reprojection_rmse_px=float(np.sqrt(np.mean(kept_errors**2))),
+        median_parallax_deg=median_kept_parallax,
+        homography_inlier_ratio=h_ratio, trusted=not warnings, warnings=tuple(warnings),
+        inlier_pts1=in1, inlier_pts2=in2, refinement_s=refine_s, robust_starts=fit.starts,
+        robust_spread_deg=fit.spread_deg, focal_scale=focal.scale,
+        focal_scale_sigma=focal.scale * focal.sigma_log,
+        pose_covariance=uncertainty.covariance,
+        rotation_sigma_deg=uncertainty.rotation_sigma_deg,
+        translation_sigma_deg=uncertainty.translation_sigma_deg,
+        noise_sigma_px=uncertainty.noise_sigma_px, depth_sigmas=point_sigmas,
+    )
+
+
+def reconstruct_two_view(
+    img1: np.ndarray,
+    matches: Matches,
+    K: ArrayLike,
+    settings: TwoViewSettings | None = None,
+) -> TwoViewReconstruction:
+    """Reconstruct a pair from its matches; ``img1`` (BGR) gives the point colours.
+
+    See :func:`reconstruct_from_matches` for the steps and the errors raised.
+    """
+    t0 = time.perf_counter()
+    geometry = reconstruct_from_matches(matches.pts1, matches.pts2, K, settings)
+    t1 = time.perf_counter()
+    refinement_s = geometry.refinement_s
+    colors = sample_colors(img1, geometry.pts1)
+    timings = dict(matches.timings_s)
+    timings["geometry"] = t1 - t0 - refinement_s
+    timings["refinement"] = refinement_s
+    timings["total"] = sum(timings.values())
+    for w in geometry.warnings:
+        logger.warning("%s", w)
+    return TwoViewReconstruction(colors=colors, feature=matches.feature, timings_s=timings,
+                                 **{f.name: getattr(geometry, f.name)
+                                    for f in fields(TwoViewGeometry)})

@@ -1,0 +1,241 @@
+"""The two-view pipeline's settings and results (see :mod:`scene3D.twoview`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..geometry import FloatArray
+from ..uncertainty import PoseUncertainty, tangent_basis
+
+
+@dataclass(frozen=True)
+class TwoViewSettings:
+    """Thresholds of the two-view pipeline (defaults suit the book's 768 px images).
+
+    Attributes
+    ----------
+    threshold_px : float
+        Robust-estimation inlier threshold for F, E and H, in pixels. The local
+        optimisation of E raises it, at most twofold, when the matches are noisier
+        than it assumes (:func:`scene3D.epipolar.inlier_threshold_px`).
+    max_starts : int
+        Most robust estimations of E (each locally optimised); the best is kept
+        once two starts agree on it (:func:`scene3D.epipolar.fit_essential`).
+        1 gives a single start, as plain OpenCV does.
+    restart_agreement_deg : float
+        When no pose was found twice, the result is still trusted if every start's
+        optimum lies within this angle of the best (distinct optima, one pose to
+        that accuracy); beyond it the result is marked untrusted: a covariance
+        describes one optimum and cannot see the others.
+    min_matches, min_inliers, min_points : int
+        Below these counts the pair is refused.
+    min_point_parallax_deg : float
+        Points seen under a smaller angle are dropped (their depth is unreliable),
+        unless that leaves fewer than ``min_points`` (a small baseline): then every
+        point in front of both cameras is kept, with its depth uncertainty.
+    max_reprojection_px : float
+        Points reprojecting worse than this in either view are dropped.
+    planar_ratio : float
+        Homography inliers / essential inliers above which the pair is checked for
+        the planar ambiguity (:func:`scene3D.degeneracy.off_plane_evidence`).
+    min_off_plane_matches : int
+        A (nearly) planar pair is refused unless at least this many matches off the
+        plane rule out the other pose that the plane allows.
+    uncertainty_limit_deg, uncertainty_sigmas : float, float
+        The purpose: a pose is untrusted when ``uncertainty_sigmas`` standard
+        deviations of its rotation or of its translation direction
+        (``rotation_sigma_deg``, ``translation_sigma_deg`` of the result) exceed
+        ``uncertainty_limit_deg``. The default, 3 sigma within 2 deg, keeps the
+        direction within 2 deg with at least 98.9 % probability.
+    max_rotation_share : float
+        The pose is untrusted when a rotation alone explains more than this share of
+        the inliers (within three noise standard deviations;
+        :func:`scene3D.degeneracy.motion_model_choice`): most matches show no
+        parallax, and the translation rests on the others, which a moving object
+        would explain as well as a camera that moved (on OpenCV's ``left*.jpg``, a
+        still camera and a chessboard moved by hand, 5 of 78 pairs came back
+        trusted, with translation sigmas of 0.001-0.5 deg, without this check).
+    trusted_inliers : int
+        Fewer inliers leave the pose untrusted whatever its covariance says: a
+        covariance estimated from few residuals is itself uncertain, and random
+        matches can agree on a wrong pose by chance (a few dozen of them among a
+        few hundred; ``tests/test_twoview.py``).
+    trusted_inlier_ratio, trusted_parallax_deg, planar_warning_ratio : float
+        Not verdicts: when the uncertainty is too large, the warning names the
+        likely causes, an inlier share of the matches below ``trusted_inlier_ratio``
+        (wide baseline, repeated texture), a median parallax below
+        ``trusted_parallax_deg`` (short baseline), a homography explaining more
+        than ``planar_warning_ratio`` of the inliers (a nearly planar scene).
+    max_focal_mismatch, focal_mismatch_sigmas : float, float
+        The result is marked untrusted when the matches call for a focal length more
+        than ``1 + max_focal_mismatch`` times larger or smaller than the
+        calibration's, by more than ``focal_mismatch_sigmas`` standard deviations
+        (:func:`scene3D.refinement.fit_focal_scale`): the calibration is probably
+        for another camera, lens or zoom, and the pose is off by degrees. Three
+        standard deviations of the sandwich estimate (five of the optimistic IRLS
+        estimate before it): with the true K no right pose of the three Strecha
+        scenes is flagged for its focal length (gaps 1-5, 768 and 1536 px).
+    bundle_adjust : bool
+        Finish with a two-view bundle adjustment of pose and points
+        (:func:`scene3D.refinement.bundle_adjust_two_view`) with the same Cauchy
+        loss as the local optimisation. Off by default: on the fountain-P11
+        benchmark pairs it moves the poses by hundredths of a degree at most, closer
+        to the truth on some pairs and further on others (at 768 px AUC@5deg 98.2
+        against 98.4 without), for about 70-160 ms a pair (768-1536 px).
+    """
+
+    threshold_px: float = 1.0
+    max_starts: int = 8
+    restart_agreement_deg: float = 0.5
+    min_matches: int = 20
+    min_inliers: int = 15
+    min_points: int = 10
+    min_point_parallax_deg: float = 0.5
+    max_reprojection_px: float = 2.0
+    planar_ratio: float = 0.95
+    min_off_plane_matches: int = 10
+    uncertainty_limit_deg: float = 2.0
+    uncertainty_sigmas: float = 3.0
+    max_rotation_share: float = 0.5
+    trusted_inliers: int = 50
+    trusted_inlier_ratio: float = 0.25
+    trusted_parallax_deg: float = 2.0
+    planar_warning_ratio: float = 0.85
+    max_focal_mismatch: float = 0.15
+    focal_mismatch_sigmas: float = 3.0
+    bundle_adjust: bool = False
+
+
+@dataclass(frozen=True)
+class TwoViewGeometry:
+    """Pose and structure of a pair, as found from its correspondences alone.
+
+    Attributes
+    ----------
+    R : (3, 3) float64
+        ``R_cam2_from_cam1``.
+    t : (3,) float64
+        Unit translation, ``x_cam2 = R @ x_cam1 + t`` (scale unknown).
+    points3d : (N, 3) float64
+        Triangulated points in the camera-1 frame, in units of the baseline.
+    pts1, pts2 : (N, 2) float64
+        Pixels of the kept points in the working images.
+    K : (3, 3) float64
+        Intrinsics of the working images.
+    F, E : (3, 3) float64
+        Fundamental (pixels, ``F = K^-T E K^-1``) and essential matrices, unit norm.
+    num_matches, num_inliers : int
+        Putative matches, and inliers of the essential matrix.
+    reprojection_rmse_px : float
+        RMS reprojection error of ``points3d`` over both views.
+    median_parallax_deg : float
+        Median triangulation angle of the kept points.
+    homography_inlier_ratio : float
+        Homography inliers / essential inliers (near 1: planar scene or no baseline).
+    trusted : bool
+        False when a check raised a doubt; see ``warnings``.
+    warnings : tuple[str, ...]
+        Human-readable doubts about the result.
+    inlier_pts1, inlier_pts2 : (M, 2) float64
+        All essential-matrix inliers (before triangulation filters).
+    refinement_s : float
+        Seconds spent refining the pose (and bundle adjusting, if asked).
+    robust_starts : int
+        Robust estimations of E run (:func:`scene3D.epipolar.fit_essential`); when
+        the best pose was not found twice in ``TwoViewSettings.max_starts`` of them
+        and their optima lie more than ``TwoViewSettings.restart_agreement_deg``
+        apart, the result is untrusted.
+    robust_spread_deg : float
+        How far the other starts' optima lie from the chosen one
+        (:attr:`scene3D.epipolar.EssentialFit.spread_deg`; 0 when they all agree).
+    focal_scale, focal_scale_sigma : float
+        The focal length the inliers call for, as a multiple of the calibration's,
+        and its standard deviation (:func:`scene3D.refinement.fit_focal_scale`;
+        near 1 when the calibration fits, the sigma infinite when the pair cannot
+        tell).
+    pose_covariance : (5, 5) float64
+        First-order covariance of the pose (radians^2) in the parametrisation of
+        :mod:`scene3D.uncertainty`: rows 0-2 the rotation vector ``w`` of
+        ``R <- exp([w]x) R`` (camera-2 frame), rows 3-4 the step of ``t`` along the
+        rows of ``tangent_basis(t)`` (:attr:`pose_uncertainty` has both). Infinite
+        when the matches do not determine the pose.
+    rotation_sigma_deg, translation_sigma_deg : float
+        1-sigma angles of the rotation and of the translation direction along their
+        worst axes (square roots of the largest eigenvalues of the covariance's
+        rotation and direction blocks), in degrees.
+    noise_sigma_px : float
+        Robust standard deviation of the keypoint noise, per coordinate, measured on
+        the inliers (:func:`scene3D.epipolar.noise_sigma_px`).
+    depth_sigmas : (N,) float64
+        1-sigma depth of each point in camera 1, in units of the baseline, from the
+        pose covariance and the keypoint noise (:func:`scene3D.uncertainty.depth_sigmas`);
+        divide by ``points3d[:, 2]`` for a relative uncertainty.
+    """
+
+    R: FloatArray
+    t: FloatArray
+    points3d: FloatArray
+    pts1: FloatArray
+    pts2: FloatArray
+    K: FloatArray
+    F: FloatArray
+    E: FloatArray
+    num_matches: int
+    num_inliers: int
+    reprojection_rmse_px: float
+    median_parallax_deg: float
+    homography_inlier_ratio: float
+    trusted: bool
+    warnings: tuple[str, ...]
+    inlier_pts1: FloatArray
+    inlier_pts2: FloatArray
+    refinement_s: float = 0.0
+    robust_starts: int = 1
+    robust_spread_deg: float = 0.0
+    focal_scale: float = 1.0
+    focal_scale_sigma: float = float("inf")
+    pose_covariance: FloatArray = field(default_factory=lambda: np.full((5, 5), np.inf))
+    rotation_sigma_deg: float = float("inf")
+    translation_sigma_deg: float = float("inf")
+    noise_sigma_px: float = float("nan")
+    depth_sigmas: FloatArray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def pose_uncertainty(self) -> PoseUncertainty:
+        """The covariance with the tangent basis of ``t`` it refers to."""
+        return PoseUncertainty(self.pose_covariance, tangent_basis(self.t), self.noise_sigma_px)
+
+
+@dataclass(frozen=True, kw_only=True)
+class TwoViewReconstruction(TwoViewGeometry):
+    """The result of reconstructing one image pair: :class:`TwoViewGeometry` plus
+
+    Attributes
+    ----------
+    colors : (N, 3) uint8
+        RGB colour of each point, sampled from image 1.
+    feature : str
+        The detector that actually ran.
+    timings_s : dict[str, float]
+        Seconds per stage.
+    """
+
+    colors: np.ndarray
+    feature: str
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def num_points(self) -> int:
+        return len(self.points3d)
+
+    @property
+    def Rt1(self) -> FloatArray:
+        """``[I | 0]``, the book's camera-1 matrix (3, 4)."""
+        return np.hstack([np.eye(3), np.zeros((3, 1))])
+
+    @property
+    def Rt2(self) -> FloatArray:
+        """``[R | t]``, the book's camera-2 matrix (3, 4)."""
+        return np.hstack([self.R, self.t.reshape(3, 1)])

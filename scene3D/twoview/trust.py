@@ -1,0 +1,119 @@
+"""Whether to trust a two-view pose: the verdicts that follow from its uncertainty and
+what the uncertainty cannot see (see :mod:`scene3D.twoview`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..epipolar import EssentialFit, essential_distances, essential_from_pose
+from ..geometry import FloatArray
+from ..refinement import FocalFit, fit_focal_scale
+from ..uncertainty import PoseUncertainty
+from .results import TwoViewSettings
+
+
+def _deg(angle: float) -> str:
+    """An angle in degrees to two significant digits: '2.4', '0.31', '0.037'."""
+    return f"{angle:.1f}" if angle >= 1 else f"{angle:.2g}"
+
+
+def _sigmas_text(uncertainty: PoseUncertainty) -> str:
+    """'translation direction +-2.4 deg, rotation +-0.31 deg (1 sigma)'."""
+    return (f"translation direction +-{_deg(uncertainty.translation_sigma_deg)} deg, rotation "
+            f"+-{_deg(uncertainty.rotation_sigma_deg)} deg (1 sigma)")
+
+
+def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: int,
+                   median_parallax_deg: float, homography_ratio: float, s: TwoViewSettings,
+                   fit: EssentialFit | None = None, focal: FocalFit | None = None,
+                   rotation_share: float = 0.0) -> list[str]:
+    """Reasons to doubt a pose that passed every hard check (empty: trusted).
+
+    The verdicts:
+
+    - the uncertainty (``uncertainty``, :class:`scene3D.uncertainty.PoseUncertainty`)
+      is too large for the purpose: ``s.uncertainty_sigmas`` standard deviations of
+      the rotation or the translation direction exceed ``s.uncertainty_limit_deg``.
+      The warning names the likely causes among few inliers, a small inlier share of
+      the matches, weak parallax and a nearly planar scene (``s.trusted_inliers``,
+      ``s.trusted_inlier_ratio``, ``s.trusted_parallax_deg``,
+      ``s.planar_warning_ratio``), which are explanations, not verdicts of their own;
+    - what a covariance cannot see: the robust restarts of ``fit`` never reached the
+      best pose twice and their optima lie further apart than
+      ``s.restart_agreement_deg`` (several optima); the focal length the matches call
+      for (``focal``, :func:`scene3D.refinement.fit_focal_scale`) differs from the
+      calibration's by more than ``s.max_focal_mismatch`` and
+      ``s.focal_mismatch_sigmas`` standard deviations; fewer than
+      ``s.trusted_inliers`` inliers, too few to estimate a covariance from and few
+      enough for wrong matches to agree by chance; a rotation alone explains more than
+      ``s.max_rotation_share`` of the inliers (``rotation_share``,
+      :func:`scene3D.degeneracy.motion_model_choice`), so the translation rests on
+      the few that show parallax.
+
+    Every warning quotes the uncertainty.
+    """
+    sigmas = _sigmas_text(uncertainty)
+    warnings = []
+    limit = s.uncertainty_limit_deg / s.uncertainty_sigmas
+    if max(uncertainty.rotation_sigma_deg, uncertainty.translation_sigma_deg) > limit:
+        causes = []
+        if num_inliers < s.trusted_inliers:
+            causes.append(f"only {num_inliers} inliers")
+        if num_inliers < s.trusted_inlier_ratio * num_matches:
+            causes.append(f"only {num_inliers / num_matches:.0%} of the {num_matches} matches "
+                          "are inliers (wide baseline or repeated texture)")
+        if median_parallax_deg < s.trusted_parallax_deg:
+            causes.append(f"weak parallax ({_deg(median_parallax_deg)} deg median)")
+        if homography_ratio > s.planar_warning_ratio:
+            causes.append(f"a homography explains {homography_ratio:.0%} of the inliers "
+                          "(a nearly planar scene or a short baseline)")
+        warnings.append(f"uncertain pose: {sigmas}, more than {s.uncertainty_limit_deg:g} deg "
+                        f"at {s.uncertainty_sigmas:g} sigma"
+                        + (f"; {', '.join(causes)}" if causes else ""))
+    elif num_inliers < s.trusted_inliers:
+        warnings.append(f"only {num_inliers} inliers: too few to rely on the pose's "
+                        f"{sigmas}")
+    if rotation_share > s.max_rotation_share:
+        warnings.append(f"a rotation alone explains {rotation_share:.0%} of the inliers: the "
+                        f"translation rests on the other {1 - rotation_share:.0%}, which a "
+                        "moving object would explain as well as a camera that moved (the "
+                        f"{sigmas} assume a rigid scene)")
+    if (fit is not None and s.max_starts > 1 and not fit.confirmed
+            and fit.spread_deg > s.restart_agreement_deg):
+        warnings.append(f"no pose was found twice in {fit.starts} robust starts: poses "
+                        f"up to {fit.spread_deg:.1f} deg apart fit the matches about "
+                        f"equally well (the best one's {sigmas} cannot show this)")
+    if focal is not None:
+        log_scale = abs(np.log(focal.scale))
+        if (log_scale > np.log1p(s.max_focal_mismatch)
+                and log_scale > s.focal_mismatch_sigmas * focal.sigma_log):
+            warnings.append(
+                f"the matches fit a focal length {focal.scale:.2f} times the calibration's "
+                f"(+-{focal.scale * focal.sigma_log:.2f}): is the calibration for this camera, "
+                f"lens and zoom? The pose may be off by degrees, beyond its {sigmas}")
+    return warnings
+
+
+def check_focal_length(R: FloatArray, t: FloatArray, p1: FloatArray, p2: FloatArray,
+                       inliers: np.ndarray, K: FloatArray, threshold_px: float,
+                       scale_px: float, rounds: int = 3) -> FocalFit:
+    """The focal length the matches call for (:func:`scene3D.refinement.fit_focal_scale`).
+
+    ``p1, p2`` are all the correspondences ``(N, 2)``, ``inliers`` the ``(N,) bool``
+    inliers of the pose ``R, t`` found with ``K``. Those inliers were chosen under
+    ``K``: with a wrong focal length they favour the matches that fit it, so they
+    are re-selected under the fitted focal length (at ``threshold_px``) and the fit
+    repeated (as :func:`scene3D.epipolar.refine_essential` does for the pose), under
+    a Cauchy loss of scale ``scale_px``.
+    """
+    focal = fit_focal_scale(R, t, p1[inliers], p2[inliers], K, "cauchy", scale_px)
+    for _ in range(rounds - 1):
+        K_s = K @ np.diag([focal.scale, focal.scale, 1.0])
+        new = essential_distances(essential_from_pose(focal.R, focal.t), p1, p2, K_s) \
+            <= threshold_px
+        if new.sum() < 6 or np.array_equal(new, inliers):
+            break
+        inliers = new
+        focal = fit_focal_scale(focal.R, focal.t, p1[inliers], p2[inliers], K, "cauchy",
+                                scale_px, initial_scale=focal.scale)
+    return focal
