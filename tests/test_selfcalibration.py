@@ -26,19 +26,15 @@ from scene3D.selfcalibration import (
 from scene3D.synthetic import asymmetric_pose, random_points
 from scene3D.twoview import TwoViewSettings
 
+from .helpers import correspondences
+
 SIZE = (640, 480)
 F_TRUE = 0.9 * SIZE[0]  # Strecha's camera: 0.898 x the width
 
 
 def pair(K, R, t, n=400, noise_px=0.0, seed=0):
-    points = random_points(n, seed)
-    pts1 = project(points, K, np.eye(3), np.zeros(3))
-    pts2 = project(points, K, R, t)
-    if noise_px:
-        rng = np.random.default_rng(seed + 1)
-        pts1 = pts1 + rng.normal(0, noise_px, pts1.shape)
-        pts2 = pts2 + rng.normal(0, noise_px, pts2.shape)
-    return pts1, pts2
+    """Pixels of ``n`` random points in both views (:func:`tests.helpers.correspondences`)."""
+    return correspondences(K, R, t, n, noise_px, seed)[1:]
 
 
 def prior_K(focal_px=None):
