@@ -269,6 +269,33 @@ def refine_relative_pose(
     return R, t
 
 
+class _SampsonAt(NamedTuple):
+    """The Sampson residuals' ingredients at a pose (:func:`_sampson_at`)."""
+
+    R: FloatArray  # (3, 3)
+    t: FloatArray  # (3,), unit norm
+    K_inv: FloatArray  # (3, 3)
+    h1: FloatArray  # (N, 3) homogeneous pixels of image 1
+    h2: FloatArray  # (N, 3) of image 2
+    F: FloatArray  # (3, 3), K^-T [t]x R K^-1
+    J_pose: FloatArray  # (N, 5) Sampson distances by the pose step
+
+
+def _sampson_at(R: ArrayLike, t: ArrayLike, pts1: ArrayLike, pts2: ArrayLike,
+                K: ArrayLike) -> _SampsonAt:
+    """The pose (``t`` normalised), ``K^-1``, the points, ``F`` and the Jacobian of the
+    Sampson distances by the pose step (parametrisation of :mod:`scene3D.uncertainty`)."""
+    R = np.asarray(R, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64).reshape(3)
+    t = t / np.linalg.norm(t)
+    K_inv = np.linalg.inv(np.asarray(K, dtype=np.float64))
+    h1 = to_homogeneous(np.asarray(pts1, dtype=np.float64))
+    h2 = to_homogeneous(np.asarray(pts2, dtype=np.float64))
+    F = K_inv.T @ skew(t) @ R @ K_inv
+    J = _sampson_jacobian(F, _fundamental_derivatives(R, t, tangent_basis(t), K_inv), h1, h2)
+    return _SampsonAt(R, t, K_inv, h1, h2, F, J)
+
+
 def relative_pose_covariance(
     R: ArrayLike,
     t: ArrayLike,
@@ -309,15 +336,8 @@ def relative_pose_covariance(
         Infinite when the matches do not determine the pose (fewer than six, or a
         singular Hessian).
     """
-    R = np.asarray(R, dtype=np.float64)
-    t = np.asarray(t, dtype=np.float64).reshape(3)
-    t = t / np.linalg.norm(t)
-    K_inv = np.linalg.inv(np.asarray(K, dtype=np.float64))
-    h1 = to_homogeneous(np.asarray(pts1, dtype=np.float64))
-    h2 = to_homogeneous(np.asarray(pts2, dtype=np.float64))
-    F = K_inv.T @ skew(t) @ R @ K_inv
-    J = _sampson_jacobian(F, _fundamental_derivatives(R, t, tangent_basis(t), K_inv), h1, h2)
-    return _robust_covariance(J, _sampson(F, h1, h2), loss, scale_px)
+    at = _sampson_at(R, t, pts1, pts2, K)
+    return _robust_covariance(at.J_pose, _sampson(at.F, at.h1, at.h2), loss, scale_px)
 
 
 def pose_intrinsics_sensitivity(
@@ -343,15 +363,9 @@ def pose_intrinsics_sensitivity(
     ``theta`` it turns the pose's covariance under a known ``K`` into one for a
     ``K`` known only that well (:func:`scene3D.uncertainty.marginal_covariance`).
     """
-    R = np.asarray(R, dtype=np.float64)
-    t = np.asarray(t, dtype=np.float64).reshape(3)
-    t = t / np.linalg.norm(t)
+    at = _sampson_at(R, t, pts1, pts2, K)
     K = np.asarray(K, dtype=np.float64)
-    K_inv = np.linalg.inv(K)
-    h1 = to_homogeneous(np.asarray(pts1, dtype=np.float64))
-    h2 = to_homogeneous(np.asarray(pts2, dtype=np.float64))
-    E = skew(t) @ R
-    F = K_inv.T @ E @ K_inv
+    K_inv, E = at.K_inv, skew(at.t) @ at.R
     dK = [np.diag([K[0, 0], K[1, 1], 0.0]), np.zeros((3, 3)), np.zeros((3, 3))]
     dK[1][0, 2] = dK[2][1, 2] = 1.0
     # d(K^-1) = -K^-1 dK K^-1, and F = K^-T E K^-1.
@@ -359,10 +373,9 @@ def pose_intrinsics_sensitivity(
     for d in dK:
         dK_inv = -K_inv @ d @ K_inv
         dF_theta.append(dK_inv.T @ E @ K_inv + K_inv.T @ E @ dK_inv)
-    J_pose = _sampson_jacobian(F, _fundamental_derivatives(R, t, tangent_basis(t), K_inv),
-                               h1, h2)
-    J_theta = _sampson_jacobian(F, np.stack(dF_theta), h1, h2)
-    r = _sampson(F, h1, h2)
+    J_pose = at.J_pose
+    J_theta = _sampson_jacobian(at.F, np.stack(dF_theta), at.h1, at.h2)
+    r = _sampson(at.F, at.h1, at.h2)
     z = (r / scale_px) ** 2
     _, rho1, rho2 = _loss(z, loss)
     return nuisance_sensitivity(J_pose, J_theta, rho1 + 2.0 * rho2 * z)
