@@ -197,7 +197,7 @@ def _schur_product_sparse(Y: FloatArray, W: FloatArray, camera: np.ndarray, poin
     return S.reshape(size, size)
 
 
-#: Above this many camera unknowns the Schur product is summed over observation pairs.
+#: Above this many camera unknowns the Schur product is summed per pair of cameras.
 SPARSE_SCHUR_UNKNOWNS = 180
 
 
@@ -207,9 +207,9 @@ def schur_product(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.nd
     ``(c, 3)`` blocks ``Y[o]`` of the observations of ``p`` by camera (zero where a camera
     does not see ``p``), and likewise ``W_p``.
 
-    Dense chunked products for a few cameras (BLAS is fastest there), pairs of
-    observations for many (the dense layout grows with the square of the cameras):
-    both give the same sum.
+    Dense chunked products for a few cameras (BLAS is fastest there), one product per
+    pair of cameras that share points for many (the dense layout grows with the square
+    of the cameras): both give the same sum.
     """
     if num_cameras * Y.shape[1] <= SPARSE_SCHUR_UNKNOWNS:
         return _schur_product_dense(Y, W, camera, point, num_cameras)
