@@ -189,48 +189,56 @@ def pairs_within_groups(starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _schur_product_sparse(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
-                          num_cameras: int) -> FloatArray:
+                          num_cameras: int, chunk_entries: int = 1 << 22) -> FloatArray:
     """:func:`schur_product` for many cameras: one matrix product per pair of cameras that
     share points, over the points they share.
 
-    A table ``(C, P)`` holds each camera's observation of each point (-1: none). For
-    camera ``a``, the observations by cameras ``b >= a`` of ``a``'s points are read
-    from it (grouped by ``b``), and the block ``(a, b)`` is ``sum Y[o_a] W[o_b]^T`` over
-    them, one ``(c, 3k) x (3k, c)`` product. ``Y[o] = W[o] V_p^-1`` with ``V_p``
-    symmetric (as in the Schur complement), so the block ``(b, a)`` is the transpose of
-    ``(a, b)``. The work grows with the points times the square of their track lengths,
-    not with the square of the cameras; no block per pair of observations is stored.
+    A table ``(C, points)`` holds each camera's observation of each point (-1: none),
+    for a chunk of points at a time (at most ``chunk_entries`` entries). For camera
+    ``a``, the observations by cameras ``b >= a`` of ``a``'s points are read from it
+    (grouped by ``b``), and the block ``(a, b)`` gains ``sum Y[o_a] W[o_b]^T`` over them,
+    one ``(c, 3k) x (3k, c)`` product. ``Y[o] = W[o] V_p^-1`` with ``V_p`` symmetric (as
+    in the Schur complement), so the block ``(b, a)`` is the transpose of ``(a, b)``.
+    The work grows with the points times the square of their track lengths, not with
+    the square of the cameras; no block per pair of observations is stored.
     """
     c = Y.shape[1]
     size = num_cameras * c
     if len(point) == 0:
         return np.zeros((size, size))
     _, local = np.unique(point, return_inverse=True)
-    slot = np.full((num_cameras, int(local.max()) + 1), -1, dtype=np.int32 if len(point) < 2**31
-                   else np.int64)
-    slot[camera, local] = np.arange(len(point))
-    by_camera = np.argsort(camera, kind="stable")
-    starts = np.searchsorted(camera[by_camera], np.arange(num_cameras + 1))
+    per_chunk = max(1, chunk_entries // num_cameras)
+    index_type = np.int32 if len(point) < 2**31 else np.int64
+    by_point = np.argsort(local, kind="stable")
+    bounds = np.searchsorted(local[by_point], np.arange(0, local.max() + per_chunk + 1,
+                                                         per_chunk))
     Yt = np.ascontiguousarray(Y.transpose(0, 2, 1))  # (O, 3, c): rows of a (3k, c) stack
     Wt = np.ascontiguousarray(W.transpose(0, 2, 1))
     S = np.zeros((num_cameras, c, num_cameras, c))
-    for a in range(num_cameras):
-        mine = by_camera[starts[a]:starts[a + 1]]
-        if len(mine) == 0:
+    for first, (lo, hi) in enumerate(zip(bounds[:-1], bounds[1:])):
+        if lo == hi:
             continue
-        theirs = slot[a:, local[mine]]  # (C - a, n_a): cameras b >= a on a's points
-        rows, cols = np.nonzero(theirs >= 0)  # grouped by b
-        Ya, Wb = Yt[mine[cols]], Wt[theirs[rows, cols]]
-        bounds = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1], True])
-        for lo, hi in zip(bounds[:-1], bounds[1:]):
-            S[a, :, a + rows[lo]] = Ya[lo:hi].reshape(-1, c).T @ Wb[lo:hi].reshape(-1, c)
+        chunk = by_point[lo:hi]
+        column = local[chunk] - first * per_chunk
+        slot = np.full((num_cameras, per_chunk), -1, dtype=index_type)
+        slot[camera[chunk], column] = chunk
+        by_camera = np.argsort(camera[chunk], kind="stable")
+        starts = np.searchsorted(camera[chunk][by_camera], np.arange(num_cameras + 1))
+        for a in np.flatnonzero(np.diff(starts)):
+            mine = by_camera[starts[a]:starts[a + 1]]
+            theirs = slot[a:, column[mine]]  # (C - a, n): cameras b >= a on a's points
+            rows, cols = np.nonzero(theirs >= 0)  # grouped by b
+            Ya, Wb = Yt[chunk[mine[cols]]], Wt[theirs[rows, cols]]
+            cuts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1], True])
+            for g0, g1 in zip(cuts[:-1], cuts[1:]):
+                S[a, :, a + rows[g0]] += Ya[g0:g1].reshape(-1, c).T @ Wb[g0:g1].reshape(-1, c)
     diagonal = S[np.arange(num_cameras), :, np.arange(num_cameras)].copy()  # (C, c, c)
     S += S.transpose(2, 3, 0, 1)
     S[np.arange(num_cameras), :, np.arange(num_cameras)] -= diagonal
     return S.reshape(size, size)
 
 
-#: Above this many camera unknowns the Schur product is summed over observation pairs.
+#: Above this many camera unknowns the Schur product is summed per pair of cameras.
 SPARSE_SCHUR_UNKNOWNS = 180
 
 
@@ -240,9 +248,9 @@ def schur_product(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.nd
     ``(c, 3)`` blocks ``Y[o]`` of the observations of ``p`` by camera (zero where a camera
     does not see ``p``), and likewise ``W_p``.
 
-    Dense chunked products for a few cameras (BLAS is fastest there), pairs of
-    observations for many (the dense layout grows with the square of the cameras):
-    both give the same sum.
+    Dense chunked products for a few cameras (BLAS is fastest there), one product per
+    pair of cameras that share points for many (the dense layout grows with the square
+    of the cameras): both give the same sum.
     """
     if num_cameras * Y.shape[1] <= SPARSE_SCHUR_UNKNOWNS:
         return _schur_product_dense(Y, W, camera, point, num_cameras)

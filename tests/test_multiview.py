@@ -225,6 +225,9 @@ def test_schur_product_sparse_equals_dense():
     dense = _schur_product_dense(Y, W, camera, point, 30)
     np.testing.assert_allclose(_schur_product_sparse(Y, W, camera, point, 30), dense,
                                atol=1e-10)
+    # Points a chunk at a time (tables of at most 30 x 7 entries): the same sum.
+    np.testing.assert_allclose(_schur_product_sparse(Y, W, camera, point, 30, chunk_entries=210),
+                               dense, atol=1e-10)
     # Point numbers with gaps and cameras that see nothing (30 and 31) change nothing.
     wider = _schur_product_sparse(Y, W, camera, 3 * point + 1, 32)
     np.testing.assert_allclose(wider[:180, :180], dense, atol=1e-10)
