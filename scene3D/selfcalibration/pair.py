@@ -15,6 +15,7 @@ from ..epipolar import essential_cost
 from ..errors import ReconstructionError
 from ..geometry import FloatArray, as_matrix, as_points2d, check_same_length
 from ..twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
+from ..twoview.trust import beyond_uncertainty_limit, sigmas_text
 from ..uncertainty import depth_sigmas, largest_sigma_deg
 from .search import FocalProfile, combine_log_normal, converge_focal, focal_profile, with_focal
 from .uncertainty import (
@@ -174,11 +175,6 @@ class SelfCalibration:
     warnings: tuple[str, ...] = ()
     trusted: bool = True
     seconds: float = 0.0
-
-
-def _deg(angle: float) -> str:
-    """An angle in degrees to two significant digits below 1: '112.3', '2.4', '0.31'."""
-    return f"{angle:.1f}" if angle >= 1 else f"{angle:.2g}"
 
 
 def _main_doubt(uncertainty: FocalUncertainty) -> str:
@@ -357,14 +353,14 @@ def self_calibrate_pair(
         translation_sigma_deg=largest_sigma_deg(covariance[3:, 3:]),
         depth_sigmas=depth_sigmas(geometry.points3d, geometry.K, geometry.R, geometry.t,
                                   covariance, geometry.noise_sigma_px))
-    worst = max(geometry.rotation_sigma_deg, geometry.translation_sigma_deg)
-    uncertain = worst * tv.uncertainty_sigmas > tv.uncertainty_limit_deg
+    uncertain = beyond_uncertainty_limit(geometry.rotation_sigma_deg,
+                                         geometry.translation_sigma_deg, tv)
     if uncertain:
+        sigmas = sigmas_text(geometry.rotation_sigma_deg, geometry.translation_sigma_deg)
         warnings.append(
             f"uncertain pose once the focal length's and the principal point's uncertainty "
-            f"is included: translation direction +-{_deg(geometry.translation_sigma_deg)} deg, "
-            f"rotation +-{_deg(geometry.rotation_sigma_deg)} deg (1 sigma), more than "
-            f"{tv.uncertainty_limit_deg:g} deg at {tv.uncertainty_sigmas:g} sigma")
+            f"is included: {sigmas}, more than {tv.uncertainty_limit_deg:g} deg at "
+            f"{tv.uncertainty_sigmas:g} sigma")
     trusted = (geometry.trusted and not ambiguous and not pose_rivals and not disagree
                and not uncertain and sigma <= s.max_trusted_sigma_log)
     return SelfCalibration(

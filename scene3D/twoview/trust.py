@@ -17,10 +17,19 @@ def _deg(angle: float) -> str:
     return f"{angle:.1f}" if angle >= 1 else f"{angle:.2g}"
 
 
-def _sigmas_text(uncertainty: PoseUncertainty) -> str:
-    """'translation direction +-2.4 deg, rotation +-0.31 deg (1 sigma)'."""
-    return (f"translation direction +-{_deg(uncertainty.translation_sigma_deg)} deg, rotation "
-            f"+-{_deg(uncertainty.rotation_sigma_deg)} deg (1 sigma)")
+def sigmas_text(rotation_sigma_deg: float, translation_sigma_deg: float) -> str:
+    """'translation direction +-2.4 deg, rotation +-0.31 deg (1 sigma)': how warnings quote
+    a pose's uncertainty."""
+    return (f"translation direction +-{_deg(translation_sigma_deg)} deg, rotation "
+            f"+-{_deg(rotation_sigma_deg)} deg (1 sigma)")
+
+
+def beyond_uncertainty_limit(rotation_sigma_deg: float, translation_sigma_deg: float,
+                             s: TwoViewSettings) -> bool:
+    """``s.uncertainty_sigmas`` standard deviations of the rotation or the translation
+    direction exceed ``s.uncertainty_limit_deg``: too uncertain for the purpose."""
+    limit = s.uncertainty_limit_deg / s.uncertainty_sigmas
+    return max(rotation_sigma_deg, translation_sigma_deg) > limit
 
 
 def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: int,
@@ -52,10 +61,10 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
 
     Every warning quotes the uncertainty.
     """
-    sigmas = _sigmas_text(uncertainty)
+    sigmas = sigmas_text(uncertainty.rotation_sigma_deg, uncertainty.translation_sigma_deg)
     warnings = []
-    limit = s.uncertainty_limit_deg / s.uncertainty_sigmas
-    if max(uncertainty.rotation_sigma_deg, uncertainty.translation_sigma_deg) > limit:
+    if beyond_uncertainty_limit(uncertainty.rotation_sigma_deg,
+                                uncertainty.translation_sigma_deg, s):
         causes = []
         if num_inliers < s.trusted_inliers:
             causes.append(f"only {num_inliers} inliers")
