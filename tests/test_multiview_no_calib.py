@@ -248,12 +248,8 @@ def test_the_start_falls_back_on_a_pair_trusted_under_its_own_focal_length():
 
 
 def test_a_wide_focal_sigma_prints_as_a_factor():
-    from scene3D.cli.multiview import _focal_sigma
-    from scene3D.multiview import FocalEstimate
+    # What reconstruct-views and chapter4.py print after the focal length (one helper).
+    from scene3D.cli.common import focal_sigma_text
 
-    def estimate(sigma_px):
-        return FocalEstimate(1000.0, sigma_px, "prior", False, 0.5, 0.0, 1000.0, math.inf,
-                             1000.0, 0.5, 1000.0)
-
-    assert _focal_sigma(estimate(1.4)) == "+-1.4"
-    assert _focal_sigma(estimate(500.0)) == "(1 sigma: a factor of 1.6)"
+    assert focal_sigma_text(1000.0, 1.4) == "+-1.4"
+    assert focal_sigma_text(1000.0, 500.0) == "(1 sigma: a factor of 1.6)"

@@ -33,6 +33,7 @@ from .common import (
     add_size_args,
     check_distinct_images,
     check_report_viewer,
+    focal_sigma_text,
     prepare_output_dir,
     run_command,
     show_images,
@@ -142,10 +143,7 @@ def _self_calibrate(scene: SceneReconstruction3D, camera: _Camera, mode: str) ->
     calibration = scene.self_calibrate(mode, camera.prior.sigma_log, camera.prior.source)
     how = "refined by the photos" if calibration.determined else \
         "kept: the photos could not refine it"
-    sigma_log = calibration.focal_sigma_px / calibration.focal_px
-    # A sigma in log f beyond a quarter reads as a factor; +-px would suggest a symmetric bound.
-    sigma = (f"+-{calibration.focal_sigma_px:.1f}" if sigma_log <= 0.25
-             else f"(1 sigma: a factor of {np.exp(sigma_log):.1f})")
+    sigma = focal_sigma_text(calibration.focal_px, calibration.focal_sigma_px)
     return [f"focal length {calibration.focal_px:.1f} px {sigma} "
             f"at the working size ({camera.prior.description}; {how})"]
 

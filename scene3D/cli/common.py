@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import os
 import sys
 import time
@@ -49,6 +50,14 @@ def positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
     return value
+
+
+def focal_sigma_text(focal_px: float, sigma_px: float) -> str:
+    """A focal length's sigma as printed: ``+-1.4`` (px), or beyond a quarter in ``log f``
+    a factor, ``(1 sigma: a factor of 2.7)`` (+-px would suggest a symmetric bound)."""
+    sigma_log = sigma_px / focal_px
+    return (f"+-{sigma_px:.1f}" if sigma_log <= 0.25
+            else f"(1 sigma: a factor of {math.exp(sigma_log):.1f})")
 
 
 def check_distinct_images(paths: list[Path]) -> None:

@@ -20,7 +20,6 @@ from ..features import FEATURE_MODES
 from ..imageio import BOOK_MAX_WIDTH_PX, IMAGE_SUFFIXES, read_image_size
 from ..multiview import (
     PAIR_MODES,
-    FocalEstimate,
     MultiViewReconstruction,
     SfMModel,
     SfMSettings,
@@ -37,6 +36,7 @@ from .common import (
     add_size_args,
     check_distinct_images,
     check_report_viewer,
+    focal_sigma_text,
     open_engine,
     positive_int,
     prepare_output_dir,
@@ -163,14 +163,6 @@ def check_summary(model: SfMModel, names: list[str]) -> dict:
     }
 
 
-def _focal_sigma(focal: FocalEstimate) -> str:
-    """``+-1.4`` (px), or beyond a quarter in ``log f`` a factor, as chapter4.py prints it
-    (+-px would suggest a symmetric bound)."""
-    sigma_log = focal.sigma_px / focal.focal_px
-    return (f"+-{focal.sigma_px:.1f}" if sigma_log <= 0.25
-            else f"(1 sigma: a factor of {np.exp(sigma_log):.1f})")
-
-
 def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, summary: dict,
                   plots: bool) -> Path:
     """report.html: the summary, cameras.png and the interactive 3D view (scene3D.report)
@@ -182,7 +174,8 @@ def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, s
              f"{summary['points']} points, mean track length {recon.mean_track_length:.2f}, "
              f"reprojection RMSE {recon.reprojection_rmse_px:.3f} px"]
     if recon.focal is not None:
-        lines.append(f"focal length {recon.K[0, 0]:.1f} px {_focal_sigma(recon.focal)} "
+        sigma = focal_sigma_text(recon.focal.focal_px, recon.focal.sigma_px)
+        lines.append(f"focal length {recon.K[0, 0]:.1f} px {sigma} "
                      f"({recon.calibration_source}; {recon.prior_description})")
     figures = {}
     if plots:
@@ -334,7 +327,8 @@ def run(args: argparse.Namespace) -> int:
         if recon.focal is not None:
             how = "refined by the photos" if recon.focal.determined else \
                 "kept: the photos could not refine it"
-            print(f"focal length {recon.K[0, 0]:.1f} px {_focal_sigma(recon.focal)} at the "
+            sigma = focal_sigma_text(recon.focal.focal_px, recon.focal.sigma_px)
+            print(f"focal length {recon.K[0, 0]:.1f} px {sigma} at the "
                   f"working size ({recon.prior_description}; {how}"
                   + ("" if recon.focal.trusted else "; untrusted") + ")")
         for m, entry in enumerate(models[1:], start=1):
