@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .camera import with_focal
 from .geometry import FloatArray, project_with_jacobian, rotations_from_vectors, skews
 from .refinement import _levenberg_marquardt, _reweighting, _robust_cost
 from .schur import global_information, normal_equations, solve_damped_global
@@ -129,13 +130,6 @@ def _robust_noise_px(r: FloatArray) -> float:
     return float(max(1.4826 * np.median(np.abs(r)), 1e-6)) if r.size else 1.0
 
 
-def with_focal_px(K: FloatArray, focal_px: float) -> FloatArray:
-    """``K`` with both focal lengths set to ``focal_px`` (principal point kept)."""
-    K = np.array(K, dtype=np.float64)
-    K[0, 0] = K[1, 1] = focal_px
-    return K
-
-
 def _adjust(R: FloatArray, t: FloatArray, points3d: FloatArray, obs: Observations,
             K: FloatArray, fixed_view: int | Sequence[int], loss: str, scale_px: float,
             max_iterations: int, tolerance: float,
@@ -156,7 +150,7 @@ def _adjust(R: FloatArray, t: FloatArray, points3d: FloatArray, obs: Observation
 
     def evaluate(R_: FloatArray, t_: FloatArray, X_: FloatArray,
                  log_f: float) -> tuple[tuple, float]:
-        K_ = K if focal_prior is None else with_focal_px(K, float(np.exp(log_f)))
+        K_ = K if focal_prior is None else with_focal(K, float(np.exp(log_f)))
         r_ = reprojection_residuals(R_, t_, X_, obs, K_)
         cost = _robust_cost(r_, loss, scale_px)
         if focal_prior is not None:
@@ -165,7 +159,7 @@ def _adjust(R: FloatArray, t: FloatArray, points3d: FloatArray, obs: Observation
 
     def linearize(state: tuple) -> Callable[[float], tuple]:
         R_, t_, X_, log_f, r_ = state
-        K_ = K if focal_prior is None else with_focal_px(K, float(np.exp(log_f)))
+        K_ = K if focal_prior is None else with_focal(K, float(np.exp(log_f)))
         J_camera, J_point, J_focal = reprojection_jacobians(R_, t_, X_, obs, K_)
         row_scale, rw = _reweighting(r_, loss, scale_px)
         J_global = None if focal_prior is None else J_focal * row_scale[:, :, None]
@@ -291,7 +285,7 @@ def bundle_adjust_focal(
     for _ in range(3):
         R, t, X, focal = _adjust(R, t, X, obs, K, fixed_view, loss, scale_px, max_iterations,
                                  tolerance, (prior_focal_px, prior_sigma_log, noise))
-        K = with_focal_px(K, focal)
+        K = with_focal(K, focal)
         settled = _robust_noise_px(reprojection_residuals(R, t, X, obs, K))
         if settled > 0.5 * noise:
             break

@@ -76,6 +76,13 @@ def scale_intrinsics(K: FloatArray, sx: float, sy: float) -> FloatArray:
     return K2
 
 
+def with_focal(K: ArrayLike, focal_px: float) -> FloatArray:
+    """``K`` ``(3, 3)`` with both focal lengths set to ``focal_px`` (principal point kept)."""
+    K = np.array(K, dtype=np.float64)
+    K[0, 0] = K[1, 1] = focal_px
+    return K
+
+
 def scale_intrinsics_halved(K: FloatArray, levels: int) -> FloatArray:
     """Intrinsics after halving the image ``levels`` times by area averaging.
 

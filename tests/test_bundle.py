@@ -10,8 +10,8 @@ from scene3D.bundle import (
     bundle_adjust_focal,
     reprojection_jacobians,
     reprojection_residuals,
-    with_focal_px,
 )
+from scene3D.camera import with_focal
 from scene3D.geometry import project, rotations_from_vectors
 from scene3D.schur import global_information, normal_equations, solve_damped_global
 from scene3D.synthetic import orbit_poses
@@ -41,12 +41,12 @@ def _orbit_observations(noise_px=0.0, seed=0, views=12, points=1500):
 
 def test_jacobians_match_finite_differences():
     Rs, ts, X, obs = _orbit_observations(views=5, points=60)
-    K = with_focal_px(K_TRUE, 760.0)
+    K = with_focal(K_TRUE, 760.0)
     J_camera, J_point, J_focal = reprojection_jacobians(Rs, ts, X, obs, K)
     r0 = reprojection_residuals(Rs, ts, X, obs, K)
     eps = 1e-6
     # The focal length: log f, both focal lengths together, the principal point held.
-    r = reprojection_residuals(Rs, ts, X, obs, with_focal_px(K, 760.0 * np.exp(eps)))
+    r = reprojection_residuals(Rs, ts, X, obs, with_focal(K, 760.0 * np.exp(eps)))
     np.testing.assert_allclose((r - r0) / eps, J_focal[:, :, 0], atol=1e-3)
     # A camera: R <- exp([w]x) R, t <- t + dt (view 2's observations only).
     on = obs.view == 2
@@ -125,7 +125,7 @@ def test_a_focal_length_30_percent_off_converges_to_the_truth(noise_px, start):
     Rs, ts, X, obs = _orbit_observations(noise_px)
     rng = np.random.default_rng(3)
     X0 = X * 1.02 + rng.normal(0, 0.05, X.shape)
-    K0 = with_focal_px(K_TRUE, 700.0 * start)
+    K0 = with_focal(K_TRUE, 700.0 * start)
     res = bundle_adjust_focal(Rs, ts, X0, obs, K0, 0, 1.2 * 640, 0.5,
                               principal_point_shift_px=6.4)
     error = res.focal_px / 700.0 - 1.0
@@ -172,7 +172,7 @@ def test_views_that_do_not_rotate_leave_the_focal_length_to_the_prior():
         point.append(np.arange(len(X)))
         xy.append(project(X, K_TRUE, Rs[v], ts[v]) + rng.normal(0, 0.5, (len(X), 2)))
     obs = Observations(np.concatenate(view), np.concatenate(point), np.vstack(xy))
-    res = bundle_adjust_focal(Rs, ts, X, obs, with_focal_px(K_TRUE, 910.0), [0, 1], 910.0, 0.5)
+    res = bundle_adjust_focal(Rs, ts, X, obs, with_focal(K_TRUE, 910.0), [0, 1], 910.0, 0.5)
     assert res.focal_px == pytest.approx(910.0, rel=1e-3)
     assert res.sigma_log > 0.4  # the photos add next to nothing to the prior's 0.5
     assert res.noise_px < 0.6  # the depths followed the focal length

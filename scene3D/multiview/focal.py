@@ -40,7 +40,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..bundle import FocalAdjustment, with_focal_px
+from ..bundle import FocalAdjustment
+from ..camera import with_focal
 from ..errors import ReconstructionError
 from ..geometry import FloatArray
 from ..selfcalibration import SelfCalibration, self_calibrate_pair
@@ -233,7 +234,7 @@ def focal_estimate(adjustment: FocalAdjustment, settings: FocalSettings,
 
 def prior_intrinsics(K: FloatArray, settings: FocalSettings) -> FloatArray:
     """``K`` with the prior's focal length (the principal point kept)."""
-    return with_focal_px(K, settings.prior_focal_px)
+    return with_focal(K, settings.prior_focal_px)
 
 
 def longer_side_px(K: FloatArray) -> float:

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..camera import with_focal
 from ..epipolar import essential_cost, essential_distances, fit_essential, noise_sigma_px
 from ..geometry import FloatArray
 from ..twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
@@ -45,13 +46,6 @@ class FocalProfile:
         minima = [i for i in range(n) if np.isfinite(c[i])
                   and (i == 0 or c[i] <= c[i - 1]) and (i == n - 1 or c[i] <= c[i + 1])]
         return sorted(minima, key=lambda i: c[i])
-
-
-def with_focal(K: FloatArray, focal_px: float) -> FloatArray:
-    """``K`` ``(3, 3)`` with both focal lengths set to ``focal_px`` (principal point kept)."""
-    K = np.array(K, dtype=np.float64)
-    K[0, 0] = K[1, 1] = focal_px
-    return K
 
 
 def focal_profile(pts1: FloatArray, pts2: FloatArray, K: FloatArray, factors: FloatArray,
