@@ -43,11 +43,25 @@ class Observations:
     point : (O,) int
     xy : (O, 2) float64
         Pixel coordinates (OpenCV convention).
+    sigma : (O,) float64 or None
+        Relative standard deviation of each observation's position (both coordinates):
+        the adjustment minimises the residuals divided by it, the maximum-likelihood
+        weighting when the observations' noise differs (SIFT keypoints are located
+        less precisely the larger their scale). None: all equal (1).
     """
 
     view: np.ndarray
     point: np.ndarray
     xy: FloatArray
+    sigma: FloatArray | None = None
+
+
+def whitened_residuals(R: FloatArray, t: FloatArray, points3d: FloatArray, obs: Observations,
+                       K: FloatArray) -> FloatArray:
+    """:func:`reprojection_residuals` divided by each observation's ``obs.sigma`` ``(O, 2)``
+    (the residuals themselves when ``sigma`` is None)."""
+    r = reprojection_residuals(R, t, points3d, obs, K)
+    return r if obs.sigma is None else r / obs.sigma[:, None]
 
 
 def reprojection_residuals(
@@ -107,7 +121,8 @@ class FocalAdjustment:
         ``principal_point_shift_px`` in x, then in y (root of the sum of squares):
         the share of the guessed principal point, which ``sigma_log`` does not hold.
     noise_px : float
-        Robust standard deviation of the final reprojection residuals (per coordinate).
+        Robust standard deviation of the final reprojection residuals (per coordinate;
+        of the residuals divided by ``obs.sigma`` when the observations carry one).
     """
 
     R: FloatArray
@@ -151,7 +166,7 @@ def _adjust(R: FloatArray, t: FloatArray, points3d: FloatArray, obs: Observation
     def evaluate(R_: FloatArray, t_: FloatArray, X_: FloatArray,
                  log_f: float) -> tuple[tuple, float]:
         K_ = K if focal_prior is None else with_focal(K, float(np.exp(log_f)))
-        r_ = reprojection_residuals(R_, t_, X_, obs, K_)
+        r_ = whitened_residuals(R_, t_, X_, obs, K_)
         cost = _robust_cost(r_, loss, scale_px)
         if focal_prior is not None:
             cost += float((prior_weight * (log_f - prior_log)) ** 2)
@@ -162,6 +177,8 @@ def _adjust(R: FloatArray, t: FloatArray, points3d: FloatArray, obs: Observation
         K_ = K if focal_prior is None else with_focal(K, float(np.exp(log_f)))
         J_camera, J_point, J_focal = reprojection_jacobians(R_, t_, X_, obs, K_)
         row_scale, rw = _reweighting(r_, loss, scale_px)
+        if obs.sigma is not None:  # the whitened residuals' derivatives
+            row_scale = row_scale / obs.sigma[:, None]
         J_global = None if focal_prior is None else J_focal * row_scale[:, :, None]
         ne = normal_equations(J_camera * row_scale[:, :, None], camera,
                               J_point * row_scale[:, :, None], obs.point, rw, len(free),
@@ -279,14 +296,14 @@ def bundle_adjust_focal(
                          f"+-{prior_sigma_log} (log)")
     R, t = np.asarray(R, np.float64), np.asarray(t, np.float64)
     X = np.asarray(points3d, np.float64)
-    noise = _robust_noise_px(reprojection_residuals(R, t, X, obs, K))
+    noise = _robust_noise_px(whitened_residuals(R, t, X, obs, K))
     # The prior's weight needs the noise of the converged residuals; a start far off
     # inflates it (and the prior's pull with it), so adjust again once it is known.
     for _ in range(3):
         R, t, X, focal = _adjust(R, t, X, obs, K, fixed_view, loss, scale_px, max_iterations,
                                  tolerance, (prior_focal_px, prior_sigma_log, noise))
         K = with_focal(K, focal)
-        settled = _robust_noise_px(reprojection_residuals(R, t, X, obs, K))
+        settled = _robust_noise_px(whitened_residuals(R, t, X, obs, K))
         if settled > 0.5 * noise:
             break
         noise = settled
@@ -318,15 +335,17 @@ def focal_uncertainty(
         of squares): the shift of the estimate when the principal point is off
         (``H_ff^-1 H_fc``, the estimate's response to a held parameter).
     noise_px : float
-        The residuals' robust standard deviation.
+        The residuals' robust standard deviation (divided by ``obs.sigma`` when given).
     """
     free = np.setdiff1d(np.unique(obs.view), np.atleast_1d(np.asarray(fixed_view, dtype=int)))
     slot = np.full(len(R), -1, dtype=int)
     slot[free] = np.arange(len(free))
-    r = reprojection_residuals(R, t, points3d, obs, K)
+    r = whitened_residuals(R, t, points3d, obs, K)
     noise = _robust_noise_px(r)
     J_camera, J_point, J_focal = reprojection_jacobians(R, t, points3d, obs, K)
     row_scale, rw = _reweighting(r, loss, scale_px)
+    if obs.sigma is not None:  # the whitened residuals' derivatives
+        row_scale = row_scale / obs.sigma[:, None]
     J_pp = np.broadcast_to(np.eye(2), (len(r), 2, 2))
     J_global = np.concatenate([J_focal, J_pp], axis=2) * row_scale[:, :, None]
     ne = normal_equations(J_camera * row_scale[:, :, None], slot[obs.view],

@@ -112,6 +112,19 @@ def detect_features(gray: np.ndarray, detector: cv2.Feature2D) -> tuple[FloatArr
     return np.asarray(pixels, dtype=np.float64).reshape(-1, 2), descriptors
 
 
+def detect_keypoints(gray: np.ndarray, detector: cv2.Feature2D
+                     ) -> tuple[FloatArray, FloatArray, np.ndarray]:
+    """:func:`detect_features` with each keypoint's size: pixels ``(N, 2)`` float64,
+    sizes ``(N,)`` float64 (``cv2.KeyPoint.size``, the diameter in pixels of the
+    region described, which grows with the keypoint's scale) and descriptors ``(N, D)``.
+    The many-view pipeline weighs its observations by the size
+    (:mod:`scene3D.multiview.weights`); the two-view path does not need it."""
+    keypoints, descriptors = detector.detectAndCompute(gray, None)
+    pixels = cv2.KeyPoint_convert(keypoints) if keypoints else np.zeros((0, 2))
+    sizes = np.array([k.size for k in keypoints], dtype=np.float64)
+    return np.asarray(pixels, dtype=np.float64).reshape(-1, 2), sizes, descriptors
+
+
 @dataclass(frozen=True)
 class ImageFeatures:
     """Keypoints and descriptors of one image, computed once to match with others.

@@ -12,6 +12,8 @@ bundle adjustment as the missing step. One module per stage, in pipeline order:
   matrix verification (a task per pair);
 - :mod:`~scene3D.multiview.tracks`: verified matches chained into tracks;
 - :mod:`~scene3D.multiview.points`: many tracks triangulated at once;
+- :mod:`~scene3D.multiview.weights`: how precisely each keypoint is located (its
+  size), the weights of bundle adjustment;
 - :mod:`~scene3D.multiview.mapper`: registration, local and global bundle adjustment,
   re-triangulation, several models;
 - :mod:`~scene3D.multiview.focal`: without a calibration, one focal length for all

@@ -11,7 +11,7 @@ import hashlib
 
 import numpy as np
 
-from ..features import image_features
+from ..features import create_detector, detect_keypoints, to_gray
 from ..geometry import FloatArray
 from ..imageio import ImageSource, load_working_image
 from ..twoview import sample_colors
@@ -20,10 +20,11 @@ from .models import ViewFeatures
 
 def extract_features(img: np.ndarray, feature: str = "SIFT",
                      max_features: int = 8000) -> ViewFeatures:
-    """Keypoints, descriptors and colours of one BGR image ``(H, W, 3) uint8``."""
-    found = image_features(img, feature, max_features)
-    return ViewFeatures(found.pixels, found.descriptors, sample_colors(img, found.pixels),
-                        found.norm)
+    """Keypoints, descriptors, colours and keypoint sizes of one BGR image
+    ``(H, W, 3) uint8`` (the detector of :func:`scene3D.features.image_features`)."""
+    detector, norm, _ = create_detector(feature, max_features)
+    pixels, sizes, descriptors = detect_keypoints(to_gray(img), detector)
+    return ViewFeatures(pixels, descriptors, sample_colors(img, pixels), norm, sizes=sizes)
 
 
 def view_features(source: ImageSource, K: FloatArray, dist: FloatArray,

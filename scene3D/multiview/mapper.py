@@ -49,6 +49,7 @@ from .focal import (
 from .models import FocalEstimate, ModelCheck, PairMatches, SfMModel, SfMSettings, ViewFeatures
 from .points import max_parallax_deg, observation_errors, refine_points, triangulate_groups
 from .tracks import Tracks, build_tracks, connected_components
+from .weights import keypoint_sigma
 
 logger = logging.getLogger(__name__)
 
@@ -70,6 +71,10 @@ class _Model:
         self.pairs = [p for p in pairs if allowed[p.i] and allowed[p.j]]
         V = len(features)
         self.xy = np.concatenate([f.keypoints for f in features]).reshape(-1, 2)
+        # Relative noise of each keypoint (bundle adjustment's weights), from its size.
+        self.sigma = None if not settings.weight_by_size or any(
+            f.sizes is None for f in features) else keypoint_sigma(
+            np.concatenate([f.sizes for f in features]))
         self.R = np.full((V, 3, 3), np.nan)
         self.t = np.full((V, 3), np.nan)
         self.registered = np.zeros(V, dtype=bool)
@@ -308,7 +313,8 @@ class _Model:
         point_ids = np.unique(self.node_point[inside])
         if len(inside):
             local = np.searchsorted(point_ids, self.node_point[inside])
-            obs = Observations(self.node_view[inside], local, self.xy[inside])
+            obs = Observations(self.node_view[inside], local, self.xy[inside],
+                               None if self.sigma is None else self.sigma[inside])
             if refine_focal and self.focal is not None:
                 fa = bundle_adjust_focal(
                     self.R, self.t, self.X[point_ids], obs, self.K, fixed,
@@ -330,7 +336,8 @@ class _Model:
             ids, point = np.unique(self.node_point[outside], return_inverse=True)
             views = self.node_view[outside]
             self.X[ids] = refine_points(point, self.xy[outside], self.R[views], self.t[views],
-                                        self.K, self.X[ids])
+                                        self.K, self.X[ids], sigma=None if self.sigma is None
+                                        else self.sigma[outside])
         views, points = self.node_view[nodes], self.node_point[nodes]
         err, depth = observation_errors(self.X[points], self.R[views], self.t[views],
                                         self.xy[nodes], self.K)

@@ -34,6 +34,9 @@ class ViewFeatures:
         The ``p`` visual words nearest to each descriptor, nearest first
         (:mod:`scene3D.multiview.retrieval`); set once the collection's vocabulary is
         known, None before.
+    sizes : (N,) float64 or None
+        Keypoint sizes in pixels (``cv2.KeyPoint.size``); None when unknown (every
+        keypoint is then taken as equally precise).
     """
 
     keypoints: FloatArray
@@ -41,6 +44,7 @@ class ViewFeatures:
     colors: np.ndarray
     norm: int = cv2.NORM_L2
     words: np.ndarray | None = None
+    sizes: FloatArray | None = None
 
 
 @dataclass(frozen=True)
@@ -97,6 +101,11 @@ class SfMSettings:
         consistent is a false verification and is dropped, with what it attached.
     min_model_views : int
         Smallest model that is kept (a model of two views is one trusted pair).
+    weight_by_size : bool
+        Bundle adjustment weighs each observation by its keypoint's size (residuals
+        divided by a standard deviation proportional to it,
+        :mod:`scene3D.multiview.weights`), when the features carry sizes; False: all
+        observations weigh the same.
     """
 
     threshold_px: float = 1.0
@@ -117,6 +126,7 @@ class SfMSettings:
     global_ba_growth: float = 1.5
     consistency_px: float = 2.0
     min_model_views: int = 2
+    weight_by_size: bool = True
 
 
 @dataclass(frozen=True)

@@ -91,7 +91,8 @@ def max_parallax_deg(group: np.ndarray, X: FloatArray, centers: FloatArray,
 
 
 def refine_points(point: np.ndarray, xy: FloatArray, R: FloatArray, t: FloatArray,
-                  K: FloatArray, X: FloatArray, iterations: int = 3) -> FloatArray:
+                  K: FloatArray, X: FloatArray, iterations: int = 3,
+                  sigma: FloatArray | None = None) -> FloatArray:
     """Gauss-Newton on the points alone, the cameras held fixed (H&Z section 12.3's
     gold standard for each point, a 3x3 system per point).
 
@@ -106,11 +107,14 @@ def refine_points(point: np.ndarray, xy: FloatArray, R: FloatArray, t: FloatArra
     K : (3, 3)
     X : (P, 3)
         World points to start from.
+    sigma : (M,), optional
+        Relative standard deviation of each observation (the residuals are divided by
+        it); None: all equal.
 
     Returns
     -------
     (P, 3) float64
-        The points minimising their squared reprojection errors; a point without
+        The points minimising their (weighted) squared reprojection errors; a point without
         observations, or whose system is singular, is returned as it came.
     """
     X = np.array(X, np.float64)
@@ -119,8 +123,11 @@ def refine_points(point: np.ndarray, xy: FloatArray, R: FloatArray, t: FloatArra
         cam = np.einsum("mij,mj->mi", R, X[point]) + t
         pix, J = project_with_jacobian(cam, K)
         J_point = J @ R  # (M, 2, 3)
+        r = pix - xy
+        if sigma is not None:
+            J_point, r = J_point / sigma[:, None, None], r / sigma[:, None]
         H = _sum_rows(point, J_point.transpose(0, 2, 1) @ J_point, P)
-        g = _sum_rows(point, np.einsum("mki,mk->mi", J_point, pix - xy), P)
+        g = _sum_rows(point, np.einsum("mki,mk->mi", J_point, r), P)
         ok = np.abs(np.linalg.det(H)) > 1e-12 * np.maximum(np.einsum("pii->p", H), 1e-300) ** 3
         step = np.zeros((P, 3))
         step[ok] = np.linalg.solve(H[ok], g[ok][:, :, None])[:, :, 0]
