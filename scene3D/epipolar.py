@@ -173,6 +173,10 @@ class EssentialFit(NamedTuple):
     comparison_threshold_px : float
         The threshold at which the starts' optima were compared
         (:func:`comparison_threshold_px`; the given threshold with one start).
+    rivals : tuple of (3, 3) float64
+        The other optima whose cost is within :data:`COMPARABLE_COST` of the best
+        (unit norm; those that ``spread_deg`` measures), for a caller to weigh against
+        the pose's covariance (:func:`scene3D.twoview.rival_chi2`).
     """
 
     E: FloatArray
@@ -182,6 +186,7 @@ class EssentialFit(NamedTuple):
     confirmed: bool = False
     spread_deg: float = 0.0
     comparison_threshold_px: float = float("nan")
+    rivals: tuple[FloatArray, ...] = ()
 
 
 def fit_essential(
@@ -275,13 +280,15 @@ def fit_essential(
     if not fits:
         return EssentialFit(np.full((3, 3), np.nan), np.zeros(n, dtype=bool), max_starts,
                             refinement_s, comparison_threshold_px=tau)
-    _, E, inliers = min(fits, key=lambda fit: fit[0])
+    best_cost, E, inliers = min(fits, key=lambda fit: fit[0])
     spread = rival_spread_deg([(cost, E_other) for cost, E_other, _ in fits])
+    rivals = tuple(E_other for cost, E_other, _ in fits
+                   if cost <= best_cost + COMPARABLE_COST and not _same_essential(E_other, E))
     if tau < threshold_px:  # the inliers the caller asked for, and the pose they give
         t0 = time.perf_counter()
         _, E, inliers = polish_essential(E, p1, p2, K, threshold_px)
         refinement_s += time.perf_counter() - t0
-    return EssentialFit(E, inliers, len(fits), refinement_s, confirmed, spread, tau)
+    return EssentialFit(E, inliers, len(fits), refinement_s, confirmed, spread, tau, rivals)
 
 
 def estimate_essential(

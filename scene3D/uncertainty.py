@@ -48,6 +48,11 @@ CHI2_90 = {2: 4.605170185988091, 3: 6.251388631170325}
 """90 % quantiles of the chi-square distribution with 2 and 3 degrees of freedom: the
 Mahalanobis bounds of a direction error (2 dof) and of a rotation error (3 dof)."""
 
+CHI2_99_POSE = 15.086272469388987
+"""The 99 % quantile of chi-squared with 5 degrees of freedom, those of a relative pose:
+a pose whose :func:`pose_difference_chi2` exceeds it lies outside the region that the
+covariance allows."""
+
 
 def tangent_basis(t: ArrayLike) -> FloatArray:
     """Two unit vectors ``(2, 3)`` orthogonal to the unit vector ``t`` and to each other.
@@ -282,6 +287,24 @@ def pose_error_chi2(R_est: ArrayLike, t_est: ArrayLike, R_true: ArrayLike,
         except np.linalg.LinAlgError:
             out.append(float("inf"))
     return out[0], out[1]
+
+
+def pose_difference_chi2(R: ArrayLike, t: ArrayLike, R_other: ArrayLike, t_other: ArrayLike,
+                         covariance: FloatArray) -> float:
+    """Mahalanobis distance (squared, 5 degrees of freedom) of another pose from ``R, t``
+    under the ``(5, 5)`` covariance of ``R, t`` (module docstring, basis
+    :func:`tangent_basis` of ``t``), rotation and translation direction jointly; compare
+    with :data:`CHI2_99_POSE`. 0 when the covariance is not finite (no region to leave).
+    """
+    covariance = np.asarray(covariance, dtype=np.float64)
+    if not np.all(np.isfinite(covariance)):
+        return 0.0
+    w, d = pose_error_coordinates(R, t, R_other, t_other)
+    e = np.concatenate([w, d])
+    try:
+        return float(e @ np.linalg.solve(covariance, e))
+    except np.linalg.LinAlgError:
+        return 0.0
 
 
 def _triangulation_normals(points3d: ArrayLike, K: ArrayLike, R: ArrayLike,

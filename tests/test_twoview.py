@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from scene3D.epipolar import estimate_homography
+from scene3D.epipolar import EssentialFit, estimate_homography
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import find_matches
@@ -307,3 +307,31 @@ def test_trust_follows_the_uncertainty_and_what_it_cannot_see():
     (warning,) = trust_warnings(uncertainty(0.01, 0.02), 1000, 900, 10.0, 0.5, s,
                                 focal=focal)
     assert "focal length 1.25 times" in warning and "+-0.02 deg" in warning
+    # Restarts that never met twice, ending 0.7 deg apart: a rival that the covariance
+    # allows for (chi-square 8 of 5 dof) is no verdict; one outside it (80) is.
+    unconfirmed = EssentialFit(np.eye(3), np.ones(10, bool), 8, 0.0, False, 0.7)
+    assert trust_warnings(uncertainty(0.1, 0.4), 1000, 900, 10.0, 0.5, s, fit=unconfirmed,
+                          rivals_chi2=8.0) == []
+    (warning,) = trust_warnings(uncertainty(0.1, 0.4), 1000, 900, 10.0, 0.5, s,
+                                fit=unconfirmed, rivals_chi2=80.0)
+    assert "no pose was found twice in 8 robust starts" in warning and "0.7 deg" in warning
+
+
+def test_rivals_are_weighed_against_the_covariance(camera, true_pose):
+    """rival_chi2 takes each rival in its decomposition nearest the pose and measures it
+    under the pose's covariance: a rotation step of two sigmas about one axis is a
+    chi-square of 4; none, or no finite covariance, is 0."""
+    from scene3D.epipolar import essential_from_pose
+    from scene3D.geometry import rotations_from_vectors
+    from scene3D.twoview import rival_chi2
+
+    R, t = true_pose
+    t = t / np.linalg.norm(t)
+    sigma = np.radians(0.2)
+    covariance = np.diag([sigma**2] * 5)
+    step = rotations_from_vectors(np.array([[2 * sigma, 0.0, 0.0]]))[0]
+    rival = EssentialFit(np.eye(3), np.ones(10, bool), 8, 0.0, False, 0.4,
+                         rivals=(-3.0 * essential_from_pose(step @ R, t),))
+    assert rival_chi2(rival, R, t, covariance) == pytest.approx(4.0, rel=1e-3)
+    assert rival_chi2(rival, R, t, np.full((5, 5), np.inf)) == 0.0
+    assert rival_chi2(rival._replace(rivals=()), R, t, covariance) == 0.0

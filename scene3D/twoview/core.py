@@ -33,7 +33,7 @@ from ..refinement import bundle_adjust_two_view, relative_pose_covariance
 from ..triangulation import parallax_angles_deg, reprojection_errors
 from ..uncertainty import PoseUncertainty, depth_sigmas, tangent_basis
 from .results import TwoViewGeometry, TwoViewReconstruction, TwoViewSettings
-from .trust import check_focal_length, trust_warnings
+from .trust import check_focal_length, rival_chi2, trust_warnings
 
 logger = logging.getLogger(__name__)
 
@@ -184,7 +184,8 @@ def reconstruct_from_matches(
     point_sigmas = depth_sigmas(points, K, R, t, uncertainty.covariance,
                                 uncertainty.noise_sigma_px)
     warnings = trust_warnings(uncertainty, n, num_inliers, median_kept_parallax, h_ratio, s,
-                              fit, focal, motion.rotation_share)
+                              fit, focal, motion.rotation_share,
+                              rival_chi2(fit, R, t, uncertainty.covariance))
     F = fundamental_from_essential(E, K)  # the epipolar geometry the final pose obeys
     return TwoViewGeometry(
         R=R, t=t, points3d=points, pts1=pts1_kept, pts2=pts2_kept, K=K, F=F, E=E,

@@ -7,8 +7,9 @@ import numpy as np
 
 from ..epipolar import EssentialFit, essential_distances, essential_from_pose
 from ..geometry import FloatArray
+from ..pose import nearest_decomposition
 from ..refinement import FocalFit, fit_focal_scale
-from ..uncertainty import PoseUncertainty
+from ..uncertainty import CHI2_99_POSE, PoseUncertainty, pose_difference_chi2
 from .results import TwoViewSettings
 
 
@@ -32,10 +33,27 @@ def beyond_uncertainty_limit(rotation_sigma_deg: float, translation_sigma_deg: f
     return max(rotation_sigma_deg, translation_sigma_deg) > limit
 
 
+def rival_chi2(fit: EssentialFit, R: FloatArray, t: FloatArray, covariance: FloatArray) -> float:
+    """How far the restarts' rival optima lie from the pose ``R, t`` under its covariance.
+
+    The largest :func:`scene3D.uncertainty.pose_difference_chi2` (5 degrees of freedom)
+    over ``fit.rivals`` (:attr:`scene3D.epipolar.EssentialFit.rivals`, each taken in
+    its decomposition nearest to ``R, t``); 0 when there are none. Within
+    :data:`scene3D.uncertainty.CHI2_99_POSE` a rival is one the ``(5, 5)``
+    ``covariance`` allows for: the sigmas already say the pose is known no better.
+    """
+    worst = 0.0
+    for E in fit.rivals:
+        R_other, t_other = nearest_decomposition(E, R, t)
+        worst = max(worst, pose_difference_chi2(R, t, R_other, t_other, covariance))
+    return worst
+
+
 def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: int,
                    median_parallax_deg: float, homography_ratio: float, s: TwoViewSettings,
                    fit: EssentialFit | None = None, focal: FocalFit | None = None,
-                   rotation_share: float = 0.0) -> list[str]:
+                   rotation_share: float = 0.0, rivals_chi2: float = float("inf")
+                   ) -> list[str]:
     """Reasons to doubt a pose that passed every hard check (empty: trusted).
 
     The verdicts:
@@ -48,8 +66,11 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
       ``s.trusted_inlier_ratio``, ``s.trusted_parallax_deg``,
       ``s.planar_warning_ratio``), which are explanations, not verdicts of their own;
     - what a covariance cannot see: the robust restarts of ``fit`` never reached the
-      best pose twice and their optima lie further apart than
-      ``s.restart_agreement_deg`` (several optima); the focal length the matches call
+      best pose twice, their optima lie further apart than
+      ``s.restart_agreement_deg``, and one of them lies outside the region the
+      covariance allows (``rivals_chi2``, :func:`rival_chi2`, above
+      :data:`scene3D.uncertainty.CHI2_99_POSE`; by default every rival counts): several
+      optima; the focal length the matches call
       for (``focal``, :func:`scene3D.refinement.fit_focal_scale`) differs from the
       calibration's by more than ``s.max_focal_mismatch`` and
       ``s.focal_mismatch_sigmas`` standard deviations; fewer than
@@ -88,7 +109,7 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
                         "moving object would explain as well as a camera that moved (the "
                         f"{sigmas} assume a rigid scene)")
     if (fit is not None and s.max_starts > 1 and not fit.confirmed
-            and fit.spread_deg > s.restart_agreement_deg):
+            and fit.spread_deg > s.restart_agreement_deg and rivals_chi2 > CHI2_99_POSE):
         warnings.append(f"no pose was found twice in {fit.starts} robust starts: poses "
                         f"up to {fit.spread_deg:.1f} deg apart fit the matches about "
                         f"equally well (the best one's {sigmas} cannot show this)")
