@@ -88,3 +88,36 @@ def in_front_mask(points3d: FloatArray, R: FloatArray, t: FloatArray) -> np.ndar
     finite = np.all(np.isfinite(points3d), axis=1)
     z1, z2 = depths(np.where(finite[:, None], points3d, 0.0), R, t)
     return finite & (z1 > 0) & (z2 > 0)
+
+
+def behind_beyond_noise(points3d: FloatArray, R: FloatArray, t: FloatArray, K: ArrayLike,
+                        noise_px: float) -> np.ndarray:
+    """``(N,) bool``: matches whose point lies behind a camera by more than the noise explains.
+
+    A correct match triangulates in front of both cameras (cheirality, H&Z section
+    9.6.3), except a point so far away that its two rays are parallel within the
+    noise: keypoint noise of ``noise_px`` per coordinate turns each ray by about
+    ``noise_px / f`` radians, so the angle between them by ``sqrt(2)`` times that,
+    and such a point may land on either side. A point behind a camera whose rays
+    meet at more than three times that angle (the textbook 3-sigma bound) cannot be
+    a correct match displaced by the noise: it is a wrong match that happens to lie
+    near its epipolar line.
+
+    Parameters
+    ----------
+    points3d : (N, 3) array
+        Triangulated points in the camera-1 frame (NaN rows: at infinity, never
+        flagged).
+    R, t : (3, 3), (3,) array
+        ``x_cam2 = R x_cam1 + t``.
+    K : (3, 3) array_like
+        Intrinsics shared by both views (its mean focal length converts the noise).
+    noise_px : float
+        Keypoint noise, per coordinate, in pixels.
+    """
+    K = np.asarray(K, dtype=np.float64)
+    finite = np.all(np.isfinite(points3d), axis=1)
+    safe = np.where(finite[:, None], points3d, 1.0)
+    behind = finite & ~in_front_mask(safe, R, t)
+    bound_deg = np.degrees(3.0 * np.sqrt(2.0) * noise_px / (0.5 * (K[0, 0] + K[1, 1])))
+    return behind & (parallax_angles_deg(safe, R, t) > bound_deg)

@@ -13,7 +13,9 @@ The pipeline (book chapter 4, done right):
 4. triangulation, keeping points in front of both cameras with small
    reprojection error and enough parallax,
 5. the pose's first-order covariance (:func:`scene3D.refinement.relative_pose_covariance`,
-   parametrisation in :mod:`scene3D.uncertainty`) and each point's depth uncertainty,
+   parametrisation in :mod:`scene3D.uncertainty`), with the pull of the inliers that
+   lie behind the cameras (:func:`scene3D.twoview.core.pose_covariance`), and each
+   point's depth uncertainty,
 6. trust (:func:`trust_warnings`): a pose is untrusted when its uncertainty is too
    large for the purpose (``TwoViewSettings.uncertainty_sigmas`` standard
    deviations beyond ``uncertainty_limit_deg``), or when something the covariance

@@ -29,9 +29,9 @@ from ..errors import ReconstructionError
 from ..features import Matches
 from ..geometry import FloatArray, as_matrix, as_points2d, check_same_length, median
 from ..pose import choose_pose
-from ..refinement import bundle_adjust_two_view, relative_pose_covariance
-from ..triangulation import parallax_angles_deg, reprojection_errors
-from ..uncertainty import PoseUncertainty, depth_sigmas, tangent_basis
+from ..refinement import bundle_adjust_two_view, refine_relative_pose, relative_pose_covariance
+from ..triangulation import behind_beyond_noise, parallax_angles_deg, reprojection_errors
+from ..uncertainty import PoseUncertainty, depth_sigmas, pose_error_coordinates, tangent_basis
 from .results import TwoViewGeometry, TwoViewReconstruction, TwoViewSettings
 from .trust import check_focal_length, rival_chi2, trust_warnings
 
@@ -60,6 +60,38 @@ def _motion(E: FloatArray, in1: FloatArray, in2: FloatArray, K: FloatArray, H: F
     distances = essential_distances(E, in1, in2, K)
     noise = max(noise_sigma_px(distances), 1e-3 * threshold_px)
     return motion_model_choice(in1, in2, K, distances, noise, H)
+
+
+def pose_covariance(R: FloatArray, t: FloatArray, in1: FloatArray, in2: FloatArray,
+                    K: FloatArray, behind: np.ndarray, loss_scale_px: float) -> FloatArray:
+    """Covariance ``(5, 5)`` of the pose, with the pull of the inliers behind the cameras.
+
+    The sandwich covariance of the robust Sampson fit over the inliers ``in1, in2``
+    ``(N, 2)`` (:func:`scene3D.refinement.relative_pose_covariance`; parametrisation of
+    :mod:`scene3D.uncertainty`) describes the noise of correct matches. A wrong match
+    that passes the inlier threshold is no such noise: anywhere along its epipolar line,
+    its rays meet at a large angle and it pulls the translation direction by more than
+    its term in the sandwich says. Those that lie behind a camera beyond the noise
+    (``behind`` ``(N,) bool``, :func:`scene3D.triangulation.behind_beyond_noise`) are
+    known to be wrong, yet they are not dropped from the pose: one that lies on its
+    epipolar line still constrains it (a repeated structure along the line, a
+    duplicate), and without them the real benchmark's poses are no better (fountain-P11
+    at 768 px: AUC@5deg 98.40 against 98.48, docs/benchmarks.md). Their pull
+    is measured instead: the pose refined without them differs by ``delta`` (5,), and
+    the covariance is that of the error's second moment, bias included,
+    ``C + delta delta^T`` (the mean squared error is the variance plus the bias
+    squared). With no such inlier it is ``C``.
+
+    ``R, t`` ``x_cam2 = R x_cam1 + t`` (``|t| = 1``) is the refined pose and
+    ``loss_scale_px`` the scale of its Cauchy loss.
+    """
+    covariance = relative_pose_covariance(R, t, in1, in2, K, "cauchy", loss_scale_px)
+    if not behind.any() or (~behind).sum() < 6 or not np.all(np.isfinite(covariance)):
+        return covariance
+    R_without, t_without = refine_relative_pose(R, t, in1[~behind], in2[~behind], K, "cauchy",
+                                                loss_scale_px)
+    delta = np.concatenate(pose_error_coordinates(R, t, R_without, t_without))
+    return covariance + np.outer(delta, delta)
 
 
 def reconstruct_from_matches(
@@ -132,6 +164,10 @@ def reconstruct_from_matches(
     # matrix explains the matches better than the homography: a short baseline).
     planar = h_ratio > s.planar_ratio and motion.planar
     R, t, points, front = choose_pose(E, in1, in2, K)
+    # The noise of these inliers sets the losses of the focal check and the adjustment,
+    # as it does the local optimisation's (scene3D.epipolar.refine_essential).
+    distances = essential_distances(E, in1, in2, K)
+    behind = behind_beyond_noise(points, R, t, K, noise_sigma_px(distances))
     if planar:
         evidence = off_plane_evidence(H, K, R, t, in1, in2, h_inliers, s.threshold_px)
         if evidence < s.min_off_plane_matches:
@@ -159,9 +195,6 @@ def reconstruct_from_matches(
         )
     median_kept_parallax = median(parallax[keep])
     t_focal = time.perf_counter()
-    # The noise of these inliers sets the losses of the focal check and the adjustment,
-    # as it does the local optimisation's (scene3D.epipolar.refine_essential).
-    distances = essential_distances(E, in1, in2, K)
     loss_scale = loss_scale_px(distances, s.threshold_px)
     focal = check_focal_length(R, t, p1, p2, inliers, K,
                                inlier_threshold_px(distances, s.threshold_px), loss_scale)
@@ -178,9 +211,8 @@ def reconstruct_from_matches(
         refine_s += time.perf_counter() - t_ba
     # The covariance at the final pose: the Sampson cost is the bundle adjustment's with
     # the points eliminated, to first order, so it serves after an adjustment too.
-    uncertainty = PoseUncertainty(
-        relative_pose_covariance(R, t, in1, in2, K, "cauchy", loss_scale), tangent_basis(t),
-        noise_sigma_px(distances))
+    uncertainty = PoseUncertainty(pose_covariance(R, t, in1, in2, K, behind, loss_scale),
+                                  tangent_basis(t), noise_sigma_px(distances))
     point_sigmas = depth_sigmas(points, K, R, t, uncertainty.covariance,
                                 uncertainty.noise_sigma_px)
     warnings = trust_warnings(uncertainty, n, num_inliers, median_kept_parallax, h_ratio, s,
