@@ -67,7 +67,7 @@ def measure(spec: dict) -> dict:
     if spec.get("one_thread"):
         cv2.setNumThreads(1)
 
-    from scene3D.datasets import default_data_root, read_strecha_camera
+    from scene3D.datasets import default_data_root, read_strecha_scene
     from scene3D.evaluation import camera_set_error
     from scene3D.multiview import reconstruct_views
 
@@ -84,12 +84,9 @@ def measure(spec: dict) -> dict:
         width, reduced = None, 1
     else:
         root = default_data_root() / spec["scene"]
-        paths = sorted((root / "images").glob("*.jpg"))
+        truth = read_strecha_scene(root)
+        paths, R_true, C_true = truth.paths, truth.R, truth.centers
         K = np.loadtxt(root / "images" / "K.txt")
-        cams = [read_strecha_camera(root / "gt_dense_cameras" / f"{p.name}.camera")
-                for p in paths]
-        R_true = np.array([c.R for c in cams])
-        C_true = np.array([c.center for c in cams])
         width, reduced = spec["width"], 3072 // spec["width"]
         if spec.get("shuffle"):
             rng = random.Random(spec["seed"])

@@ -45,7 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.multi_view import ORBIT_VIEWS, render_orbit  # noqa: E402
 from scene3D import bundle  # noqa: E402
 from scene3D.bundle import reprojection_residuals  # noqa: E402
-from scene3D.datasets import default_data_root, read_strecha_camera  # noqa: E402
+from scene3D.datasets import default_data_root, read_strecha_scene  # noqa: E402
 from scene3D.evaluation import camera_set_error  # noqa: E402
 from scene3D.export import colmap_text_files  # noqa: E402
 from scene3D.geometry import camera_centers  # noqa: E402
@@ -78,11 +78,8 @@ def capture_final_adjustment(case: str, folder: Path) -> dict:
             r = reconstruct_views(paths, K, np.zeros(5), max_width=None)
         else:
             root = default_data_root() / case
-            paths = sorted((root / "images").glob("*.jpg"))
-            cams = [read_strecha_camera(root / "gt_dense_cameras" / f"{p.name}.camera")
-                    for p in paths]
-            R_true = np.array([c.R for c in cams])
-            C_true = np.array([c.center for c in cams])
+            truth = read_strecha_scene(root)
+            paths, R_true, C_true = truth.paths, truth.R, truth.centers
             r = reconstruct_views(paths, np.loadtxt(root / "images" / "K.txt"), np.zeros(5))
     finally:
         mapper.bundle_adjust = original

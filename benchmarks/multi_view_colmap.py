@@ -29,7 +29,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from scene3D.camera import scale_intrinsics_halved  # noqa: E402
-from scene3D.datasets import default_data_root, read_strecha_camera  # noqa: E402
+from scene3D.datasets import default_data_root, read_strecha_scene  # noqa: E402
 from scene3D.evaluation import camera_set_error  # noqa: E402
 from scene3D.imageio import load_working_image  # noqa: E402
 
@@ -44,8 +44,8 @@ def run(scene: str, width: int, threads: int, folder: Path) -> str:
     import pycolmap
 
     root = default_data_root() / scene
-    paths = sorted((root / "images").glob("*.jpg"))
-    cams = [read_strecha_camera(root / "gt_dense_cameras" / f"{p.name}.camera") for p in paths]
+    truth = read_strecha_scene(root)
+    paths, cams = truth.paths, truth.cameras
     K = np.loadtxt(root / "images" / "K.txt")
     images = folder / "images"
     images.mkdir()

@@ -34,14 +34,13 @@ from pathlib import Path
 def measure(scene: str, mode: str, width: int) -> dict:
     import numpy as np
 
-    from scene3D.datasets import default_data_root, read_strecha_camera
+    from scene3D.datasets import default_data_root, read_strecha_scene
     from scene3D.evaluation import camera_set_error
     from scene3D.multiview import reconstruct_views
 
     folder = default_data_root() / scene
-    paths = sorted((folder / "images").glob("*.jpg"))
-    truth = [read_strecha_camera(folder / "gt_dense_cameras" / f"{p.name}.camera")
-             for p in paths]
+    scene_truth = read_strecha_scene(folder)
+    paths, truth = scene_truth.paths, scene_truth.cameras
     K = truth[0].K if mode == "calib" else None
     with tempfile.TemporaryDirectory(prefix="scene3d-exif-") as tmp:
         focal_35mm = None

@@ -29,7 +29,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from scene3D.bundle import Observations, bundle_adjust  # noqa: E402
-from scene3D.datasets import default_data_root, read_strecha_camera  # noqa: E402
+from scene3D.datasets import default_data_root, read_strecha_scene  # noqa: E402
 from scene3D.evaluation import camera_set_error  # noqa: E402
 from scene3D.geometry import camera_centers  # noqa: E402
 from scene3D.multiview import reconstruct_views  # noqa: E402
@@ -73,15 +73,12 @@ def main() -> int:
     print("|---|---|---|---|---|---|---|")
     for scene in args.scenes:
         root = default_data_root() / scene
-        paths = sorted((root / "images").glob("*.jpg"))
-        cams = [read_strecha_camera(root / "gt_dense_cameras" / f"{p.name}.camera")
-                for p in paths]
-        r = reconstruct_views(paths, cams[0].K, np.zeros(5), max_width=args.width,
-                              progress=lambda message: None)
+        truth = read_strecha_scene(root)
+        r = reconstruct_views(truth.paths, truth.cameras[0].K, np.zeros(5),
+                              max_width=args.width, progress=lambda message: None)
         model = r.models[0]
         reg = np.flatnonzero(model.registered)
-        R_true = np.array([c.R for c in cams])[reg]
-        C_true = np.array([c.center for c in cams])[reg]
+        R_true, C_true = truth.R[reg], truth.centers[reg]
         own = figures(model.R[reg], model.centers[reg], R_true, C_true)
         rng = np.random.default_rng(0)
         draws = []

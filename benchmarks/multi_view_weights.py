@@ -28,7 +28,7 @@ import numpy as np  # noqa: E402
 
 import scene3D.multiview.pipeline as pipeline  # noqa: E402
 from scene3D.bundle import reprojection_residuals  # noqa: E402
-from scene3D.datasets import default_data_root, read_strecha_camera  # noqa: E402
+from scene3D.datasets import default_data_root, read_strecha_scene  # noqa: E402
 from scene3D.evaluation import camera_set_error  # noqa: E402
 from scene3D.multiview import SfMSettings, reconstruct_views  # noqa: E402
 
@@ -71,12 +71,9 @@ def main() -> int:
     notes = []
     for scene in args.scenes:
         root = default_data_root() / scene
-        paths = sorted((root / "images").glob("*.jpg"))
+        truth = read_strecha_scene(root)
+        paths, R_true, C_true = truth.paths, truth.R, truth.centers
         K = np.loadtxt(root / "images" / "K.txt")
-        cams = [read_strecha_camera(root / "gt_dense_cameras" / f"{p.name}.camera")
-                for p in paths]
-        R_true = np.array([c.R for c in cams])
-        C_true = np.array([c.center for c in cams])
         for weigh in (False, True):
             r = reconstruct_views(paths, K, np.zeros(5), max_width=args.width,
                                   settings=SfMSettings(weight_by_size=weigh),

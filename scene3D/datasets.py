@@ -241,6 +241,41 @@ def strecha_views(dataset: str | os.PathLike) -> list[tuple[Path, Path]]:
     return views
 
 
+@dataclass(frozen=True)
+class StrechaScene:
+    """The views of a Strecha-format dataset with their true cameras
+    (:func:`read_strecha_scene`).
+
+    Attributes
+    ----------
+    paths : list of Path
+        The images, by name.
+    cameras : list of StrechaCamera
+        Their true cameras, in the same order.
+    """
+
+    paths: list[Path]
+    cameras: list[StrechaCamera]
+
+    @property
+    def R(self) -> FloatArray:
+        """World-to-camera rotations ``(V, 3, 3)``."""
+        return np.array([c.R for c in self.cameras])
+
+    @property
+    def centers(self) -> FloatArray:
+        """Camera centres in world coordinates ``(V, 3)``."""
+        return np.array([c.center for c in self.cameras])
+
+
+def read_strecha_scene(dataset: str | os.PathLike) -> StrechaScene:
+    """The images of a Strecha-format dataset and their cameras (:func:`strecha_views`,
+    :func:`read_strecha_camera`): what a benchmark compares a reconstruction with."""
+    views = strecha_views(dataset)
+    return StrechaScene([image for image, _ in views],
+                        [read_strecha_camera(camera) for _, camera in views])
+
+
 def read_strecha_camera(path: str | os.PathLike) -> StrechaCamera:
     """Read a Strecha ``.camera`` file (see the module docstring for the layout)."""
     path = Path(path)

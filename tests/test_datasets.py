@@ -5,6 +5,7 @@ import http.server
 import shutil
 import threading
 
+import numpy as np
 import pytest
 
 from scene3D.datasets import FOUNTAIN_P11_SHA256, fetch_fountain_p11, sha256_of, strecha_views
@@ -102,3 +103,16 @@ def test_strecha_views_pair_each_image_with_its_camera_file(tmp_path):
         strecha_views(tmp_path)
     with pytest.raises(FileNotFoundError, match="needs images/ and gt_dense_cameras/"):
         strecha_views(images)
+
+
+def test_a_strecha_scene_holds_each_image_with_its_true_camera(data_root):
+    """fountain-P11: the images in name order, their cameras' rotations and centres."""
+    from scene3D.datasets import read_strecha_camera, read_strecha_scene
+
+    root = data_root / "fountain-P11"
+    scene = read_strecha_scene(root)
+    assert [p.name for p in scene.paths] == [f"{i:04d}.jpg" for i in range(11)]
+    fifth = read_strecha_camera(root / "gt_dense_cameras" / "0004.jpg.camera")
+    np.testing.assert_array_equal(scene.R[4], fifth.R)
+    np.testing.assert_array_equal(scene.centers[4], fifth.center)
+    assert scene.R.shape == (11, 3, 3) and scene.centers.shape == (11, 3)
