@@ -27,8 +27,10 @@ class TwoViewSettings:
     restart_agreement_deg : float
         When no pose was found twice, the result is still trusted if every start's
         optimum lies within this angle of the best (distinct optima, one pose to
-        that accuracy); beyond it the result is marked untrusted: a covariance
-        describes one optimum and cannot see the others.
+        that accuracy), or within the region the pose's covariance allows
+        (:func:`scene3D.twoview.rival_chi2`: the sigmas already say it); beyond
+        both the result is marked untrusted: a covariance describes one optimum
+        and cannot see the others.
     min_matches, min_inliers, min_points : int
         Below these counts the pair is refused.
     min_point_parallax_deg : float
