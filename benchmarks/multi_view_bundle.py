@@ -49,13 +49,13 @@ from scene3D.datasets import default_data_root, read_strecha_scene  # noqa: E402
 from scene3D.evaluation import camera_set_error  # noqa: E402
 from scene3D.export import colmap_text_files  # noqa: E402
 from scene3D.geometry import camera_centers  # noqa: E402
-from scene3D.multiview import mapper, reconstruct_views  # noqa: E402
+from scene3D.multiview import reconstruct_views, state  # noqa: E402
 
 
 def capture_final_adjustment(case: str, folder: Path) -> dict:
     """Run the reconstruction and keep the inputs of its last global bundle adjustment."""
     calls = []
-    original = mapper.bundle_adjust
+    original = state.bundle_adjust
 
     def keep(R, t, X, obs, K, fixed, **kwargs):
         out = original(R, t, X, obs, K, fixed, **kwargs)
@@ -63,7 +63,7 @@ def capture_final_adjustment(case: str, folder: Path) -> dict:
                       out[0]))
         return out
 
-    mapper.bundle_adjust = keep
+    state.bundle_adjust = keep
     try:
         if case.startswith("orbit"):
             from scene3D.synthetic import asymmetric_camera, orbit_poses
@@ -82,7 +82,7 @@ def capture_final_adjustment(case: str, folder: Path) -> dict:
             paths, R_true, C_true = truth.paths, truth.R, truth.centers
             r = reconstruct_views(paths, np.loadtxt(root / "images" / "K.txt"), np.zeros(5))
     finally:
-        mapper.bundle_adjust = original
+        state.bundle_adjust = original
     # The first global adjustment once every view is registered (tolerance 1e-6, see
     # mapper.grow_model): the one that moves the cameras most of the final ones.
     R, t, X, obs, K, fixed, kwargs, R_out = [c for c in calls

@@ -482,16 +482,16 @@ def test_a_broken_reconstruction_is_reported_not_written_as_a_success(fountain, 
     """Turn one registered camera by 5 deg just before the result is taken (as a wrong
     registration would leave it): the command must say so and exit 1, not 0."""
     from scene3D.cli.multiview import main
-    from scene3D.multiview import mapper
+    from scene3D.multiview import state
 
-    original = mapper._Model.result
+    original = state.GrowingModel.result
 
     def broken(self, check):
         view = [v for v in np.flatnonzero(self.registered) if v != self.reference][1]
         self.R[view] = rotation_about_axis([0.2, 1.0, 0.1], 5.0) @ self.R[view]
         return original(self, self.check())
 
-    monkeypatch.setattr(mapper._Model, "result", broken)
+    monkeypatch.setattr(state.GrowingModel, "result", broken)
     paths = [str(fountain / "images" / f"{i:04d}.jpg") for i in range(3, 8)]
     out = tmp_path / "out"
     code = main([*paths, "--calib", str(REPO / "data" / "fountain_P11_intrinsics.yaml"),

@@ -14,8 +14,9 @@ bundle adjustment as the missing step. One module per stage, in pipeline order:
 - :mod:`~scene3D.multiview.points`: many tracks triangulated at once;
 - :mod:`~scene3D.multiview.weights`: how precisely each keypoint is located (its
   size), the weights of bundle adjustment;
-- :mod:`~scene3D.multiview.mapper`: registration, local and global bundle adjustment,
-  re-triangulation, several models;
+- :mod:`~scene3D.multiview.mapper`: the incremental mapper's stages, several models;
+- :mod:`~scene3D.multiview.state`: a growing model: registration, triangulation, local
+  and global bundle adjustment, re-triangulation;
 - :mod:`~scene3D.multiview.focal`: without a calibration, one focal length for all
   views (the start pair self-calibrated, then refined in the global adjustments);
 - :mod:`~scene3D.multiview.checks`: the model against its pairs' own geometry;

@@ -19,9 +19,7 @@
    recorded in the model.
 6. The views left start the next model, until no trusted pair remains among them.
 
-State: every keypoint of every view is a node (:mod:`scene3D.multiview.tracks`);
-``node_point[n]`` is the point it observes (-1: none), so the observations are
-exactly the nodes with a point, and ``track_point[k]`` is the point of track ``k``.
+The model's state and its operations are :class:`scene3D.multiview.state.GrowingModel`.
 """
 
 from __future__ import annotations
@@ -31,25 +29,19 @@ import logging
 import time
 from collections.abc import Callable, Sequence
 
-import cv2
 import numpy as np
 
-from ..bundle import Observations, bundle_adjust, bundle_adjust_focal, reprojection_residuals
 from ..errors import ReconstructionError
-from ..geometry import FloatArray, camera_centers
+from ..geometry import FloatArray
 from ..twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
-from .checks import check_model
 from .focal import (
     FocalSettings,
     focal_estimate,
-    longer_side_px,
     prior_intrinsics,
     self_calibrated_start,
 )
-from .models import FocalEstimate, ModelCheck, PairMatches, SfMModel, SfMSettings, ViewFeatures
-from .points import max_parallax_deg, observation_errors, refine_points, triangulate_groups
-from .tracks import Tracks, build_tracks, connected_components
-from .weights import keypoint_sigma
+from .models import FocalEstimate, PairMatches, SfMModel, SfMSettings, ViewFeatures
+from .state import GrowingModel
 
 logger = logging.getLogger(__name__)
 
@@ -58,345 +50,6 @@ logger = logging.getLogger(__name__)
 MorePairs = Callable[[int, Sequence[int]], list[PairMatches]]
 
 
-class _Model:
-    """Mutable state of one growing model (private; see the module docstring)."""
-
-    def __init__(self, features: Sequence[ViewFeatures], pairs: list[PairMatches],
-                 K: FloatArray, settings: SfMSettings, allowed: np.ndarray,
-                 timings: dict[str, float], focal: FocalSettings | None = None) -> None:
-        self.features, self.K, self.s, self.timings = features, K, settings, timings
-        self.focal = focal  # photos without a calibration: global adjustments refine f
-        self.focal_adjustment = None  # the last one's scene3D.bundle.FocalAdjustment
-        self.allowed = allowed
-        self.pairs = [p for p in pairs if allowed[p.i] and allowed[p.j]]
-        V = len(features)
-        self.xy = np.concatenate([f.keypoints for f in features]).reshape(-1, 2)
-        # Relative noise of each keypoint (bundle adjustment's weights), from its size.
-        self.sigma = None if not settings.weight_by_size or any(
-            f.sizes is None for f in features) else keypoint_sigma(
-            np.concatenate([f.sizes for f in features]))
-        self.R = np.full((V, 3, 3), np.nan)
-        self.t = np.full((V, 3), np.nan)
-        self.registered = np.zeros(V, dtype=bool)
-        self.blocked = np.zeros(V, dtype=bool)  # taken out by the check: not put back
-        self.X = np.zeros((0, 3))
-        self.reference = -1
-        self._set_tracks(build_tracks([len(f.keypoints) for f in features], self.pairs))
-        self.node_point = np.full(len(self.xy), -1, dtype=int)
-        self.track_point = np.full(self.tracks.num_tracks, -1, dtype=int)
-
-    # -- bookkeeping --------------------------------------------------------------------
-
-    def _set_tracks(self, tracks: Tracks) -> None:
-        self.tracks = tracks
-        self.node_view = tracks.node_view
-        self.track_nodes, self.track_starts = tracks.members()
-
-    def add_pairs(self, new: list[PairMatches]) -> None:
-        """Take further verified pairs: rebuild the tracks, keep every point."""
-        self.pairs += [p for p in new if self.allowed[p.i] and self.allowed[p.j]]
-        self._set_tracks(build_tracks([len(f.keypoints) for f in self.features], self.pairs))
-        self._relink_tracks()
-
-    def drop_pairs(self, bad: set[tuple[int, int]]) -> None:
-        """Forget pairs that contradict the model (false verifications, e.g. two different
-        windows): rebuild the tracks without them and keep, of each point, only the
-        observations in the track that holds most of them, so that nothing stays attached
-        through a false pair."""
-        self.pairs = [p for p in self.pairs if (p.i, p.j) not in bad]
-        self._set_tracks(build_tracks([len(f.keypoints) for f in self.features], self.pairs))
-        obs = np.flatnonzero(self.node_point >= 0)
-        point, track = self.node_point[obs], self.tracks.node_track[obs]
-        span = self.tracks.num_tracks + 1
-        keys, counts = np.unique(point * span + (track + 1), return_counts=True)
-        # Per point, the track with most of its observations (ties: the lower track).
-        order = np.lexsort((keys, -counts, keys // span))
-        first = order[np.r_[True, np.diff(keys[order] // span) != 0]]
-        owner = np.full(len(self.X), -2, dtype=int)
-        owner[keys[first] // span] = keys[first] % span - 1
-        stray = (track < 0) | (track != owner[point])
-        self._remove_observations(obs[stray])
-        self._relink_tracks()
-
-    def _relink_tracks(self) -> None:
-        """``track_point`` from the observations (a track gets the point of its nodes)."""
-        self.track_point = np.full(self.tracks.num_tracks, -1, dtype=int)
-        obs = np.flatnonzero(self.node_point >= 0)
-        tr = self.tracks.node_track[obs]
-        has = tr >= 0
-        self.track_point[tr[has]] = self.node_point[obs[has]]
-
-    def observations(self) -> tuple[np.ndarray, Observations]:
-        nodes = np.flatnonzero(self.node_point >= 0)
-        return nodes, Observations(self.node_view[nodes], self.node_point[nodes], self.xy[nodes])
-
-    def centers(self) -> FloatArray:
-        return camera_centers(self.R, self.t)
-
-    @property
-    def num_points(self) -> int:
-        return int(np.count_nonzero(np.bincount(self.node_point[self.node_point >= 0],
-                                                minlength=len(self.X)) >= 2))
-
-    def _remove_observations(self, nodes: np.ndarray) -> None:
-        """Drop observations; points left with fewer than two go (their nodes too)."""
-        self.node_point[nodes] = -1
-        counts = np.bincount(self.node_point[self.node_point >= 0], minlength=len(self.X))
-        thin = counts < 2
-        observed = self.node_point >= 0
-        self.node_point[observed & thin[np.maximum(self.node_point, 0)]] = -1
-        dead = np.flatnonzero(thin)
-        self.track_point[np.isin(self.track_point, dead)] = -1
-
-    def compact(self) -> None:
-        """Renumber the points that still have observations."""
-        counts = np.bincount(self.node_point[self.node_point >= 0], minlength=len(self.X))
-        keep = counts >= 2
-        remap = np.full(len(self.X) + 1, -1, dtype=int)
-        remap[np.flatnonzero(keep)] = np.arange(int(keep.sum()))
-        self.X = self.X[keep]
-        self.node_point = remap[self.node_point]
-        self.track_point = remap[self.track_point]
-
-    # -- triangulation --------------------------------------------------------------------
-
-    def triangulate(self, tracks: np.ndarray | None = None) -> int:
-        """Triangulate tracks without a point that two registered views see
-        (``tracks``: only these). Returns the number of new points."""
-        candidates = np.flatnonzero(self.track_point < 0) if tracks is None else tracks[
-            self.track_point[tracks] < 0]
-        if len(candidates) == 0:
-            return 0
-        counts = np.diff(self.track_starts)[candidates]
-        group = np.repeat(np.arange(len(candidates)), counts)
-        nodes = self.track_nodes[np.repeat(self.track_starts[candidates], counts)
-                                 + np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts,
-                                                                       counts)]
-        views = self.node_view[nodes]
-        ok = self.registered[views]
-        group, nodes, views = group[ok], nodes[ok], views[ok]
-        if len(nodes) == 0:
-            return 0
-        G = len(candidates)
-        X = triangulate_groups(group, self.xy[nodes], self.R[views], self.t[views], self.K, G)
-        err, depth = observation_errors(X[group], self.R[views], self.t[views], self.xy[nodes],
-                                        self.K)
-        good = (err <= self.s.max_reprojection_px) & (depth > 0)
-        group, nodes, views = group[good], nodes[good], views[good]
-        parallax = max_parallax_deg(group, X[group], self.centers()[views], G)
-        enough = (np.bincount(group, minlength=G) >= 2) & (parallax >= self.s.min_parallax_deg)
-        enough &= np.all(np.isfinite(X), axis=1)
-        new = np.flatnonzero(enough)
-        ids = np.full(G, -1, dtype=int)
-        ids[new] = len(self.X) + np.arange(len(new))
-        self.X = np.concatenate([self.X, X[new]])
-        take = enough[group]
-        self.node_point[nodes[take]] = ids[group[take]]
-        self.track_point[candidates[new]] = ids[new]
-        return len(new)
-
-    def complete_tracks(self) -> int:
-        """Add the registered views of each reconstructed track that see its point within
-        the threshold but do not observe it yet. Returns the observations added."""
-        tr = self.tracks.node_track
-        nodes = np.flatnonzero((tr >= 0) & (self.node_point < 0))
-        nodes = nodes[self.registered[self.node_view[nodes]]]
-        points = self.track_point[tr[nodes]]
-        nodes, points = nodes[points >= 0], points[points >= 0]
-        if len(nodes) == 0:
-            return 0
-        views = self.node_view[nodes]
-        err, depth = observation_errors(self.X[points], self.R[views], self.t[views],
-                                        self.xy[nodes], self.K)
-        good = (err <= self.s.max_reprojection_px) & (depth > 0)
-        self.node_point[nodes[good]] = points[good]
-        return int(good.sum())
-
-    # -- registration ------------------------------------------------------------------------
-
-    def correspondences(self, view: int) -> tuple[np.ndarray, np.ndarray]:
-        """Nodes of ``view`` whose track has a point, and those points."""
-        nodes = np.arange(self.tracks.offsets[view], self.tracks.offsets[view + 1])
-        tr = self.tracks.node_track[nodes]
-        nodes, tr = nodes[tr >= 0], tr[tr >= 0]
-        points = self.track_point[tr]
-        return nodes[points >= 0], points[points >= 0]
-
-    def register(self, view: int) -> bool:
-        nodes, points = self.correspondences(view)
-        if len(nodes) < self.s.min_registration_inliers:
-            return False
-        obj, img = self.X[points], self.xy[nodes]
-        ok, rvec, tvec, inliers = cv2.solvePnPRansac(
-            obj, img, self.K, None, iterationsCount=2000,
-            reprojectionError=self.s.pnp_threshold_px, confidence=0.9999,
-            flags=cv2.SOLVEPNP_SQPNP)
-        if not ok or inliers is None or len(inliers) < self.s.min_registration_inliers:
-            return False
-        inl = inliers.ravel()
-        rvec, tvec = cv2.solvePnPRefineLM(obj[inl], img[inl], self.K, None, rvec, tvec)
-        self.R[view] = cv2.Rodrigues(rvec)[0]
-        self.t[view] = tvec.ravel()
-        self.registered[view] = True
-        self.node_point[nodes[inl]] = points[inl]
-        return True
-
-    def deregister(self, view: int) -> None:
-        nodes = np.arange(self.tracks.offsets[view], self.tracks.offsets[view + 1])
-        self._remove_observations(nodes[self.node_point[nodes] >= 0])
-        self.registered[view] = False
-        self.R[view], self.t[view] = np.nan, np.nan
-
-    # -- bundle adjustment ---------------------------------------------------------------------
-
-    def _fixed_view(self) -> int:
-        return self.reference if self.registered[self.reference] else int(
-            np.flatnonzero(self.registered)[0])
-
-    def adjustment_nodes(self, nodes: np.ndarray) -> np.ndarray:
-        """Which of the observations ``nodes`` (every observation of their points) take
-        part in bundle adjustment ``(len(nodes),) bool``: those of the points it admits.
-
-        A point that three or more views observe verifies itself (its rays must meet
-        in one point); a point of two views does not: a false match that lies along
-        the epipolar line, such as the neighbouring window of a repeated facade, fits
-        its pair and nothing contradicts it. Where many such matches pass, they bend
-        the cameras by more than all the true ones can hold them (castle-P19: a
-        quarter of the verified matches of views 0013-0014 lie more than 2 px off
-        their true epipolar lines; with them the adjustment put view 0015 0.6 % of
-        the scene off, with the multi-view points alone 0.12 %). So, as GLOMAP
-        positions its cameras from tracks of three views or more, a two-view point
-        is adjusted only where the multi-view points among ``nodes`` do not hold its
-        views: when one of them observes fewer than ``min_multiview_observations``
-        of them, or they do not join the two (two parts of the model). The other
-        two-view points follow the cameras (:meth:`_adjust`).
-        """
-        point, view = self.node_point[nodes], self.node_view[nodes]
-        ids, local, counts = np.unique(point, return_inverse=True, return_counts=True)
-        use = counts >= 3
-        multi = use[local]
-        V = len(self.registered)
-        support = np.bincount(view[multi], minlength=V)
-        order = np.lexsort((view[multi], local[multi]))
-        p_m, v_m = local[multi][order], view[multi][order]
-        chain = np.flatnonzero(p_m[1:] == p_m[:-1])  # consecutive views of one point
-        label = connected_components(V, v_m[chain], v_m[chain + 1])
-        two = counts[local] == 2
-        order = np.lexsort((view[two], local[two]))
-        p_2, v_2 = local[two][order], view[two][order]
-        a, b = v_2[0::2], v_2[1::2]
-        weak = support < self.s.min_multiview_observations
-        use[p_2[0::2]] = weak[a] | weak[b] | (label[a] != label[b])
-        return use[local]
-
-    def _adjust(self, nodes: np.ndarray, fixed: np.ndarray, max_iterations: int,
-                tolerance: float, anchors: np.ndarray | None = None,
-                refine_focal: bool = False) -> None:
-        """Bundle-adjust the points observed at ``nodes`` (all their observations) that
-        :meth:`adjustment_nodes` admits and the views observing them but ``fixed``
-        (only the observations of free views and of the fixed ``anchors``, when
-        given); then the other points follow the cameras (a 3x3 refinement each), and
-        observations among ``nodes`` that reproject badly or lie behind a camera are
-        dropped. With ``refine_focal`` the one focal length is adjusted too (``self.K``
-        changes; :mod:`scene3D.multiview.focal`)."""
-        t0 = time.perf_counter()
-        admitted = self.adjustment_nodes(nodes)
-        if anchors is not None:
-            taking = np.ones(len(self.registered), dtype=bool)
-            taking[fixed] = False
-            taking[anchors] = True
-            admitted &= taking[self.node_view[nodes]]
-            # A point needs two observations in the adjustment; else it follows.
-            counts = np.bincount(self.node_point[nodes[admitted]], minlength=len(self.X))
-            admitted &= counts[self.node_point[nodes]] >= 2
-        inside = nodes[admitted]
-        point_ids = np.unique(self.node_point[inside])
-        if len(inside):
-            local = np.searchsorted(point_ids, self.node_point[inside])
-            obs = Observations(self.node_view[inside], local, self.xy[inside],
-                               None if self.sigma is None else self.sigma[inside])
-            if refine_focal and self.focal is not None:
-                fa = bundle_adjust_focal(
-                    self.R, self.t, self.X[point_ids], obs, self.K, fixed,
-                    self.focal.prior_focal_px, self.focal.prior_sigma_log,
-                    max_iterations=max_iterations, tolerance=tolerance,
-                    principal_point_shift_px=self.focal.principal_point_sigma
-                    * longer_side_px(self.K))
-                R, t, X, self.K, self.focal_adjustment = fa.R, fa.t, fa.points3d, fa.K, fa
-            else:
-                R, t, X = bundle_adjust(self.R, self.t, self.X[point_ids], obs, self.K, fixed,
-                                        max_iterations=max_iterations, tolerance=tolerance)
-            free = np.setdiff1d(np.unique(obs.view), fixed)
-            self.R[free], self.t[free] = R[free], t[free]
-            self.X[point_ids] = X
-        adjusted = np.zeros(len(self.X), dtype=bool)
-        adjusted[point_ids] = True
-        outside = nodes[~adjusted[self.node_point[nodes]]]
-        if len(outside):
-            ids, point = np.unique(self.node_point[outside], return_inverse=True)
-            views = self.node_view[outside]
-            self.X[ids] = refine_points(point, self.xy[outside], self.R[views], self.t[views],
-                                        self.K, self.X[ids], sigma=None if self.sigma is None
-                                        else self.sigma[outside])
-        views, points = self.node_view[nodes], self.node_point[nodes]
-        err, depth = observation_errors(self.X[points], self.R[views], self.t[views],
-                                        self.xy[nodes], self.K)
-        self._remove_observations(nodes[~(err <= self.s.max_reprojection_px) | (depth <= 0)])
-        self.timings["bundle_adjustment"] += time.perf_counter() - t0
-
-    def adjust_local(self, view: int) -> None:
-        """The new view and its most co-visible views, with the points they see; of the
-        other views that see those points, the most co-visible hold them fixed (as many
-        as are free), so that the cost does not grow with the tracks' lengths."""
-        obs_nodes = np.flatnonzero(self.node_point >= 0)
-        obs_view, obs_point = self.node_view[obs_nodes], self.node_point[obs_nodes]
-        seen = np.zeros(len(self.X) + 1, dtype=bool)
-        seen[obs_point[obs_view == view]] = True
-        covisible = np.bincount(obs_view[seen[obs_point]], minlength=len(self.registered))
-        covisible[view] = 0
-        ranked = np.argsort(-covisible, kind="stable")
-        ranked = ranked[covisible[ranked] > 0][:self.s.local_ba_views]
-        free = np.r_[view, ranked]
-        in_free = np.zeros(len(self.registered), dtype=bool)
-        in_free[free] = True
-        point_ids = np.unique(obs_point[in_free[obs_view]])
-        chosen = np.zeros(len(self.X), dtype=bool)
-        chosen[point_ids] = True
-        nodes = obs_nodes[chosen[obs_point]]
-        shared = np.bincount(self.node_view[nodes], minlength=len(self.registered))
-        shared[free] = 0
-        fixed = np.flatnonzero(shared)
-        anchors = fixed[np.argsort(-shared[fixed], kind="stable")][:len(free)]
-        if len(fixed) == 0:
-            fixed = anchors = np.array([self._fixed_view()])
-        self._adjust(nodes, fixed, max_iterations=8, tolerance=1e-5, anchors=anchors)
-
-    def adjust_global(self, max_iterations: int, tolerance: float = 1e-5) -> None:
-        nodes = np.flatnonzero(self.node_point >= 0)
-        refine = self.focal is not None and self.registered.sum() >= self.focal.min_views
-        if len(nodes):
-            self._adjust(nodes, np.array([self._fixed_view()]), max_iterations, tolerance,
-                         refine_focal=refine)
-
-    def retriangulate(self) -> None:
-        self.complete_tracks()
-        self.triangulate()
-        self.compact()
-
-    def check(self) -> ModelCheck:
-        return check_model(self.registered, self.R, self.t, self.pairs, self.features, self.K,
-                           self.s.consistency_px, self._fixed_view())
-
-    def result(self, check: ModelCheck) -> SfMModel:
-        self.compact()
-        nodes, obs = self.observations()
-        colors = np.zeros((len(self.X), 3), np.uint8)
-        all_colors = np.concatenate([f.colors for f in self.features]).reshape(-1, 3)
-        colors[obs.point[::-1]] = all_colors[nodes[::-1]]  # the first observation's colour
-        res = reprojection_residuals(self.R, self.t, self.X, obs, self.K)
-        rmse = float(np.sqrt(np.mean(res**2))) if len(res) else float("nan")
-        return SfMModel(self.registered.copy(), self.R.copy(), self.t.copy(), self.X.copy(),
-                        colors, obs, rmse, check)
 
 
 def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches], K: FloatArray,
@@ -444,7 +97,7 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
     Returns the model and, for the allowed views left out, why.
     """
     s = settings
-    model = _Model(features, pairs, K, s, allowed, timings, focal)
+    model = GrowingModel(features, pairs, K, s, allowed, timings, focal)
     pair, r = start
     model.reference = pair.i
     model.R[pair.i], model.t[pair.i] = np.eye(3), np.zeros(3)

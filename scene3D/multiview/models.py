@@ -89,7 +89,7 @@ class SfMSettings:
         Bundle adjustment holds a view by the points that three or more views observe
         (they verify themselves) when it observes at least this many of them; its
         two-view points then follow the cameras instead of steering them
-        (:meth:`scene3D.multiview.mapper._Model.adjustment_nodes`).
+        (:meth:`scene3D.multiview.state.GrowingModel.adjustment_nodes`).
     global_ba_growth : float
         A global bundle adjustment (then re-triangulation) runs when the model has
         grown by this factor (in views) since the last one, and at the end.
