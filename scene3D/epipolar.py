@@ -16,16 +16,15 @@ from numpy.typing import ArrayLike
 
 from .geometry import (
     FloatArray,
-    angle_between_deg,
     as_matrix,
     as_points2d,
     check_same_length,
     median,
-    rotation_error_deg,
+    pose_angle_deg,
     skew,
     to_homogeneous,
 )
-from .pose import decompose_essential
+from .pose import decompose_essential, nearest_decomposition
 from .refinement import _loss, refine_relative_pose, sampson_residuals
 
 #: Robust estimator used for F, E and H (OpenCV's USAC family, MAGSAC++ scoring), and for
@@ -419,13 +418,10 @@ def essential_angle_deg(E1: ArrayLike, E2: ArrayLike) -> float:
     Both rotations of each are tried: the pose and its twisted pair (turned 180 deg
     about the baseline) lie about 180 deg apart, so the minimum pairs like with like.
     """
-    poses1, poses2 = decompose_essential(E1), decompose_essential(E2)
+    poses1 = decompose_essential(E1)
     t1 = poses1[0][1]
-    return min(
-        max(rotation_error_deg(R2, R1), angle_between_deg(t2, t1))
-        for R1, _ in poses1[::2]
-        for R2, t2 in poses2
-    )
+    return min(pose_angle_deg(*nearest_decomposition(E2, R1, t1), R1, t1)
+               for R1, _ in poses1[::2])
 
 
 def noise_sigma_px(distances: FloatArray) -> float:

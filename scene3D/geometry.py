@@ -127,6 +127,13 @@ def angle_between_deg(a: ArrayLike, b: ArrayLike) -> float:
     return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
 
 
+def pose_angle_deg(R_a: ArrayLike, t_a: ArrayLike, R_b: ArrayLike, t_b: ArrayLike) -> float:
+    """How far apart two relative poses ``(R (3, 3), t (3,))`` are, in degrees: the larger of
+    the angle between their rotations (:func:`rotation_error_deg`) and the angle between
+    their translation directions (:func:`angle_between_deg`, sign matters)."""
+    return max(rotation_error_deg(R_a, R_b), angle_between_deg(t_a, t_b))
+
+
 def rotation_about_axis(axis: ArrayLike, angle_deg: float) -> FloatArray:
     """Rotation matrix ``(3, 3)`` turning by ``angle_deg`` about ``axis`` (right hand)."""
     axis = np.asarray(axis, dtype=np.float64).reshape(3)

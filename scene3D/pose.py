@@ -15,14 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .errors import ReconstructionError
-from .geometry import (
-    FloatArray,
-    angle_between_deg,
-    as_matrix,
-    as_points2d,
-    check_same_length,
-    rotation_error_deg,
-)
+from .geometry import FloatArray, as_matrix, as_points2d, check_same_length, pose_angle_deg
 from .triangulation import in_front_mask, triangulate_points
 
 logger = logging.getLogger(__name__)
@@ -55,11 +48,9 @@ def decompose_essential(E: ArrayLike) -> list[tuple[FloatArray, FloatArray]]:
 def nearest_decomposition(E: ArrayLike, R: ArrayLike, t: ArrayLike
                           ) -> tuple[FloatArray, FloatArray]:
     """The ``(R, t)`` of :func:`decompose_essential` ``(E)`` nearest to the pose ``R`` (3, 3),
-    ``t`` (3,): the least of the rotation angle and the translation-direction angle
-    between them, the larger of the two taken. To compare another essential matrix's
-    pose with a chosen one without a cheirality test of its own."""
-    return min(decompose_essential(E),
-               key=lambda pose: max(rotation_error_deg(pose[0], R), angle_between_deg(pose[1], t)))
+    ``t`` (3,) by :func:`scene3D.geometry.pose_angle_deg`. To compare another essential
+    matrix's pose with a chosen one without a cheirality test of its own."""
+    return min(decompose_essential(E), key=lambda pose: pose_angle_deg(*pose, R, t))
 
 
 class PoseChoice(NamedTuple):

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..epipolar import essential_costs, essential_distances, loss_scale_px
-from ..geometry import FloatArray, angle_between_deg, rotation_error_deg
+from ..geometry import FloatArray, pose_angle_deg
 from ..pose import choose_pose
 from ..refinement import fit_focal_scale, pose_intrinsics_sensitivity
 from ..twoview import TwoViewGeometry, TwoViewSettings
@@ -137,7 +137,7 @@ def focal_rivals(pts1: FloatArray, pts2: FloatArray, chosen: TwoViewGeometry,
         if inliers.sum() < 6:
             continue
         R, t, _, _ = choose_pose(E, pts1[inliers], pts2[inliers], K_f)
-        difference = max(rotation_error_deg(R, chosen.R), angle_between_deg(t, chosen.t))
+        difference = pose_angle_deg(R, t, chosen.R, chosen.t)
         rivals.append(Rival(float(focal), z, difference))
     return rivals
 
