@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import cv2
@@ -105,11 +106,18 @@ def create_detector(mode: str, max_features: int = 8000) -> tuple[cv2.Feature2D,
     raise ValueError(f"feature mode {mode!r} has no descriptor detector")
 
 
-def detect_features(gray: np.ndarray, detector: cv2.Feature2D) -> tuple[FloatArray, np.ndarray]:
-    """Keypoint pixels ``(N, 2)`` float64 and descriptors ``(N, D)`` of one grey image."""
+def _detect(gray: np.ndarray, detector: cv2.Feature2D
+            ) -> tuple[Sequence[cv2.KeyPoint], FloatArray, np.ndarray]:
+    """The detector's keypoints, their pixels ``(N, 2)`` float64 and descriptors ``(N, D)``."""
     keypoints, descriptors = detector.detectAndCompute(gray, None)
     pixels = cv2.KeyPoint_convert(keypoints) if keypoints else np.zeros((0, 2))
-    return np.asarray(pixels, dtype=np.float64).reshape(-1, 2), descriptors
+    return keypoints, np.asarray(pixels, dtype=np.float64).reshape(-1, 2), descriptors
+
+
+def detect_features(gray: np.ndarray, detector: cv2.Feature2D) -> tuple[FloatArray, np.ndarray]:
+    """Keypoint pixels ``(N, 2)`` float64 and descriptors ``(N, D)`` of one grey image."""
+    _, pixels, descriptors = _detect(gray, detector)
+    return pixels, descriptors
 
 
 def detect_keypoints(gray: np.ndarray, detector: cv2.Feature2D
@@ -119,10 +127,8 @@ def detect_keypoints(gray: np.ndarray, detector: cv2.Feature2D
     region described, which grows with the keypoint's scale) and descriptors ``(N, D)``.
     The many-view pipeline weighs its observations by the size
     (:mod:`scene3D.multiview.weights`); the two-view path does not need it."""
-    keypoints, descriptors = detector.detectAndCompute(gray, None)
-    pixels = cv2.KeyPoint_convert(keypoints) if keypoints else np.zeros((0, 2))
-    sizes = np.array([k.size for k in keypoints], dtype=np.float64)
-    return np.asarray(pixels, dtype=np.float64).reshape(-1, 2), sizes, descriptors
+    keypoints, pixels, descriptors = _detect(gray, detector)
+    return pixels, np.array([k.size for k in keypoints], dtype=np.float64), descriptors
 
 
 @dataclass(frozen=True)
