@@ -167,7 +167,8 @@ def reconstruct_from_matches(
     # The noise of these inliers sets the losses of the focal check and the adjustment,
     # as it does the local optimisation's (scene3D.epipolar.refine_essential).
     distances = essential_distances(E, in1, in2, K)
-    behind = behind_beyond_noise(points, R, t, K, noise_sigma_px(distances))
+    noise = noise_sigma_px(distances)
+    behind = behind_beyond_noise(points, R, t, K, noise)
     if planar:
         evidence = off_plane_evidence(H, K, R, t, in1, in2, h_inliers, s.threshold_px)
         if evidence < s.min_off_plane_matches:
@@ -212,7 +213,7 @@ def reconstruct_from_matches(
     # The covariance at the final pose: the Sampson cost is the bundle adjustment's with
     # the points eliminated, to first order, so it serves after an adjustment too.
     uncertainty = PoseUncertainty(pose_covariance(R, t, in1, in2, K, behind, loss_scale),
-                                  tangent_basis(t), noise_sigma_px(distances))
+                                  tangent_basis(t), noise)
     point_sigmas = depth_sigmas(points, K, R, t, uncertainty.covariance,
                                 uncertainty.noise_sigma_px)
     warnings = trust_warnings(uncertainty, n, num_inliers, median_kept_parallax, h_ratio, s,
