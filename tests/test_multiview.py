@@ -416,6 +416,20 @@ def test_a_calibration_that_does_not_fit_stops_with_the_reason(fountain):
     assert info.value.reason == "no_initial_pair"
 
 
+
+def test_one_photo_twice_stops_with_what_to_check(fountain, tmp_path):
+    from scene3D import reconstruct_views
+    from scene3D.datasets import read_strecha_camera
+
+    K = read_strecha_camera(fountain / "gt_dense_cameras" / "0004.jpg.camera").K
+    copy = tmp_path / "copy.jpg"
+    copy.write_bytes((fountain / "images" / "0004.jpg").read_bytes())
+    with pytest.raises(ReconstructionError, match="taken from different places") as info:
+        reconstruct_views([fountain / "images" / "0004.jpg", copy], K, np.zeros(5),
+                          max_width=800)
+    assert info.value.reason == "no_initial_pair"
+    assert info.value.counts["verified_pairs"] == 0
+
 def _cli(args, tmp_path, name="out"):
     out = tmp_path / name
     proc = subprocess.run([sys.executable, "-m", "scene3D", "reconstruct-views", *args,

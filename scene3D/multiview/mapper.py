@@ -50,6 +50,11 @@ logger = logging.getLogger(__name__)
 MorePairs = Callable[[int, Sequence[int]], list[PairMatches]]
 
 
+def _no_pair_left(s: SfMSettings) -> str:
+    """Why no model can start when no pair of the views left was verified."""
+    return (f"no two views share {s.min_pair_inliers} or more matches that one essential "
+            "matrix explains: do the photos overlap, and were they taken from different "
+            "places? (a camera turned on one spot, or one photo twice, gives no depth)")
 
 
 def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches], K: FloatArray,
@@ -250,7 +255,7 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
                                               start_pair=None)
             start = initial_pair(features, inside, K)
         else:
-            start = initial_pair(features, inside, K) if inside else "no verified pair left"
+            start = initial_pair(features, inside, K) if inside else _no_pair_left(s)
         timings["initialisation"] += time.perf_counter() - t0
         if isinstance(start, str):
             if not models:
