@@ -37,7 +37,9 @@ and the focal-length fit.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -173,6 +175,70 @@ def marginal_covariance(covariance: ArrayLike, sensitivity: ArrayLike,
     return 0.5 * (out + out.T)
 
 
+
+class TruncatedNoise(NamedTuple):
+    """The keypoint noise behind inliers that a threshold cut (:func:`truncated_noise`).
+
+    Attributes
+    ----------
+    sigma_px : float
+        Standard deviation of the noise, per coordinate, before the cut (infinite
+        when no Gaussian explains the distances).
+    cut_share : float
+        Share of the matches that fit the pose which lie beyond the threshold.
+    variance_factor : float
+        Variance of the inliers' distances over ``sigma_px^2``: 1 without a cut,
+        0 when the noise is unknown.
+    """
+
+    sigma_px: float
+    cut_share: float
+    variance_factor: float
+
+
+def truncated_noise(distances: ArrayLike, threshold_px: float) -> TruncatedNoise:
+    """How much of the keypoint noise an inlier threshold cut off.
+
+    With Gaussian noise of ``sigma`` px on each coordinate, a Sampson distance is
+    ``N(0, sigma^2)`` to first order; the inliers' distances ``(N,)`` are those within
+    ``threshold_px``, so they follow that normal cut at ``c = threshold_px / sigma``.
+    Their median ``m`` solves ``erf(m / (sigma sqrt 2)) = erf(c / sqrt 2) / 2``, which
+    gives ``sigma`` (bisection; ``1.4826 m`` when the cut is far out, as
+    :func:`scene3D.epipolar.noise_sigma_px` assumes); the share cut is
+    ``1 - erf(c / sqrt 2)`` and the cut distances' variance is ``sigma^2`` times
+    ``1 - 2 c phi(c) / erf(c / sqrt 2)`` (``phi`` the normal density). A covariance
+    measured from the cut residuals is that factor too small
+    (``scene3D.twoview.core.pose_covariance`` divides by it). When the median is half
+    the threshold or more (distances spread evenly up to it: the threshold holds no
+    recognisable part of a Gaussian), the noise is unknown: ``sigma_px`` infinite,
+    ``cut_share`` 1, ``variance_factor`` 0; likewise with fewer than six distances.
+    """
+    d = np.abs(np.asarray(distances, dtype=np.float64).ravel())
+    d = d[d <= threshold_px]
+    if len(d) < 6 or threshold_px <= 0:
+        return TruncatedNoise(math.inf, 1.0, 0.0)
+    m = float(np.median(d))
+    if m >= 0.5 * threshold_px:
+        return TruncatedNoise(math.inf, 1.0, 0.0)
+    if m <= 0.0:
+        return TruncatedNoise(0.0, 0.0, 1.0)
+
+    def excess(sigma: float) -> float:  # decreasing in sigma, positive below the root
+        return (math.erf(m / (sigma * math.sqrt(2)))
+                - 0.5 * math.erf(threshold_px / (sigma * math.sqrt(2))))
+
+    low, high = m, 1.4826 * m  # excess(m) > 0: the root lies above m
+    while excess(high) > 0:
+        low, high = high, 2.0 * high
+    for _ in range(60):
+        mid = math.sqrt(low * high)
+        low, high = (mid, high) if excess(mid) > 0 else (low, mid)
+    sigma = math.sqrt(low * high)
+    c = threshold_px / sigma
+    inside = math.erf(c / math.sqrt(2))
+    density = math.exp(-0.5 * c * c) / math.sqrt(2.0 * math.pi)
+    return TruncatedNoise(sigma, 1.0 - inside, max(1.0 - 2.0 * c * density / inside, 0.0))
+
 def largest_sigma_deg(block: FloatArray) -> float:
     """Square root of the largest eigenvalue of a covariance block (radians^2), in degrees.
 
@@ -197,11 +263,15 @@ class PoseUncertainty:
     noise_sigma_px : float
         Robust standard deviation of the keypoint noise measured on the inliers
         (:func:`scene3D.epipolar.noise_sigma_px`), per coordinate.
+    noise_cut_share : float
+        Share of the matches that fit the pose which the inlier threshold cut off
+        (:func:`truncated_noise`); the covariance allows for the cut.
     """
 
     covariance: FloatArray
     basis: FloatArray
     noise_sigma_px: float = float("nan")
+    noise_cut_share: float = 0.0
 
     @property
     def rotation_sigma_deg(self) -> float:

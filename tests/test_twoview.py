@@ -254,6 +254,21 @@ def test_the_uncertainty_limit_is_the_purpose(camera, true_pose):
     assert "more than 1 deg at 3 sigma" in strict.warnings[0]
 
 
+
+def test_matches_noisier_than_the_threshold_can_hold_are_flagged(camera, true_pose):
+    """1.5 px of noise against the default 1 px threshold (raised at most to 2 px): the
+    threshold cuts about a fifth of the matches that fit the pose, which then rests on
+    those that fit best; 0.3 px of noise: nothing is cut, no such warning."""
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, t, n=300, noise_px=1.5)
+    noisy = reconstruct_from_matches(pts1, pts2, camera)
+    assert noisy.noise_cut_share > TwoViewSettings().max_noise_cut_share
+    assert not noisy.trusted
+    assert any("the matches are noisy" in w and "(1 sigma)" in w for w in noisy.warnings)
+    _, pts1, pts2 = correspondences(camera, R, t, n=300, noise_px=0.3)
+    clean = reconstruct_from_matches(pts1, pts2, camera)
+    assert clean.noise_cut_share < 0.01 and clean.trusted
+
 @pytest.mark.parametrize("factor", [0.6, 1.6])
 def test_a_calibration_for_another_focal_length_is_flagged(camera, true_pose, factor):
     """Photos from `camera`, calibration with its focal lengths times `factor`."""

@@ -31,7 +31,13 @@ from ..geometry import FloatArray, as_matrix, as_points2d, check_same_length, me
 from ..pose import choose_pose
 from ..refinement import bundle_adjust_two_view, refine_relative_pose, relative_pose_covariance
 from ..triangulation import behind_beyond_noise, parallax_angles_deg, reprojection_errors
-from ..uncertainty import PoseUncertainty, depth_sigmas, pose_error_coordinates, tangent_basis
+from ..uncertainty import (
+    PoseUncertainty,
+    depth_sigmas,
+    pose_error_coordinates,
+    tangent_basis,
+    truncated_noise,
+)
 from .results import TwoViewGeometry, TwoViewReconstruction, TwoViewSettings
 from .trust import check_focal_length, rival_chi2, trust_warnings
 
@@ -63,8 +69,10 @@ def _motion(E: FloatArray, in1: FloatArray, in2: FloatArray, K: FloatArray, H: F
 
 
 def pose_covariance(R: FloatArray, t: FloatArray, in1: FloatArray, in2: FloatArray,
-                    K: FloatArray, behind: np.ndarray, loss_scale_px: float) -> FloatArray:
-    """Covariance ``(5, 5)`` of the pose, with the pull of the inliers behind the cameras.
+                    K: FloatArray, behind: np.ndarray, loss_scale_px: float,
+                    variance_factor: float = 1.0) -> FloatArray:
+    """Covariance ``(5, 5)`` of the pose, with the pull of the inliers behind the cameras
+    and the noise that the inlier threshold cut off.
 
     The sandwich covariance of the robust Sampson fit over the inliers ``in1, in2``
     ``(N, 2)`` (:func:`scene3D.refinement.relative_pose_covariance`; parametrisation of
@@ -82,10 +90,19 @@ def pose_covariance(R: FloatArray, t: FloatArray, in1: FloatArray, in2: FloatArr
     ``C + delta delta^T`` (the mean squared error is the variance plus the bias
     squared). With no such inlier it is ``C``.
 
+    The sandwich measures the noise by the inliers' residuals, which the inlier
+    threshold cut: their variance is ``variance_factor`` times the noise's
+    (:attr:`scene3D.uncertainty.TruncatedNoise.variance_factor`), so ``C`` is divided
+    by it (1 and no change when the threshold lies far out in the noise's tail;
+    infinite when the noise is unknown, 0).
+
     ``R, t`` ``x_cam2 = R x_cam1 + t`` (``|t| = 1``) is the refined pose and
     ``loss_scale_px`` the scale of its Cauchy loss.
     """
-    covariance = relative_pose_covariance(R, t, in1, in2, K, "cauchy", loss_scale_px)
+    if variance_factor <= 0:
+        return np.full((5, 5), np.inf)
+    covariance = relative_pose_covariance(R, t, in1, in2, K, "cauchy",
+                                          loss_scale_px) / variance_factor
     if not behind.any() or (~behind).sum() < 6 or not np.all(np.isfinite(covariance)):
         return covariance
     R_without, t_without = refine_relative_pose(R, t, in1[~behind], in2[~behind], K, "cauchy",
@@ -197,8 +214,8 @@ def reconstruct_from_matches(
     median_kept_parallax = median(parallax[keep])
     t_focal = time.perf_counter()
     loss_scale = loss_scale_px(distances, s.threshold_px)
-    focal = check_focal_length(R, t, p1, p2, inliers, K,
-                               inlier_threshold_px(distances, s.threshold_px), loss_scale)
+    inlier_threshold = inlier_threshold_px(distances, s.threshold_px)
+    focal = check_focal_length(R, t, p1, p2, inliers, K, inlier_threshold, loss_scale)
     refine_s += time.perf_counter() - t_focal
     points, pts1_kept, pts2_kept = points[keep], in1[keep], in2[keep]
     kept_errors = errors[keep]
@@ -212,8 +229,12 @@ def reconstruct_from_matches(
         refine_s += time.perf_counter() - t_ba
     # The covariance at the final pose: the Sampson cost is the bundle adjustment's with
     # the points eliminated, to first order, so it serves after an adjustment too.
-    uncertainty = PoseUncertainty(pose_covariance(R, t, in1, in2, K, behind, loss_scale),
-                                  tangent_basis(t), noise)
+    # The inliers were re-selected at the threshold their noise calls for: how much of
+    # that noise it cut (scene3D.epipolar.refine_essential).
+    cut = truncated_noise(distances, inlier_threshold)
+    uncertainty = PoseUncertainty(pose_covariance(R, t, in1, in2, K, behind, loss_scale,
+                                                  cut.variance_factor),
+                                  tangent_basis(t), noise, cut.cut_share)
     point_sigmas = depth_sigmas(points, K, R, t, uncertainty.covariance,
                                 uncertainty.noise_sigma_px)
     warnings = trust_warnings(uncertainty, n, num_inliers, median_kept_parallax, h_ratio, s,
@@ -232,7 +253,8 @@ def reconstruct_from_matches(
         pose_covariance=uncertainty.covariance,
         rotation_sigma_deg=uncertainty.rotation_sigma_deg,
         translation_sigma_deg=uncertainty.translation_sigma_deg,
-        noise_sigma_px=uncertainty.noise_sigma_px, depth_sigmas=point_sigmas,
+        noise_sigma_px=uncertainty.noise_sigma_px, noise_cut_share=cut.cut_share,
+        depth_sigmas=point_sigmas,
     )
 
 

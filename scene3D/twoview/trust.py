@@ -78,7 +78,9 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
       enough for wrong matches to agree by chance; a rotation alone explains more than
       ``s.max_rotation_share`` of the inliers (``rotation_share``,
       :func:`scene3D.degeneracy.motion_model_choice`), so the translation rests on
-      the few that show parallax.
+      the few that show parallax; the inlier threshold cuts off more than
+      ``s.max_noise_cut_share`` of the matches that fit the pose
+      (``uncertainty.noise_cut_share``): noisier matches than it can hold.
 
     Every warning quotes the uncertainty.
     """
@@ -103,6 +105,13 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
     elif num_inliers < s.trusted_inliers:
         warnings.append(f"only {num_inliers} inliers: too few to rely on the pose's "
                         f"{sigmas}")
+    if uncertainty.noise_cut_share > s.max_noise_cut_share:
+        warnings.append(f"the matches are noisy (+-{uncertainty.noise_sigma_px:.2g} px) for the "
+                        f"inlier threshold: it cuts off about "
+                        f"{uncertainty.noise_cut_share:.0%} of the matches that fit the pose, "
+                        "which then rests on those that happen to fit best; its "
+                        f"{sigmas} understate how far off it may be (a larger "
+                        "TwoViewSettings.threshold_px would hold them)")
     if rotation_share > s.max_rotation_share:
         warnings.append(f"a rotation alone explains {rotation_share:.0%} of the inliers: the "
                         f"translation rests on the other {1 - rotation_share:.0%}, which a "
