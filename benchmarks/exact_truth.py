@@ -46,7 +46,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from scene3D import epipolar, twoview
+from scene3D import essential_fit, twoview
 from scene3D.datasets import FOUNTAIN_P11, default_data_root, strecha_views
 from scene3D.epipolar import essential_distances, essential_from_pose
 from scene3D.errors import ReconstructionError
@@ -96,9 +96,9 @@ def exact_structure(views, a: int, b: int, width: int):
 @contextmanager
 def fixed_loss():
     """scene3D's previous loss: Cauchy scale a third of the threshold, threshold never raised."""
-    saved = [(module, name, getattr(module, name)) for module in (epipolar, twoview)
+    saved = [(module, name, getattr(module, name)) for module in (essential_fit, twoview)
              for name in ("loss_scale_px", "inlier_threshold_px")]
-    for module in (epipolar, twoview):
+    for module in (essential_fit, twoview):
         module.loss_scale_px = lambda distances, threshold_px: threshold_px / 3
         module.inlier_threshold_px = lambda distances, threshold_px: threshold_px
     try:

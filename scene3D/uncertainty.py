@@ -196,7 +196,7 @@ class PoseUncertainty:
         :func:`tangent_basis` of the pose's ``t``: the directions of ``d``.
     noise_sigma_px : float
         Robust standard deviation of the keypoint noise measured on the inliers
-        (:func:`scene3D.epipolar.noise_sigma_px`), per coordinate.
+        (:func:`scene3D.essential_fit.noise_sigma_px`), per coordinate.
     """
 
     covariance: FloatArray

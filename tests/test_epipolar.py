@@ -1,20 +1,22 @@
 import numpy as np
 import pytest
 
-from scene3D import epipolar
+from scene3D import essential_fit
 from scene3D.epipolar import (
-    NOISE_PROBE_OF_THRESHOLD,
-    comparison_threshold_px,
     epipolar_lines,
     epipolar_residuals,
-    essential_angle_deg,
-    essential_cost,
     essential_distances,
     essential_from_pose,
-    estimate_essential,
     estimate_fundamental,
-    fit_essential,
     fundamental_from_essential,
+)
+from scene3D.essential_fit import (
+    NOISE_PROBE_OF_THRESHOLD,
+    comparison_threshold_px,
+    essential_angle_deg,
+    essential_cost,
+    estimate_essential,
+    fit_essential,
     inlier_threshold_px,
     loss_scale_px,
     noise_sigma_px,
@@ -205,7 +207,8 @@ def test_noise_adaptive_loss_beats_a_fixed_third_of_the_threshold(camera, true_p
     R, t = true_pose
     seeds = range(16)
     adaptive = {s: _refined_errors(camera, R, t, s, seeds) for s in (0.5, 0.1)}
-    monkeypatch.setattr(epipolar, "loss_scale_px", lambda distances, threshold_px: threshold_px / 3)
+    monkeypatch.setattr(essential_fit, "loss_scale_px",
+                        lambda distances, threshold_px: threshold_px / 3)
     fixed = {s: _refined_errors(camera, R, t, s, seeds) for s in (0.5, 0.1)}
     # Noise of half the threshold: a third of the threshold is too tight a loss.
     assert adaptive[0.5].mean() < 0.9 * fixed[0.5].mean()

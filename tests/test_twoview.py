@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
 
-from scene3D.epipolar import EssentialFit, estimate_homography
+from scene3D.epipolar import estimate_homography
 from scene3D.errors import ReconstructionError
+from scene3D.essential_fit import EssentialFit
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import find_matches
 from scene3D.geometry import project

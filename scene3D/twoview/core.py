@@ -19,13 +19,10 @@ from ..epipolar import (
     essential_distances,
     essential_from_pose,
     estimate_homography,
-    fit_essential,
     fundamental_from_essential,
-    inlier_threshold_px,
-    loss_scale_px,
-    noise_sigma_px,
 )
 from ..errors import ReconstructionError
+from ..essential_fit import fit_essential, inlier_threshold_px, loss_scale_px, noise_sigma_px
 from ..features import Matches
 from ..geometry import FloatArray, as_matrix, as_points2d, check_same_length, median
 from ..pose import choose_pose
@@ -54,7 +51,7 @@ def _motion(E: FloatArray, in1: FloatArray, in2: FloatArray, K: FloatArray, H: F
     """:func:`scene3D.degeneracy.motion_model_choice` on the inliers of ``E``.
 
     The noise is floored at a thousandth of the threshold (as the loss scale is,
-    :func:`scene3D.epipolar.loss_scale_px`): exact matches leave a homography fitted
+    :func:`scene3D.essential_fit.loss_scale_px`): exact matches leave a homography fitted
     in float arithmetic with errors of 1e-6 px that would otherwise count as misfit.
     """
     distances = essential_distances(E, in1, in2, K)
@@ -165,7 +162,7 @@ def reconstruct_from_matches(
     planar = h_ratio > s.planar_ratio and motion.planar
     R, t, points, front = choose_pose(E, in1, in2, K)
     # The noise of these inliers sets the losses of the focal check and the adjustment,
-    # as it does the local optimisation's (scene3D.epipolar.refine_essential).
+    # as it does the local optimisation's (scene3D.essential_fit.refine_essential).
     distances = essential_distances(E, in1, in2, K)
     noise = noise_sigma_px(distances)
     behind = behind_beyond_noise(points, R, t, K, noise)

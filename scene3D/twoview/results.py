@@ -19,10 +19,10 @@ class TwoViewSettings:
     threshold_px : float
         Robust-estimation inlier threshold for F, E and H, in pixels. The local
         optimisation of E raises it, at most twofold, when the matches are noisier
-        than it assumes (:func:`scene3D.epipolar.inlier_threshold_px`).
+        than it assumes (:func:`scene3D.essential_fit.inlier_threshold_px`).
     max_starts : int
         Most robust estimations of E (each locally optimised); the best is kept
-        once two starts agree on it (:func:`scene3D.epipolar.fit_essential`).
+        once two starts agree on it (:func:`scene3D.essential_fit.fit_essential`).
         1 gives a single start, as plain OpenCV does.
     restart_agreement_deg : float
         When no pose was found twice, the result is still trusted if every start's
@@ -145,13 +145,13 @@ class TwoViewGeometry:
     refinement_s : float
         Seconds spent refining the pose (and bundle adjusting, if asked).
     robust_starts : int
-        Robust estimations of E run (:func:`scene3D.epipolar.fit_essential`); when
+        Robust estimations of E run (:func:`scene3D.essential_fit.fit_essential`); when
         the best pose was not found twice in ``TwoViewSettings.max_starts`` of them
         and their optima lie more than ``TwoViewSettings.restart_agreement_deg``
         apart, the result is untrusted.
     robust_spread_deg : float
         How far the other starts' optima lie from the chosen one
-        (:attr:`scene3D.epipolar.EssentialFit.spread_deg`; 0 when they all agree).
+        (:attr:`scene3D.essential_fit.EssentialFit.spread_deg`; 0 when they all agree).
     focal_scale, focal_scale_sigma : float
         The focal length the inliers call for, as a multiple of the calibration's,
         and its standard deviation (:func:`scene3D.refinement.fit_focal_scale`;
@@ -169,7 +169,7 @@ class TwoViewGeometry:
         rotation and direction blocks), in degrees.
     noise_sigma_px : float
         Robust standard deviation of the keypoint noise, per coordinate, measured on
-        the inliers (:func:`scene3D.epipolar.noise_sigma_px`).
+        the inliers (:func:`scene3D.essential_fit.noise_sigma_px`).
     depth_sigmas : (N,) float64
         1-sigma depth of each point in camera 1, in units of the baseline, from the
         pose covariance and the keypoint noise (:func:`scene3D.uncertainty.depth_sigmas`);

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..epipolar import EssentialFit, essential_distances, essential_from_pose
+from ..epipolar import essential_distances, essential_from_pose
+from ..essential_fit import EssentialFit
 from ..geometry import FloatArray
 from ..pose import nearest_decomposition
 from ..refinement import FocalFit, fit_focal_scale
@@ -37,7 +38,7 @@ def rival_chi2(fit: EssentialFit, R: FloatArray, t: FloatArray, covariance: Floa
     """How far the restarts' rival optima lie from the pose ``R, t`` under its covariance.
 
     The largest :func:`scene3D.uncertainty.pose_difference_chi2` (5 degrees of freedom)
-    over ``fit.rivals`` (:attr:`scene3D.epipolar.EssentialFit.rivals`, each taken in
+    over ``fit.rivals`` (:attr:`scene3D.essential_fit.EssentialFit.rivals`, each taken in
     its decomposition nearest to ``R, t``); 0 when there are none. Within
     :data:`scene3D.uncertainty.CHI2_99_POSE` a rival is one the ``(5, 5)``
     ``covariance`` allows for: the sigmas already say the pose is known no better.
@@ -133,7 +134,7 @@ def check_focal_length(R: FloatArray, t: FloatArray, p1: FloatArray, p2: FloatAr
     inliers of the pose ``R, t`` found with ``K``. Those inliers were chosen under
     ``K``: with a wrong focal length they favour the matches that fit it, so they
     are re-selected under the fitted focal length (at ``threshold_px``) and the fit
-    repeated (as :func:`scene3D.epipolar.refine_essential` does for the pose), under
+    repeated (as :func:`scene3D.essential_fit.refine_essential` does for the pose), under
     a Cauchy loss of scale ``scale_px``.
     """
     focal = fit_focal_scale(R, t, p1[inliers], p2[inliers], K, "cauchy", scale_px)
