@@ -1,19 +1,17 @@
 import numpy as np
 import pytest
 
+from scene3D.bundle_two_view import bundle_adjust_two_view
 from scene3D.epipolar import fundamental_from_essential
 from scene3D.evaluation import relative_pose_error
+from scene3D.focal_fit import _focal_fundamental_derivatives, _scaled_fundamental, fit_focal_scale
 from scene3D.geometry import project, rotation_about_axis, skew, to_homogeneous
 from scene3D.refinement import (
-    _focal_fundamental_derivatives,
     _fundamental_derivatives,
     _robust_cost,
     _sampson,
     _sampson_jacobian,
-    _scaled_fundamental,
     _update_pose,
-    bundle_adjust_two_view,
-    fit_focal_scale,
     pose_intrinsics_sensitivity,
     refine_relative_pose,
 )

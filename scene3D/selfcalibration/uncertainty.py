@@ -12,9 +12,10 @@ from numpy.typing import ArrayLike
 
 from ..epipolar import essential_distances
 from ..essential_fit import essential_costs, loss_scale_px
+from ..focal_fit import fit_focal_scale
 from ..geometry import FloatArray, pose_angle_deg
 from ..pose import choose_pose
-from ..refinement import fit_focal_scale, pose_intrinsics_sensitivity
+from ..refinement import pose_intrinsics_sensitivity
 from ..twoview import TwoViewGeometry, TwoViewSettings
 from ..uncertainty import marginal_covariance
 from .search import with_focal
@@ -147,7 +148,7 @@ def focal_uncertainty(geometry: TwoViewGeometry, settings: TwoViewSettings,
                       principal_point_shift_px: float, cells: int = 3) -> FocalUncertainty:
     """How well the pair's inliers determine the focal length of ``geometry.K``.
 
-    The focal fit (:func:`scene3D.refinement.fit_focal_scale` on the geometry's
+    The focal fit (:func:`scene3D.focal_fit.fit_focal_scale` on the geometry's
     inliers, from its pose, under the pipeline's noise-adaptive Cauchy loss) is
     repeated (a) without the inliers of each of ``cells`` x ``cells`` cells of
     image 1's bounding box in turn (the delete-a-group jackknife:

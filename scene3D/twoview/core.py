@@ -9,6 +9,7 @@ from dataclasses import fields
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..bundle_two_view import bundle_adjust_two_view
 from ..degeneracy import (
     MotionModelChoice,
     lower_cost_plane_pose,
@@ -26,7 +27,7 @@ from ..essential_fit import fit_essential, inlier_threshold_px, loss_scale_px, n
 from ..features import Matches
 from ..geometry import FloatArray, as_matrix, as_points2d, check_same_length, median
 from ..pose import choose_pose
-from ..refinement import bundle_adjust_two_view, refine_relative_pose, relative_pose_covariance
+from ..refinement import refine_relative_pose, relative_pose_covariance
 from ..triangulation import behind_beyond_noise, parallax_angles_deg, reprojection_errors
 from ..uncertainty import PoseUncertainty, depth_sigmas, pose_error_coordinates, tangent_basis
 from .results import TwoViewGeometry, TwoViewReconstruction, TwoViewSettings

@@ -74,14 +74,14 @@ class TwoViewSettings:
         The result is marked untrusted when the matches call for a focal length more
         than ``1 + max_focal_mismatch`` times larger or smaller than the
         calibration's, by more than ``focal_mismatch_sigmas`` standard deviations
-        (:func:`scene3D.refinement.fit_focal_scale`): the calibration is probably
+        (:func:`scene3D.focal_fit.fit_focal_scale`): the calibration is probably
         for another camera, lens or zoom, and the pose is off by degrees. Three
         standard deviations of the sandwich estimate (five of the optimistic IRLS
         estimate before it): with the true K no right pose of the three Strecha
         scenes is flagged for its focal length (gaps 1-5, 768 and 1536 px).
     bundle_adjust : bool
         Finish with a two-view bundle adjustment of pose and points
-        (:func:`scene3D.refinement.bundle_adjust_two_view`) with the same Cauchy
+        (:func:`scene3D.bundle_two_view.bundle_adjust_two_view`) with the same Cauchy
         loss as the local optimisation. Off by default: on the fountain-P11
         benchmark pairs it moves the poses by hundredths of a degree at most, closer
         to the truth on some pairs and further on others (at 768 px AUC@5deg 98.2
@@ -154,7 +154,7 @@ class TwoViewGeometry:
         (:attr:`scene3D.essential_fit.EssentialFit.spread_deg`; 0 when they all agree).
     focal_scale, focal_scale_sigma : float
         The focal length the inliers call for, as a multiple of the calibration's,
-        and its standard deviation (:func:`scene3D.refinement.fit_focal_scale`;
+        and its standard deviation (:func:`scene3D.focal_fit.fit_focal_scale`;
         near 1 when the calibration fits, the sigma infinite when the pair cannot
         tell).
     pose_covariance : (5, 5) float64

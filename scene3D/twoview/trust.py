@@ -7,9 +7,9 @@ import numpy as np
 
 from ..epipolar import essential_distances, essential_from_pose
 from ..essential_fit import EssentialFit
+from ..focal_fit import FocalFit, fit_focal_scale
 from ..geometry import FloatArray
 from ..pose import nearest_decomposition
-from ..refinement import FocalFit, fit_focal_scale
 from ..uncertainty import CHI2_99_POSE, PoseUncertainty, pose_difference_chi2
 from .results import TwoViewSettings
 
@@ -72,7 +72,7 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
       covariance allows (``rivals_chi2``, :func:`rival_chi2`, above
       :data:`scene3D.uncertainty.CHI2_99_POSE`; by default every rival counts): several
       optima; the focal length the matches call
-      for (``focal``, :func:`scene3D.refinement.fit_focal_scale`) differs from the
+      for (``focal``, :func:`scene3D.focal_fit.fit_focal_scale`) differs from the
       calibration's by more than ``s.max_focal_mismatch`` and
       ``s.focal_mismatch_sigmas`` standard deviations; fewer than
       ``s.trusted_inliers`` inliers, too few to estimate a covariance from and few
@@ -128,7 +128,7 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
 def check_focal_length(R: FloatArray, t: FloatArray, p1: FloatArray, p2: FloatArray,
                        inliers: np.ndarray, K: FloatArray, threshold_px: float,
                        scale_px: float, rounds: int = 3) -> FocalFit:
-    """The focal length the matches call for (:func:`scene3D.refinement.fit_focal_scale`).
+    """The focal length the matches call for (:func:`scene3D.focal_fit.fit_focal_scale`).
 
     ``p1, p2`` are all the correspondences ``(N, 2)``, ``inliers`` the ``(N,) bool``
     inliers of the pose ``R, t`` found with ``K``. Those inliers were chosen under
