@@ -46,7 +46,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from scene3D import epipolar, twoview
+from scene3D import essential_fit
 from scene3D.datasets import FOUNTAIN_P11, default_data_root, strecha_views
 from scene3D.epipolar import essential_distances, essential_from_pose
 from scene3D.errors import ReconstructionError
@@ -59,6 +59,7 @@ from scene3D.evaluation import (
 from scene3D.features import find_matches
 from scene3D.geometry import project
 from scene3D.triangulation import in_front_mask, triangulate_points
+from scene3D.twoview import core as twoview_core
 from scene3D.twoview import reconstruct_from_matches
 from scene3D.uncertainty import pose_error_chi2
 
@@ -96,9 +97,9 @@ def exact_structure(views, a: int, b: int, width: int):
 @contextmanager
 def fixed_loss():
     """scene3D's previous loss: Cauchy scale a third of the threshold, threshold never raised."""
-    saved = [(module, name, getattr(module, name)) for module in (epipolar, twoview)
+    saved = [(module, name, getattr(module, name)) for module in (essential_fit, twoview_core)
              for name in ("loss_scale_px", "inlier_threshold_px")]
-    for module in (epipolar, twoview):
+    for module in (essential_fit, twoview_core):
         module.loss_scale_px = lambda distances, threshold_px: threshold_px / 3
         module.inlier_threshold_px = lambda distances, threshold_px: threshold_px
     try:

@@ -14,7 +14,7 @@ levers:
 
 - ``scene3D``: the pipeline as it is;
 - ``previous``: restarts compared at the 1 px threshold with MAGSAC++ (no noise probe:
-  ``scene3D.epipolar`` before issue #19);
+  the essential fit before issue #19, then in ``scene3D.epipolar``);
 - ``previous-0.5px``: the same with a 0.5 px threshold;
 - ``ratio-0.7``: Lowe's ratio 0.7 instead of 0.8;
 - ``rootsift``: RootSIFT descriptors (L1-normalised, square-rooted);
@@ -47,7 +47,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from scene3D import epipolar
+from scene3D import essential_fit
 from scene3D.camera import scale_intrinsics_halved
 from scene3D.datasets import default_data_root, read_strecha_camera, relative_pose, strecha_views
 from scene3D.errors import ReconstructionError
@@ -126,13 +126,13 @@ def self_ratio_filter(f1: Features, f2: Features, idx1: np.ndarray, idx2: np.nda
 
 @contextmanager
 def previous_estimator() -> Iterator[None]:
-    """scene3D.epipolar before issue #19: MAGSAC++ restarts compared at the threshold."""
-    saved = epipolar.NOISE_PROBE_OF_THRESHOLD, epipolar.RESTART_METHOD
-    epipolar.NOISE_PROBE_OF_THRESHOLD, epipolar.RESTART_METHOD = 1.0, cv2.USAC_MAGSAC
+    """The essential fit before issue #19: MAGSAC++ restarts compared at the threshold."""
+    saved = essential_fit.NOISE_PROBE_OF_THRESHOLD, essential_fit.RESTART_METHOD
+    essential_fit.NOISE_PROBE_OF_THRESHOLD, essential_fit.RESTART_METHOD = 1.0, cv2.USAC_MAGSAC
     try:
         yield
     finally:
-        epipolar.NOISE_PROBE_OF_THRESHOLD, epipolar.RESTART_METHOD = saved
+        essential_fit.NOISE_PROBE_OF_THRESHOLD, essential_fit.RESTART_METHOD = saved
 
 
 def poselib_pose(p1: np.ndarray, p2: np.ndarray, K: np.ndarray, size: tuple[int, int],

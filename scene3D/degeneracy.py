@@ -22,7 +22,8 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
-from .epipolar import essential_cost, essential_distances, essential_from_pose, polish_essential
+from .epipolar import essential_distances, essential_from_pose
+from .essential_fit import essential_cost, polish_essential
 from .geometry import (
     FloatArray,
     angle_between_deg,
@@ -111,7 +112,7 @@ def lower_cost_plane_pose(E: FloatArray, inliers: np.ndarray, on_plane: np.ndarr
     When one plane holds most matches, USAC's random samples come from the plane
     and its models may fit the plane alone, dropping the matches off it as
     outliers; starting the local optimisation from the plane's own poses lets those
-    matches count (:func:`scene3D.epipolar.polish_essential` gives the costs).
+    matches count (:func:`scene3D.essential_fit.polish_essential` gives the costs).
     ``inliers`` are those of ``E`` among ``p1, p2``; ``on_plane`` those of ``H``
     among them.
     """

@@ -1,20 +1,20 @@
-"""Non-linear refinement of two-view geometry.
+"""Non-linear refinement of two-view geometry: the robust Sampson refinement of the pose.
 
 - :func:`refine_relative_pose` polishes ``(R, t)`` by minimising the Sampson
   distances (a first-order geometric error in pixels, H&Z section 11.4.3) of the
   inlier correspondences under a robust loss, with a small Levenberg-Marquardt
   solver in numpy (5 unknowns, analytic Jacobian, the loss's curvature in the
   normal equations).
-- :func:`bundle_adjust_two_view` refines the pose *and* the 3D points by
-  minimising reprojection errors in both images (H&Z section 18.1, the gold
-  standard) under a robust loss, with Levenberg-Marquardt on the sparse normal
-  equations, the points eliminated by the Schur complement (tested against scipy's
-  ``least_squares``: the same optimum for convex losses, a lower cost under Cauchy).
-- :func:`fit_focal_scale` refines the pose with a common factor on the focal
-  lengths, to tell whether the calibration fits the matches.
 - :func:`relative_pose_covariance` gives the first-order covariance of the refined
-  pose; it and the focal fit's standard deviation share one sandwich estimate
-  (:func:`scene3D.uncertainty.sandwich_covariance`).
+  pose; it and the focal fit's standard deviation (:mod:`scene3D.focal_fit`) share
+  one sandwich estimate (:func:`scene3D.uncertainty.sandwich_covariance`).
+  :func:`pose_intrinsics_sensitivity` gives how the refined pose moves with the
+  intrinsics.
+- The Sampson distances and their Jacobian, the robust losses and Levenberg-Marquardt's
+  loop here also serve the focal-length check (:func:`scene3D.focal_fit.fit_focal_scale`)
+  and the bundle adjustments of two views
+  (:func:`scene3D.bundle_two_view.bundle_adjust_two_view`) and of many
+  (:mod:`scene3D.bundle`).
 
 In all, ``t`` ends on the unit sphere, since a two-view translation has no scale. Frames as in
 :mod:`scene3D.geometry`: ``x_cam2 = R x_cam1 + t``.
@@ -30,13 +30,10 @@ from numpy.typing import ArrayLike
 
 from .geometry import (
     FloatArray,
-    project_with_jacobian,
     rotations_from_vectors,
     skew,
-    skews,
     to_homogeneous,
 )
-from .schur import normal_equations, solve_damped
 from .uncertainty import nuisance_sensitivity, sandwich_covariance, tangent_basis
 
 
@@ -379,240 +376,3 @@ def pose_intrinsics_sensitivity(
     z = (r / scale_px) ** 2
     _, rho1, rho2 = _loss(z, loss)
     return nuisance_sensitivity(J_pose, J_theta, rho1 + 2.0 * rho2 * z)
-
-
-def _scaled_fundamental(R: FloatArray, t: FloatArray, log_s: float,
-                        K_inv: FloatArray) -> FloatArray:
-    """``F = K_s^-T [t]x R K_s^-1`` for ``K_s = K diag(s, s, 1)``, ``s = exp(log_s)``."""
-    Ks_inv = np.diag([np.exp(-log_s), np.exp(-log_s), 1.0]) @ K_inv
-    return Ks_inv.T @ skew(t) @ R @ Ks_inv
-
-
-def _focal_fundamental_derivatives(R: FloatArray, t: FloatArray, log_s: float,
-                                   basis: FloatArray, K_inv: FloatArray) -> FloatArray:
-    """``dF / dx`` ``(6, 3, 3)`` of :func:`_scaled_fundamental`: the pose step of
-    :func:`_update_pose` (5), then ``log s``.
-
-    ``d(K_s^-1) / d(log s) = -P K_s^-1`` with ``P = diag(1, 1, 0)``.
-    """
-    Ks_inv = np.diag([np.exp(-log_s), np.exp(-log_s), 1.0]) @ K_inv
-    E = skew(t) @ R
-    P = np.diag([1.0, 1.0, 0.0])
-    d_log_s = -Ks_inv.T @ (P @ E + E @ P) @ Ks_inv
-    return np.concatenate([_fundamental_derivatives(R, t, basis, Ks_inv), d_log_s[None]])
-
-
-class FocalFit(NamedTuple):
-    """What :func:`fit_focal_scale` found.
-
-    Attributes
-    ----------
-    scale : float
-        The focal length that best explains the matches, as a multiple of the
-        calibration's (1: the calibration fits).
-    sigma_log : float
-        First-order standard deviation of ``log(scale)`` (inf when the matches do
-        not determine the focal length, e.g. without rotation).
-    R, t : (3, 3), (3,) float64
-        The pose refined with it (``|t| = 1``).
-    """
-
-    scale: float
-    sigma_log: float
-    R: FloatArray
-    t: FloatArray
-
-
-def fit_focal_scale(
-    R: ArrayLike,
-    t: ArrayLike,
-    pts1: ArrayLike,
-    pts2: ArrayLike,
-    K: ArrayLike,
-    loss: str = "cauchy",
-    scale_px: float = 0.5,
-    max_iterations: int = 30,
-    initial_scale: float = 1.0,
-) -> FocalFit:
-    """Check a calibration against the matches: the focal length they call for.
-
-    Refines the pose together with a common factor ``s`` on both focal lengths
-    (``K_s = K diag(s, s, 1)``: the principal point and aspect kept), minimising
-    the robust Sampson distances of the inlier correspondences as
-    :func:`refine_relative_pose` does, from ``s = initial_scale``. Two views with rotation
-    and depth determine ``s``; a calibration for another camera, lens or zoom
-    shows as ``s`` far from 1 with a small ``sigma_log``.
-
-    Parameters
-    ----------
-    R, t : (3, 3), (3,) array_like
-        Pose found with ``K``, ``x_cam2 = R x_cam1 + t``.
-    pts1, pts2 : (N, 2) array_like
-        Inlier pixels (N >= 6).
-    K : (3, 3) array_like
-        The calibration's intrinsics (both views).
-    loss, scale_px : str, float
-        Robust loss and its scale in pixels, as for :func:`refine_relative_pose`.
-
-    Returns
-    -------
-    FocalFit
-    """
-    R = np.asarray(R, dtype=np.float64)
-    t = np.asarray(t, dtype=np.float64).reshape(3)
-    t = t / np.linalg.norm(t)
-    h1 = to_homogeneous(np.asarray(pts1, dtype=np.float64))
-    h2 = to_homogeneous(np.asarray(pts2, dtype=np.float64))
-    K_inv = np.linalg.inv(np.asarray(K, dtype=np.float64))
-
-    def evaluate(R_: FloatArray, t_: FloatArray, log_s: float) -> tuple[tuple, float]:
-        F_ = _scaled_fundamental(R_, t_, log_s, K_inv)
-        r_ = _sampson(F_, h1, h2)
-        return (R_, t_, log_s, F_, r_), _robust_cost(r_, loss, scale_px)
-
-    def jacobian(state: tuple) -> tuple[FloatArray, FloatArray]:
-        R_, t_, log_s, F_, _ = state
-        basis = tangent_basis(t_)
-        dF = _focal_fundamental_derivatives(R_, t_, log_s, basis, K_inv)
-        return _sampson_jacobian(F_, dF, h1, h2), basis
-
-    def linearize(state: tuple) -> Callable[[float], tuple]:
-        R_, t_, log_s, _, r_ = state
-        J, basis = jacobian(state)
-        step = _damped_steps(J, r_, loss, scale_px)
-
-        def try_step(damping: float) -> tuple[tuple, float]:
-            dx = step(damping)
-            return evaluate(*_update_pose(R_, t_, dx[:5], basis), log_s + dx[5])
-        return try_step
-
-    state, cost = evaluate(R, t, float(np.log(initial_scale)))
-    state = _levenberg_marquardt(state, cost, linearize, max_iterations, 1e-10)
-    log_s, r = state[2], state[4]
-    # The same first-order covariance as the pose's (relative_pose_covariance).
-    variance = _robust_covariance(jacobian(state)[0], r, loss, scale_px)[5, 5]
-    sigma_log = float(np.sqrt(variance)) if 0 < variance < np.inf else np.inf
-    return FocalFit(float(np.exp(log_s)), sigma_log, state[0], state[1])
-
-
-def _two_view_residuals(R: FloatArray, t: FloatArray, X: FloatArray, pts1: FloatArray,
-                        pts2: FloatArray, K: FloatArray) -> FloatArray:
-    """Reprojection errors ``(N, 4)`` of camera-1 points ``X``: image 1's (x, y), then image 2's."""
-    return np.hstack([project_with_jacobian(X, K)[0] - pts1,
-                      project_with_jacobian(X @ R.T + t, K)[0] - pts2])
-
-
-def _settle_points(R: FloatArray, t: FloatArray, X: FloatArray, pts1: FloatArray,
-                   pts2: FloatArray, K: FloatArray, loss: str, scale: float) -> FloatArray:
-    """Each point ``(N, 3)`` moved to the cheapest of three basins of its robust cost.
-
-    Under a non-convex loss (Cauchy) a point whose two observations disagree by more
-    than the loss's scale has a cost with several minima: the error split between the
-    images (where least-squares triangulation puts it, a saddle when the disagreement
-    is large) or carried by one image alone. Given the pose the points are independent,
-    so each is compared in place, on the ray of its pixel in image 1 and on the ray of
-    its pixel in image 2 (each at its current depth there), and the cheapest position in
-    front of both cameras is kept for Levenberg-Marquardt to refine.
-    """
-    K_inv = np.linalg.inv(K)
-    Y = X @ R.T + t
-    on_ray1 = to_homogeneous(pts1) @ K_inv.T * X[:, 2:3]
-    on_ray2 = (to_homogeneous(pts2) @ K_inv.T * Y[:, 2:3] - t) @ R  # back to camera 1
-    candidates = np.stack([X, on_ray1, on_ray2])  # (3, N, 3)
-    costs = np.empty((3, len(X)))
-    for k, C in enumerate(candidates):
-        r = _two_view_residuals(R, t, C, pts1, pts2, K)
-        costs[k] = np.sum(_loss((r / scale) ** 2, loss)[0], axis=1)
-        costs[k][(C[:, 2] <= 0) | ((C @ R.T + t)[:, 2] <= 0)] = np.inf
-    return candidates[np.argmin(costs, axis=0), np.arange(len(X))]
-
-
-def bundle_adjust_two_view(
-    R: ArrayLike,
-    t: ArrayLike,
-    points3d: ArrayLike,
-    pts1: ArrayLike,
-    pts2: ArrayLike,
-    K: ArrayLike,
-    loss: str = "cauchy",
-    scale_px: float = 1.0,
-    max_iterations: int = 50,
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Two-view bundle adjustment of the pose and the points.
-
-    Minimises the robust reprojection errors of ``points3d`` in both images, each
-    pixel coordinate a residual as in scipy's ``least_squares``, with camera 1 fixed
-    at ``[I | 0]`` and ``t`` kept on the unit sphere (5 pose unknowns: no gauge
-    freedom is left). Levenberg-Marquardt on the sparse normal equations: each
-    point's 3x3 block is eliminated (Schur complement), so a step solves one 5x5
-    system and N 3x3 ones. The loss enters by reweighting (:func:`_reweighting`), and
-    under a non-convex loss each point starts, and ends, in the cheapest of its cost's
-    basins (:func:`_settle_points`). It converges in 0.07-0.2 s for 500-1800 points,
-    where scipy's sparse trust-region solver stopped short after seconds
-    (``benchmarks/bundle_adjustment.py``).
-
-    Parameters
-    ----------
-    R, t : (3, 3), (3,) array_like
-        Initial pose, ``x_cam2 = R x_cam1 + t``.
-    points3d : (N, 3) array_like
-        Initial points in the camera-1 frame, in front of both cameras.
-    pts1, pts2 : (N, 2) array_like
-        Their observed pixels in image 1 and image 2.
-    K : (3, 3) array_like
-    loss, scale_px : str, float
-        Robust loss (as in :func:`refine_relative_pose`) and its scale in pixels.
-
-    Returns
-    -------
-    R, t, points3d : (3, 3), (3,), (N, 3) float64
-        ``|t| = 1``; the points in the camera-1 frame, in units of the baseline.
-    """
-    R = np.asarray(R, dtype=np.float64)
-    t = np.asarray(t, dtype=np.float64).reshape(3)
-    norm = np.linalg.norm(t)
-    t = t / norm
-    X = np.asarray(points3d, dtype=np.float64).reshape(-1, 3) / norm
-    p1, p2 = np.asarray(pts1, np.float64), np.asarray(pts2, np.float64)
-    K = np.asarray(K, dtype=np.float64)
-
-    n = len(X)
-    # Observations: the N pixels of image 1 (camera 1 fixed: no unknowns), then image 2's.
-    camera = np.repeat([-1, 0], n)
-    point = np.tile(np.arange(n), 2)
-
-    def evaluate(R_: FloatArray, t_: FloatArray, X_: FloatArray) -> tuple[tuple, float]:
-        r = _two_view_residuals(R_, t_, X_, p1, p2, K)
-        r_ = np.vstack([r[:, :2], r[:, 2:]])  # (2N, 2): the observations above
-        return (R_, t_, X_, r_), _robust_cost(r_, loss, scale_px)
-
-    def linearize(state: tuple) -> Callable[[float], tuple]:
-        R_, t_, X_, r_ = state
-        rotated = X_ @ R_.T
-        _, J1 = project_with_jacobian(X_, K)
-        _, J2 = project_with_jacobian(rotated + t_, K)
-        basis = tangent_basis(t_)
-        # R <- exp([w]x) R moves R X by -[R X]x w; t moves along the tangent basis.
-        dY_dpose = np.concatenate(
-            [-skews(rotated), np.broadcast_to(basis.T, (n, 3, 2))], axis=2)  # (N, 3, 5)
-        J_pose = np.concatenate([np.zeros((n, 2, 5)), J2 @ dY_dpose])
-        J_point = np.concatenate([J1, J2 @ R_])
-        row_scale, rw = _reweighting(r_, loss, scale_px)
-        ne = normal_equations(J_pose * row_scale[:, :, None], camera,
-                              J_point * row_scale[:, :, None], point, rw, 1, n)
-
-        def try_step(damping: float) -> tuple[tuple, float]:
-            step_pose, step_points = solve_damped(ne, damping)
-            return evaluate(*_update_pose(R_, t_, step_pose[0], basis), X_ + step_points)
-
-        return try_step
-
-    X = _settle_points(R, t, X, p1, p2, K, loss, scale_px)
-    for _ in range(3):  # refine; again while a point finds a cheaper basin at the optimum
-        state, cost = evaluate(R, t, X)
-        R, t, X, _ = _levenberg_marquardt(state, cost, linearize, max_iterations, 1e-10)
-        settled = _settle_points(R, t, X, p1, p2, K, loss, scale_px)
-        if np.array_equal(settled, X):
-            break
-        X = settled
-    return R, t, X

@@ -204,7 +204,7 @@ def truncated_noise(distances: ArrayLike, threshold_px: float) -> TruncatedNoise
     ``threshold_px``, so they follow that normal cut at ``c = threshold_px / sigma``.
     Their median ``m`` solves ``erf(m / (sigma sqrt 2)) = erf(c / sqrt 2) / 2``, which
     gives ``sigma`` (bisection; ``1.4826 m`` when the cut is far out, as
-    :func:`scene3D.epipolar.noise_sigma_px` assumes); the share cut is
+    :func:`scene3D.essential_fit.noise_sigma_px` assumes); the share cut is
     ``1 - erf(c / sqrt 2)`` and the cut distances' variance is ``sigma^2`` times
     ``1 - 2 c phi(c) / erf(c / sqrt 2)`` (``phi`` the normal density). A covariance
     measured from the cut residuals is that factor too small
@@ -262,7 +262,7 @@ class PoseUncertainty:
         :func:`tangent_basis` of the pose's ``t``: the directions of ``d``.
     noise_sigma_px : float
         Robust standard deviation of the keypoint noise measured on the inliers
-        (:func:`scene3D.epipolar.noise_sigma_px`), per coordinate.
+        (:func:`scene3D.essential_fit.noise_sigma_px`), per coordinate.
     noise_cut_share : float
         Share of the matches that fit the pose which the inlier threshold cut off
         (:func:`truncated_noise`); the covariance allows for the cut.

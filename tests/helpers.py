@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 
 from scene3D.calibration import detect_board
-from scene3D.geometry import project
+from scene3D.geometry import project, rotation_about_axis
 from scene3D.synthetic import random_points
 
 
@@ -82,3 +82,17 @@ def detect_folder(folder, board):
         if d is not None:
             dets.append(d)
     return dets
+
+
+def same_up_to_sign(A, B, atol):
+    """True when two matrices agree up to scale and sign (both scaled to unit norm)."""
+    A = A / np.linalg.norm(A)
+    B = B / np.linalg.norm(B)
+    return min(np.abs(A - B).max(), np.abs(A + B).max()) < atol
+
+
+def perturbed_pose(R, t, angle_deg=1.0):
+    """A start near ``(R, t)``: turned by ``angle_deg``, the direction tilted, ``|t| = 1``."""
+    R0 = rotation_about_axis([0.3, -0.2, 1.0], angle_deg) @ R
+    t0 = t / np.linalg.norm(t) + np.array([0.02, -0.03, 0.01])
+    return R0, t0 / np.linalg.norm(t0)

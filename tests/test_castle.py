@@ -4,7 +4,7 @@ import pytest
 
 from scene3D import SceneReconstruction3D
 from scene3D.datasets import read_strecha_camera, relative_pose
-from scene3D.epipolar import fit_essential
+from scene3D.essential_fit import fit_essential
 from scene3D.evaluation import relative_pose_error
 from scene3D.pose import choose_pose
 
@@ -24,7 +24,7 @@ def test_mismatched_windows_do_not_pull_the_pose(castle, pair):
     """Matches between neighbouring windows fit a pose 1.6 deg (13-14) or 4 deg (12-14)
     off the truth within 1 px, together with the right matches fitted a little
     worse; a single MAGSAC++ start at 1 px takes it. Compared at the noise of the
-    keypoints (scene3D.epipolar.fit_essential) the true pose wins.
+    keypoints (scene3D.essential_fit.fit_essential) the true pose wins.
     """
     scene, truth = _pair(castle, *pair, 1536)
     result = scene.reconstruct("SIFT")

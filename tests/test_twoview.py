@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
 
-from scene3D.epipolar import EssentialFit, estimate_homography
+from scene3D.epipolar import estimate_homography
 from scene3D.errors import ReconstructionError
+from scene3D.essential_fit import EssentialFit
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import find_matches
 from scene3D.geometry import project
@@ -297,7 +298,7 @@ def test_a_near_miss_of_the_focal_length_is_not_flagged(camera, true_pose):
 def test_trust_follows_the_uncertainty_and_what_it_cannot_see():
     """trust_warnings on constructed cases: the sigma limit, explanations attached to a
     large sigma and never verdicts of their own, and the guards."""
-    from scene3D.refinement import FocalFit
+    from scene3D.focal_fit import FocalFit
     from scene3D.uncertainty import PoseUncertainty, tangent_basis
 
     s = TwoViewSettings()

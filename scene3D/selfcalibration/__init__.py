@@ -4,7 +4,7 @@ Photos without a calibration file start from a focal length (EXIF, or a prior: s
 :mod:`scene3D.intrinsics_prior`) with the principal point at the image centre. Two
 views with rotation and depth determine a common focal length (H&Z section 19.5;
 Bougnoux 1998): the pose and the focal length are refined together
-(:func:`scene3D.refinement.fit_focal_scale`, through the two-view pipeline's focal
+(:func:`scene3D.focal_fit.fit_focal_scale`, through the two-view pipeline's focal
 check :func:`scene3D.twoview.check_focal_length`).
 
 What has to be iterated, and why a plain iteration is not enough:

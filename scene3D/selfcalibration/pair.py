@@ -11,8 +11,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..epipolar import essential_cost
 from ..errors import ReconstructionError
+from ..essential_fit import essential_cost
 from ..geometry import FloatArray, as_matrix, as_points2d, check_same_length
 from ..twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
 from ..twoview.trust import beyond_uncertainty_limit, sigmas_text
@@ -67,7 +67,7 @@ class SelfCalibrationSettings:
         of ``log f``) is untrusted: the pose may be off by degrees.
     ambiguity_cost : float
         Another basin whose converged cost is within this of the best one's (in
-        the units of :func:`scene3D.epipolar.essential_cost`, where an outlier costs
+        the units of :func:`scene3D.essential_fit.essential_cost`, where an outlier costs
         2.3) and whose focal length differs by more than three standard deviations
         makes the result ambiguous (untrusted).
     pose_principal_point : bool

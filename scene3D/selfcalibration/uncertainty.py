@@ -10,10 +10,12 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..epipolar import essential_costs, essential_distances, loss_scale_px
+from ..epipolar import essential_distances
+from ..essential_fit import essential_costs, loss_scale_px
+from ..focal_fit import fit_focal_scale
 from ..geometry import FloatArray, pose_angle_deg
 from ..pose import choose_pose
-from ..refinement import fit_focal_scale, pose_intrinsics_sensitivity
+from ..refinement import pose_intrinsics_sensitivity
 from ..twoview import TwoViewGeometry, TwoViewSettings
 from ..uncertainty import marginal_covariance
 from .search import with_focal
@@ -113,7 +115,7 @@ def focal_rivals(pts1: FloatArray, pts2: FloatArray, chosen: TwoViewGeometry,
     known to ``sigma_log`` by the local analysis). A fit is a rival when its focal
     length lies more than three ``sigma_log`` away (so the local sigma does not
     describe it), its cost over all matches ``pts1, pts2`` ``(N, 2)``
-    (:func:`scene3D.epipolar.essential_costs` at ``threshold_px``) is not
+    (:func:`scene3D.essential_fit.essential_costs` at ``threshold_px``) is not
     significantly higher (:func:`blocked_difference_z` below ``max_z``, with
     ``cells`` x ``cells`` cells of image 1 as blocks): the local sigma describes only
     one of the answers the pair supports (a facade with repeated windows at 768 px:
@@ -146,7 +148,7 @@ def focal_uncertainty(geometry: TwoViewGeometry, settings: TwoViewSettings,
                       principal_point_shift_px: float, cells: int = 3) -> FocalUncertainty:
     """How well the pair's inliers determine the focal length of ``geometry.K``.
 
-    The focal fit (:func:`scene3D.refinement.fit_focal_scale` on the geometry's
+    The focal fit (:func:`scene3D.focal_fit.fit_focal_scale` on the geometry's
     inliers, from its pose, under the pipeline's noise-adaptive Cauchy loss) is
     repeated (a) without the inliers of each of ``cells`` x ``cells`` cells of
     image 1's bounding box in turn (the delete-a-group jackknife:

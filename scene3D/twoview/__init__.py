@@ -4,7 +4,7 @@ The pipeline (book chapter 4, done right):
 
 1. essential matrix from calibrated points (5-point, USAC), then a local
    optimisation of the pose on its inliers (robust Sampson refinement),
-   restarted until the best fit is found twice (:func:`scene3D.epipolar.fit_essential`),
+   restarted until the best fit is found twice (:func:`scene3D.essential_fit.fit_essential`),
 2. model selection: a pure rotation (no baseline) is refused when a rotation
    homography explains the matches as well as the essential matrix
    (:func:`scene3D.degeneracy.motion_model_choice`); a planar scene is refused

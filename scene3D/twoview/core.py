@@ -9,6 +9,7 @@ from dataclasses import fields
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..bundle_two_view import bundle_adjust_two_view
 from ..degeneracy import (
     MotionModelChoice,
     lower_cost_plane_pose,
@@ -19,17 +20,14 @@ from ..epipolar import (
     essential_distances,
     essential_from_pose,
     estimate_homography,
-    fit_essential,
     fundamental_from_essential,
-    inlier_threshold_px,
-    loss_scale_px,
-    noise_sigma_px,
 )
 from ..errors import ReconstructionError
+from ..essential_fit import fit_essential, inlier_threshold_px, loss_scale_px, noise_sigma_px
 from ..features import Matches
 from ..geometry import FloatArray, as_matrix, as_points2d, check_same_length, median
 from ..pose import choose_pose
-from ..refinement import bundle_adjust_two_view, refine_relative_pose, relative_pose_covariance
+from ..refinement import refine_relative_pose, relative_pose_covariance
 from ..triangulation import behind_beyond_noise, parallax_angles_deg, reprojection_errors
 from ..uncertainty import (
     PoseUncertainty,
@@ -60,7 +58,7 @@ def _motion(E: FloatArray, in1: FloatArray, in2: FloatArray, K: FloatArray, H: F
     """:func:`scene3D.degeneracy.motion_model_choice` on the inliers of ``E``.
 
     The noise is floored at a thousandth of the threshold (as the loss scale is,
-    :func:`scene3D.epipolar.loss_scale_px`): exact matches leave a homography fitted
+    :func:`scene3D.essential_fit.loss_scale_px`): exact matches leave a homography fitted
     in float arithmetic with errors of 1e-6 px that would otherwise count as misfit.
     """
     distances = essential_distances(E, in1, in2, K)
@@ -182,7 +180,7 @@ def reconstruct_from_matches(
     planar = h_ratio > s.planar_ratio and motion.planar
     R, t, points, front = choose_pose(E, in1, in2, K)
     # The noise of these inliers sets the losses of the focal check and the adjustment,
-    # as it does the local optimisation's (scene3D.epipolar.refine_essential).
+    # as it does the local optimisation's (scene3D.essential_fit.refine_essential).
     distances = essential_distances(E, in1, in2, K)
     noise = noise_sigma_px(distances)
     behind = behind_beyond_noise(points, R, t, K, noise)
@@ -230,7 +228,7 @@ def reconstruct_from_matches(
     # The covariance at the final pose: the Sampson cost is the bundle adjustment's with
     # the points eliminated, to first order, so it serves after an adjustment too.
     # The inliers were re-selected at the threshold their noise calls for: how much of
-    # that noise it cut (scene3D.epipolar.refine_essential).
+    # that noise it cut (scene3D.essential_fit.refine_essential).
     cut = truncated_noise(distances, inlier_threshold)
     uncertainty = PoseUncertainty(pose_covariance(R, t, in1, in2, K, behind, loss_scale,
                                                   cut.variance_factor),

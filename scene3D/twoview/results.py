@@ -19,10 +19,10 @@ class TwoViewSettings:
     threshold_px : float
         Robust-estimation inlier threshold for F, E and H, in pixels. The local
         optimisation of E raises it, at most twofold, when the matches are noisier
-        than it assumes (:func:`scene3D.epipolar.inlier_threshold_px`).
+        than it assumes (:func:`scene3D.essential_fit.inlier_threshold_px`).
     max_starts : int
         Most robust estimations of E (each locally optimised); the best is kept
-        once two starts agree on it (:func:`scene3D.epipolar.fit_essential`).
+        once two starts agree on it (:func:`scene3D.essential_fit.fit_essential`).
         1 gives a single start, as plain OpenCV does.
     restart_agreement_deg : float
         When no pose was found twice, the result is still trusted if every start's
@@ -55,7 +55,7 @@ class TwoViewSettings:
         The pose is untrusted when the inlier threshold cuts off more than this share
         of the matches that fit it (:func:`scene3D.uncertainty.truncated_noise`: the
         matches are noisier than the threshold, at most
-        :data:`scene3D.epipolar.MAX_THRESHOLD_GROWTH` times ``threshold_px``, can
+        :data:`scene3D.essential_fit.MAX_THRESHOLD_GROWTH` times ``threshold_px``, can
         hold): the pose then rests on the matches that happen to fit best, which
         biases it, and the covariance's allowance for the cut no longer makes up
         for it (a synthetic pair with 1.5 px of noise and a 1 px threshold: 67 % of
@@ -83,14 +83,14 @@ class TwoViewSettings:
         The result is marked untrusted when the matches call for a focal length more
         than ``1 + max_focal_mismatch`` times larger or smaller than the
         calibration's, by more than ``focal_mismatch_sigmas`` standard deviations
-        (:func:`scene3D.refinement.fit_focal_scale`): the calibration is probably
+        (:func:`scene3D.focal_fit.fit_focal_scale`): the calibration is probably
         for another camera, lens or zoom, and the pose is off by degrees. Three
         standard deviations of the sandwich estimate (five of the optimistic IRLS
         estimate before it): with the true K no right pose of the three Strecha
         scenes is flagged for its focal length (gaps 1-5, 768 and 1536 px).
     bundle_adjust : bool
         Finish with a two-view bundle adjustment of pose and points
-        (:func:`scene3D.refinement.bundle_adjust_two_view`) with the same Cauchy
+        (:func:`scene3D.bundle_two_view.bundle_adjust_two_view`) with the same Cauchy
         loss as the local optimisation. Off by default: on the fountain-P11
         benchmark pairs it moves the poses by hundredths of a degree at most, closer
         to the truth on some pairs and further on others (at 768 px AUC@5deg 98.2
@@ -155,16 +155,16 @@ class TwoViewGeometry:
     refinement_s : float
         Seconds spent refining the pose (and bundle adjusting, if asked).
     robust_starts : int
-        Robust estimations of E run (:func:`scene3D.epipolar.fit_essential`); when
+        Robust estimations of E run (:func:`scene3D.essential_fit.fit_essential`); when
         the best pose was not found twice in ``TwoViewSettings.max_starts`` of them
         and their optima lie more than ``TwoViewSettings.restart_agreement_deg``
         apart, the result is untrusted.
     robust_spread_deg : float
         How far the other starts' optima lie from the chosen one
-        (:attr:`scene3D.epipolar.EssentialFit.spread_deg`; 0 when they all agree).
+        (:attr:`scene3D.essential_fit.EssentialFit.spread_deg`; 0 when they all agree).
     focal_scale, focal_scale_sigma : float
         The focal length the inliers call for, as a multiple of the calibration's,
-        and its standard deviation (:func:`scene3D.refinement.fit_focal_scale`;
+        and its standard deviation (:func:`scene3D.focal_fit.fit_focal_scale`;
         near 1 when the calibration fits, the sigma infinite when the pair cannot
         tell).
     pose_covariance : (5, 5) float64
@@ -179,7 +179,7 @@ class TwoViewGeometry:
         rotation and direction blocks), in degrees.
     noise_sigma_px : float
         Robust standard deviation of the keypoint noise, per coordinate, measured on
-        the inliers (:func:`scene3D.epipolar.noise_sigma_px`).
+        the inliers (:func:`scene3D.essential_fit.noise_sigma_px`).
     noise_cut_share : float
         Share of the matches that fit the pose which the inlier threshold cut off
         (:func:`scene3D.uncertainty.truncated_noise`; the covariance allows for it).

@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..epipolar import EssentialFit, essential_distances, essential_from_pose
+from ..epipolar import essential_distances, essential_from_pose
+from ..essential_fit import EssentialFit
+from ..focal_fit import FocalFit, fit_focal_scale
 from ..geometry import FloatArray
 from ..pose import nearest_decomposition
-from ..refinement import FocalFit, fit_focal_scale
 from ..uncertainty import CHI2_99_POSE, PoseUncertainty, pose_difference_chi2
 from .results import TwoViewSettings
 
@@ -37,7 +38,7 @@ def rival_chi2(fit: EssentialFit, R: FloatArray, t: FloatArray, covariance: Floa
     """How far the restarts' rival optima lie from the pose ``R, t`` under its covariance.
 
     The largest :func:`scene3D.uncertainty.pose_difference_chi2` (5 degrees of freedom)
-    over ``fit.rivals`` (:attr:`scene3D.epipolar.EssentialFit.rivals`, each taken in
+    over ``fit.rivals`` (:attr:`scene3D.essential_fit.EssentialFit.rivals`, each taken in
     its decomposition nearest to ``R, t``); 0 when there are none. Within
     :data:`scene3D.uncertainty.CHI2_99_POSE` a rival is one the ``(5, 5)``
     ``covariance`` allows for: the sigmas already say the pose is known no better.
@@ -71,7 +72,7 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
       covariance allows (``rivals_chi2``, :func:`rival_chi2`, above
       :data:`scene3D.uncertainty.CHI2_99_POSE`; by default every rival counts): several
       optima; the focal length the matches call
-      for (``focal``, :func:`scene3D.refinement.fit_focal_scale`) differs from the
+      for (``focal``, :func:`scene3D.focal_fit.fit_focal_scale`) differs from the
       calibration's by more than ``s.max_focal_mismatch`` and
       ``s.focal_mismatch_sigmas`` standard deviations; fewer than
       ``s.trusted_inliers`` inliers, too few to estimate a covariance from and few
@@ -136,13 +137,13 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
 def check_focal_length(R: FloatArray, t: FloatArray, p1: FloatArray, p2: FloatArray,
                        inliers: np.ndarray, K: FloatArray, threshold_px: float,
                        scale_px: float, rounds: int = 3) -> FocalFit:
-    """The focal length the matches call for (:func:`scene3D.refinement.fit_focal_scale`).
+    """The focal length the matches call for (:func:`scene3D.focal_fit.fit_focal_scale`).
 
     ``p1, p2`` are all the correspondences ``(N, 2)``, ``inliers`` the ``(N,) bool``
     inliers of the pose ``R, t`` found with ``K``. Those inliers were chosen under
     ``K``: with a wrong focal length they favour the matches that fit it, so they
     are re-selected under the fitted focal length (at ``threshold_px``) and the fit
-    repeated (as :func:`scene3D.epipolar.refine_essential` does for the pose), under
+    repeated (as :func:`scene3D.essential_fit.refine_essential` does for the pose), under
     a Cauchy loss of scale ``scale_px``.
     """
     focal = fit_focal_scale(R, t, p1[inliers], p2[inliers], K, "cauchy", scale_px)
