@@ -258,8 +258,8 @@ def test_the_uncertainty_limit_is_the_purpose(camera, true_pose):
 
 def test_matches_noisier_than_the_threshold_can_hold_are_flagged(camera, true_pose):
     """1.5 px of noise against the default 1 px threshold (raised at most to 2 px): the
-    threshold cuts about a fifth of the matches that fit the pose, which then rests on
-    those that fit best; 0.3 px of noise: nothing is cut, no such warning."""
+    threshold cuts more than a tenth of the matches that fit the pose, which then rests
+    on those that fit best; 0.3 px of noise: nothing is cut, no such warning."""
     R, t = true_pose
     _, pts1, pts2 = correspondences(camera, R, t, n=300, noise_px=1.5)
     noisy = reconstruct_from_matches(pts1, pts2, camera)

@@ -200,7 +200,7 @@ def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path],
         "translation_sigma_deg": result.translation_sigma_deg,
         "pose_covariance": result.pose_covariance,
         "pose_covariance_basis": result.pose_uncertainty.basis,
-        "noise_sigma_px": result.noise_sigma_px,
+        "noise_sigma_px": result.noise_sigma_px, "noise_cut_share": result.noise_cut_share,
         "trusted": result.trusted, "warnings": list(result.warnings),
         "timings_s": timings,
     }
