@@ -205,6 +205,7 @@ def test_pose_covariance_allows_for_the_noise_the_threshold_cut(camera, true_pos
     assert 0.02 < np.median(cut) < 0.08
     assert np.mean(rot) / 3 < 1.55 and np.mean(tdir) / 2 < 1.55
 
+
 def test_pose_covariance_of_exact_matches_is_tiny(camera, true_pose):
     R, t = true_pose
     _, pts1, pts2 = correspondences(camera, R, t, n=100)
