@@ -65,6 +65,21 @@ def test_pure_rotation_points_are_refused(camera, true_pose):
     assert info.value.reason == "no_parallax"
 
 
+def test_one_photo_twice_is_refused_and_named(camera, true_pose):
+    """The same pixels in both images up to 0.2 px of noise: a pure rotation (of zero
+    degrees), and the message says that the matches do not move; a real rotation does
+    not say so."""
+    R, t = true_pose
+    _, pts1, _ = correspondences(camera, R, t, n=300)
+    jitter = np.random.default_rng(3).normal(0, 0.2, pts1.shape)
+    with pytest.raises(ReconstructionError, match="one photo twice") as info:
+        reconstruct_from_matches(pts1, pts1 + jitter, camera)
+    assert info.value.reason == "no_parallax"
+    turned = project(random_points(300, 0), camera, R, np.zeros(3))
+    with pytest.raises(ReconstructionError, match="pure rotation") as info:
+        reconstruct_from_matches(pts1, turned, camera)
+    assert "one photo twice" not in str(info.value)
+
 def test_a_baseline_below_the_noise_is_refused_as_a_rotation(camera, true_pose):
     """A baseline of 1 % of the depth range seen through 0.3 px noise: the rotation
     homography explains the matches as well as an essential matrix (GRIC)."""

@@ -159,10 +159,14 @@ def reconstruct_from_matches(
     h_ratio = float(h_inliers.sum()) / num_inliers
     motion = _motion(E, in1, in2, K, H, s.threshold_px)
     if motion.pure_rotation:
+        # Matches that do not move at all: most likely one photo given twice.
+        still = median(np.linalg.norm(in2 - in1, axis=1)) <= s.threshold_px
         raise ReconstructionError(
             "no_parallax",
             "the images are related by a pure rotation (no baseline): a rotation explains "
-            "the matches as well as an essential matrix, and depth cannot be recovered",
+            "the matches as well as an essential matrix, and depth cannot be recovered"
+            + ("; the matches do not even move between the images (one photo twice?)"
+               if still else ""),
             inliers=num_inliers, rotation_gric=motion.rotation_gric,
             essential_gric=motion.essential_gric,
         )
