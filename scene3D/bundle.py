@@ -64,6 +64,15 @@ def whitened_residuals(R: FloatArray, t: FloatArray, points3d: FloatArray, obs: 
     return r if obs.sigma is None else r / obs.sigma[:, None]
 
 
+def _whitened_reweighting(r: FloatArray, obs: Observations, loss: str,
+                          scale_px: float) -> tuple[FloatArray, FloatArray]:
+    """:func:`scene3D.refinement._reweighting` of the whitened residuals ``r`` ``(O, 2)``
+    (:func:`whitened_residuals`), its row scales divided by ``obs.sigma`` too: the
+    whitened residuals' derivatives are the plain ones over it."""
+    row_scale, rw = _reweighting(r, loss, scale_px)
+    return (row_scale, rw) if obs.sigma is None else (row_scale / obs.sigma[:, None], rw)
+
+
 def reprojection_residuals(
     R: FloatArray, t: FloatArray, points3d: FloatArray, obs: Observations, K: FloatArray
 ) -> FloatArray:
@@ -176,9 +185,7 @@ def _adjust(R: FloatArray, t: FloatArray, points3d: FloatArray, obs: Observation
         R_, t_, X_, log_f, r_ = state
         K_ = K if focal_prior is None else with_focal(K, float(np.exp(log_f)))
         J_camera, J_point, J_focal = reprojection_jacobians(R_, t_, X_, obs, K_)
-        row_scale, rw = _reweighting(r_, loss, scale_px)
-        if obs.sigma is not None:  # the whitened residuals' derivatives
-            row_scale = row_scale / obs.sigma[:, None]
+        row_scale, rw = _whitened_reweighting(r_, obs, loss, scale_px)
         J_global = None if focal_prior is None else J_focal * row_scale[:, :, None]
         ne = normal_equations(J_camera * row_scale[:, :, None], camera,
                               J_point * row_scale[:, :, None], obs.point, rw, len(free),
@@ -343,9 +350,7 @@ def focal_uncertainty(
     r = whitened_residuals(R, t, points3d, obs, K)
     noise = _robust_noise_px(r)
     J_camera, J_point, J_focal = reprojection_jacobians(R, t, points3d, obs, K)
-    row_scale, rw = _reweighting(r, loss, scale_px)
-    if obs.sigma is not None:  # the whitened residuals' derivatives
-        row_scale = row_scale / obs.sigma[:, None]
+    row_scale, rw = _whitened_reweighting(r, obs, loss, scale_px)
     J_pp = np.broadcast_to(np.eye(2), (len(r), 2, 2))
     J_global = np.concatenate([J_focal, J_pp], axis=2) * row_scale[:, :, None]
     ne = normal_equations(J_camera * row_scale[:, :, None], slot[obs.view],
