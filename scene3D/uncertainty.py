@@ -175,7 +175,6 @@ def marginal_covariance(covariance: ArrayLike, sensitivity: ArrayLike,
     return 0.5 * (out + out.T)
 
 
-
 class TruncatedNoise(NamedTuple):
     """The keypoint noise behind inliers that a threshold cut (:func:`truncated_noise`).
 
@@ -238,6 +237,7 @@ def truncated_noise(distances: ArrayLike, threshold_px: float) -> TruncatedNoise
     inside = math.erf(c / math.sqrt(2))
     density = math.exp(-0.5 * c * c) / math.sqrt(2.0 * math.pi)
     return TruncatedNoise(sigma, 1.0 - inside, max(1.0 - 2.0 * c * density / inside, 0.0))
+
 
 def largest_sigma_deg(block: FloatArray) -> float:
     """Square root of the largest eigenvalue of a covariance block (radians^2), in degrees.
