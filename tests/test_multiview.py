@@ -52,25 +52,33 @@ def _ring_of_cameras(n=6):
     return np.array(Rs), np.array(ts)
 
 
-def _synthetic_views(noise_px=0.0, seed=0):
-    rng = np.random.default_rng(seed)
+def _ring_views(rng, observe):
+    """The ring's views of 500 random points and the verified pairs (every true
+    correspondence): ``observe(rng, pixels)`` gives each view's keypoints from the exact
+    pixels of its visible points, and their sizes (or None)."""
     points = rng.uniform([-3, -2, 6], [3, 2, 11], (500, 3))
     Rs, ts = _ring_of_cameras()
     features, ids = [], []
     for R, t in zip(Rs, ts):
         pix = project(points, K, R, t)
-        visible = np.nonzero((pix[:, 0] > 0) & (pix[:, 0] < 660) & (pix[:, 1] > 0) &
-                             (pix[:, 1] < 490))[0]
+        visible = np.flatnonzero(np.all((pix > 0) & (pix < [660, 490]), axis=1))
         order = rng.permutation(visible)  # keypoint order unrelated to point ids
-        noisy = pix[order] + rng.normal(0, noise_px, (len(order), 2)) if noise_px else pix[order]
-        features.append(ViewFeatures(noisy, np.zeros((len(order), 1), np.float32),
-                                     np.zeros((len(order), 3), np.uint8)))
+        keypoints, sizes = observe(rng, pix[order])
+        features.append(ViewFeatures(keypoints, np.zeros((len(order), 1), np.float32),
+                                     np.zeros((len(order), 3), np.uint8), sizes=sizes))
         ids.append(order)
     pairs = []
     for i, j in select_pairs(len(Rs), "all")[0]:
-        common, a, b = np.intersect1d(ids[i], ids[j], return_indices=True)
+        _, a, b = np.intersect1d(ids[i], ids[j], return_indices=True)
         pairs.append(PairMatches(i, j, a, b, len(a)))
     return features, pairs, Rs, ts, points
+
+
+def _synthetic_views(noise_px=0.0, seed=0):
+    def observe(rng, pix):
+        return (pix + rng.normal(0, noise_px, pix.shape) if noise_px else pix), None
+
+    return _ring_views(np.random.default_rng(seed), observe)
 
 
 @pytest.mark.parametrize("noise_px, center_tol, rot_tol_deg, rmse_tol", [

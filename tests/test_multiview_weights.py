@@ -10,16 +10,14 @@ from scene3D.bundle import Observations, bundle_adjust, reprojection_residuals, 
 from scene3D.evaluation import camera_set_error
 from scene3D.geometry import project
 from scene3D.multiview import (
-    PairMatches,
     SfMSettings,
     ViewFeatures,
     extract_features,
     reconstruct_models,
-    select_pairs,
 )
 from scene3D.multiview.weights import keypoint_sigma
 
-from .test_multiview import K, _ring_of_cameras
+from .test_multiview import K, _ring_of_cameras, _ring_views
 
 #: Keypoint noise per coordinate, per pixel of keypoint size (SIFT on Herz-Jesus-P8: about
 #: 0.02-0.03 px per px of size).
@@ -97,24 +95,11 @@ def test_weighting_by_size_brings_the_cameras_closer_under_scale_dependent_noise
 def _synthetic_views_with_sizes(seed):
     """The ring's views as keypoints with sizes and scale-dependent noise, and the verified
     pairs (every true correspondence)."""
-    rng = np.random.default_rng(seed)
-    points = rng.uniform([-3, -2, 6], [3, 2, 11], (500, 3))
-    Rs, ts = _ring_of_cameras()
-    features, ids = [], []
-    for R, t in zip(Rs, ts):
-        pix = project(points, K, R, t)
-        visible = np.flatnonzero(np.all((pix > 0) & (pix < [660, 490]), axis=1))
-        order = rng.permutation(visible)
-        sizes = _sizes(rng, len(order))
-        noisy = pix[order] + rng.normal(0, 1, (len(order), 2)) * NOISE_PER_SIZE * sizes[:, None]
-        features.append(ViewFeatures(noisy, np.zeros((len(order), 1), np.float32),
-                                     np.zeros((len(order), 3), np.uint8), sizes=sizes))
-        ids.append(order)
-    pairs = []
-    for i, j in select_pairs(len(Rs), "all")[0]:
-        _, a, b = np.intersect1d(ids[i], ids[j], return_indices=True)
-        pairs.append(PairMatches(i, j, a, b, len(a)))
-    return features, pairs, Rs, ts
+    def observe(rng, pix):
+        sizes = _sizes(rng, len(pix))
+        return pix + rng.normal(0, 1, pix.shape) * NOISE_PER_SIZE * sizes[:, None], sizes
+
+    return _ring_views(np.random.default_rng(seed), observe)[:4]
 
 
 def test_the_mapper_weighs_observations_by_keypoint_size():
