@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
-from scene3D.export import read_ply, save_figure, write_json, write_ply
+from scene3D.export import atomic_write_pieces, read_ply, save_figure, write_json, write_ply
 
 
 def test_ply_round_trip_and_header(tmp_path):
@@ -38,6 +38,25 @@ def test_writes_are_atomic_and_leave_no_temporaries(tmp_path):
     save_figure(fig, tmp_path / "f.png")
     assert (tmp_path / "f.png").read_bytes().startswith(b"\x89PNG")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "f.png"]
+
+
+@pytest.mark.parametrize("kernel_copy", [True, False])
+def test_pieces_write_bytes_and_whole_files_in_order(tmp_path, monkeypatch, kernel_copy):
+    """A file piece is copied whole (by the kernel, or through Python where the file system
+    or the platform cannot), between the byte pieces, and the target is replaced atomically."""
+    import os
+
+    if not kernel_copy:
+        def refuse(*args):
+            raise OSError(18, "Invalid cross-device link")
+        monkeypatch.setattr(os, "copy_file_range", refuse, raising=False)
+    source = tmp_path / "lib.js"
+    source.write_bytes(bytes(range(256)) * 5000)  # 1.28 MB, more than one copy's chunk
+    target = tmp_path / "page.html"
+    target.write_bytes(b"what was there before")
+    atomic_write_pieces(target, [b"<script>", source, b"</script>", b""])
+    assert target.read_bytes() == b"<script>" + source.read_bytes() + b"</script>"
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["lib.js", "page.html"]
 
 
 def test_ply_rejects_bad_shapes(tmp_path):

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from scene3D.calibration_uncertainty import IntrinsicsCovariance, uncertainty_map
+from scene3D.export import atomic_write_pieces
 from scene3D.report import (
     CameraLayer,
     CloudLayer,
@@ -23,7 +24,7 @@ from scene3D.report import (
     two_view_report,
 )
 from scene3D.report.page import image_data_url
-from scene3D.report.viewer import hex_colors_json, scene_figure_json
+from scene3D.report.viewer import hex_colors_json, plotly_js_path, scene_figure_json
 
 from .browser import changed_fraction, visit
 from .conftest import REPO
@@ -70,7 +71,7 @@ def test_view_is_decimated_with_a_note():
                      "holds at most 400)."]
 
 
-def test_page_is_self_contained_and_escapes():
+def test_page_is_self_contained_and_escapes(tmp_path):
     layers, cameras = two_view_layers(np.array([[0.0, 0, 5], [1, 1, 6]]), None, np.eye(3),
                                       np.array([-1.0, 0, 0]), np.diag([500.0, 500, 1]),
                                       (640, 480))
@@ -78,7 +79,11 @@ def test_page_is_self_contained_and_escapes():
                "trusted": False, "warnings": ["few inliers"], "timings_s": {"total": 1.0}}
     png = base64.b64decode("iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mNk"
                            "+M9QDwADhgGAWjR9awAAAABJRU5ErkJggg==")
-    page = two_view_report(summary, ["line <1>"], {"f.png": png}, prepare_view(layers, cameras))
+    html = two_view_report(summary, ["line <1>"], {"f.png": png}, prepare_view(layers, cameras))
+    page = html.text()
+    # Written, the page is the same text, plotly.js copied from its file.
+    written = atomic_write_pieces(tmp_path / "report.html", html.encoded()).read_text("utf-8")
+    assert written == page and plotly_js_path().read_text("utf-8") in written
     assert "<b>a.jpg" not in page and "&lt;b&gt;a.jpg" in page
     assert "Content-Security-Policy" in page and "default-src 'none'" in page
     assert "The pose may not be trustworthy" in page and "few inliers" in page
@@ -115,7 +120,7 @@ def test_multi_view_layers_skip_unregistered_views():
     assert np.all(np.isfinite(cameras.corners[:2])) and np.all(np.isnan(cameras.corners[2]))
     np.testing.assert_allclose(cameras.corners[1, 0], [1, 0, 0])  # centre -R^T t
     page = multi_view_report(("a", "b", "c"), [True, True, False], {"points": 2}, ["2 of 3"],
-                             {}, prepare_view(layers, cameras))
+                             {}, prepare_view(layers, cameras)).text()
     assert "view &#x27;c&#x27; could not be registered" in page
 
 
@@ -193,6 +198,6 @@ def test_calibration_report_lists_views_and_uncertainty():
     umap = uncertainty_map(np.diag([500.0, 500, 1]) + [[0, 0, 320], [0, 0, 240], [0, 0, 0]],
                            np.zeros(5), IntrinsicsCovariance(names, cov, 0.2, 100), (640, 480))
     page = calibration_report(["RMS 0.2"], {"fx (px)": "500 +- 1"}, {"a.jpg": 0.2},
-                              {"b.jpg": 3.0}, umap.warnings, umap, {})
+                              {"b.jpg": 3.0}, umap.warnings, umap, {}).text()
     assert "dropped as an outlier" in page and "b.jpg" in page
     assert f"{umap.median_px:.4g}" in page

@@ -29,7 +29,7 @@ from ..calibration import (
 from ..calibration_uncertainty import CORNER_LIMIT_PX, UncertaintyMap, uncertainty_map
 from ..camera import undistort_image
 from ..errors import CalibrationError
-from ..export import atomic_write_bytes
+from ..export import atomic_write_bytes, atomic_write_pieces
 from ..imageio import IMAGE_SUFFIXES, image_size, load_bgr, read_image_size
 from .common import (
     EXIT_CODES_HELP,
@@ -367,7 +367,7 @@ def run(args: argparse.Namespace) -> int:
     written = [save_calibration(args.out, result.as_camera(), extras, overwrite=args.force)]
     written += [atomic_write_bytes(path, figures[path.name]) for path in outputs[1:4]]
     if report is not None:
-        written.append(atomic_write_bytes(outputs[4], report.encode("utf-8")))
+        written.append(atomic_write_pieces(outputs[4], report.encoded()))
     for target, img in zip(undistorted, images):  # one undistorted image in memory at a time
         png = cv2.imencode(".png", undistort_image(img, result.K, result.dist))[1]
         written.append(atomic_write_bytes(target, png.tobytes()))

@@ -16,7 +16,7 @@ from .. import __version__
 from ..calibration_io import load_calibration
 from ..camera import adapt_intrinsics_to_size
 from ..datasets import BOOK_PAIR, fetch_fountain_p11
-from ..export import atomic_write_bytes, write_json, write_ply
+from ..export import atomic_write_bytes, atomic_write_pieces, write_json, write_ply
 from ..features import FEATURE_MODES, normalize_feature_mode
 from ..geometry import camera_centers, rotation_angle_deg
 from ..imageio import BOOK_MAX_WIDTH_PX, image_size, read_image_size
@@ -355,7 +355,7 @@ def run(args: argparse.Namespace) -> int:
     if dense is not None:
         written.append(write_ply(out / "dense.ply", dense.points3d, dense.colors))
     if report is not None:
-        written.append(atomic_write_bytes(out / REPORT_FILE, report.encode("utf-8")))
+        written.append(atomic_write_pieces(out / REPORT_FILE, report.encoded()))
     timings["write"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     summary = _summary(scene, result, (path1, path2), calib_path, timings, args.feature, camera)

@@ -167,7 +167,7 @@ def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, s
                   plots: bool) -> Path:
     """report.html: the summary, cameras.png and the interactive 3D view (scene3D.report)
     of the largest model."""
-    from ..export import atomic_write_bytes
+    from ..export import atomic_write_pieces
     from ..report import multi_view_layers, multi_view_report, prepare_view
 
     lines = [f"{summary['registered']} of {len(names)} views registered, "
@@ -183,7 +183,7 @@ def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, s
     view = prepare_view(*multi_view_layers(names, recon.K, recon.image_size, recon.registered,
                                            recon.R, recon.t, recon.points3d, recon.colors))
     page = multi_view_report(names, recon.registered, summary, lines, figures, view)
-    return atomic_write_bytes(out / "report.html", page.encode("utf-8"))
+    return atomic_write_pieces(out / "report.html", page.encoded())
 
 
 def write_model(folder: Path, names: list[str], recon: MultiViewReconstruction,

@@ -3,8 +3,10 @@
 The reports read results and draw nothing new: numbers from the summaries the commands
 write as JSON, figures as the PNG bytes the commands write, and for reconstructions an
 interactive 3D view (plotly.js from the installed ``plotly`` package, inlined; see
-:mod:`scene3D.report.viewer`). Each function returns the page as a string; the command
-writes it (atomically, with the other outputs).
+:mod:`scene3D.report.viewer`). Each function returns the page as an :class:`Html`
+(``.text()`` is the string); the command writes it with
+:func:`scene3D.export.atomic_write_pieces` (atomically, with the other outputs), which
+copies plotly.js from its file.
 
 - :func:`two_view_report`: ``report.html`` of ``chapter4.py`` / ``scene3d reconstruct``;
 - :func:`multi_view_report`: ``report.html`` of ``scene3d reconstruct-views``;
@@ -22,7 +24,7 @@ from numpy.typing import ArrayLike
 from .. import __version__
 from ..calibration_uncertainty import UncertaintyMap
 from ..drawing import frustum_corners, robust_extent
-from .page import Page
+from .page import Html, Page
 from .viewer import (
     MAX_VIEW_POINTS,
     CameraLayer,
@@ -33,7 +35,7 @@ from .viewer import (
 )
 
 __all__ = [
-    "MAX_VIEW_POINTS", "CameraLayer", "CloudLayer", "MissingViewerError", "PreparedView",
+    "MAX_VIEW_POINTS", "CameraLayer", "CloudLayer", "Html", "MissingViewerError", "PreparedView",
     "calibration_report", "multi_view_layers", "multi_view_report", "prepare_view",
     "two_view_layers", "two_view_report",
 ]
@@ -105,7 +107,7 @@ def _jsonable(value: Any) -> Any:
     return value
 
 
-def _footer(extra: str = "") -> str:
+def _footer(extra: str = "") -> Html:
     return (f"scene3D {__version__}. A self-contained file: it loads nothing from the "
             f"network. {extra}").strip()
 
@@ -154,7 +156,7 @@ def two_view_report(
     lines: Sequence[str],
     figures: Mapping[str, bytes],
     view: PreparedView,
-) -> str:
+) -> Html:
     """The page of a two-view reconstruction.
 
     Parameters
@@ -237,7 +239,7 @@ def multi_view_report(
     lines: Sequence[str],
     figures: Mapping[str, bytes],
     view: PreparedView,
-) -> str:
+) -> Html:
     """The page of a multi-view reconstruction.
 
     Parameters
@@ -287,7 +289,7 @@ def calibration_report(
     warnings: Sequence[str],
     umap: UncertaintyMap,
     figures: Mapping[str, bytes],
-) -> str:
+) -> Html:
     """The page of a calibration.
 
     Parameters

@@ -1,6 +1,9 @@
 """One self-contained HTML page: styles, tables, embedded PNG figures, the inlined 3D view.
 
 Everything the page shows is inside the file: figures as ``data:`` URLs, plotly.js inline.
+A rendered page is an :class:`Html`: its text with the plotly.js file named where it goes,
+so that writing the page copies that file (:func:`scene3D.export.atomic_write_pieces`)
+rather than reading it into Python.
 A Content-Security-Policy forbids every fetch (``default-src 'none'``), so a page that
 tried to load anything would fail visibly (a console error) rather than reach the network.
 """
@@ -13,6 +16,7 @@ import json
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 _CSP = ("default-src 'none'; script-src 'unsafe-inline' 'unsafe-eval'; "
@@ -72,6 +76,30 @@ def image_data_url(data: bytes) -> str:
     return f"data:{mime};base64," + base64.b64encode(data).decode("ascii")
 
 
+@dataclass(frozen=True)
+class Html:
+    """A rendered page: pieces of text, and files whose whole text goes at their place.
+
+    Attributes
+    ----------
+    pieces : tuple of (str or Path)
+        In order; a :class:`~pathlib.Path` stands for that file's content (UTF-8),
+        inlined verbatim.
+    """
+
+    pieces: tuple[str | Path, ...]
+
+    def text(self) -> str:
+        """The whole page as one string (the files read)."""
+        return "".join(p if isinstance(p, str) else p.read_text(encoding="utf-8")
+                       for p in self.pieces)
+
+    def encoded(self) -> list[bytes | Path]:
+        """The pieces for :func:`scene3D.export.atomic_write_pieces`: text as UTF-8 bytes,
+        files as they are."""
+        return [p.encode("utf-8") if isinstance(p, str) else p for p in self.pieces]
+
+
 @dataclass
 class Page:
     """An HTML report being assembled, section by section.
@@ -85,7 +113,7 @@ class Page:
 
     title: str
     parts: list[str] = field(default_factory=list)
-    _scripts: list[str] = field(default_factory=list)
+    _scripts: list[str | Path] = field(default_factory=list)
 
     def heading(self, text: str) -> None:
         self.parts.append(f"<h2>{esc(text)}</h2>")
@@ -131,8 +159,9 @@ class Page:
                           f'alt="{esc(alt or caption)}">'
                           f"<figcaption>{esc(caption)}</figcaption></figure>")
 
-    def view3d(self, plotly_js: str, figure_json: str, notes: Iterable[str] = ()) -> None:
-        """The interactive 3D view: ``plotly_js`` inlined once, the figure as JSON data."""
+    def view3d(self, plotly_js: Path, figure_json: str, notes: Iterable[str] = ()) -> None:
+        """The interactive 3D view: the file ``plotly_js`` (plotly.min.js) inlined once, the
+        figure as JSON data."""
         for note in notes:
             self.paragraph(note, "note")
         self.parts.append('<div id="view3d"></div>')
@@ -152,15 +181,17 @@ class Page:
         self.parts.append(f"<details><summary>{esc(summary)}</summary><pre>{esc(text)}</pre>"
                           "</details>")
 
-    def render(self, footer: str = "") -> str:
+    def render(self, footer: str = "") -> Html:
         """The whole page."""
-        scripts = "".join(f"<script>{s}</script>\n" for s in self._scripts)
-        return (
+        pieces: list[str | Path] = [
             "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
             f'<meta http-equiv="Content-Security-Policy" content="{_CSP}">\n'
             '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
             f"<title>{esc(self.title)}</title>\n<style>{_STYLE}</style>\n</head>\n<body>\n"
             f"<h1>{esc(self.title)}</h1>\n" + "\n".join(self.parts) + "\n"
             + (f"<footer>{esc(footer)}</footer>\n" if footer else "")
-            + scripts + "</body>\n</html>\n"
-        )
+        ]
+        for script in self._scripts:
+            pieces += ["<script>", script, "</script>\n"]
+        pieces.append("</body>\n</html>\n")
+        return Html(tuple(pieces))

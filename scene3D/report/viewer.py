@@ -1,7 +1,7 @@
 """The interactive 3D view of a report: a plotly.js figure built as JSON, no plotly Python.
 
-plotly.js comes from the installed ``plotly`` package (its bundled ``plotly.min.js``), read
-as a file and inlined into the page, so the report needs no network; the package's Python
+plotly.js comes from the installed ``plotly`` package (its bundled ``plotly.min.js``), a
+file inlined into the page as it is written, so the report needs no network; the package's Python
 modules are never imported (the figure is plain JSON, built here in a few milliseconds).
 Point coordinates travel as base64 float32 typed arrays (plotly.js's ``{dtype, bdata}``
 form), colours as ``#rrggbb`` strings.
@@ -77,8 +77,8 @@ class PreparedView:
 
     Attributes
     ----------
-    plotly_js : str
-        The library's text, to inline.
+    plotly_js : Path
+        The library's file (``plotly.min.js``), to inline.
     version : str
         plotly.js version.
     figure_json : str
@@ -89,7 +89,7 @@ class PreparedView:
         Points of all layers before decimation.
     """
 
-    plotly_js: str
+    plotly_js: Path
     version: str
     figure_json: str
     notes: list[str]
@@ -118,11 +118,14 @@ def plotly_js_path() -> Path:
     return path
 
 
-def plotly_js() -> tuple[str, str]:
-    """The text of ``plotly.min.js`` and its version (e.g. ``"4.1.1"``)."""
-    text = plotly_js_path().read_text(encoding="utf-8")
-    match = re.search(r"plotly\.js v(\d+\.\d+\.\d+)", text[:400])
-    return text, match.group(1) if match else "unknown"
+def plotly_js() -> tuple[Path, str]:
+    """The path of ``plotly.min.js`` and its version (e.g. ``"4.1.1"``, from the file's
+    banner)."""
+    path = plotly_js_path()
+    with open(path, "rb") as f:
+        head = f.read(400).decode("utf-8", errors="replace")
+    match = re.search(r"plotly\.js v(\d+\.\d+\.\d+)", head)
+    return path, match.group(1) if match else "unknown"
 
 
 def _typed(values: np.ndarray) -> dict:
