@@ -38,15 +38,26 @@ def fountain(data_root: Path) -> Path:
     return data_root / "fountain-P11"
 
 
-@pytest.fixture(scope="session")
-def castle(data_root: Path) -> Path:
-    """castle-P19 (Strecha): a courtyard of repeated windows; skipped where it is missing."""
-    path = data_root / "castle-P19"
+def _scene(data_root: Path, name: str) -> Path:
+    """A shared Strecha scene; skipped where it is missing (a failure in CI)."""
+    path = data_root / name
     if not path.is_dir():
         if os.environ.get("CI"):
-            pytest.fail(f"castle-P19 is missing from {data_root}")
-        pytest.skip(f"castle-P19 not found in {data_root}")
+            pytest.fail(f"{name} is missing from {data_root}")
+        pytest.skip(f"{name} not found in {data_root}")
     return path
+
+
+@pytest.fixture(scope="session")
+def castle(data_root: Path) -> Path:
+    """castle-P19 (Strecha): a courtyard of repeated windows."""
+    return _scene(data_root, "castle-P19")
+
+
+@pytest.fixture(scope="session")
+def herz_jesus(data_root: Path) -> Path:
+    """Herz-Jesus-P8 (Strecha): a church facade, nearly planar in parts."""
+    return _scene(data_root, "Herz-Jesus-P8")
 
 
 @pytest.fixture(scope="session")

@@ -346,6 +346,18 @@ def test_trust_follows_the_uncertainty_and_what_it_cannot_see():
     (warning,) = trust_warnings(uncertainty(0.1, 0.4), 1000, 900, 10.0, 0.5, s,
                                 fit=unconfirmed, rivals_chi2=80.0)
     assert "no pose was found twice in 8 robust starts" in warning and "0.7 deg" in warning
+    # Found twice, the best pose still has a rival: within the purpose's limit (1.5 of
+    # 2 deg) that is a distinct optimum the pose is known to; beyond it (12 deg, outside
+    # the covariance) the pose may be off by that much, whichever the starts met more.
+    confirmed = EssentialFit(np.eye(3), np.ones(10, bool), 3, 0.0, True, 1.5)
+    assert trust_warnings(uncertainty(0.1, 0.4), 1000, 900, 10.0, 0.5, s, fit=confirmed,
+                          rivals_chi2=80.0) == []
+    (warning,) = trust_warnings(uncertainty(0.1, 0.4), 1000, 900, 10.0, 0.5, s,
+                                fit=confirmed._replace(spread_deg=12.0), rivals_chi2=4e4)
+    assert warning.startswith("another pose 12.0 deg away fits the matches about as well")
+    assert "translation direction +-0.4 deg" in warning
+    assert trust_warnings(uncertainty(0.1, 0.4), 1000, 900, 10.0, 0.5, s,
+                          fit=confirmed._replace(spread_deg=12.0), rivals_chi2=8.0) == []
 
 
 def test_rivals_are_weighed_against_the_covariance(camera, true_pose):

@@ -30,7 +30,8 @@ class TwoViewSettings:
         that accuracy), or within the region the pose's covariance allows
         (:func:`scene3D.twoview.rival_chi2`: the sigmas already say it); beyond
         both the result is marked untrusted: a covariance describes one optimum
-        and cannot see the others.
+        and cannot see the others. When the best was found twice, a rival outside
+        that region counts from ``uncertainty_limit_deg`` on.
     min_matches, min_inliers, min_points : int
         Below these counts the pair is refused.
     min_point_parallax_deg : float
