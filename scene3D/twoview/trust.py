@@ -120,16 +120,15 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
                         f"translation rests on the other {1 - rotation_share:.0%}, which a "
                         "moving object would explain as well as a camera that moved (the "
                         f"{sigmas} assume a rigid scene)")
-    if (fit is not None and s.max_starts > 1 and rivals_chi2 > CHI2_99_POSE
-            and not fit.confirmed and fit.spread_deg > s.restart_agreement_deg):
-        warnings.append(f"no pose was found twice in {fit.starts} robust starts: poses "
-                        f"up to {fit.spread_deg:.1f} deg apart fit the matches about "
-                        f"equally well (the best one's {sigmas} cannot show this)")
-    elif (fit is not None and s.max_starts > 1 and rivals_chi2 > CHI2_99_POSE
-            and fit.spread_deg > s.uncertainty_limit_deg):
-        warnings.append(f"another pose {fit.spread_deg:.1f} deg away fits the matches about as "
-                        f"well (the robust starts reached both): the pose may be off by that "
-                        f"much, which its {sigmas} cannot show")
+    if fit is not None and s.max_starts > 1 and rivals_chi2 > CHI2_99_POSE:
+        if not fit.confirmed and fit.spread_deg > s.restart_agreement_deg:
+            warnings.append(f"no pose was found twice in {fit.starts} robust starts: poses "
+                            f"up to {fit.spread_deg:.1f} deg apart fit the matches about "
+                            f"equally well (the best one's {sigmas} cannot show this)")
+        elif fit.confirmed and fit.spread_deg > s.uncertainty_limit_deg:
+            warnings.append(f"another pose {fit.spread_deg:.1f} deg away fits the matches "
+                            "about as well (the robust starts reached both): the pose may "
+                            f"be off by that much, which its {sigmas} cannot show")
     if focal is not None:
         log_scale = abs(np.log(focal.scale))
         if (log_scale > np.log1p(s.max_focal_mismatch)
