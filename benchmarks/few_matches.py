@@ -40,13 +40,12 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from two_view import load_pair  # benchmarks/two_view.py, as exact_truth.py does
 
-from scene3D.camera import scale_intrinsics_halved
-from scene3D.datasets import default_data_root, read_strecha_camera, relative_pose, strecha_views
+from scene3D.datasets import default_data_root, strecha_views
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import Matches, find_matches
-from scene3D.imageio import load_working_image
 from scene3D.twoview import reconstruct_two_view
 from scene3D.uncertainty import pose_error_chi2
 
@@ -86,15 +85,6 @@ def _pairs(n_views: int, gaps: list[int]) -> Iterator[tuple[int, int]]:
             yield a, a + gap
 
 
-def _load(views, a: int, b: int, width: int):
-    """Views ``a`` and ``b`` at ``width`` as scene3D loads them, K and the true pose."""
-    (path1, camera1), (path2, camera2) = views[a], views[b]
-    cam1, cam2 = read_strecha_camera(camera1), read_strecha_camera(camera2)
-    img1, _, levels = load_working_image(path1, cam1.K, cam1.dist, width)
-    img2, _, _ = load_working_image(path2, cam2.K, cam2.dist, width)
-    return img1, img2, scale_intrinsics_halved(cam1.K, levels), relative_pose(cam1, cam2)
-
-
 def _run(img1, matches: Matches, K, truth, **where) -> Run:
     try:
         r = reconstruct_two_view(img1, matches, K)
@@ -124,7 +114,7 @@ def scene_runs(folder: Path, gaps: list[int], seeds: int) -> Iterator[Run]:
     scene = folder.name
     for a, b in _pairs(len(views), gaps):
         for width in (768, 384, 256):
-            img1, img2, K, truth = _load(views, a, b, width)
+            img1, img2, K, truth = load_pair(views, a, b, width)
             matches = find_matches(img1, img2, "SIFT")
             size = (img1.shape[1], img1.shape[0])
             where = {"scene": scene, "pair": (a, b)}

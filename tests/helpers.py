@@ -1,11 +1,14 @@
-"""Helpers for the tests: synthetic correspondences with known geometry, board detections."""
+"""Helpers for the tests: synthetic correspondences with known geometry, board detections,
+real Strecha pairs with their true pose."""
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
 
+from scene3D import SceneReconstruction3D
 from scene3D.calibration import detect_board
+from scene3D.datasets import read_strecha_camera, relative_pose
 from scene3D.geometry import project, rotation_about_axis
 from scene3D.synthetic import random_points
 
@@ -20,6 +23,17 @@ def correspondences(K, R, t, n=200, noise_px=0.0, seed=0):
         pts1 = pts1 + rng.normal(0, noise_px, pts1.shape)
         pts2 = pts2 + rng.normal(0, noise_px, pts2.shape)
     return points, pts1, pts2
+
+
+def strecha_pair(folder, a, b, max_width):
+    """The book's class with views ``a`` and ``b`` of a Strecha scene loaded at
+    ``max_width``, and their true relative pose ``(R, t)``."""
+    cam_a, cam_b = (read_strecha_camera(folder / "gt_dense_cameras" / f"{i:04d}.jpg.camera")
+                    for i in (a, b))
+    scene = SceneReconstruction3D(cam_a.K, cam_a.dist)
+    scene.load_image_pair(folder / "images" / f"{a:04d}.jpg", folder / "images" / f"{b:04d}.jpg",
+                          max_width=max_width)
+    return scene, relative_pose(cam_a, cam_b)
 
 
 def scipy_bundle_adjust(R, t, points3d, obs, K, fixed_view, loss, scale_px, max_evaluations):

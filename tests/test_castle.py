@@ -2,21 +2,11 @@
 
 import pytest
 
-from scene3D import SceneReconstruction3D
-from scene3D.datasets import read_strecha_camera, relative_pose
 from scene3D.essential_fit import fit_essential
 from scene3D.evaluation import relative_pose_error
 from scene3D.pose import choose_pose
 
-
-def _pair(castle, a, b, max_width):
-    """The scene with views ``a`` and ``b`` loaded at ``max_width``, and their true pose."""
-    cam_a, cam_b = (read_strecha_camera(castle / "gt_dense_cameras" / f"{i:04d}.jpg.camera")
-                    for i in (a, b))
-    scene = SceneReconstruction3D(cam_a.K, cam_a.dist)
-    scene.load_image_pair(castle / "images" / f"{a:04d}.jpg", castle / "images" / f"{b:04d}.jpg",
-                          max_width=max_width)
-    return scene, relative_pose(cam_a, cam_b)
+from .helpers import strecha_pair
 
 
 @pytest.mark.parametrize("pair", [(13, 14), (12, 14)])
@@ -26,7 +16,7 @@ def test_mismatched_windows_do_not_pull_the_pose(castle, pair):
     worse; a single MAGSAC++ start at 1 px takes it. Compared at the noise of the
     keypoints (scene3D.essential_fit.fit_essential) the true pose wins.
     """
-    scene, truth = _pair(castle, *pair, 1536)
+    scene, truth = strecha_pair(castle, *pair, 1536)
     result = scene.reconstruct("SIFT")
     assert relative_pose_error(result.R, result.t, *truth).max_deg < 0.5
     matches = scene.matches("SIFT")
@@ -40,7 +30,7 @@ def test_restarts_that_disagree_within_the_covariance_are_no_verdict(castle):
     """Pair 2-4 at 768 px: eight restarts never meet twice, their optima up to 0.7 deg
     apart, but every one lies within the pose's covariance (translation direction
     +-0.44 deg): the sigmas already say it. The pose is 0.2 deg off: trusted."""
-    scene, truth = _pair(castle, 2, 4, 768)
+    scene, truth = strecha_pair(castle, 2, 4, 768)
     result = scene.reconstruct("SIFT")
     assert relative_pose_error(result.R, result.t, *truth).max_deg < 0.5
     assert result.robust_spread_deg > 0.5
@@ -50,7 +40,7 @@ def test_restarts_that_disagree_within_the_covariance_are_no_verdict(castle):
 def test_restarts_that_disagree_beyond_the_covariance_flag_the_pose(castle):
     """Pair 15-17 at 1536 px: mismatched windows hold a pose 3 deg off; the restarts end
     0.7 deg apart, far outside its covariance (+-0.07 deg): flagged for them."""
-    scene, truth = _pair(castle, 15, 17, 1536)
+    scene, truth = strecha_pair(castle, 15, 17, 1536)
     result = scene.reconstruct("SIFT")
     assert relative_pose_error(result.R, result.t, *truth).max_deg > 2.0
     assert not result.trusted

@@ -7,19 +7,15 @@ import dataclasses
 
 import numpy as np
 
-from scene3D import SceneReconstruction3D
-from scene3D.datasets import read_strecha_camera, relative_pose
 from scene3D.evaluation import relative_pose_error
 from scene3D.twoview import reconstruct_two_view
 
+from .helpers import strecha_pair
+
 
 def _pair(folder, a, b, max_width):
-    cam_a, cam_b = (read_strecha_camera(folder / "gt_dense_cameras" / f"{i:04d}.jpg.camera")
-                    for i in (a, b))
-    scene = SceneReconstruction3D(cam_a.K, cam_a.dist)
-    scene.load_image_pair(folder / "images" / f"{a:04d}.jpg", folder / "images" / f"{b:04d}.jpg",
-                          max_width=max_width)
-    return scene, scene.matches("SIFT"), relative_pose(cam_a, cam_b)
+    scene, truth = strecha_pair(folder, a, b, max_width)
+    return scene, scene.matches("SIFT"), truth
 
 
 def _reconstruct(scene, matches, keep):
