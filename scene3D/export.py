@@ -75,6 +75,8 @@ def _copy_file_into(source: Path, target: io.RawIOBase) -> None:
             except OSError:  # a file system without it: copy through Python from here on
                 pass
         shutil.copyfileobj(src, target, 1 << 20)
+
+
 def ply_bytes(points3d: np.ndarray, colors: np.ndarray | None = None) -> bytes:
     """Binary little-endian PLY of ``(N, 3)`` points with ``(N, 3) uint8`` RGB colours.
 

@@ -107,7 +107,7 @@ def _jsonable(value: Any) -> Any:
     return value
 
 
-def _footer(extra: str = "") -> Html:
+def _footer(extra: str = "") -> str:
     return (f"scene3D {__version__}. A self-contained file: it loads nothing from the "
             f"network. {extra}").strip()
 

@@ -1,8 +1,9 @@
 """The interactive 3D view of a report: a plotly.js figure built as JSON, no plotly Python.
 
 plotly.js comes from the installed ``plotly`` package (its bundled ``plotly.min.js``), a
-file inlined into the page as it is written, so the report needs no network; the package's Python
-modules are never imported (the figure is plain JSON, built here in a few milliseconds).
+file copied into the page as it is written, so the report needs no network; the package's
+Python modules are never imported (the figure is plain JSON, built here in a few
+milliseconds).
 Point coordinates travel as base64 float32 typed arrays (plotly.js's ``{dtype, bdata}``
 form), colours as ``#rrggbb`` strings.
 
