@@ -11,7 +11,6 @@ import io
 import json
 import math
 import os
-import shutil
 import time
 from collections.abc import Iterable
 from pathlib import Path
@@ -51,13 +50,18 @@ def atomic_write_pieces(path: str | os.PathLike, pieces: Iterable[bytes | Path])
                 if isinstance(piece, Path):
                     _copy_file_into(piece, f)
                 else:
-                    view = memoryview(piece)
-                    while view:  # an unbuffered write may take less than it is given
-                        view = view[f.write(view):]
+                    _write_all(f, piece)
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
     return path
+
+
+def _write_all(target: io.RawIOBase, data: bytes) -> None:
+    """Write all of ``data`` to the unbuffered ``target``, which may take less at a time."""
+    view = memoryview(data)
+    while view:
+        view = view[target.write(view):]
 
 
 def _copy_file_into(source: Path, target: io.RawIOBase) -> None:
@@ -74,7 +78,8 @@ def _copy_file_into(source: Path, target: io.RawIOBase) -> None:
                 return
             except OSError:  # a file system without it: copy through Python from here on
                 pass
-        shutil.copyfileobj(src, target, 1 << 20)
+        while chunk := src.read(1 << 20):
+            _write_all(target, chunk)
 
 
 def ply_bytes(points3d: np.ndarray, colors: np.ndarray | None = None) -> bytes:
