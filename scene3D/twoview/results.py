@@ -161,7 +161,8 @@ class TwoViewGeometry:
         Robust estimations of E run (:func:`scene3D.essential_fit.fit_essential`); when
         the best pose was not found twice in ``TwoViewSettings.max_starts`` of them
         and their optima lie more than ``TwoViewSettings.restart_agreement_deg``
-        apart, the result is untrusted.
+        apart (found twice: more than ``TwoViewSettings.uncertainty_limit_deg``), outside
+        the covariance's region, the result is untrusted.
     robust_spread_deg : float
         How far the other starts' optima lie from the chosen one
         (:attr:`scene3D.essential_fit.EssentialFit.spread_deg`; 0 when they all agree).
