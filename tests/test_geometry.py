@@ -4,6 +4,7 @@ import pytest
 from scene3D.geometry import (
     angle_between_deg,
     as_points2d,
+    distinct_correspondences,
     normalize_points,
     project,
     rotation_about_axis,
@@ -45,3 +46,11 @@ def test_as_points2d_accepts_opencv_layout_and_rejects_others():
         as_points2d(np.zeros((5, 3)), "pts1")
     with pytest.raises(ValueError, match="non-finite"):
         as_points2d([[np.nan, 1.0]])
+
+
+def test_distinct_correspondences_keep_the_first_of_each_in_order():
+    pts1 = np.array([[1.0, 2.0], [3.0, 4.0], [1.0, 2.0], [1.0, 2.0], [5.0, 6.0]])
+    pts2 = np.array([[7.0, 8.0], [9.0, 1.0], [7.0, 8.0], [7.5, 8.0], [2.0, 3.0]])
+    # Row 2 repeats row 0; row 3 shares its image-1 pixel but not its match: kept.
+    np.testing.assert_array_equal(distinct_correspondences(pts1, pts2), [0, 1, 3, 4])
+    assert distinct_correspondences(np.zeros((0, 2)), np.zeros((0, 2))).shape == (0,)

@@ -48,6 +48,23 @@ def test_noisy_pose_is_within_bounds(camera, true_pose, seed):
     assert 0.2 < r.reprojection_rmse_px < 1.0
 
 
+def test_a_correspondence_listed_twice_counts_once(camera, true_pose):
+    """SIFT lists a correspondence twice when a keypoint's two orientations both match.
+    Counted twice, 100 such copies among 300 matches would shrink the sigmas of the
+    pose by up to a factor sqrt(2) and add to the inlier count; the result is that of
+    the 300 distinct matches, to the bit."""
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, t, n=300, noise_px=0.5, seed=4)
+    once = reconstruct_from_matches(pts1, pts2, camera)
+    copies = np.random.default_rng(4).choice(300, 100, replace=False)
+    twice = reconstruct_from_matches(np.vstack([pts1, pts1[copies]]),
+                                     np.vstack([pts2, pts2[copies]]), camera)
+    assert twice.num_matches == once.num_matches == 300
+    assert twice.num_inliers == once.num_inliers
+    np.testing.assert_array_equal(twice.R, once.R)
+    np.testing.assert_array_equal(twice.pose_covariance, once.pose_covariance)
+
+
 def test_too_few_matches(camera, true_pose):
     R, t = true_pose
     _, pts1, pts2 = correspondences(camera, R, t, n=12)

@@ -25,7 +25,14 @@ from ..epipolar import (
 from ..errors import ReconstructionError
 from ..essential_fit import fit_essential, inlier_threshold_px, loss_scale_px, noise_sigma_px
 from ..features import Matches
-from ..geometry import FloatArray, as_matrix, as_points2d, check_same_length, median
+from ..geometry import (
+    FloatArray,
+    as_matrix,
+    as_points2d,
+    check_same_length,
+    distinct_correspondences,
+    median,
+)
 from ..pose import choose_pose
 from ..refinement import refine_relative_pose, relative_pose_covariance
 from ..triangulation import behind_beyond_noise, parallax_angles_deg, reprojection_errors
@@ -120,7 +127,8 @@ def reconstruct_from_matches(
     Parameters
     ----------
     pts1, pts2 : (N, 2) array_like
-        Matched pixels in image 1 and image 2.
+        Matched pixels in image 1 and image 2; a correspondence listed more than once
+        counts once (:func:`scene3D.geometry.distinct_correspondences`).
     K : (3, 3) array_like
         Intrinsics shared by both images.
 
@@ -138,6 +146,8 @@ def reconstruct_from_matches(
     p1 = as_points2d(pts1, "pts1")
     p2 = as_points2d(pts2, "pts2")
     check_same_length(p1, p2)
+    distinct = distinct_correspondences(p1, p2)
+    p1, p2 = p1[distinct], p2[distinct]
     K = as_matrix(K, (3, 3), "K")
     n = len(p1)
     if n < s.min_matches:
