@@ -5,8 +5,7 @@ patented and missing from the pip wheels, so it falls back to SIFT with one
 warning), ``"ORB"``, ``"AKAZE"`` and ``"flow"`` (corners tracked by pyramidal
 Lucas-Kanade with a forward-backward check).
 
-Descriptor matches pass Lowe's ratio test and a mutual (cross) check, and each
-correspondence is listed once (:func:`scene3D.geometry.distinct_correspondences`).
+Descriptor matches pass Lowe's ratio test and a mutual (cross) check.
 
 SIFT is built with ``enable_precise_upscale=True``. OpenCV's default doubles the image
 with linear interpolation at pixel centres, then reports keypoints as if that image
@@ -27,7 +26,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from .geometry import FloatArray, distinct_correspondences
+from .geometry import FloatArray
 
 logger = logging.getLogger(__name__)
 
@@ -43,7 +42,10 @@ class Matches:
     ----------
     pts1, pts2 : (N, 2) float64
         Matched pixel coordinates in the two (working) images; row ``i`` of each
-        is one correspondence.
+        is one correspondence. SIFT gives a keypoint one descriptor per dominant
+        orientation, so a correspondence can be listed twice, once per orientation
+        (about one match in ten); the two-view core counts it once
+        (:func:`scene3D.twoview.reconstruct_from_matches`).
     feature : str
         The detector that actually ran (``"SIFT"`` when SURF was asked for but
         is unavailable).
@@ -171,10 +173,7 @@ def image_features(img: np.ndarray, mode: str = "SIFT", max_features: int = 8000
 
 
 def match_features(f1: ImageFeatures, f2: ImageFeatures, ratio: float = 0.8) -> Matches:
-    """Correspondences between two images' features (:func:`match_descriptors`), each
-    listed once: two keypoints at one place (one per dominant orientation) whose copies
-    both match give one correspondence
-    (:func:`scene3D.geometry.distinct_correspondences`).
+    """Correspondences between two images' features (:func:`match_descriptors`).
 
     ``timings_s["features"]`` is the detection time of both images, whether or not
     it was spent for this pair alone.
@@ -183,13 +182,10 @@ def match_features(f1: ImageFeatures, f2: ImageFeatures, ratio: float = 0.8) -> 
         raise ValueError(f"cannot match {f1.feature} features with {f2.feature} features")
     t0 = time.perf_counter()
     idx1, idx2 = match_descriptors(f1.descriptors, f2.descriptors, f1.norm, ratio)
-    pts1, pts2 = f1.pixels[idx1], f2.pixels[idx2]
-    distinct = distinct_correspondences(pts1, pts2)
     elapsed = time.perf_counter() - t0
     n1, n2 = len(f1.pixels), len(f2.pixels)
-    logger.debug("%s: %d + %d keypoints, %d matches (%d distinct)", f1.feature, n1, n2,
-                 len(idx1), len(distinct))
-    return Matches(pts1[distinct], pts2[distinct], f1.feature, (n1, n2),
+    logger.debug("%s: %d + %d keypoints, %d matches", f1.feature, n1, n2, len(idx1))
+    return Matches(f1.pixels[idx1], f2.pixels[idx2], f1.feature, (n1, n2),
                    {"features": f1.seconds + f2.seconds, "matching": elapsed})
 
 

@@ -135,7 +135,7 @@ def test_restarts_escape_a_poor_optimum_on_a_wide_pair(fountain):
 
 
 def test_restarts_that_end_close_together_leave_the_pose_trusted(fountain):
-    """Pair 4-8 at 1536 px: in eight starts no optimum is reached twice.
+    """Pair 0-4 at 1536 px: in eight starts no optimum is reached twice.
 
     But the optima lie within 0.1 deg of each other, well inside 0.5 deg
     (TwoViewSettings.restart_agreement_deg): the pose is known to that accuracy,
@@ -143,7 +143,7 @@ def test_restarts_that_end_close_together_leave_the_pose_trusted(fountain):
     """
     cams = _cameras(fountain)
     scene = SceneReconstruction3D(cams[0].K, cams[0].dist)
-    scene.load_image_pair(fountain / "images" / "0004.jpg", fountain / "images" / "0008.jpg",
+    scene.load_image_pair(fountain / "images" / "0000.jpg", fountain / "images" / "0004.jpg",
                           max_width=1536)
     result = scene.reconstruct("SIFT")
     matches = scene.matches("SIFT")
@@ -152,5 +152,5 @@ def test_restarts_that_end_close_together_leave_the_pose_trusted(fountain):
     assert 0.01 < fit.spread_deg < 0.1 < TwoViewSettings().restart_agreement_deg
     assert result.trusted, result.warnings
     assert result.robust_spread_deg == pytest.approx(fit.spread_deg)
-    err = relative_pose_error(result.R, result.t, *relative_pose(cams[4], cams[8]))
+    err = relative_pose_error(result.R, result.t, *relative_pose(cams[0], cams[4]))
     assert max(err.rotation_deg, err.translation_deg) < 0.3

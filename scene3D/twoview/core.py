@@ -127,8 +127,11 @@ def reconstruct_from_matches(
     Parameters
     ----------
     pts1, pts2 : (N, 2) array_like
-        Matched pixels in image 1 and image 2; a correspondence listed more than once
-        counts once (:func:`scene3D.geometry.distinct_correspondences`).
+        Matched pixels in image 1 and image 2. A correspondence listed more than once
+        (:func:`scene3D.geometry.distinct_correspondences`; SIFT lists one twice when
+        both orientations of a keypoint match) weighs as listed in the robust fit of E
+        and counts once in everything after it: the match and inlier counts, the
+        checks, the points and the pose's uncertainty.
     K : (3, 3) array_like
         Intrinsics shared by both images.
 
@@ -146,17 +149,19 @@ def reconstruct_from_matches(
     p1 = as_points2d(pts1, "pts1")
     p2 = as_points2d(pts2, "pts2")
     check_same_length(p1, p2)
-    distinct = distinct_correspondences(p1, p2)
-    p1, p2 = p1[distinct], p2[distinct]
     K = as_matrix(K, (3, 3), "K")
-    n = len(p1)
+    distinct = distinct_correspondences(p1, p2)
+    n = len(distinct)
     if n < s.min_matches:
         raise ReconstructionError(
             "too_few_matches", "too few matches between the images",
             matches=n, required=s.min_matches,
         )
     fit = fit_essential(p1, p2, K, s.threshold_px, max_starts=s.max_starts)
-    E, inliers, refine_s = fit.E, fit.inliers, fit.refinement_s
+    # From here on each correspondence once: a copy is no second observation of its
+    # noise, nor a second vote for a model.
+    p1, p2 = p1[distinct], p2[distinct]
+    E, inliers, refine_s = fit.E, fit.inliers[distinct], fit.refinement_s
     logger.debug("essential matrix: %d robust starts", fit.starts)
     num_inliers = int(inliers.sum())
     if not np.all(np.isfinite(E)) or num_inliers < s.min_inliers:
