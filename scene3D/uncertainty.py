@@ -444,7 +444,8 @@ def depth_sigmas(points3d: ArrayLike, K: ArrayLike, R: ArrayLike, t: ArrayLike,
 
     The ``z`` entry of :func:`point_covariances` (computed from the third row of
     ``G^-1`` alone, by cofactors); divide by the depth (``points3d[:, 2]``) for a
-    relative uncertainty.
+    relative uncertainty. Infinite for a point whose two rays are parallel (on the
+    line through both camera centres): nothing fixes its depth.
     """
     C = np.asarray(pose_covariance, dtype=np.float64)
     G, M = _triangulation_normals(points3d, K, R, t)
@@ -457,7 +458,8 @@ def depth_sigmas(points3d: ArrayLike, K: ArrayLike, R: ArrayLike, t: ArrayLike,
                            g[:, 0] * g[:, 4] - g[:, 1] ** 2])
     det = (g[:, 0] * (g[:, 4] * g[:, 8] - g[:, 5] ** 2)
            + g[:, 1] * (g[:, 5] * g[:, 2] - g[:, 1] * g[:, 8]) + g[:, 2] * row[:, 0])
-    row /= det[:, None]
+    known = det > 0  # rays that meet at an angle; parallel ones leave the depth unknown
+    row[known] /= det[known, None]
     b = np.einsum("ni,nij->nj", row, M)  # (N, 5): the depth's derivative by the pose
     variance = noise_px**2 * row[:, 2] + np.einsum("ni,ij,nj->n", b, C, b)
-    return np.sqrt(np.maximum(variance, 0.0))
+    return np.where(known, np.sqrt(np.maximum(variance, 0.0)), np.inf)

@@ -1,3 +1,5 @@
+import warnings
+
 import numpy as np
 import pytest
 
@@ -239,6 +241,18 @@ def test_depth_sigmas_agree_with_a_monte_carlo(camera, true_pose):
     # The pose's share: without it the depth spread is underestimated.
     no_pose = depth_sigmas(X, camera, R_e, t_e, np.zeros((5, 5)), 0.5)
     assert np.median(empirical / no_pose) > 1.05
+
+
+def test_a_point_on_the_baseline_has_an_unknown_depth(camera):
+    """Camera 2 one unit ahead of camera 1: both rays of a point on the optical axis are
+    that axis, and nothing fixes its depth. It comes back infinitely uncertain, without
+    a division by zero; a point off the axis does not."""
+    R, t = np.eye(3), np.array([0.0, 0.0, -1.0])
+    points = np.array([[0.0, 0.0, 5.0], [0.3, -0.2, 6.0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sigmas = depth_sigmas(points, camera, R, t, np.eye(5) * 1e-6, 0.3)
+    assert np.isinf(sigmas[0]) and np.isfinite(sigmas[1])
 
 
 def test_depth_sigmas_are_the_depth_entry_of_the_point_covariances(camera, true_pose):
