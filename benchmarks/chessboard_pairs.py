@@ -39,9 +39,9 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from bench_cli import add_data_arguments, data_folder
 
 from scene3D.calibration import BoardSpec, calibrate, detect_board
-from scene3D.datasets import default_data_root
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
 from scene3D.scene import SceneReconstruction3D
@@ -110,8 +110,7 @@ def set_runs(folder: Path, name: str, max_width: int | None) -> list[PairRun]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--data", type=Path, default=None,
-                        help="folder holding chessboard/ (default: $SCENE3D_DATA)")
+    add_data_arguments(parser)
     parser.add_argument("--sets", nargs="+", default=list(SETS), choices=list(SETS),
                         help="chessboard sets (default: all three)")
     parser.add_argument("--max-width", type=int, default=0,
@@ -121,9 +120,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
     logging.disable(logging.WARNING)  # the warnings are in the rows
-    data = args.data or default_data_root()
-    if data is None:
-        parser.error("no data folder: pass --data or set SCENE3D_DATA")
+    data = data_folder(parser, args)
     settings = TwoViewSettings()
     runs = []
     print("| set | pairs | median matches (as listed) | refused | flagged | trusted | > 5 deg "

@@ -40,16 +40,16 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from bench_cli import add_data_arguments, data_folder
 from two_view import load_pair  # benchmarks/two_view.py, as exact_truth.py does
 
-from scene3D.datasets import default_data_root, strecha_views
+from scene3D.datasets import strecha_views
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import Matches, find_matches
 from scene3D.twoview import reconstruct_two_view
 from scene3D.uncertainty import pose_error_chi2
 
-SCENES = ("fountain-P11", "Herz-Jesus-P8", "castle-P19")
 SUBSET_SIZES = (15, 25, 40, 60, 80, 120)
 _SIDE = math.sqrt(0.3)
 #: Windows of 30 % of the image's area, as (x0, y0, x1, y1) fractions of its sides.
@@ -160,12 +160,7 @@ def _table(runs: list[Run]) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--data", type=Path, default=None,
-                        help="folder holding the scenes (default: $SCENE3D_DATA)")
-    parser.add_argument("--scenes", nargs="+", default=list(SCENES),
-                        help="Strecha-format scenes in the data folder (default: the three)")
-    parser.add_argument("--gaps", type=int, nargs="+", default=[1, 2, 3, 4, 5],
-                        help="pair each image i with i + gap (default: 1 to 5)")
+    add_data_arguments(parser, gaps=(1, 2, 3, 4, 5), scenes=True)
     parser.add_argument("--seeds", type=int, default=3,
                         help="random subsets of each size per pair (default: 3)")
     parser.add_argument("--rows", type=Path, default=None,
@@ -173,9 +168,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
     logging.disable(logging.WARNING)  # the warnings are in the runs; the table counts them
-    data = args.data or default_data_root()
-    if data is None:
-        parser.error("no data folder: pass --data or set SCENE3D_DATA")
+    data = data_folder(parser, args)
     runs = []
     for scene in args.scenes:
         runs += scene_runs(data / scene, args.gaps, args.seeds)

@@ -33,10 +33,11 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from bench_cli import add_data_arguments, data_folder
 
 import scene3D
 from scene3D.camera import scale_intrinsics_halved
-from scene3D.datasets import default_data_root, read_strecha_camera, relative_pose, strecha_views
+from scene3D.datasets import read_strecha_camera, relative_pose, strecha_views
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import pose_auc, relative_pose_error
 from scene3D.features import image_features, match_features, to_gray
@@ -44,7 +45,6 @@ from scene3D.imageio import load_working_image
 from scene3D.twoview import reconstruct_from_matches
 from scene3D.uncertainty import pose_error_chi2
 
-SCENES = ("fountain-P11", "Herz-Jesus-P8", "castle-P19")
 GAP_GROUPS = (((1, 2), "1-2"), ((3, 4, 5), "3-5"))
 CHI2_90 = (6.251, 4.605)  # 90 % quantiles of chi-square with 3 and 2 degrees of freedom
 
@@ -110,22 +110,15 @@ def _row(scene: str, width: int, gaps: str, runs: list[list[Outcome]]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--data", type=Path, default=None,
-                        help="folder holding the scenes (default: $SCENE3D_DATA)")
-    parser.add_argument("--scenes", nargs="+", default=list(SCENES),
-                        help="Strecha-format scenes in the data folder (default: the three)")
+    add_data_arguments(parser, gaps=(1, 2, 3, 4, 5), scenes=True)
     parser.add_argument("--sizes", type=int, nargs="+", default=[768, 1536],
                         help="working widths in pixels (default: 768 1536)")
-    parser.add_argument("--gaps", type=int, nargs="+", default=[1, 2, 3, 4, 5],
-                        help="pair each image i with i + gap (default: 1 to 5)")
     parser.add_argument("--orders", type=int, default=5,
                         help="orders of the matches: the matcher's and random ones (default: 5)")
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
     logging.disable(logging.WARNING)  # the verdicts are in the table
-    data = args.data or default_data_root()
-    if data is None:
-        parser.error("no data folder: pass --data or set SCENE3D_DATA")
+    data = data_folder(parser, args)
     print(f"scene3D from {Path(scene3D.__file__).parent}")
     print(f"{args.orders} orders of the same matches; sums over the orders; 'unsteady': "
           "pairs whose verdict is not the same in every order\n")

@@ -46,10 +46,11 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from bench_cli import add_data_arguments, data_folder
 
 from scene3D import essential_fit
 from scene3D.camera import scale_intrinsics_halved
-from scene3D.datasets import default_data_root, read_strecha_camera, relative_pose, strecha_views
+from scene3D.datasets import read_strecha_camera, relative_pose, strecha_views
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import (
     paired_auc_difference,
@@ -60,7 +61,6 @@ from scene3D.features import match_descriptors, to_gray
 from scene3D.imageio import load_working_image
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches
 
-SCENES = ("fountain-P11", "Herz-Jesus-P8", "castle-P19")
 LEVERS = ("scene3D", "previous", "previous-0.5px", "ratio-0.7", "rootsift", "symmetric",
           "self-ratio", "contrast-0.02", "poselib", "poselib-0.5px")
 RATIO = 0.8
@@ -217,21 +217,14 @@ def _feature_cache(views: list, cameras: list, width: int
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--data", type=Path, default=None,
-                        help="folder holding the scenes (default: $SCENE3D_DATA)")
-    parser.add_argument("--scenes", nargs="+", default=list(SCENES),
-                        help="Strecha-format scenes in the data folder (default: the three)")
+    add_data_arguments(parser, gaps=(1, 2), scenes=True)
     parser.add_argument("--sizes", type=int, nargs="+", default=[1536, 768],
                         help="working widths in px")
-    parser.add_argument("--gaps", type=int, nargs="+", default=[1, 2],
-                        help="pair each image i with i + gap (default: 1 2)")
     parser.add_argument("--levers", nargs="+", default=list(LEVERS), choices=LEVERS,
                         help="which variants to run (default: all)")
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
-    data = args.data or default_data_root()
-    if data is None:
-        parser.error("no data folder: pass --data or set SCENE3D_DATA")
+    data = data_folder(parser, args)
     levers = [lever for lever in args.levers
               if not lever.startswith("poselib") or _has("poselib")]
     print("| scene | width | lever | pairs | both < 2 deg | AUC@5deg | minus scene3D's [95 %] "
