@@ -28,6 +28,7 @@ from .camera import (
     validate_intrinsics,
 )
 from .features import Matches, find_matches, normalize_feature_mode
+from .geometry import distinct_correspondences
 from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, load_working_images
 from .rectification import RectifiedPair, rectify_pair
 from .twoview import TwoViewReconstruction, TwoViewSettings, reconstruct_two_view
@@ -67,7 +68,9 @@ class SceneReconstruction3D:
     Rt1, Rt2 : (3, 4)
         ``[I | 0]`` and ``[R | t]``, ``x_cam2 = R x_cam1 + t``.
     match_pts1, match_pts2 : (N, 2)
-        All putative matches.
+        All putative matches, each correspondence once
+        (:func:`scene3D.geometry.distinct_correspondences`; ``N`` is the result's
+        ``num_matches``).
     match_inliers1, match_inliers2 : (M, 2)
         The essential-matrix inliers.
     self_calibration : SelfCalibration or None
@@ -152,7 +155,8 @@ class SceneReconstruction3D:
             img1, _ = self._require_images()
             self._results[mode] = reconstruct_two_view(img1, matches, self.K, self.settings)
         result = self._results[mode]
-        self.match_pts1, self.match_pts2 = matches.pts1, matches.pts2
+        distinct = distinct_correspondences(matches.pts1, matches.pts2)
+        self.match_pts1, self.match_pts2 = matches.pts1[distinct], matches.pts2[distinct]
         self.match_inliers1, self.match_inliers2 = result.inlier_pts1, result.inlier_pts2
         self.F, self.E = result.F, result.E
         self.Rt1, self.Rt2 = result.Rt1, result.Rt2
