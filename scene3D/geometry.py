@@ -64,8 +64,8 @@ def distinct_correspondences(pts1: FloatArray, pts2: FloatArray) -> np.ndarray:
     """Indices ``(M,)``, ascending, of the first of each run of identical correspondences.
 
     ``pts1, pts2`` ``(N, 2)``: row ``i`` of each is one correspondence. A detector
-    that gives a keypoint one descriptor per dominant orientation (SIFT: about one
-    keypoint in ten) lists the same correspondence twice when both copies match. It
+    that gives a keypoint one descriptor per dominant orientation (SIFT) lists the
+    same correspondence twice when both copies match (about one match in ten). It
     is one observation of the keypoints' noise, and one point: counted twice, it
     shrinks a covariance as a second observation would and adds to the inlier count
     (on a chessboard on a wall 15 listed inliers were 6 points, which a pose of five
