@@ -43,10 +43,9 @@ from scene3D.evaluation import pose_auc, relative_pose_error
 from scene3D.features import image_features, match_features, to_gray
 from scene3D.imageio import load_working_image
 from scene3D.twoview import reconstruct_from_matches
-from scene3D.uncertainty import pose_error_chi2
+from scene3D.uncertainty import CHI2_90, pose_error_chi2
 
 GAP_GROUPS = (((1, 2), "1-2"), ((3, 4, 5), "3-5"))
-CHI2_90 = (6.251, 4.605)  # 90 % quantiles of chi-square with 3 and 2 degrees of freedom
 
 
 @dataclass
@@ -88,7 +87,7 @@ def run_pair(pts1, pts2, K, truth, order: int) -> Outcome:
     chi2 = pose_error_chi2(result.R, result.t, *truth, result.pose_covariance)
     return Outcome("trusted" if result.trusted else "flagged",
                    relative_pose_error(result.R, result.t, *truth).max_deg,
-                   (bool(chi2[0] <= CHI2_90[0]), bool(chi2[1] <= CHI2_90[1])))
+                   (bool(chi2[0] <= CHI2_90[3]), bool(chi2[1] <= CHI2_90[2])))
 
 
 def _row(scene: str, width: int, gaps: str, runs: list[list[Outcome]]) -> str:
