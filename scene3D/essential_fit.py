@@ -25,7 +25,8 @@ from numpy.typing import ArrayLike
 from .epipolar import ROBUST_METHOD, _check_pair, _mask, essential_distances, essential_from_pose
 from .geometry import FloatArray, as_matrix, median, pose_angle_deg
 from .pose import decompose_essential, nearest_decomposition
-from .refinement import _loss, refine_relative_pose
+from .refinement import _loss, refine_relative_pose, relative_pose_covariance
+from .uncertainty import CHI2_99_POSE, pose_difference_chi2
 
 #: Robust estimator of the restarts of :func:`fit_essential` when they run below the
 #: given threshold: USAC with MSAC scoring and local optimisation (LO-RANSAC). At a
@@ -99,6 +100,14 @@ class EssentialFit(NamedTuple):
         The other optima whose cost is within :data:`COMPARABLE_COST` of the best
         (unit norm; those that ``spread_deg`` measures), for a caller to weigh against
         the pose's covariance (:func:`scene3D.twoview.rival_chi2`).
+    fitted_threshold_px : float
+        The threshold whose inliers ``E`` was refined on and ``inliers`` holds: the given
+        one, or ``comparison_threshold_px`` when the matches between the two pull the
+        pose out of the region that the covariance of its fit within the noise allows
+        (:func:`widening_shift_chi2`).
+    widening_shift_chi2 : float
+        How far the refinement at the given threshold moved the pose from the optimum
+        within the noise (:func:`widening_shift_chi2`; 0 when it was not run).
     """
 
     E: FloatArray
@@ -109,6 +118,8 @@ class EssentialFit(NamedTuple):
     spread_deg: float = 0.0
     comparison_threshold_px: float = float("nan")
     rivals: tuple[FloatArray, ...] = ()
+    fitted_threshold_px: float = float("nan")
+    widening_shift_chi2: float = 0.0
 
 
 def fit_essential(
@@ -144,9 +155,16 @@ def fit_essential(
     standard deviations). When that is below ``threshold_px``, the probe is the first
     start, every other start (:data:`RESTART_METHOD`) runs and is refined at that
     threshold, and the best optimum is finally refined at ``threshold_px``, whose
-    inliers it returns. When the matches are as noisy as ``threshold_px`` allows, the
-    starts are those of a plain restart at ``threshold_px`` (:data:`scene3D.epipolar.ROBUST_METHOD`,
-    the first on the matches in their order).
+    inliers it returns, unless the matches that this lets in pull the pose out of the
+    region that the covariance of the optimum within the noise allows (chi-square of
+    the shift, :func:`widening_shift_chi2`, above :data:`scene3D.uncertainty.CHI2_99_POSE`):
+    then they are not noise of the same matches but a population of their own
+    (mismatched windows a pixel from their epipolar lines, castle-P19 at 768 px), and
+    the optimum within the noise is returned with its own inliers. Where they agree,
+    the wider fit is the more precise one and is kept: a test of the efficient estimate
+    against the robust one (Hausman, 1978). When the matches are as noisy as
+    ``threshold_px`` allows, the starts are those of a plain restart at ``threshold_px``
+    (:data:`scene3D.epipolar.ROBUST_METHOD`, the first on the matches in their order).
 
     Parameters
     ----------
@@ -201,16 +219,43 @@ def fit_essential(
             break
     if not fits:
         return EssentialFit(np.full((3, 3), np.nan), np.zeros(n, dtype=bool), max_starts,
-                            refinement_s, comparison_threshold_px=tau)
+                            refinement_s, comparison_threshold_px=tau, fitted_threshold_px=tau)
     best_cost, E, inliers = min(fits, key=lambda fit: fit[0])
     spread = rival_spread_deg([(cost, E_other) for cost, E_other, _ in fits])
     rivals = tuple(E_other for cost, E_other, _ in fits
                    if cost <= best_cost + COMPARABLE_COST and not _same_essential(E_other, E))
+    fitted_px, shift_chi2 = tau, 0.0
     if tau < threshold_px:  # the inliers the caller asked for, and the pose they give
         t0 = time.perf_counter()
-        _, E, inliers = polish_essential(E, p1, p2, K, threshold_px)
+        _, E_wide, inliers_wide = polish_essential(E, p1, p2, K, threshold_px)
+        shift_chi2 = widening_shift_chi2(E, inliers, E_wide, p1, p2, K, tau)
+        if shift_chi2 <= CHI2_99_POSE:
+            E, inliers, fitted_px = E_wide, inliers_wide, threshold_px
         refinement_s += time.perf_counter() - t0
-    return EssentialFit(E, inliers, len(fits), refinement_s, confirmed, spread, tau, rivals)
+    return EssentialFit(E, inliers, len(fits), refinement_s, confirmed, spread, tau, rivals,
+                        fitted_px, shift_chi2)
+
+
+def widening_shift_chi2(E: FloatArray, inliers: np.ndarray, E_wide: FloatArray, p1: FloatArray,
+                        p2: FloatArray, K: FloatArray, threshold_px: float) -> float:
+    """How far a wider threshold's refinement moved a pose, under the pose's covariance.
+
+    ``E`` is the optimum of :func:`polish_essential` at ``threshold_px`` with its
+    ``inliers`` ``(N,) bool`` among the correspondences ``p1, p2`` ``(N, 2)``, and
+    ``E_wide`` the refinement from it at a wider threshold. Returns the chi-square
+    (5 degrees of freedom, :func:`scene3D.uncertainty.pose_difference_chi2`) of
+    ``E_wide`` under the sandwich covariance of ``E`` on its inliers
+    (:func:`scene3D.refinement.relative_pose_covariance`, the refinement's loss and
+    scale; 0 when it is not finite). If the matches the wider threshold lets in were
+    the same noise's tail, the wider fit would be the same pose known a little better,
+    and its shift would lie well within that covariance (the covariance of the
+    difference is smaller still: this is a conservative Hausman test).
+    """
+    R, t = decompose_essential(E)[0]
+    in1, in2 = p1[inliers], p2[inliers]
+    scale = loss_scale_px(essential_distances(E, in1, in2, K), threshold_px)
+    covariance = relative_pose_covariance(R, t, in1, in2, K, "cauchy", scale)
+    return pose_difference_chi2(R, t, *nearest_decomposition(E_wide, R, t), covariance)
 
 
 def estimate_essential(

@@ -162,6 +162,7 @@ def reconstruct_from_matches(
     # noise, nor a second vote for a model.
     p1, p2 = p1[distinct], p2[distinct]
     E, inliers, refine_s = fit.E, fit.inliers[distinct], fit.refinement_s
+    fitted_px = fit.fitted_threshold_px  # the threshold the pose's inliers were refined at
     logger.debug("essential matrix: %d robust starts", fit.starts)
     num_inliers = int(inliers.sum())
     if not np.all(np.isfinite(E)) or num_inliers < s.min_inliers:
@@ -189,6 +190,7 @@ def reconstruct_from_matches(
         better = lower_cost_plane_pose(E, inliers, h_inliers, H, p1, p2, K, s.threshold_px)
         if better is not None:
             E, inliers = better
+            fitted_px = s.threshold_px
             num_inliers = int(inliers.sum())
             in1, in2 = p1[inliers], p2[inliers]
             H, h_inliers = estimate_homography(in1, in2, s.threshold_px)
@@ -230,8 +232,8 @@ def reconstruct_from_matches(
         )
     median_kept_parallax = median(parallax[keep])
     t_focal = time.perf_counter()
-    loss_scale = loss_scale_px(distances, s.threshold_px)
-    inlier_threshold = inlier_threshold_px(distances, s.threshold_px)
+    loss_scale = loss_scale_px(distances, fitted_px)
+    inlier_threshold = inlier_threshold_px(distances, fitted_px)
     focal = check_focal_length(R, t, p1, p2, inliers, K, inlier_threshold, loss_scale)
     refine_s += time.perf_counter() - t_focal
     points, pts1_kept, pts2_kept = points[keep], in1[keep], in2[keep]
