@@ -44,6 +44,7 @@ from bench_cli import add_data_arguments, data_folder
 from scene3D.calibration import BoardSpec, calibrate, detect_board
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
+from scene3D.geometry import relative_pose
 from scene3D.scene import SceneReconstruction3D
 from scene3D.twoview import TwoViewSettings
 from scene3D.twoview.trust import beyond_uncertainty_limit
@@ -89,9 +90,7 @@ def set_runs(folder: Path, name: str, max_width: int | None) -> list[PairRun]:
     calibration, poses = board_poses(folder, pattern, left_out)
     runs = []
     for a, b in itertools.combinations(sorted(poses), 2):
-        (R1, t1), (R2, t2) = poses[a], poses[b]
-        R_true = R2 @ R1.T
-        t_true = t2 - R_true @ t1
+        R_true, t_true = relative_pose(*poses[a], *poses[b])
         scene = SceneReconstruction3D(calibration.K, calibration.dist)
         scene.load_image_pair(folder / a, folder / b, max_width=max_width)
         matches = len(scene.matches("SIFT"))

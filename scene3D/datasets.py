@@ -30,6 +30,7 @@ import numpy as np
 
 from .errors import DatasetError
 from .geometry import FloatArray
+from .geometry import relative_pose as _relative_pose
 from .imageio import IMAGE_SUFFIXES
 
 logger = logging.getLogger(__name__)
@@ -302,6 +303,4 @@ def relative_pose(cam1: StrechaCamera, cam2: StrechaCamera) -> tuple[FloatArray,
 
     ``t`` keeps the metric scale of the ground truth (not unit norm).
     """
-    R = cam2.R @ cam1.R.T
-    t = cam2.t - R @ cam1.t
-    return R, t
+    return _relative_pose(cam1.R, cam1.t, cam2.R, cam2.t)

@@ -125,6 +125,18 @@ def camera_centers(R: ArrayLike, t: ArrayLike) -> FloatArray:
     return -np.einsum("vji,vj->vi", np.asarray(R, np.float64), np.asarray(t, np.float64))
 
 
+def relative_pose(R1: ArrayLike, t1: ArrayLike, R2: ArrayLike, t2: ArrayLike
+                  ) -> tuple[FloatArray, FloatArray]:
+    """``(R, t)`` with ``x_cam2 = R x_cam1 + t`` from two poses ``x_cam = R_i x + t_i``.
+
+    ``R1, R2`` (3, 3) and ``t1, t2`` (3,) map one frame (the world, a calibration board)
+    into each camera; ``t`` keeps their metric scale (not unit norm).
+    """
+    R1, R2 = np.asarray(R1, np.float64), np.asarray(R2, np.float64)
+    R = R2 @ R1.T
+    return R, np.asarray(t2, np.float64).reshape(3) - R @ np.asarray(t1, np.float64).reshape(3)
+
+
 def rotation_angle_deg(R: ArrayLike) -> float:
     """Angle of the rotation ``R`` in degrees (0 for the identity)."""
     R = np.asarray(R, dtype=np.float64)

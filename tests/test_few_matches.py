@@ -12,6 +12,7 @@ import pytest
 from scene3D.calibration import BoardSpec, calibrate
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
+from scene3D.geometry import relative_pose
 from scene3D.scene import SceneReconstruction3D
 from scene3D.twoview import TwoViewSettings, reconstruct_two_view
 
@@ -69,9 +70,7 @@ def _wall_pair(wall_board, a, b):
     scene = SceneReconstruction3D(calibration.K, calibration.dist)
     scene.load_image_pair(folder / f"calibration{a}.jpg", folder / f"calibration{b}.jpg",
                           max_width=None)
-    (R1, t1), (R2, t2) = poses[f"calibration{a}.jpg"], poses[f"calibration{b}.jpg"]
-    R = R2 @ R1.T
-    return scene, (R, t2 - R @ t1)
+    return scene, relative_pose(*poses[f"calibration{a}.jpg"], *poses[f"calibration{b}.jpg"])
 
 
 def test_a_chessboard_on_a_plain_wall_with_too_few_distinct_matches_is_refused(wall_board):

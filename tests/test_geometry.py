@@ -7,6 +7,7 @@ from scene3D.geometry import (
     distinct_correspondences,
     normalize_points,
     project,
+    relative_pose,
     rotation_about_axis,
     rotation_angle_deg,
     rotation_error_deg,
@@ -54,3 +55,16 @@ def test_distinct_correspondences_keep_the_first_of_each_in_order():
     # Row 2 repeats row 0; row 3 shares its image-1 pixel but not its match: kept.
     np.testing.assert_array_equal(distinct_correspondences(pts1, pts2), [0, 1, 3, 4])
     assert distinct_correspondences(np.zeros((0, 2)), np.zeros((0, 2))).shape == (0,)
+
+
+def test_relative_pose_maps_camera_1_coordinates_into_camera_2():
+    rng = np.random.default_rng(3)
+    R1, R2 = rotation_about_axis([1, 2, 0.5], 20.0), rotation_about_axis([-0.3, 1, 0.2], -35.0)
+    t1, t2 = rng.normal(size=3), rng.normal(size=3)
+    world = rng.normal(size=(10, 3))
+    R, t = relative_pose(R1, t1, R2, t2)
+    cam1, cam2 = world @ R1.T + t1, world @ R2.T + t2
+    np.testing.assert_allclose(cam1 @ R.T + t, cam2, atol=1e-12)
+    R_back, t_back = relative_pose(R2, t2, R1, t1)  # the inverse motion
+    np.testing.assert_allclose(R_back, R.T, atol=1e-12)
+    np.testing.assert_allclose(t_back, -R.T @ t, atol=1e-12)
