@@ -228,7 +228,7 @@ def rotation_from_quaternion(q: ArrayLike) -> FloatArray:
 def median(values: FloatArray) -> float:
     """``np.median`` of a non-empty ``(N,)`` array without NaNs.
 
-    ``np.median`` imports ``numpy.ma`` on its first call, 8 ms of a 0.4 s run.
+    ``np.median`` imports ``numpy.ma`` on its first call, 8-18 ms of a 0.4-0.6 s run.
     """
     n = len(values)
     part = np.partition(values, [(n - 1) // 2, n // 2])
