@@ -157,7 +157,8 @@ def reconstruct_from_matches(
             "too_few_matches", "too few matches between the images",
             matches=n, required=s.min_matches,
         )
-    fit = fit_essential(p1, p2, K, s.threshold_px, max_starts=s.max_starts)
+    fit = fit_essential(p1, p2, K, s.threshold_px, max_starts=s.max_starts,
+                        shift_test_min_inliers=s.trusted_inliers)
     # From here on each correspondence once: a copy is no second observation of its
     # noise, nor a second vote for a model.
     p1, p2 = p1[distinct], p2[distinct]

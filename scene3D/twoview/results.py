@@ -75,7 +75,9 @@ class TwoViewSettings:
         Fewer inliers leave the pose untrusted whatever its covariance says: a
         covariance estimated from few residuals is itself uncertain, and random
         matches can agree on a wrong pose by chance (a few dozen of them among a
-        few hundred; ``tests/test_twoview.py``).
+        few hundred; ``tests/test_twoview.py``). For the same reason the robust fit
+        tests its last refinement against its covariance only above this count
+        (``shift_test_min_inliers`` of :func:`scene3D.essential_fit.fit_essential`).
     trusted_inlier_ratio, trusted_parallax_deg, planar_warning_ratio : float
         Not verdicts: when the uncertainty is too large, the warning names the
         likely causes, an inlier share of the matches below ``trusted_inlier_ratio``
