@@ -160,9 +160,10 @@ def fit_essential(
     inliers it returns, unless the matches that this lets in pull the pose out of the
     region that the covariance of the optimum within the noise allows (chi-square of
     the shift, :func:`widening_shift_chi2`, above :data:`scene3D.uncertainty.CHI2_99_POSE`):
-    then they are not noise of the same matches but a population of their own
-    (mismatched windows a pixel from their epipolar lines, castle-P19 at 768 px), and
-    the optimum within the noise is returned with its own inliers. Where they agree,
+    then they are not noise of the same matches but a population of their own, which
+    another pose fits (castle-P19 pair 8-9 at 768 px: 2 deg away; mismatched windows half
+    a pixel to a pixel off their epipolar lines do the same), and the optimum within the
+    noise is returned with its own inliers. Where they agree,
     the wider fit is the more precise one and is kept: a test of the efficient estimate
     against the robust one (Hausman, 1978). When the matches are as noisy as
     ``threshold_px`` allows, the starts are those of a plain restart at ``threshold_px``
