@@ -23,6 +23,11 @@ levers:
   of either image to its own (a test against repeated structure);
 - ``contrast-0.02``: SIFT's contrast threshold 0.02 instead of OpenCV's 0.04 (about
   twice the keypoints);
+- ``guided-1px``, ``guided-3px``: guided matching: the pair reconstructed once, then
+  matched again among the keypoints within 1 or 3 px (Sampson distance) of that pose's
+  epipolar geometry (ratio test and mutual check among those candidates only), and
+  reconstructed from the new matches (the geometry time holds both fits and the guided
+  matching);
 - ``poselib``, ``poselib-0.5px``: PoseLib's estimator on scene3D's matches (with the
   ``bench`` extra).
 
@@ -62,7 +67,8 @@ from scene3D.imageio import load_working_image
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches
 
 LEVERS = ("scene3D", "previous", "previous-0.5px", "ratio-0.7", "rootsift", "symmetric",
-          "self-ratio", "contrast-0.02", "poselib", "poselib-0.5px")
+          "self-ratio", "contrast-0.02", "guided-1px", "guided-3px", "poselib",
+          "poselib-0.5px")
 RATIO = 0.8
 
 
@@ -124,6 +130,44 @@ def self_ratio_filter(f1: Features, f2: Features, idx1: np.ndarray, idx2: np.nda
     return match < RATIO ** 2 * nearest_other
 
 
+def guided_matches(f1: Features, f2: Features, F: np.ndarray, band_px: float,
+                   block: int = 512) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the matches among keypoint pairs within ``band_px`` of ``F``'s geometry.
+
+    A pair is a candidate when its Sampson distance to ``F`` (pixels of image 2 ~ F x1)
+    is at most ``band_px``; among each keypoint's candidates the nearest descriptor must
+    pass Lowe's ratio against the second nearest, and be the nearest of its own
+    candidates in image 1 (mutual check).
+    """
+    x1 = np.c_[f1.pixels, np.ones(len(f1.pixels))]
+    x2 = np.c_[f2.pixels, np.ones(len(f2.pixels))]
+    lines2, lines1 = x1 @ F.T, x2 @ F  # epipolar lines in image 2 and image 1
+    grad1 = lines1[:, 0] ** 2 + lines1[:, 1] ** 2
+    n1, n2 = len(x1), len(x2)
+    nearest, passed = np.zeros(n1, dtype=np.intp), np.zeros(n1, dtype=bool)
+    col_best, col_arg = np.full(n2, np.inf), np.zeros(n2, dtype=np.intp)
+    for start in range(0, n1, block):
+        rows = slice(start, start + block)
+        d = _sq_distances(f1.descriptors[rows], f2.descriptors)
+        lines = lines2[rows]
+        algebraic = (lines @ x2.T) ** 2
+        d[algebraic > band_px ** 2 * ((lines[:, 0] ** 2 + lines[:, 1] ** 2)[:, None]
+                                      + grad1[None, :])] = np.inf
+        r = np.arange(len(d))
+        j = d.argmin(axis=1)
+        best = d[r, j].copy()
+        d[r, j] = np.inf
+        second = d.min(axis=1)
+        d[r, j] = best
+        nearest[rows], passed[rows] = j, np.isfinite(best) & (best < RATIO ** 2 * second)
+        i = d.argmin(axis=0)
+        value = d[i, np.arange(n2)]
+        better = value < col_best
+        col_best[better], col_arg[better] = value[better], i[better] + start
+    idx1 = np.flatnonzero(passed & (col_arg[nearest] == np.arange(n1)))
+    return idx1, nearest[idx1]
+
+
 @contextmanager
 def previous_estimator() -> Iterator[None]:
     """The essential fit before issue #19: MAGSAC++ restarts compared at the threshold."""
@@ -176,6 +220,10 @@ def run_lever(lever: str, cameras: list, pairs: list[tuple[int, int]],
                 R, t = poselib_pose(p1, p2, K, size, 0.5 if lever.endswith("0.5px") else 1.0)
                 flag = False
             else:
+                if lever.startswith("guided"):
+                    first = reconstruct_from_matches(p1, p2, K)
+                    idx1, idx2 = guided_matches(f1, f2, first.F, float(lever[7:-2]))
+                    p1, p2 = f1.pixels[idx1], f2.pixels[idx2]
                 settings = TwoViewSettings(threshold_px=0.5 if lever.endswith("0.5px") else 1.0)
                 with previous_estimator() if lever.startswith("previous") else nullcontext():
                     result = reconstruct_from_matches(p1, p2, K, settings)
