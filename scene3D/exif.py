@@ -16,7 +16,7 @@ import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
-from .imageio import read_image_size
+from .imageio import check_image_file, read_image_size
 from .intrinsics_prior import ExifCamera, FocalPrior, camera_prior
 
 logger = logging.getLogger(__name__)
@@ -67,9 +67,7 @@ def read_exif(path: str | os.PathLike) -> ExifCamera | None:
     FileNotFoundError
         If ``path`` does not exist.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"image not found: '{path}'")
+    path = check_image_file(path)
     from PIL import Image, UnidentifiedImageError
 
     with warnings.catch_warnings(record=True) as caught:

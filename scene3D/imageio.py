@@ -41,11 +41,24 @@ _AS_STORED = cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR
 _HEADER_BYTES = 1 << 18
 
 
-def _read_bytes(path: str | os.PathLike) -> np.ndarray:
-    """The bytes of an image file ``(n,) uint8``; checks that it exists and is not empty."""
+def check_image_file(path: str | os.PathLike) -> Path:
+    """``path`` as a :class:`~pathlib.Path`, once it is known to name a file.
+
+    Raises
+    ------
+    FileNotFoundError
+        If nothing is there, or a folder is (saying which).
+    """
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"image not found: '{path}'")
+        what = "a folder, not an image file" if path.is_dir() else "image not found"
+        raise FileNotFoundError(f"{what}: '{path}'")
+    return path
+
+
+def _read_bytes(path: str | os.PathLike) -> np.ndarray:
+    """The bytes of an image file ``(n,) uint8``; checks that it exists and is not empty."""
+    path = check_image_file(path)
     data = np.fromfile(path, dtype=np.uint8)  # works with non-ASCII paths too
     if data.size == 0:
         raise ValueError(f"cannot read image '{path}': the file is empty")

@@ -149,6 +149,7 @@ def test_console_script_reconstruct(tmp_path, synthetic_files):
 
 @pytest.mark.parametrize("case, code, message", [
     ("missing", 2, "image not found"),
+    ("folder", 2, "a folder, not an image file"),
     ("text", 2, "not an image file"),
     ("empty", 2, "the file is empty"),
     ("sizes", 2, "same size"),
@@ -171,6 +172,7 @@ def test_bad_inputs_exit_codes_and_messages(tmp_path, synthetic_files, case, cod
     (tmp_path / "file").write_text("x")
     args = {
         "missing": [tmp_path / "nope.jpg", f / "b.png", "--calib", calib],
+        "folder": [f, f / "b.png", "--calib", calib],
         "text": [tmp_path / "text.jpg", f / "b.png", "--calib", calib],
         "empty": [f / "a.png", tmp_path / "empty.jpg", "--calib", calib],
         "sizes": [f / "a.png", f / "small.png", "--calib", calib],

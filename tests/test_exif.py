@@ -54,6 +54,8 @@ def test_no_exif_is_none(tmp_path):
     assert read_exif(save(tmp_path / "plain.png")) is None
     with pytest.raises(FileNotFoundError, match="nope.jpg"):
         read_exif(tmp_path / "nope.jpg")
+    with pytest.raises(FileNotFoundError, match="a folder, not an image file"):
+        read_exif(tmp_path)
 
 
 @pytest.mark.parametrize("damage, message", [

@@ -48,6 +48,8 @@ def test_read_files(tmp_path):
 def test_bad_files(tmp_path):
     with pytest.raises(FileNotFoundError, match="missing.jpg"):
         read_image(tmp_path / "missing.jpg")
+    with pytest.raises(FileNotFoundError, match="a folder, not an image file"):
+        read_image(tmp_path)
     text = tmp_path / "notes.jpg"
     text.write_text("not an image")
     with pytest.raises(ValueError, match="not an image file"):
