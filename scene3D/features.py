@@ -111,9 +111,13 @@ def create_detector(mode: str, max_features: int = 8000) -> tuple[cv2.Feature2D,
 
 def _detect(gray: np.ndarray, detector: cv2.Feature2D
             ) -> tuple[Sequence[cv2.KeyPoint], FloatArray, np.ndarray]:
-    """The detector's keypoints, their pixels ``(N, 2)`` float64 and descriptors ``(N, D)``."""
+    """The detector's keypoints, their pixels ``(N, 2)`` float64 and descriptors ``(N, D)``
+    (``(0, D)`` of the detector's type when it finds nothing: a blank image)."""
     keypoints, descriptors = detector.detectAndCompute(gray, None)
     pixels = cv2.KeyPoint_convert(keypoints) if keypoints else np.zeros((0, 2))
+    if descriptors is None:  # OpenCV's answer for no keypoints
+        dtype = np.float32 if detector.descriptorType() == cv2.CV_32F else np.uint8
+        descriptors = np.zeros((0, detector.descriptorSize()), dtype=dtype)
     return keypoints, np.asarray(pixels, dtype=np.float64).reshape(-1, 2), descriptors
 
 
@@ -143,7 +147,7 @@ class ImageFeatures:
     pixels : (N, 2) float64
         Keypoint positions in the image.
     descriptors : (N, D) array or None
-        float32 for SIFT/SURF, uint8 for ORB/AKAZE; None when nothing was found.
+        float32 for SIFT/SURF, uint8 for ORB/AKAZE; ``(0, D)`` when nothing was found.
     feature : str
         The detector that ran (``"SIFT"`` for an unavailable SURF).
     norm : int
@@ -153,7 +157,7 @@ class ImageFeatures:
     """
 
     pixels: FloatArray
-    descriptors: np.ndarray | None
+    descriptors: np.ndarray
     feature: str
     norm: int
     seconds: float

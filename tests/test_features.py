@@ -84,6 +84,18 @@ def test_features_of_different_detectors_do_not_match():
         match_features(image_features(img, "ORB"), image_features(img, "SIFT"))
 
 
+@pytest.mark.parametrize("mode, width, dtype", [("SIFT", 128, np.float32),
+                                                ("ORB", 32, np.uint8), ("AKAZE", 61, np.uint8)])
+def test_a_blank_image_has_no_keypoints_and_an_empty_descriptor_table(mode, width, dtype):
+    blank = image_features(np.full((120, 160), 128, np.uint8), mode)
+    assert blank.pixels.shape == (0, 2)
+    assert blank.descriptors.shape == (0, width) and blank.descriptors.dtype == dtype
+    textured = image_features(np.random.default_rng(0).integers(0, 255, (120, 160), np.uint8),
+                              mode)
+    assert textured.descriptors.shape[1] == width and textured.descriptors.dtype == dtype
+    assert len(match_features(blank, textured).pts1) == 0
+
+
 def _mirror_bias_px(gray, detector):
     """Median (bias_x, bias_y) of keypoints against their twins in the mirrored images.
 

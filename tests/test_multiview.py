@@ -355,13 +355,14 @@ def test_pycolmap_reads_the_model(fountain_views):
     assert model.num_reg_images() == 11 and model.num_points3D() > 3000
 
 
-def test_an_unrelated_image_is_reported_not_registered(fountain, chessboards, tmp_path):
+def test_an_unrelated_or_blank_image_is_reported_not_registered(fountain, chessboards, tmp_path):
     folder = tmp_path / "mixed"
     folder.mkdir()
     for i in (3, 4, 5, 6):
         shutil.copy(fountain / "images" / f"{i:04d}.jpg", folder / f"{i:04d}.jpg")
     board = cv2.imread(str(chessboards / "opencv-left" / "left01.jpg"))
     cv2.imwrite(str(folder / "0005b_board.jpg"), cv2.resize(board, (3072, 2048)))
+    cv2.imwrite(str(folder / "0006b_blank.jpg"), np.full((2048, 3072, 3), 128, np.uint8))
     out = tmp_path / "out"
     proc = subprocess.run(
         [sys.executable, "-m", "scene3D", "reconstruct-views", str(folder), "--calib",
@@ -369,10 +370,12 @@ def test_an_unrelated_image_is_reported_not_registered(fountain, chessboards, tm
          "--no-plots", "--out", str(out)], capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((out / "reconstruction.json").read_text())
-    assert summary["unregistered"] == ["0005b_board.jpg"]
-    assert summary["unregistered_reasons"]["0005b_board.jpg"]
+    # A blank photo has no keypoints at all: it is left out like any other.
+    assert sorted(summary["unregistered"]) == ["0005b_board.jpg", "0006b_blank.jpg"]
+    assert all(summary["unregistered_reasons"][name] for name in summary["unregistered"])
     assert summary["registered"] == 4 and len(summary["models"]) == 1
     assert "view '0005b_board.jpg' could not be registered" in proc.stderr
+    assert "view '0006b_blank.jpg' could not be registered" in proc.stderr
 
 
 def test_reconstruct_views_bad_input(tmp_path, fountain):

@@ -130,6 +130,8 @@ def match_views(f_i: ViewFeatures, f_j: ViewFeatures, num_words: int, ratio: flo
     descriptors, or no vocabulary) through the exhaustive
     :func:`scene3D.features.match_descriptors`.
     """
+    if len(f_i.descriptors) < 2 or len(f_j.descriptors) < 2:  # a blank view
+        return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
     float_words = (f_i.words is not None and f_j.words is not None
                    and f_i.descriptors.dtype == np.float32 and num_words > 0)
     if not float_words:
