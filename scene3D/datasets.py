@@ -227,12 +227,14 @@ def strecha_views(dataset: str | os.PathLike) -> list[tuple[Path, Path]]:
     Raises
     ------
     FileNotFoundError
-        ``images/`` or ``gt_dense_cameras/`` is missing.
+        ``dataset``, ``images/`` or ``gt_dense_cameras/`` is missing.
     ValueError
         Fewer than two images have a camera file.
     """
     dataset = Path(dataset)
     images, cameras = dataset / "images", dataset / "gt_dense_cameras"
+    if not dataset.is_dir():
+        raise FileNotFoundError(f"scene folder not found: '{dataset}'")
     if not images.is_dir() or not cameras.is_dir():
         raise FileNotFoundError(f"'{dataset}' needs images/ and gt_dense_cameras/ folders")
     views = [(p, cameras / f"{p.name}.camera") for p in sorted(images.iterdir())

@@ -103,6 +103,8 @@ def test_strecha_views_pair_each_image_with_its_camera_file(tmp_path):
         strecha_views(tmp_path)
     with pytest.raises(FileNotFoundError, match="needs images/ and gt_dense_cameras/"):
         strecha_views(images)
+    with pytest.raises(FileNotFoundError, match="scene folder not found"):
+        strecha_views(tmp_path / "nope")
 
 
 def test_a_strecha_scene_holds_each_image_with_its_true_camera(data_root):
