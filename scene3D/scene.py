@@ -31,7 +31,12 @@ from .features import Matches, find_matches, normalize_feature_mode
 from .geometry import distinct_correspondences
 from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, load_working_images
 from .rectification import RectifiedPair, rectify_pair
-from .twoview import TwoViewReconstruction, TwoViewSettings, reconstruct_two_view
+from .twoview import (
+    TwoViewReconstruction,
+    TwoViewSettings,
+    reconstruct_two_view,
+    require_enough_matches,
+)
 from .uncertainty import depth_sigmas
 
 if TYPE_CHECKING:
@@ -185,6 +190,7 @@ class SceneReconstruction3D:
 
         mode = normalize_feature_mode(feat_mode)
         matches = self.matches(mode)
+        require_enough_matches(matches, self.settings)
         calibration = self_calibrate_pair(matches.pts1, matches.pts2, self.K, prior_sigma_log,
                                           prior_source, self.settings, search)
         up = 2.0 ** self.halvings

@@ -37,6 +37,7 @@ def synthetic_files(tmp_path_factory, rendered_pair, rotated_pair):
     cv2.imwrite(str(folder / "b.png"), img2)
     cv2.imwrite(str(folder / "rot.png"), rotated_pair[1])
     cv2.imwrite(str(folder / "small.png"), cv2.resize(img2, (320, 240)))
+    cv2.imwrite(str(folder / "blank.png"), np.full_like(img1, 128))
     save_calibration(folder / "camera.yaml", CameraCalibration(K, np.zeros(5), (640, 480)))
     # The same camera calibrated at twice the resolution: K must be scaled down.
     K2 = scale_intrinsics(K, 2.0, 2.0)
@@ -161,6 +162,8 @@ def test_console_script_reconstruct(tmp_path, synthetic_files):
     ("one_image", 2, "exactly two images"),
     ("same_image", 2, "image given twice"),
     ("rotation", 1, "pure rotation"),
+    ("blank", 1, "image 2 has no keypoints"),
+    ("blank_no_calib", 1, "image 2 has no keypoints"),
 ])
 def test_bad_inputs_exit_codes_and_messages(tmp_path, synthetic_files, case, code, message):
     f = synthetic_files
@@ -184,6 +187,8 @@ def test_bad_inputs_exit_codes_and_messages(tmp_path, synthetic_files, case, cod
         "one_image": [f / "a.png", "--calib", calib],
         "same_image": [f / "a.png", f / ".." / f.name / "a.png", "--calib", calib],
         "rotation": [f / "a.png", f / "rot.png", "--calib", calib],
+        "blank": [f / "a.png", f / "blank.png", "--calib", calib],
+        "blank_no_calib": [f / "a.png", f / "blank.png"],
     }[case]
     if "--out" not in args:
         args += ["--out", tmp_path / "out"]

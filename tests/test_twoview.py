@@ -5,7 +5,7 @@ from scene3D.epipolar import estimate_homography
 from scene3D.errors import ReconstructionError
 from scene3D.essential_fit import EssentialFit
 from scene3D.evaluation import relative_pose_error
-from scene3D.features import find_matches
+from scene3D.features import Matches, find_matches
 from scene3D.geometry import project
 from scene3D.synthetic import random_points
 from scene3D.twoview import (
@@ -73,6 +73,24 @@ def test_too_few_matches(camera, true_pose):
         reconstruct_from_matches(pts1, pts2, camera)
     assert info.value.reason == "too_few_matches"
     assert info.value.counts == {"matches": 12, "required": 20}
+
+
+@pytest.mark.parametrize("keypoints, matched, why", [
+    ((0, 900), 0, "image 1 has no keypoints (a blank, blurred or very small photo?)"),
+    ((900, 7), 5, "image 2 has only 7 keypoints"),
+    ((900, 800), 12, "do the photos show the same scene"),
+])
+def test_too_few_matches_says_whether_keypoints_or_matching_were_short(
+        camera, true_pose, keypoints, matched, why):
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, t, n=12)
+    matches = Matches(pts1[:matched], pts2[:matched], "SIFT", keypoints)
+    with pytest.raises(ReconstructionError, match="too few matches") as info:
+        reconstruct_two_view(np.zeros((480, 640, 3), np.uint8), matches, camera)
+    assert why in str(info.value)
+    assert info.value.reason == "too_few_matches"
+    assert info.value.counts == {"matches": matched, "required": 20,
+                                 "keypoints1": keypoints[0], "keypoints2": keypoints[1]}
 
 
 def test_pure_rotation_points_are_refused(camera, true_pose):

@@ -28,12 +28,18 @@ Frames: points are in the camera-1 frame, ``x_cam2 = R x_cam1 + t``, ``|t| = 1``
 """
 
 from ..degeneracy import is_rotation_homography, off_plane_evidence, plane_poses
-from .core import reconstruct_from_matches, reconstruct_two_view, sample_colors
+from .core import (
+    reconstruct_from_matches,
+    reconstruct_two_view,
+    require_enough_matches,
+    sample_colors,
+)
 from .results import TwoViewGeometry, TwoViewReconstruction, TwoViewSettings
 from .trust import check_focal_length, rival_chi2, trust_warnings
 
 __all__ = [  # the plane checks lived here before scene3D.degeneracy
     "TwoViewGeometry", "TwoViewReconstruction", "TwoViewSettings", "check_focal_length",
     "is_rotation_homography", "off_plane_evidence", "plane_poses", "reconstruct_from_matches",
-    "reconstruct_two_view", "rival_chi2", "sample_colors", "trust_warnings",
+    "reconstruct_two_view", "require_enough_matches", "rival_chi2", "sample_colors",
+    "trust_warnings",
 ]

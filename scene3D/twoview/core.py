@@ -282,6 +282,33 @@ def reconstruct_from_matches(
     )
 
 
+def require_enough_matches(matches: Matches, settings: TwoViewSettings | None = None) -> None:
+    """Refuse a pair with fewer distinct matches than ``settings.min_matches``, saying why.
+
+    :func:`reconstruct_from_matches` refuses it too; this also says whether an image
+    had too few keypoints for that many matches (a blank, blurred or tiny photo) or
+    the images had keypoints that did not match (not the same scene, or too far apart).
+
+    Raises
+    ------
+    ReconstructionError
+        ``"too_few_matches"``, with ``matches``, ``required``, ``keypoints1`` and
+        ``keypoints2``.
+    """
+    required = (settings or TwoViewSettings()).min_matches
+    n = len(distinct_correspondences(matches.pts1, matches.pts2))
+    if n >= required:
+        return
+    counts = dict(zip(("keypoints1", "keypoints2"), matches.num_keypoints))
+    sparse = [f"image {i} has " + ("no keypoints" if k == 0 else
+                                   f"only {k} keypoint" + ("s" if k > 1 else ""))
+              for i, k in enumerate(matches.num_keypoints, 1) if k < required]
+    why = (" and ".join(sparse) + " (a blank, blurred or very small photo?)" if sparse else
+           "do the photos show the same scene, from viewpoints close enough to match?")
+    raise ReconstructionError("too_few_matches", f"too few matches between the images: {why}",
+                              matches=n, required=required, **counts)
+
+
 def reconstruct_two_view(
     img1: np.ndarray,
     matches: Matches,
@@ -290,8 +317,10 @@ def reconstruct_two_view(
 ) -> TwoViewReconstruction:
     """Reconstruct a pair from its matches; ``img1`` (BGR) gives the point colours.
 
-    See :func:`reconstruct_from_matches` for the steps and the errors raised.
+    See :func:`reconstruct_from_matches` for the steps and the errors raised
+    (:func:`require_enough_matches` for too few matches).
     """
+    require_enough_matches(matches, settings)
     t0 = time.perf_counter()
     geometry = reconstruct_from_matches(matches.pts1, matches.pts2, K, settings)
     t1 = time.perf_counter()
