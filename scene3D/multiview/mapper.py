@@ -50,6 +50,11 @@ logger = logging.getLogger(__name__)
 MorePairs = Callable[[int, Sequence[int]], list[PairMatches]]
 
 
+def _views(count: int) -> str:
+    """'1 view', '3 views'."""
+    return f"{count} view" + ("" if count == 1 else "s")
+
+
 def _no_pair_left(s: SfMSettings) -> str:
     """Why no model can start when no pair of the views left was verified."""
     return (f"no two views share {s.min_pair_inliers} or more matches that one essential "
@@ -127,8 +132,8 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
                 found = [p for v in open_views for p in more_pairs(int(v), np.flatnonzero(
                     model.registered).tolist())]
                 timings["matching"] += time.perf_counter() - t0
-                say(f"{len(open_views)} views not registered yet: {len(found)} further pairs "
-                    f"verified (round {rounds})")
+                say(f"{_views(len(open_views))} not registered yet: {len(found)} further "
+                    f"pairs verified (round {rounds})")
                 if found:
                     model.add_pairs(found)
                     failed.clear()
@@ -270,8 +275,8 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
         remaining &= ~model.registered
         reasons = {v: why for v, why in {**reasons, **left_out}.items() if remaining[v]}
         if remaining.any():
-            say(f"model {len(models) - 1}: {int(model.registered.sum())} views; "
-                f"{int(remaining.sum())} views left for another model")
+            say(f"model {len(models) - 1}: {_views(int(model.registered.sum()))}; "
+                f"{_views(int(remaining.sum()))} left for another model")
     for v in np.flatnonzero(remaining):
         reasons.setdefault(int(v), "no verified pair with the views left")
     models.sort(key=lambda m: -int(m.registered.sum()))
