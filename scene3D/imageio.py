@@ -65,9 +65,19 @@ def _read_bytes(path: str | os.PathLike) -> np.ndarray:
     return data
 
 
+#: Major brands of the ISO media file box ("ftyp") of HEIC/HEIF photos (as iPhones take
+#: them), which OpenCV cannot decode (AVIF, another brand of that container, it can).
+_HEIF_BRANDS = {b"heic", b"heix", b"heim", b"heis", b"hevc", b"hevx", b"mif1", b"msf1"}
+
+
 def _decode(data: np.ndarray, flags: int, path: str | os.PathLike) -> np.ndarray:
     img = cv2.imdecode(data, flags | cv2.IMREAD_IGNORE_ORIENTATION)
     if img is None:
+        head = data[:12].tobytes()
+        if head[4:8] == b"ftyp" and head[8:12] in _HEIF_BRANDS:
+            raise ValueError(f"cannot read image '{path}': a HEIC/HEIF photo, which OpenCV "
+                             "cannot decode; convert it to JPEG first (e.g. heif-convert, or "
+                             "export as JPEG from the photo app)")
         raise ValueError(f"cannot read image '{path}': not an image file, or a damaged one")
     return img
 
