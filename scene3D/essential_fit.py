@@ -22,8 +22,9 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .camera import validate_intrinsics
 from .epipolar import ROBUST_METHOD, _check_pair, _mask, essential_distances, essential_from_pose
-from .geometry import FloatArray, as_matrix, distinct_correspondences, median, pose_angle_deg
+from .geometry import FloatArray, distinct_correspondences, median, pose_angle_deg
 from .pose import decompose_essential, nearest_decomposition
 from .refinement import _loss, refine_relative_pose, relative_pose_covariance
 from .uncertainty import CHI2_99_POSE, pose_difference_chi2
@@ -195,7 +196,7 @@ def fit_essential(
     if max_starts < 1:
         raise ValueError(f"max_starts must be >= 1, got {max_starts}")
     p1, p2 = _check_pair(pts1, pts2, 5)
-    K = as_matrix(K, (3, 3), "K")
+    K = validate_intrinsics(K)
     n = len(p1)
     # Python's generator, not numpy's: numpy.random costs 13 ms to import.
     rng = random.Random(0)
@@ -299,7 +300,7 @@ def estimate_essential(
         fit = fit_essential(pts1, pts2, K, threshold_px, confidence, max_iters, max_starts=1)
         return fit.E, fit.inliers
     p1, p2 = _check_pair(pts1, pts2, 5)
-    return _robust_essential(p1, p2, as_matrix(K, (3, 3), "K"), threshold_px, confidence,
+    return _robust_essential(p1, p2, validate_intrinsics(K), threshold_px, confidence,
                              max_iters)
 
 

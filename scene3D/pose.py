@@ -14,6 +14,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .camera import validate_intrinsics
 from .errors import ReconstructionError
 from .geometry import FloatArray, as_matrix, as_points2d, check_same_length, pose_angle_deg
 from .triangulation import in_front_mask, triangulate_points
@@ -111,7 +112,7 @@ def choose_pose(
     p1 = as_points2d(pts1, "pts1")
     p2 = as_points2d(pts2, "pts2")
     check_same_length(p1, p2)
-    K = as_matrix(K, (3, 3), "K")
+    K = validate_intrinsics(K)
     candidates = decompose_essential(E)
     scored = []
     for R, t in candidates[::2]:

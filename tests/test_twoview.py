@@ -93,6 +93,18 @@ def test_too_few_matches_says_whether_keypoints_or_matching_were_short(
                                  "keypoints1": keypoints[0], "keypoints2": keypoints[1]}
 
 
+@pytest.mark.parametrize("bad, message", [
+    (np.diag([0.0, 0.0, 1.0]), "positive focal lengths"),  # was: "too few matches agree"
+    (np.array([[700.0, 0, 320], [0, 700, 240], [0, 0, 0]]), "last row"),
+])
+def test_a_matrix_that_is_no_camera_is_bad_input_not_a_failed_pair(camera, true_pose, bad,
+                                                                    message):
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, t, n=100)
+    with pytest.raises(ValueError, match=message):
+        reconstruct_from_matches(pts1, pts2, bad)
+
+
 def test_pure_rotation_points_are_refused(camera, true_pose):
     R, _ = true_pose
     _, pts1, pts2 = correspondences(camera, R, np.zeros(3), n=300, noise_px=0.3)

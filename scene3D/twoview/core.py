@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..bundle_two_view import bundle_adjust_two_view
+from ..camera import validate_intrinsics
 from ..degeneracy import (
     MotionModelChoice,
     lower_cost_plane_pose,
@@ -27,7 +28,6 @@ from ..essential_fit import fit_essential, inlier_threshold_px, loss_scale_px, n
 from ..features import Matches
 from ..geometry import (
     FloatArray,
-    as_matrix,
     as_points2d,
     check_same_length,
     distinct_correspondences,
@@ -149,7 +149,7 @@ def reconstruct_from_matches(
     p1 = as_points2d(pts1, "pts1")
     p2 = as_points2d(pts2, "pts2")
     check_same_length(p1, p2)
-    K = as_matrix(K, (3, 3), "K")
+    K = validate_intrinsics(K)
     distinct = distinct_correspondences(p1, p2)
     n = len(distinct)
     if n < s.min_matches:
