@@ -146,7 +146,7 @@ class ImageFeatures:
     ----------
     pixels : (N, 2) float64
         Keypoint positions in the image.
-    descriptors : (N, D) array or None
+    descriptors : (N, D) array
         float32 for SIFT/SURF, uint8 for ORB/AKAZE; ``(0, D)`` when nothing was found.
     feature : str
         The detector that ran (``"SIFT"`` for an unavailable SURF).
