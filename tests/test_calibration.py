@@ -243,6 +243,7 @@ def test_cli_video_collects_distinct_views(tmp_path, board_views, capsys):
     ("camera", "cannot open camera 99"),
     ("video_missing", "video not found"),
     ("out_folder_missing", "does not exist"),
+    ("out_under_a_file", "is a file, not a folder"),
 ])
 def test_cli_bad_inputs(tmp_path, chessboards, capsys, case, message):
     left = chessboards / "opencv-left"
@@ -264,6 +265,8 @@ def test_cli_bad_inputs(tmp_path, chessboards, capsys, case, message):
         "camera": ["--camera", "99"],
         "video_missing": ["--video", str(tmp_path / "none.avi")],
         "out_folder_missing": ["--images", str(left), "--out", str(tmp_path / "x" / "c.yaml")],
+        "out_under_a_file": ["--images", str(left), "--out",
+                             str(bad / "left01.jpg" / "c.yaml")],
     }[case]
     if "--out" not in argv:
         argv += out

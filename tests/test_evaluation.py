@@ -217,6 +217,8 @@ def test_evaluate_pair_specs():
     (["{fountain}", "--csv", "{tmp}/kept.csv"], "kept.csv' exists; use --force"),
     (["{fountain}", "--csv", "{tmp}"], "is a folder"),
     (["{fountain}", "--csv", "{tmp}/no/rows.csv"], "does not exist"),
+    (["{fountain}", "--csv", "{tmp}/kept.csv/rows.csv"], "is a file, not a folder"),
+    (["{tmp}/nope"], "scene folder not found"),
 ])
 def test_evaluate_bad_input(fountain, tmp_path, capsys, argv, message):
     argv = [a.format(tmp=tmp_path, fountain=fountain) for a in argv]

@@ -37,6 +37,7 @@ from .common import (
     UsageError,
     add_common_args,
     positive_float,
+    require_parent_folder,
     run_command,
     show_images,
 )
@@ -291,8 +292,7 @@ def run(args: argparse.Namespace) -> int:
     existing = [p for p in outputs if p.exists()]
     if existing and not args.force:
         raise UsageError(f"'{existing[0]}' exists; use --force to overwrite it")
-    if not args.out.parent.is_dir():
-        raise UsageError(f"output folder '{args.out.parent}' does not exist")
+    require_parent_folder(args.out, "--out")
 
     views, images, size, seen = collect_views(args, board,
                                               keep_images=args.save_undistorted is not None)

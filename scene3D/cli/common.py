@@ -233,6 +233,15 @@ def configure_logging(args: argparse.Namespace) -> None:
                         force=True)
 
 
+def require_parent_folder(path: Path, option: str) -> None:
+    """Raise ``UsageError`` unless the folder that file ``path`` (given as ``option``) goes
+    into exists, naming a file that stands in its way."""
+    parent = path.parent
+    if not parent.is_dir():
+        what = "is a file, not a folder" if parent.exists() else "does not exist"
+        raise UsageError(f"{option} '{path}': '{parent}' {what}")
+
+
 def prepare_output_dir(path: Path) -> Path:
     """Create ``path`` (and parents) or raise ``UsageError`` naming why it cannot be used."""
     if path.exists() and not path.is_dir():

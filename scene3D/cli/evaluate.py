@@ -44,6 +44,7 @@ from .common import (
     add_feature_arg,
     add_size_args,
     open_engine,
+    require_parent_folder,
     run_command,
 )
 
@@ -311,8 +312,7 @@ def _check_csv_target(path: Path | None, force: bool) -> None:
     if path.exists() and (path.is_dir() or not force):
         raise UsageError(f"--csv '{path}' exists; use --force to overwrite it"
                          if not path.is_dir() else f"--csv '{path}' is a folder")
-    if not path.parent.is_dir():
-        raise UsageError(f"--csv '{path}': folder '{path.parent}' does not exist")
+    require_parent_folder(path, "--csv")
 
 
 def _csv_text(rows: list[dict]) -> str:
