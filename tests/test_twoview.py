@@ -93,6 +93,28 @@ def test_too_few_matches_says_whether_keypoints_or_matching_were_short(
                                  "keypoints1": keypoints[0], "keypoints2": keypoints[1]}
 
 
+def test_photos_of_two_places_are_refused_with_what_to_check(data_root):
+    """Herz-Jesus-P8 and castle-P19: SIFT finds chance matches, no motion explains them."""
+    from scene3D.camera import scale_intrinsics_halved
+    from scene3D.datasets import read_strecha_camera, strecha_views
+    from scene3D.features import image_features, match_features
+    from scene3D.imageio import load_working_image
+
+    features, K = [], None
+    for scene in ("Herz-Jesus-P8", "castle-P19"):
+        path, camera_file = strecha_views(data_root / scene)[0]
+        camera = read_strecha_camera(camera_file)
+        img, _, levels = load_working_image(path, camera.K, camera.dist, 768)
+        features.append(image_features(img))
+        K = scale_intrinsics_halved(camera.K, levels)
+    matches = match_features(*features)
+    assert len(matches) >= 20  # enough chance matches to get past the first check
+    with pytest.raises(ReconstructionError, match="do the photos show the same, still scene"
+                       ) as info:
+        reconstruct_from_matches(matches.pts1, matches.pts2, K)
+    assert info.value.reason == "too_few_inliers"
+
+
 @pytest.mark.parametrize("bad, message", [
     (np.diag([0.0, 0.0, 1.0]), "positive focal lengths"),  # was: "too few matches agree"
     (np.array([[700.0, 0, 320], [0, 700, 240], [0, 0, 0]]), "last row"),

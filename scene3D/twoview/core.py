@@ -168,7 +168,8 @@ def reconstruct_from_matches(
     num_inliers = int(inliers.sum())
     if not np.all(np.isfinite(E)) or num_inliers < s.min_inliers:
         raise ReconstructionError(
-            "too_few_inliers", "too few matches agree on an essential matrix",
+            "too_few_inliers", "too few matches agree on an essential matrix: do the photos "
+            "show the same, still scene (not two places, nor mostly moving things)?",
             matches=n, inliers=num_inliers, required=s.min_inliers,
         )
     in1, in2 = p1[inliers], p2[inliers]
