@@ -194,6 +194,12 @@ def test_too_few_matches_is_refused():
     with pytest.raises(ReconstructionError) as info:
         self_calibrate_pair(pts1, pts2, prior_K(), DEFAULT_PRIOR_SIGMA_LOG)
     assert info.value.reason == "too_few_matches"
+    # Each correspondence listed twice (SIFT's two orientations) is still 12 matches.
+    with pytest.raises(ReconstructionError) as info:
+        self_calibrate_pair(np.vstack([pts1, pts1]), np.vstack([pts2, pts2]), prior_K(),
+                            DEFAULT_PRIOR_SIGMA_LOG)
+    assert info.value.reason == "too_few_matches"
+    assert info.value.counts == {"matches": 12, "required": 20}
     with pytest.raises(ValueError, match="prior_source"):
         self_calibrate_pair(pts1, pts2, prior_K(), DEFAULT_PRIOR_SIGMA_LOG, "file")
 

@@ -13,7 +13,13 @@ from numpy.typing import ArrayLike
 
 from ..errors import ReconstructionError
 from ..essential_fit import essential_cost
-from ..geometry import FloatArray, as_matrix, as_points2d, check_same_length
+from ..geometry import (
+    FloatArray,
+    as_matrix,
+    as_points2d,
+    check_same_length,
+    distinct_correspondences,
+)
 from ..twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
 from ..twoview.trust import beyond_uncertainty_limit, sigmas_text
 from ..uncertainty import depth_sigmas, largest_sigma_deg
@@ -240,9 +246,10 @@ def self_calibrate_pair(
     check_same_length(p1, p2)
     K0 = as_matrix(K_start, (3, 3), "K_start")
     f0 = float(K0[0, 0])
-    if len(p1) < tv.min_matches:
+    distinct = len(distinct_correspondences(p1, p2))  # counted as the two-view core does
+    if distinct < tv.min_matches:
         raise ReconstructionError("too_few_matches", "too few matches between the images",
-                                  matches=len(p1), required=tv.min_matches)
+                                  matches=distinct, required=tv.min_matches)
 
     profile = focal_profile(p1, p2, K0, _search_factors(prior_sigma_log, s), tv.threshold_px,
                             s.min_noise_threshold * tv.threshold_px, tv.min_inliers)
