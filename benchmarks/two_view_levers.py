@@ -28,6 +28,10 @@ levers:
   epipolar geometry (ratio test and mutual check among those candidates only), and
   reconstructed from the new matches (the geometry time holds both fits and the guided
   matching);
+- ``locality-0.3``, ``locality-0.4``: neighbourhood consensus (as in LPM, Ma et al.
+  2019): a match is kept when at least 30 or 40 % of its 10 nearest matches in image 1
+  are among its 10 nearest in image 2 (a test against repeated structure: a window
+  matched to its neighbour's twin keeps few of its neighbours);
 - ``poselib``, ``poselib-0.5px``: PoseLib's estimator on scene3D's matches (with the
   ``bench`` extra).
 
@@ -67,7 +71,8 @@ from scene3D.imageio import load_working_image
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches
 
 LEVERS = ("scene3D", "previous", "previous-0.5px", "ratio-0.7", "rootsift", "symmetric",
-          "self-ratio", "contrast-0.02", "guided-1px", "guided-3px", "poselib",
+          "self-ratio", "contrast-0.02", "guided-1px", "guided-3px", "locality-0.3",
+          "locality-0.4", "poselib",
           "poselib-0.5px")
 RATIO = 0.8
 
@@ -128,6 +133,21 @@ def self_ratio_filter(f1: Features, f2: Features, idx1: np.ndarray, idx2: np.nda
             nearest_other[start:start + block] = np.minimum(nearest_other[start:start + block],
                                                             d.min(axis=1))
     return match < RATIO ** 2 * nearest_other
+
+
+def locality_filter(p1: np.ndarray, p2: np.ndarray, share: float, k: int = 10) -> np.ndarray:
+    """``(N,) bool``: the matches ``p1[i] <-> p2[i]`` (pixels, ``(N, 2)``) at least
+    ``share`` of whose ``k`` nearest matches in image 1 are among the ``k`` nearest in
+    image 2."""
+    from scipy.spatial import cKDTree
+
+    k = min(k, len(p1) - 1)
+    if k < 2:
+        return np.ones(len(p1), bool)
+    near1 = cKDTree(p1).query(p1, k + 1)[1][:, 1:]
+    near2 = cKDTree(p2).query(p2, k + 1)[1][:, 1:]
+    shared = (near1[:, :, None] == near2[:, None, :]).sum(axis=(1, 2))
+    return shared >= share * k
 
 
 def guided_matches(f1: Features, f2: Features, F: np.ndarray, band_px: float,
@@ -209,6 +229,9 @@ def run_lever(lever: str, cameras: list, pairs: list[tuple[int, int]],
             idx1, idx2 = idx1[keep], idx2[keep]
         elif lever == "self-ratio":
             keep = self_ratio_filter(f1, f2, idx1, idx2)
+            idx1, idx2 = idx1[keep], idx2[keep]
+        if lever.startswith("locality"):
+            keep = locality_filter(f1.pixels[idx1], f2.pixels[idx2], float(lever[9:]))
             idx1, idx2 = idx1[keep], idx2[keep]
         t1 = time.perf_counter()
         p1, p2 = f1.pixels[idx1], f2.pixels[idx2]
