@@ -72,8 +72,7 @@ from scene3D.twoview import TwoViewSettings, reconstruct_from_matches
 
 LEVERS = ("scene3D", "previous", "previous-0.5px", "ratio-0.7", "rootsift", "symmetric",
           "self-ratio", "contrast-0.02", "guided-1px", "guided-3px", "locality-0.3",
-          "locality-0.4", "poselib",
-          "poselib-0.5px")
+          "locality-0.4", "poselib", "poselib-0.5px")
 RATIO = 0.8
 
 
@@ -230,7 +229,7 @@ def run_lever(lever: str, cameras: list, pairs: list[tuple[int, int]],
         elif lever == "self-ratio":
             keep = self_ratio_filter(f1, f2, idx1, idx2)
             idx1, idx2 = idx1[keep], idx2[keep]
-        if lever.startswith("locality"):
+        elif lever.startswith("locality"):
             keep = locality_filter(f1.pixels[idx1], f2.pixels[idx2], float(lever[9:]))
             idx1, idx2 = idx1[keep], idx2[keep]
         t1 = time.perf_counter()
