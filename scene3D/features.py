@@ -75,6 +75,30 @@ def normalize_feature_mode(mode: str) -> str:
     )
 
 
+def resolve_feature_mode(mode: str) -> str:
+    """The canonical name of the detector that runs for ``mode``: ``"SIFT"`` for SURF
+    when this OpenCV build lacks it (it is patented; warned once), else ``mode``'s own.
+
+    Raises ``ValueError`` for an unknown mode.
+    """
+    global _warned_surf
+    mode = normalize_feature_mode(mode)
+    if mode != "SURF" or _surf_available():
+        return mode
+    if not _warned_surf:
+        logger.warning("SURF is patented and not in this OpenCV build; using SIFT instead")
+        _warned_surf = True
+    return "SIFT"
+
+
+def _surf_available() -> bool:
+    try:
+        cv2.xfeatures2d.SURF_create(400)
+    except (cv2.error, AttributeError):
+        return False
+    return True
+
+
 def create_detector(mode: str, max_features: int = 8000) -> tuple[cv2.Feature2D, int, str]:
     """Build the detector for a descriptor mode.
 
@@ -82,20 +106,12 @@ def create_detector(mode: str, max_features: int = 8000) -> tuple[cv2.Feature2D,
     -------
     detector, norm, name
         The OpenCV detector, the descriptor norm for matching, and the name of
-        the detector that will run (``"SIFT"`` for an unavailable SURF).
+        the detector that will run (``"SIFT"`` for an unavailable SURF,
+        :func:`resolve_feature_mode`).
     """
-    global _warned_surf
-    mode = normalize_feature_mode(mode)
+    mode = resolve_feature_mode(mode)
     if mode == "SURF":
-        try:
-            return cv2.xfeatures2d.SURF_create(400), cv2.NORM_L2, "SURF"
-        except (cv2.error, AttributeError):
-            if not _warned_surf:
-                logger.warning(
-                    "SURF is patented and not in this OpenCV build; using SIFT instead"
-                )
-                _warned_surf = True
-            mode = "SIFT"
+        return cv2.xfeatures2d.SURF_create(400), cv2.NORM_L2, "SURF"
     if mode == "SIFT":
         # The precise upscale removes OpenCV's 0.25 px keypoint bias (module docstring).
         sift = cv2.SIFT_create(nfeatures=max_features, enable_precise_upscale=True)

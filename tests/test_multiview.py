@@ -356,6 +356,9 @@ def test_pycolmap_reads_the_model(fountain_views):
 
 
 def test_an_unrelated_or_blank_image_is_reported_not_registered(fountain, chessboards, tmp_path):
+    """Also: the book's SURF asked for, the JSON records the detector that ran."""
+    from scene3D import features
+
     folder = tmp_path / "mixed"
     folder.mkdir()
     for i in (3, 4, 5, 6):
@@ -367,9 +370,13 @@ def test_an_unrelated_or_blank_image_is_reported_not_registered(fountain, chessb
     proc = subprocess.run(
         [sys.executable, "-m", "scene3D", "reconstruct-views", str(folder), "--calib",
          str(REPO / "data" / "fountain_P11_intrinsics.yaml"), "--max-width", "800",
-         "--no-plots", "--out", str(out)], capture_output=True, text=True, timeout=600)
+         "--no-plots", "--feature", "surf", "--out", str(out)],
+        capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((out / "reconstruction.json").read_text())
+    assert summary["feature_requested"] == "surf"
+    assert summary["feature"] == ("SURF" if features._surf_available() else "SIFT")
+    assert proc.stderr.count("SURF is patented") == (0 if features._surf_available() else 1)
     # A blank photo has no keypoints at all: it is left out like any other.
     assert sorted(summary["unregistered"]) == ["0005b_board.jpg", "0006b_blank.jpg"]
     assert all(summary["unregistered_reasons"][name] for name in summary["unregistered"])
