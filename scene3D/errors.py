@@ -7,6 +7,19 @@ give a trustworthy answer raises one of the errors below.
 
 from __future__ import annotations
 
+import logging
+
+#: Set on the log record of a warning that a result also carries in its ``warnings``
+#: (a pose that may not be trustworthy, and why): a command that prints the result with
+#: its warnings drops these records rather than say the same thing twice.
+RESULT_WARNING = "scene3d_result_warning"
+
+
+def log_result_warnings(logger: logging.Logger, warnings: tuple[str, ...]) -> None:
+    """Log each of a result's ``warnings`` at WARNING level, marked :data:`RESULT_WARNING`."""
+    for warning in warnings:
+        logger.warning("%s", warning, extra={RESULT_WARNING: True})
+
 
 class ReconstructionError(RuntimeError):
     """A two-view (or multi-view) reconstruction could not be trusted.

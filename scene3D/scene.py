@@ -27,6 +27,7 @@ from .camera import (
     validate_distortion,
     validate_intrinsics,
 )
+from .errors import log_result_warnings
 from .features import Matches, find_matches, normalize_feature_mode
 from .geometry import distinct_correspondences
 from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, load_working_images
@@ -211,8 +212,7 @@ class SceneReconstruction3D:
                                       depth_sigmas=depth_sigmas(
                                           result.points3d, result.K, result.R, result.t,
                                           marginal.pose_covariance, result.noise_sigma_px))
-        for warning in calibration.warnings:
-            logger.warning("%s", warning)
+        log_result_warnings(logger, calibration.warnings)
         self.reconstruct(mode)
         return calibration
 

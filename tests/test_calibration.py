@@ -120,8 +120,10 @@ def test_cli_refuses_a_wrong_board_size(tmp_path, chessboards, capsys):
             "--out", str(tmp_path / "c.yaml")]
     assert main(argv) == 1
     err = capsys.readouterr().err
-    assert "do not fit one camera" in err and "check --board" in err
-    assert len(err.strip().splitlines()) == 1
+    # One line of error, after the warning that names the photos without a 5x5 board.
+    warning, error = err.strip().splitlines()
+    assert warning.startswith("WARNING: the board was not found in 6 of the 13 photos")
+    assert "do not fit one camera" in error and "check --board" in error
     assert list(tmp_path.iterdir()) == []
     assert main(argv + ["--max-rms", "50", "-q"]) == 0  # the user can insist
 
@@ -206,6 +208,9 @@ def test_cli_on_awkward_udacity_set(tmp_path, chessboards, capsys):
     assert "calibration15.jpg, calibration7.jpg" in captured.err
     assert "calibration1.jpg: board not found" in captured.err
     assert "calibration4.jpg: 54 corners (sector)" in captured.err
+    # Said without -v too: which photos did not count.
+    assert ("the board was not found in 2 of the 18 photos, left out: calibration1.jpg, "
+            "calibration5.jpg") in captured.err
     camera = load_calibration(tmp_path / "u.yaml")
     assert camera.image_size == (1280, 720)
     assert 1100 < camera.K[0, 0] < 1250
@@ -233,6 +238,15 @@ def test_cli_video_collects_distinct_views(tmp_path, board_views, capsys):
     camera = load_calibration(out)
     assert abs(camera.K[0, 0] / TRUE_K[0, 0] - 1) < 0.01
     assert len(list((tmp_path / "und").glob("*.png"))) == 6
+    assert "ended after" not in captured.err
+    # Asking for more distinct views than the video holds: said, and calibrated on those.
+    code = main(["--video", str(video), "--frames", "30", "--out", str(out), "--force",
+                 "--no-report"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    views = sum(line.startswith("view ") for line in captured.err.splitlines())
+    assert (f"the video ended after {4 * len(board_views)} frames with {views} of the 30 "
+            "distinct views asked for") in captured.err
 
 
 @pytest.mark.parametrize("case, message", [
@@ -282,5 +296,5 @@ def test_calibrate_script_help():
                           capture_output=True, text=True)
     assert proc.returncode == 0
     for word in ("--images", "--video", "--camera", "--board", "--square-size", "--pattern",
-                 "--frames", "--force", "--save-undistorted", "exit codes"):
+                 "--frames", "--force", "--save-undistorted", "Exit codes"):
         assert word in proc.stdout

@@ -151,3 +151,5 @@ def test_a_focal_length_the_pair_cannot_tell_is_printed_as_a_factor_and_untruste
     assert abs(math.log(summary["K"][0][0] / true_focal)) < 2 * sigma_log
     assert f"a factor of {math.exp(sigma_log):.1f}" in proc.stdout
     assert "may not be trustworthy" in proc.stdout
+    # Said once, with the result: not repeated as log lines on stderr.
+    assert summary["warnings"] and not any(w in proc.stderr for w in summary["warnings"])

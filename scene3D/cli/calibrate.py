@@ -32,10 +32,10 @@ from ..errors import CalibrationError
 from ..export import atomic_write_bytes, atomic_write_pieces
 from ..imageio import IMAGE_SUFFIXES, image_size, load_bgr, read_image_size
 from .common import (
-    EXIT_CODES_HELP,
     EXIT_OK,
     UsageError,
     add_common_args,
+    exit_codes_help,
     positive_float,
     require_parent_folder,
     run_command,
@@ -64,11 +64,15 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
         ),
         epilog=(
             "The output is OpenCV FileStorage YAML (camera_matrix, distortion_coefficients, "
-            "image_width, image_height, rms_px, per_view_errors, board, date); NAME_coverage.png, "
+            "image_width, image_height, rms_px, per_view_errors, view_names, std_intrinsics, "
+            "projection_uncertainty_median_px, projection_uncertainty_worst_px, board, "
+            "square_size_m, calibration_date); NAME_coverage.png, "
             "NAME_view_errors.png, NAME_uncertainty.png (the projection-uncertainty map) and "
             "NAME_report.html (one self-contained page with the numbers and the figures) are "
             "written beside it (NAME: --out without its suffix). "
-            f"Nothing is overwritten without --force. {EXIT_CODES_HELP}."
+            "Nothing is overwritten without --force. "
+            + exit_codes_help("the calibration failed (it diverged, or its RMS error is "
+                              "above --max-rms)") + "."
         ),
     )
     source = parser.add_mutually_exclusive_group(required=True)
@@ -199,7 +203,7 @@ def collect_views(args: argparse.Namespace, board: BoardSpec, keep_images: bool 
     source = _frames(args) if from_stream else _photos(args)
     views: list[Detection] = []
     images: list[np.ndarray] = []
-    size, seen = None, 0
+    size, seen, without_board = None, 0, []
     for name, img in source:
         seen += 1
         if size is None:
@@ -209,6 +213,7 @@ def collect_views(args: argparse.Namespace, board: BoardSpec, keep_images: bool 
         det = detect_board(img, board, name)
         if det is None:
             logger.info("%s: board not found", name)
+            without_board.append(name)
             continue
         if from_stream:
             min_motion = args.min_motion * float(np.hypot(*size))
@@ -224,7 +229,19 @@ def collect_views(args: argparse.Namespace, board: BoardSpec, keep_images: bool 
             break
     if size is None:
         raise UsageError("the source gave no images")
+    if len(views) >= 3:  # fewer is an error that gives the counts
+        if from_stream and len(views) < args.frames:
+            logger.warning("the %s ended after %d frames with %d of the %d distinct views "
+                           "asked for (--frames); calibrating on those", _stream_kind(args),
+                           seen, len(views), args.frames)
+        elif not from_stream and without_board:
+            logger.warning("the board was not found in %d of the %d photos, left out: %s",
+                           len(without_board), seen, ", ".join(without_board))
     return views, images, size, seen
+
+
+def _stream_kind(args: argparse.Namespace) -> str:
+    return "video" if args.video is not None else "camera stream"
 
 
 def _result_lines(result: CalibrationResult, umap: UncertaintyMap) -> list[str]:

@@ -24,7 +24,6 @@ from ..intrinsics_prior import FocalPrior
 from ..scene import SceneReconstruction3D
 from ..twoview import TwoViewSettings
 from .common import (
-    EXIT_CODES_HELP,
     EXIT_OK,
     UsageError,
     add_bundle_adjust_arg,
@@ -33,6 +32,7 @@ from .common import (
     add_size_args,
     check_distinct_images,
     check_report_viewer,
+    exit_codes_help,
     focal_sigma_text,
     prepare_output_dir,
     run_command,
@@ -67,7 +67,12 @@ def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
             "x_cam2 = R x_cam1 + t and |t| = 1: the scale is unknown), and report.html (one "
             "self-contained page: the numbers, the figures and an interactive 3D view of the "
             "cloud and the cameras; it opens offline). Files are replaced "
-            f"only once the run has succeeded. {EXIT_CODES_HELP}."
+            "only once the run has succeeded. "
+            + exit_codes_help(
+                "the pair could not be reconstructed (the error says why: too few matches, a "
+                "pure rotation, ...)",
+                "success, also for a pose flagged as untrustworthy",
+            ) + "."
         ),
     )
     parser.add_argument("images", nargs="*", metavar="IMAGE",

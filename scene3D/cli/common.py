@@ -14,16 +14,23 @@ from pathlib import Path
 from typing import Any
 
 from ..engines import Engine, LocalEngine, Progress
-from ..errors import CalibrationError, DatasetError, EngineError, ReconstructionError
+from ..errors import (
+    RESULT_WARNING,
+    CalibrationError,
+    DatasetError,
+    EngineError,
+    ReconstructionError,
+)
 
 EXIT_OK = 0
 EXIT_FAILED = 1  # valid input, but the reconstruction / calibration failed
 EXIT_USAGE = 2  # bad usage or bad input
 
-EXIT_CODES_HELP = (
-    "exit codes: 0 success, 1 the reconstruction or calibration failed, "
-    "2 bad usage or input"
-)
+
+
+def exit_codes_help(failed: str, success: str = "success") -> str:
+    """The ``--help`` sentence on exit codes; ``failed`` says what exit code 1 means."""
+    return f"Exit codes: 0 {success}; 1 {failed}; 2 bad usage or input"
 
 
 class UsageError(Exception):
@@ -88,7 +95,8 @@ def add_common_args(parser: argparse.ArgumentParser) -> None:
     group.add_argument("-v", "--verbose", action="count", default=0,
                        help="more log messages on stderr (-vv for debug)")
     group.add_argument("-q", "--quiet", action="store_true",
-                       help="only errors on stderr, only file names on stdout")
+                       help="only errors on stderr, and on stdout only the files written "
+                            "(scene3d evaluate: its table)")
     group.add_argument("--debug", action="store_true",
                        help="show the full traceback of an error")
 
@@ -231,6 +239,9 @@ def configure_logging(args: argparse.Namespace) -> None:
         level = logging.WARNING
     logging.basicConfig(level=level, format="%(levelname)s: %(message)s", stream=sys.stderr,
                         force=True)
+    for handler in logging.getLogger().handlers:
+        # The commands print a result's warnings with the result (stdout, the table).
+        handler.addFilter(lambda record: not getattr(record, RESULT_WARNING, False))
 
 
 def require_parent_folder(path: Path, option: str) -> None:

@@ -35,7 +35,6 @@ from ..imageio import BOOK_MAX_WIDTH_PX, load_working_image
 from ..twoview import TwoViewSettings, reconstruct_from_matches
 from ..uncertainty import pose_error_chi2
 from .common import (
-    EXIT_CODES_HELP,
     EXIT_OK,
     UsageError,
     add_bundle_adjust_arg,
@@ -43,6 +42,7 @@ from .common import (
     add_engine_args,
     add_feature_arg,
     add_size_args,
+    exit_codes_help,
     open_engine,
     require_parent_folder,
     run_command,
@@ -63,8 +63,9 @@ def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
                 "between translation directions; failed pairs count as infinite error. "
                 "Sigmas are each pose's predicted 1-sigma rotation and translation-direction "
                 "angles (worst axis); the summary says how often the errors fall within the "
-                "predicted 90 %% bounds (chi-square on the full covariance). "
-                f"{EXIT_CODES_HELP}."),
+                "predicted 90 % bounds (chi-square on the full covariance). "
+                + exit_codes_help("the cluster gave a task up",
+                                  "success (refused pairs are rows of the table)") + "."),
     )
     parser.add_argument("dataset", type=Path, metavar="DATASET_DIR",
                         help="a scene in the Strecha layout, such as fountain-P11")

@@ -16,7 +16,7 @@ from ..camera import adapt_intrinsics_to_size
 from ..datasets import read_strecha_camera
 from ..evaluation import camera_set_error
 from ..export import colmap_text_files, save_figure, write_json, write_ply, write_text_files
-from ..features import FEATURE_MODES
+from ..features import FEATURE_MODES, resolve_feature_mode
 from ..imageio import BOOK_MAX_WIDTH_PX, IMAGE_SUFFIXES, read_image_size
 from ..multiview import (
     PAIR_MODES,
@@ -26,7 +26,6 @@ from ..multiview import (
     reconstruct_views,
 )
 from .common import (
-    EXIT_CODES_HELP,
     EXIT_FAILED,
     EXIT_OK,
     UsageError,
@@ -36,6 +35,7 @@ from .common import (
     add_size_args,
     check_distinct_images,
     check_report_viewer,
+    exit_codes_help,
     focal_sigma_text,
     open_engine,
     positive_int,
@@ -66,7 +66,8 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
             "A model that fails the "
             "consistency check (a view whose pose contradicts its pair geometry, a fold) is "
             "written for inspection, its status 'failed', and the exit code is 1. "
-            f"{EXIT_CODES_HELP}."
+            + exit_codes_help("no pair gives a trustworthy start, a model failed its "
+                              "consistency check, or the cluster gave a task up") + "."
         ),
     )
     parser.add_argument("images", nargs="+", metavar="IMAGES",
@@ -301,7 +302,7 @@ def run(args: argparse.Namespace) -> int:
         "focal_px_sigma": recon.focal_px_sigma,
         "self_calibration": focal_summary(recon, recon.main, prior.camera_name)
         if prior is not None else None,
-        "feature": args.feature,
+        "feature": resolve_feature_mode(args.feature), "feature_requested": args.feature,
         "conventions": "each model: world = camera frame of the first view of its initial "
                        "pair; x_cam = R @ X + t; arbitrary scale",
     }

@@ -23,7 +23,7 @@ from ..epipolar import (
     estimate_homography,
     fundamental_from_essential,
 )
-from ..errors import ReconstructionError
+from ..errors import ReconstructionError, log_result_warnings
 from ..essential_fit import fit_essential, inlier_threshold_px, loss_scale_px, noise_sigma_px
 from ..features import Matches
 from ..geometry import (
@@ -331,8 +331,7 @@ def reconstruct_two_view(
     timings["geometry"] = t1 - t0 - refinement_s
     timings["refinement"] = refinement_s
     timings["total"] = sum(timings.values())
-    for w in geometry.warnings:
-        logger.warning("%s", w)
+    log_result_warnings(logger, geometry.warnings)
     return TwoViewReconstruction(colors=colors, feature=matches.feature, timings_s=timings,
                                  **{f.name: getattr(geometry, f.name)
                                     for f in fields(TwoViewGeometry)})
