@@ -15,10 +15,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .camera import validate_distortion, validate_intrinsics
+from .camera import check_principal_point, validate_distortion, validate_intrinsics
+from .export import check_target, place_file
 from .geometry import FloatArray
 
 _SUFFIXES = (".yaml", ".yml", ".xml", ".json")
+
+#: The largest image side a calibration file may give, in pixels (a sanity bound: the
+#: largest camera sensors are about 20 000 pixels wide).
+MAX_IMAGE_SIDE_PX = 100_000
 
 
 @dataclass(frozen=True)
@@ -59,24 +64,45 @@ def load_calibration(path: str | os.PathLike) -> CameraCalibration:
     try:
         if not fs.isOpened():
             raise ValueError(f"cannot open calibration file '{path}'")
-        K = fs.getNode("camera_matrix").mat()
-        dist = fs.getNode("distortion_coefficients").mat()
-        width = fs.getNode("image_width").real()
-        height = fs.getNode("image_height").real()
+        K = _matrix(fs, "camera_matrix")
+        dist = _matrix(fs, "distortion_coefficients")
+        size = tuple(_pixels(fs, key) for key in ("image_width", "image_height"))
     finally:
         fs.release()
     if K is None:
         raise ValueError(f"calibration file '{path}' has no 'camera_matrix' matrix")
-    if width <= 0 or height <= 0:
-        raise ValueError(
-            f"calibration file '{path}' needs positive 'image_width' and 'image_height'"
-        )
+    if None in size:
+        raise ValueError(f"calibration file '{path}' needs 'image_width' and 'image_height' "
+                         f"as whole numbers of pixels from 1 to {MAX_IMAGE_SIDE_PX}")
     try:
         K = validate_intrinsics(K)
         dist = validate_distortion(dist)
+        check_principal_point(K, size)
     except ValueError as exc:
         raise ValueError(f"calibration file '{path}': {exc}") from exc
-    return CameraCalibration(K, dist, (int(width), int(height)))
+    return CameraCalibration(K, dist, size)
+
+
+def _matrix(fs: cv2.FileStorage, key: str) -> np.ndarray | None:
+    """The matrix stored under ``key``, or None when there is none (or something else)."""
+    node = fs.getNode(key)
+    if not node.isMap():  # OpenCV stores a matrix as a map (rows, cols, dt, data)
+        return None
+    try:
+        return node.mat()
+    except cv2.error:
+        return None
+
+
+def _pixels(fs: cv2.FileStorage, key: str) -> int | None:
+    """The whole number of pixels stored under ``key``, or None when it is not one."""
+    node = fs.getNode(key)
+    if not (node.isInt() or node.isReal()):
+        return None
+    value = node.real()
+    if not (np.isfinite(value) and value == round(value) and 1 <= value <= MAX_IMAGE_SIDE_PX):
+        return None
+    return int(value)
 
 
 def save_calibration(
@@ -95,30 +121,43 @@ def save_calibration(
         If ``path`` exists and ``overwrite`` is False.
     ValueError
         If the suffix is not .yaml, .yml, .xml or .json.
+    OSError
+        If the file cannot be written (``IsADirectoryError``: a folder stands there).
     """
     path = Path(path)
     if path.suffix.lower() not in _SUFFIXES:
         raise ValueError(f"calibration file must end in .yaml, .yml, .xml or .json, got '{path}'")
     if path.exists() and not overwrite:
         raise FileExistsError(f"'{path}' exists; use --force to overwrite it")
+    check_target(path)
     tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    fs = cv2.FileStorage(str(tmp), cv2.FILE_STORAGE_WRITE)
+    try:  # an unwritable folder fails here with its reason, not in OpenCV's log
+        tmp.touch()
+    except OSError as exc:
+        raise OSError(exc.errno, exc.strerror, str(path)) from exc
     try:
-        fs.write("image_width", int(camera.image_size[0]))
-        fs.write("image_height", int(camera.image_size[1]))
-        fs.write("camera_matrix", np.asarray(camera.K, dtype=np.float64))
-        fs.write("distortion_coefficients", np.asarray(camera.dist, np.float64).reshape(1, -1))
-        for key, value in (extras or {}).items():
-            if isinstance(value, str):
-                fs.write(key, value)
-            elif np.isscalar(value):
-                fs.write(key, float(value))
-            else:
-                fs.write(key, np.asarray(value, dtype=np.float64))
-    finally:
-        fs.release()
-    try:
-        os.replace(tmp, path)
-    finally:
+        fs = cv2.FileStorage(str(tmp), cv2.FILE_STORAGE_WRITE)
+        try:
+            fs.write("image_width", int(camera.image_size[0]))
+            fs.write("image_height", int(camera.image_size[1]))
+            fs.write("camera_matrix", np.asarray(camera.K, dtype=np.float64))
+            fs.write("distortion_coefficients",
+                     np.asarray(camera.dist, np.float64).reshape(1, -1))
+            for key, value in (extras or {}).items():
+                if isinstance(value, str):
+                    fs.write(key, value)
+                elif np.isscalar(value):
+                    fs.write(key, float(value))
+                else:
+                    fs.write(key, np.asarray(value, dtype=np.float64))
+        finally:
+            fs.release()
+    except cv2.error as exc:  # OpenCV says only "Emitter is not available" and the like
         tmp.unlink(missing_ok=True)
+        raise OSError(f"cannot write the calibration file '{path}' (is its folder writable, "
+                      "and is there space?)") from exc
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    place_file(tmp, path)
     return path

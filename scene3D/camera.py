@@ -14,6 +14,11 @@ from .geometry import FloatArray
 
 VALID_DIST_LENGTHS = (0, 4, 5, 8, 12, 14)
 
+#: The largest skew ``K[0, 1]`` that :func:`validate_intrinsics` takes, as a fraction of
+#: ``fx``: pixel axes about 84 degrees apart. Real cameras have none; a larger value is a
+#: mistyped matrix, not a camera.
+MAX_SKEW_OF_FOCAL = 0.1
+
 
 def validate_intrinsics(K: ArrayLike) -> FloatArray:
     """Return ``K`` as a ``(3, 3) float64`` camera matrix after checking it.
@@ -37,7 +42,22 @@ def validate_intrinsics(K: ArrayLike) -> FloatArray:
         raise ValueError(
             f"`K` must be upper triangular with last row [0, 0, 1], got {arr.tolist()}"
         )
+    if abs(arr[0, 1]) > MAX_SKEW_OF_FOCAL * arr[0, 0]:
+        raise ValueError(f"`K` has a skew of {arr[0, 1]:g} px against fx={arr[0, 0]:g}: no "
+                         "camera's pixel axes are that far from square (it is 0 for almost all)")
     return arr
+
+
+def check_principal_point(K: FloatArray, image_size: tuple[int, int]) -> None:
+    """Raise ``ValueError`` when ``K``'s principal point lies far outside an image of
+    ``image_size`` (width, height): more than half the image beyond its edges, which no
+    camera's lens and sensor give (it lies near the centre; a crop moves it, but within
+    the image the calibration holds for)."""
+    w, h = image_size
+    cx, cy = K[0, 2], K[1, 2]
+    if not (-0.5 * w <= cx <= 1.5 * w and -0.5 * h <= cy <= 1.5 * h):
+        raise ValueError(f"the principal point ({cx:g}, {cy:g}) lies far outside the "
+                         f"{w}x{h} image (it is near the centre for a real camera)")
 
 
 def validate_distortion(dist: ArrayLike | None) -> FloatArray:

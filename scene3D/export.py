@@ -2,7 +2,10 @@
 
 Every writer goes through :func:`atomic_write_pieces` (or :func:`atomic_write_bytes`):
 the data land in a temporary file beside the target that is renamed over it only when
-complete, so an interrupted run never leaves a half-written file.
+complete, so an interrupted run never leaves a half-written file. Within
+:func:`all_or_nothing` the renames wait until every file of the block is written, so a
+run that fails while writing (a full disk, say) leaves the earlier results as they were,
+not half replaced.
 """
 
 from __future__ import annotations
@@ -12,7 +15,9 @@ import json
 import math
 import os
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -25,6 +30,58 @@ _PLY_VERTEX = np.dtype([
     ("x", "<f4"), ("y", "<f4"), ("z", "<f4"),
     ("red", "u1"), ("green", "u1"), ("blue", "u1"),
 ])
+
+
+#: The renames that :func:`all_or_nothing` holds back: (temporary file, target) pairs.
+_staged: ContextVar[list[tuple[Path, Path]] | None] = ContextVar("staged", default=None)
+
+
+@contextmanager
+def all_or_nothing() -> Iterator[None]:
+    """Write the block's files (this module's writers) all, or, if it raises, none.
+
+    Each file is written to its temporary name as usual; the renames over the targets
+    wait for the end of the block and happen only if it succeeds (renames need no space,
+    so they do not fail for want of it). If it raises, the temporary files are removed
+    and every target keeps what it held.
+    """
+    staged: list[tuple[Path, Path]] = []
+    token = _staged.set(staged)
+    try:
+        yield
+    except BaseException:
+        for tmp, _ in staged:
+            tmp.unlink(missing_ok=True)
+        raise
+    finally:
+        _staged.reset(token)
+    try:
+        for tmp, path in staged:
+            os.replace(tmp, path)
+    finally:
+        for tmp, _ in staged:
+            tmp.unlink(missing_ok=True)
+
+
+def place_file(tmp: Path, path: Path) -> None:
+    """Rename the complete file ``tmp`` over ``path`` now, or at the end of the enclosing
+    :func:`all_or_nothing` block."""
+    staged = _staged.get()
+    if staged is not None:
+        staged.append((tmp, path))
+        return
+    try:
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def check_target(path: Path) -> None:
+    """Raise ``IsADirectoryError`` when a folder stands where the file ``path`` is to go
+    (the rename over it would fail only after every other file was written)."""
+    if path.is_dir():
+        raise IsADirectoryError(21, "a folder stands where this file is to be written",
+                                str(path))
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
@@ -41,9 +98,13 @@ def atomic_write_pieces(path: str | os.PathLike, pieces: Iterable[bytes | Path])
     read, decoded, joined, encoded and written (measured on this project's machine).
     """
     path = Path(path)
+    check_target(path)
     # A name no other writer uses (pid and clock), created exclusively beside the target.
     tmp = path.with_name(f".{path.name}.{os.getpid()}.{time.monotonic_ns()}.tmp")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+    except OSError as exc:  # named by the file the user asked for, not its temporary name
+        raise OSError(exc.errno, exc.strerror, str(path)) from exc
     try:
         with os.fdopen(fd, "wb", buffering=0) as f:
             for piece in pieces:
@@ -51,9 +112,13 @@ def atomic_write_pieces(path: str | os.PathLike, pieces: Iterable[bytes | Path])
                     _copy_file_into(piece, f)
                 else:
                     _write_all(f, piece)
-        os.replace(tmp, path)
-    finally:
+    except OSError as exc:  # a full disk, say
         tmp.unlink(missing_ok=True)
+        raise OSError(exc.errno, exc.strerror, str(path)) from exc
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    place_file(tmp, path)
     return path
 
 

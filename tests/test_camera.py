@@ -4,6 +4,7 @@ import pytest
 
 from scene3D.camera import (
     adapt_intrinsics_to_size,
+    check_principal_point,
     scale_intrinsics_resize,
     validate_distortion,
     validate_intrinsics,
@@ -46,6 +47,7 @@ def test_adapt_intrinsics():
     (np.diag([-1.0, 1.0, 1.0]), "positive focal"),
     (np.array([[1.0, 0, 0], [0, 1, 0], [0, 0, np.nan]]), "non-finite"),
     (np.array([[1.0, 0, 0], [0, 1, 0], [1, 0, 1]]), "last row"),
+    (np.array([[500.0, 60, 320], [0, 500, 240], [0, 0, 1]]), "skew of 60 px against fx=500"),
 ])
 def test_invalid_intrinsics(bad, message):
     with pytest.raises(ValueError, match=message):
@@ -58,3 +60,13 @@ def test_distortion_lengths():
         assert validate_distortion(np.zeros((1, n))).shape == (n,)
     with pytest.raises(ValueError, match="got 3"):
         validate_distortion([0.1, 0.0, 0.0])
+
+
+def test_principal_point_within_reach_of_the_image():
+    K = np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]])
+    check_principal_point(K, (640, 480))
+    K[0, 2] = -400  # more than half the width left of the image
+    with pytest.raises(ValueError, match=r"\(-400, 240\) lies far outside the 640x480 image"):
+        check_principal_point(K, (640, 480))
+    K[0, 2], K[1, 2] = 900, -200  # within half the image of its edges: a crop's
+    check_principal_point(K, (640, 480))

@@ -156,11 +156,18 @@ def test_console_script_reconstruct(tmp_path, synthetic_files):
     ("sizes", 2, "same size"),
     ("bad_yaml", 2, "calibration file"),
     ("no_matrix", 2, "no 'camera_matrix'"),
+    ("scalar_matrix", 2, "no 'camera_matrix' matrix"),
+    ("width_half", 2, "whole numbers of pixels"),
+    ("width_inf", 2, "whole numbers of pixels"),
+    ("width_text", 2, "whole numbers of pixels"),
+    ("far_principal_point", 2, "lies far outside the 640x480 image"),
+    ("skew", 2, "skew of 3000"),
     ("aspect", 2, "aspect ratio"),
     ("out_is_file", 2, "is not a folder"),
     ("sizes_no_calib", 2, "at one size"),
     ("one_image", 2, "exactly two images"),
     ("same_image", 2, "image given twice"),
+    ("hard_link", 2, "image given twice"),
     ("rotation", 1, "pure rotation"),
     ("blank", 1, "image 2 has no keypoints"),
     ("blank_no_calib", 1, "image 2 has no keypoints"),
@@ -173,6 +180,17 @@ def test_bad_inputs_exit_codes_and_messages(tmp_path, synthetic_files, case, cod
     (tmp_path / "bad.yaml").write_text("camera_matrix: [1, 2\n  : :")
     (tmp_path / "nomatrix.yaml").write_text("%YAML:1.0\n---\nimage_width: 640\n")
     (tmp_path / "file").write_text("x")
+    os.link(f / "a.png", tmp_path / "linked.png")  # the same file under another name
+    matrix = ("camera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
+              "  data: [500., {skew}, {cx}, 0., 500., 240., 0., 0., 1.]\n")
+    for name, head, width in (("scalar", "camera_matrix: 5.0\n", "640"),
+                              ("half", matrix.format(skew=0, cx=320), "0.5"),
+                              ("inf", matrix.format(skew=0, cx=320), ".Inf"),
+                              ("text", matrix.format(skew=0, cx=320), "abc"),
+                              ("far", matrix.format(skew=0, cx=-50000), "640"),
+                              ("skew", matrix.format(skew=3000, cx=320), "640")):
+        (tmp_path / f"{name}.yaml").write_text(
+            f"%YAML:1.0\n---\n{head}image_width: {width}\nimage_height: 480\n")
     args = {
         "missing": [tmp_path / "nope.jpg", f / "b.png", "--calib", calib],
         "folder": [f, f / "b.png", "--calib", calib],
@@ -182,10 +200,17 @@ def test_bad_inputs_exit_codes_and_messages(tmp_path, synthetic_files, case, cod
         "bad_yaml": [f / "a.png", f / "b.png", "--calib", tmp_path / "bad.yaml"],
         "no_matrix": [f / "a.png", f / "b.png", "--calib", tmp_path / "nomatrix.yaml"],
         "aspect": [f / "a.png", f / "b.png", "--calib", f / "camera_wide.yaml"],
+        "scalar_matrix": [f / "a.png", f / "b.png", "--calib", tmp_path / "scalar.yaml"],
+        "width_half": [f / "a.png", f / "b.png", "--calib", tmp_path / "half.yaml"],
+        "width_inf": [f / "a.png", f / "b.png", "--calib", tmp_path / "inf.yaml"],
+        "width_text": [f / "a.png", f / "b.png", "--calib", tmp_path / "text.yaml"],
+        "far_principal_point": [f / "a.png", f / "b.png", "--calib", tmp_path / "far.yaml"],
+        "skew": [f / "a.png", f / "b.png", "--calib", tmp_path / "skew.yaml"],
         "out_is_file": [f / "a.png", f / "b.png", "--calib", calib, "--out", tmp_path / "file"],
         "sizes_no_calib": [f / "a.png", f / "small.png"],
         "one_image": [f / "a.png", "--calib", calib],
         "same_image": [f / "a.png", f / ".." / f.name / "a.png", "--calib", calib],
+        "hard_link": [f / "a.png", tmp_path / "linked.png", "--calib", calib],
         "rotation": [f / "a.png", f / "rot.png", "--calib", calib],
         "blank": [f / "a.png", f / "blank.png", "--calib", calib],
         "blank_no_calib": [f / "a.png", f / "blank.png"],
@@ -315,3 +340,19 @@ def test_a_still_camera_before_a_moving_board_gives_no_trusted_pose(tmp_path, ch
             assert not json.loads((out / "reconstruction.json").read_text())["trusted"], (a, b)
         else:
             assert "error:" in err and not (out / "reconstruction.json").exists(), (a, b, err)
+
+
+def test_a_write_that_fails_leaves_the_previous_run_whole(tmp_path, synthetic_files):
+    """A folder where report.html goes: refused before any file is replaced."""
+    f = synthetic_files
+    out = tmp_path / "out"
+    args = [f / "a.png", f / "b.png", "--calib", f / "camera.yaml", "--out", out, "--no-plots"]
+    assert run(args + ["--no-report"], cwd=tmp_path).returncode == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    (out / "report.html").mkdir()
+    proc = run(args + ["--feature", "akaze"], cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == (f"error: a folder stands where this file is to be written: "
+                                   f"'{out / 'report.html'}'")
+    after = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    assert after == before  # the earlier point cloud and JSON, and no temporary file

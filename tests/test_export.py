@@ -4,7 +4,15 @@ import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
-from scene3D.export import atomic_write_pieces, read_ply, save_figure, write_json, write_ply
+from scene3D.export import (
+    all_or_nothing,
+    atomic_write_bytes,
+    atomic_write_pieces,
+    read_ply,
+    save_figure,
+    write_json,
+    write_ply,
+)
 
 
 def test_ply_round_trip_and_header(tmp_path):
@@ -63,3 +71,32 @@ def test_ply_rejects_bad_shapes(tmp_path):
     with pytest.raises(ValueError, match=r"`points3d` must have shape \(N, 3\)"):
         write_ply(tmp_path / "x.ply", np.zeros((4, 2)))
     assert not (tmp_path / "x.ply").exists()
+
+
+def test_a_run_that_fails_while_writing_leaves_the_earlier_results_whole(tmp_path, monkeypatch):
+    """Within all_or_nothing the files of one run replace the earlier ones all or none."""
+    for name in ("a.txt", "b.txt"):
+        (tmp_path / name).write_text("old")
+    with pytest.raises(OSError, match="No space left on device"):
+        with all_or_nothing():
+            atomic_write_bytes(tmp_path / "a.txt", b"new")
+            assert (tmp_path / "a.txt").read_text() == "old"  # not yet
+            raise OSError(28, "No space left on device")  # as the next write would
+    assert [(p.name, p.read_text()) for p in sorted(tmp_path.iterdir())] == \
+        [("a.txt", "old"), ("b.txt", "old")]  # and no temporary file is left
+    with all_or_nothing():
+        atomic_write_bytes(tmp_path / "a.txt", b"new")
+        write_json(tmp_path / "b.txt", {})
+    assert [(p.name, p.read_text()) for p in sorted(tmp_path.iterdir())] == \
+        [("a.txt", "new"), ("b.txt", "{}\n")]
+
+
+def test_a_folder_where_a_file_goes_is_refused_before_writing(tmp_path):
+    (tmp_path / "report.html").mkdir()
+    (tmp_path / "a.txt").write_text("old")
+    with pytest.raises(IsADirectoryError, match="a folder stands where"):
+        with all_or_nothing():
+            atomic_write_bytes(tmp_path / "a.txt", b"new")
+            atomic_write_bytes(tmp_path / "report.html", b"<html>")
+    assert (tmp_path / "a.txt").read_text() == "old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "report.html"]

@@ -16,7 +16,13 @@ from .. import __version__
 from ..calibration_io import load_calibration
 from ..camera import adapt_intrinsics_to_size
 from ..datasets import BOOK_PAIR, fetch_fountain_p11
-from ..export import atomic_write_bytes, atomic_write_pieces, write_json, write_ply
+from ..export import (
+    all_or_nothing,
+    atomic_write_bytes,
+    atomic_write_pieces,
+    write_json,
+    write_ply,
+)
 from ..features import FEATURE_MODES, normalize_feature_mode
 from ..geometry import camera_centers, rotation_angle_deg
 from ..imageio import BOOK_MAX_WIDTH_PX, image_size, read_image_size
@@ -355,18 +361,20 @@ def run(args: argparse.Namespace) -> int:
         timings["report"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    written = [atomic_write_bytes(out / name, png) for name, png in figures.items()]
-    written.append(write_ply(out / "point_cloud.ply", result.points3d, result.colors))
-    if dense is not None:
-        written.append(write_ply(out / "dense.ply", dense.points3d, dense.colors))
-    if report is not None:
-        written.append(atomic_write_pieces(out / REPORT_FILE, report.encoded()))
-    timings["write"] = time.perf_counter() - t0
-    timings["total"] = time.perf_counter() - t_start
-    summary = _summary(scene, result, (path1, path2), calib_path, timings, args.feature, camera)
-    if dense is not None:
-        summary["dense"] = _dense_summary(dense)
-    written.append(write_json(out / "reconstruction.json", summary))
+    with all_or_nothing():  # a write that fails leaves the previous run's files as they were
+        written = [atomic_write_bytes(out / name, png) for name, png in figures.items()]
+        written.append(write_ply(out / "point_cloud.ply", result.points3d, result.colors))
+        if dense is not None:
+            written.append(write_ply(out / "dense.ply", dense.points3d, dense.colors))
+        if report is not None:
+            written.append(atomic_write_pieces(out / REPORT_FILE, report.encoded()))
+        timings["write"] = time.perf_counter() - t0
+        timings["total"] = time.perf_counter() - t_start
+        summary = _summary(scene, result, (path1, path2), calib_path, timings, args.feature,
+                           camera)
+        if dense is not None:
+            summary["dense"] = _dense_summary(dense)
+        written.append(write_json(out / "reconstruction.json", summary))
 
     if not args.quiet:
         lines[0] += f", {timings['total']:.2f} s"

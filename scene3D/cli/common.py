@@ -68,10 +68,15 @@ def focal_sigma_text(focal_px: float, sigma_px: float) -> str:
 
 
 def check_distinct_images(paths: list[Path]) -> None:
-    """Raise :class:`UsageError` when one file is given twice (a view cannot pair with itself)."""
-    seen: dict[Path, Path] = {}
+    """Raise :class:`UsageError` when one file is given twice (a view cannot pair with itself):
+    the same path, a symbolic link to it or a hard link (the same file on disk)."""
+    seen: dict[object, Path] = {}
     for path in paths:
-        key = path.resolve()
+        try:
+            stat = path.stat()
+            key: object = (stat.st_dev, stat.st_ino)
+        except OSError:  # missing: said where the file is read
+            key = path.resolve()
         if key in seen:
             raise UsageError(f"image given twice: '{path}'"
                              + (f" (also as '{seen[key]}')" if str(seen[key]) != str(path) else ""))

@@ -281,10 +281,13 @@ class DaskEngine:
 
         # Without a dashboard to show them, the workers' statistical profiles (a stack
         # sample every 10 ms) are CPU spent for nothing: about 0.01 core per worker here.
+        # The workers' own log is silenced below CRITICAL: a task that fails raises its
+        # error here, where the command says it in one line; the worker's "Compute Failed"
+        # and its traceback would say it again.
         with dask.config.set({"distributed.worker.profile.enabled": False}):
             cluster = distributed.LocalCluster(
                 n_workers=workers, threads_per_worker=threads_per_worker, processes=True,
-                host="127.0.0.1", dashboard_address=":0", silence_logs=logging.ERROR)
+                host="127.0.0.1", dashboard_address=":0", silence_logs=logging.CRITICAL)
         try:
             client = distributed.Client(cluster, set_as_default=False)
         except BaseException:
