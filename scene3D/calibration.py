@@ -34,7 +34,7 @@ logger = logging.getLogger(__name__)
 __all__ = [
     "BoardSpec", "CalibrationResult", "CameraCalibration", "Detection", "calibrate",
     "corner_coverage", "coverage_warnings", "detect_board", "load_calibration",
-    "save_calibration", "subpixel_window",
+    "min_image_side_px", "save_calibration", "subpixel_window",
 ]
 
 _SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01)
@@ -73,10 +73,12 @@ class BoardSpec:
             raise ValueError(f"`pattern` must be 'chessboard' or 'charuco', got {self.pattern!r}")
         if len(self.size) != 2 or min(self.size) < 2:
             raise ValueError(f"board size must be two integers >= 2, got {self.size}")
-        if self.square_size_m <= 0:
-            raise ValueError(f"`square_size_m` must be positive, got {self.square_size_m}")
+        if not (np.isfinite(self.square_size_m) and self.square_size_m > 0):
+            raise ValueError("`square_size_m` must be a finite positive number, got "
+                             f"{self.square_size_m}")
         if self.pattern == "charuco":
-            if not 0 < self.marker_size_m < self.square_size_m:
+            if not (np.isfinite(self.marker_size_m)
+                    and 0 < self.marker_size_m < self.square_size_m):
                 raise ValueError(
                     "`marker_size_m` must be positive and smaller than the square, got "
                     f"{self.marker_size_m} for squares of {self.square_size_m}"
@@ -123,6 +125,20 @@ class Detection:
     image_points: FloatArray
     object_points: FloatArray
     method: str
+
+
+#: Fewest pixels a square of the board can span and still be found.
+_MIN_SQUARE_PX = 3
+#: OpenCV's classic chessboard detector fails on a shorter side below this (its adaptive
+#: threshold block, a tenth of the side, rounds to 1 px).
+_MIN_DETECTOR_SIDE_PX = 15
+
+
+def min_image_side_px(board: BoardSpec) -> int:
+    """The shorter side (px) below which an image cannot show ``board``: its squares
+    across the board's narrower way, at least 3 px each."""
+    squares = min(board.size) + (1 if board.pattern == "chessboard" else 0)
+    return max(_MIN_DETECTOR_SIDE_PX, _MIN_SQUARE_PX * squares)
 
 
 def subpixel_window(corners: FloatArray, size: tuple[int, int]) -> int:
@@ -177,7 +193,10 @@ def detect_charuco(gray: np.ndarray, board: BoardSpec,
 
 
 def detect_board(gray: np.ndarray, board: BoardSpec, name: str = "") -> Detection | None:
-    """Find ``board`` in a grey ``uint8`` image; None when it is not (fully) visible."""
+    """Find ``board`` in a grey ``uint8`` image; None when it is not (fully) visible,
+    or the image is too small to show it (:func:`min_image_side_px`)."""
+    if min(gray.shape[:2]) < min_image_side_px(board):
+        return None
     if gray.ndim == 3:
         gray = cv2.cvtColor(gray, cv2.COLOR_BGR2GRAY)
     if board.pattern == "chessboard":

@@ -19,7 +19,8 @@ from .camera import check_principal_point, validate_distortion, validate_intrins
 from .export import check_target, place_file
 from .geometry import FloatArray
 
-_SUFFIXES = (".yaml", ".yml", ".xml", ".json")
+#: The suffixes :func:`save_calibration` writes (and :func:`load_calibration` reads).
+CALIBRATION_SUFFIXES = (".yaml", ".yml", ".xml", ".json")
 
 #: The largest image side a calibration file may give, in pixels (a sanity bound: the
 #: largest camera sensors are about 20 000 pixels wide).
@@ -125,7 +126,7 @@ def save_calibration(
         If the file cannot be written (``IsADirectoryError``: a folder stands there).
     """
     path = Path(path)
-    if path.suffix.lower() not in _SUFFIXES:
+    if path.suffix.lower() not in CALIBRATION_SUFFIXES:
         raise ValueError(f"calibration file must end in .yaml, .yml, .xml or .json, got '{path}'")
     if path.exists() and not overwrite:
         raise FileExistsError(f"'{path}' exists; use --force to overwrite it")

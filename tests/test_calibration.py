@@ -298,3 +298,177 @@ def test_calibrate_script_help():
     for word in ("--images", "--video", "--camera", "--board", "--square-size", "--pattern",
                  "--frames", "--force", "--save-undistorted", "Exit codes"):
         assert word in proc.stdout
+
+
+# -- refusals and failures of the command, each in one line ------------------------------
+
+def _photos(folder, names, chessboards):
+    folder.mkdir()
+    for name in names:
+        shutil.copy(chessboards / "opencv-left" / name, folder / name)
+    return folder
+
+
+FOUR = ("left01.jpg", "left02.jpg", "left03.jpg", "left04.jpg")
+
+
+@pytest.mark.parametrize("camera", ["-1", "-2"])
+def test_cli_refuses_a_negative_camera_index(tmp_path, camera):
+    # OpenCV crashes (SIGSEGV) on a negative index: in a child process, so that a
+    # regression fails this test rather than the test run.
+    proc = subprocess.run([sys.executable, str(REPO / "calibrate.py"), "--camera", camera,
+                           "--out", str(tmp_path / "c.yaml")], capture_output=True, text=True)
+    assert proc.returncode == 2, proc.stderr
+    assert f"argument --camera: must be 0 or more, got {camera}" in proc.stderr.splitlines()[-1]
+
+
+@pytest.mark.parametrize("option, value, message", [
+    ("--min-motion", "nan", "argument --min-motion: must be a finite number >= 0, got nan"),
+    ("--min-motion", "-1", "argument --min-motion: must be a finite number >= 0, got -1"),
+    ("--square-size", "inf", "argument --square-size: must be a finite number, got inf"),
+    ("--square-size", "nan", "argument --square-size: must be positive, got nan"),
+    ("--out", "", "argument --out: must name a file such as camera.yaml, got ''"),
+])
+def test_cli_refuses_bad_numbers_and_names(tmp_path, chessboards, capsys, option, value,
+                                           message):
+    argv = ["--images", str(chessboards / "opencv-left"), "--out", str(tmp_path / "c.yaml")]
+    with pytest.raises(SystemExit) as exc:
+        main(argv + [option, value])
+    assert exc.value.code == 2
+    assert message in capsys.readouterr().err.splitlines()[-1]
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(ValueError, match="finite positive"):
+        BoardSpec(square_size_m=float("inf"))
+
+
+@pytest.mark.parametrize("case, message", [
+    ("suffix", "--out must end in .yaml, .yml, .xml or .json, got '{tmp}/c.txt'"),
+    ("folder", "--out '{tmp}/photos' is a folder; name a file in it"),
+    ("read_only", "--out '{tmp}/ro/c.yaml': cannot write in '{tmp}/ro': Read-only file system"),
+    ("undistorted_file", "--save-undistorted '{tmp}/photos/left01.jpg' is a file"),
+])
+def test_cli_refuses_unwritable_outputs_before_any_work(tmp_path, chessboards, capsys,
+                                                        monkeypatch, case, message):
+    import errno
+    import tempfile
+
+    import scene3D.cli.calibrate as command
+
+    photos = _photos(tmp_path / "photos", FOUR, chessboards)
+    read_only = tmp_path / "ro"
+    read_only.mkdir()
+    mkstemp = tempfile.mkstemp
+
+    def mkstemp_on_a_read_only_folder(*args, dir=None, **kwargs):
+        # Root may write in any folder: a read-only file system is simulated.
+        if dir is not None and str(dir) == str(read_only):
+            raise OSError(errno.EROFS, "Read-only file system", str(dir))
+        return mkstemp(*args, dir=dir, **kwargs)
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("the photos were read before the outputs were checked")
+
+    monkeypatch.setattr(tempfile, "mkstemp", mkstemp_on_a_read_only_folder)
+    monkeypatch.setattr(command, "collect_views", no_work)
+    argv = ["--images", str(photos)] + {
+        "suffix": ["--out", str(tmp_path / "c.txt")],
+        "folder": ["--out", str(photos)],
+        "read_only": ["--out", str(read_only / "c.yaml")],
+        "undistorted_file": ["--out", str(tmp_path / "c.yaml"), "--save-undistorted",
+                             str(photos / "left01.jpg")],
+    }[case]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {message.format(tmp=tmp_path)}")
+    assert len(err.strip().splitlines()) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["photos", "ro"]
+
+
+def test_cli_says_when_the_output_folder_goes_away_during_the_work(tmp_path, chessboards,
+                                                                   capsys, monkeypatch):
+    import scene3D.cli.calibrate as command
+
+    photos = _photos(tmp_path / "photos", FOUR, chessboards)
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    solve = command.calibrate
+
+    def solve_then_lose_the_folder(*args, **kwargs):
+        result = solve(*args, **kwargs)
+        out_dir.rmdir()  # unmounted, or removed by hand, while the command ran
+        return result
+
+    monkeypatch.setattr(command, "calibrate", solve_then_lose_the_folder)
+    assert main(["--images", str(photos), "--out", str(out_dir / "c.yaml")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == (f"error: --out '{out_dir / 'c.yaml'}': cannot write in '{out_dir}': "
+                       "No such file or directory")
+    assert not any(line.startswith("Traceback") for line in err)
+
+
+def test_cli_on_photos_too_small_for_a_board(tmp_path, capsys):
+    tiny = tmp_path / "tiny"
+    tiny.mkdir()
+    for i in range(3):
+        cv2.imwrite(str(tiny / f"t{i}.png"), np.full((10, 10), 80 * i, np.uint8))
+    assert detect_board(np.zeros((10, 10), np.uint8), BoardSpec()) is None
+    assert main(["--images", str(tiny), "--out", str(tmp_path / "c.yaml")]) == 2
+    err = capsys.readouterr().err
+    assert err == ("error: the board was not found in any of the 3 views; the views are "
+                   "10x10 px, too small to show a 9x6 board\n")
+
+
+@pytest.mark.parametrize("how", ["symlinks", "copies", "re-encoded"])
+def test_cli_refuses_a_photo_given_twice(tmp_path, chessboards, capsys, how):
+    left = chessboards / "opencv-left"
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    if how == "symlinks":  # 4 links to one photo gave fx 935 px instead of 533, exit 0
+        for i in range(1, 5):
+            (photos / f"l{i}.jpg").symlink_to(left / "left01.jpg")
+        first, second, note = "l1.jpg", "l2.jpg", ""
+    elif how == "copies":
+        for name in FOUR:
+            shutil.copy(left / name, photos / name)
+        shutil.copy(left / "left03.jpg", photos / "left05.jpg")
+        first, second, note = "left03.jpg", "left05.jpg", ""
+    else:  # the same pixels in another file format
+        for name in FOUR:
+            shutil.copy(left / name, photos / name)
+        cv2.imwrite(str(photos / "left02.png"), cv2.imread(str(left / "left02.jpg")))
+        first, second, note = "left02.jpg", "left02.png", " (the same pixels)"
+    assert main(["--images", str(photos), "--out", str(tmp_path / "c.yaml")]) == 2
+    assert capsys.readouterr().err == (f"error: photo given twice: '{photos / first}' and "
+                                       f"'{photos / second}'{note}\n")
+    assert not (tmp_path / "c.yaml").exists()
+
+
+def test_cli_says_views_were_dropped_as_not_distinct(tmp_path, board_views, capsys):
+    video = tmp_path / "board.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (640, 480),
+                             isColor=False)
+    for img in board_views[:4]:
+        writer.write(img)
+    writer.release()
+    argv = ["--video", str(video), "--out", str(tmp_path / "v.yaml"), "--min-motion", "5"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == ("error: only 1 distinct view(s) of the board in 4 frames of the video: "
+                       "3 more with the board were dropped as not distinct (its corners moved "
+                       "less than --min-motion 5 of the image diagonal from a view already "
+                       "kept); calibration needs at least 3")
+
+
+def test_cli_draws_unicode_names_without_font_warnings(tmp_path, chessboards, capsys):
+    import warnings
+
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for name in FOUR:
+        shutil.copy(chessboards / "opencv-left" / name, photos / f"图像_{name}")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        code = main(["--images", str(photos), "--out", str(tmp_path / "c.yaml"), "-q"])
+    assert code == 0, capsys.readouterr().err
+    assert [str(w.message) for w in caught if "Glyph" in str(w.message)] == []
+    assert (tmp_path / "c_view_errors.png").exists()

@@ -5,11 +5,18 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import glob
+import hashlib
 import io
 import logging
+import math
+import os
 import sys
+import tempfile
+import warnings
 from collections import Counter
 from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -24,12 +31,14 @@ from ..calibration import (
     corner_coverage,
     coverage_warnings,
     detect_board,
+    min_image_side_px,
     save_calibration,
 )
+from ..calibration_io import CALIBRATION_SUFFIXES
 from ..calibration_uncertainty import CORNER_LIMIT_PX, UncertaintyMap, uncertainty_map
 from ..camera import undistort_image
 from ..errors import CalibrationError
-from ..export import atomic_write_bytes, atomic_write_pieces
+from ..export import all_or_nothing, atomic_write_bytes, atomic_write_pieces
 from ..imageio import IMAGE_SUFFIXES, image_size, load_bgr, read_image_size
 from .common import (
     EXIT_OK,
@@ -53,6 +62,43 @@ def _board_size(text: str) -> tuple[int, int]:
     if cols < 2 or rows < 2:
         raise argparse.ArgumentTypeError(f"board size must be at least 2x2, got {text!r}")
     return cols, rows
+
+
+def _camera_index(text: str) -> int:
+    """argparse type: a webcam index >= 0 (OpenCV crashes on a negative one)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, got {text}")
+    return value
+
+
+def _finite_positive(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    value = positive_float(text)
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
+    return value
+
+
+def _motion_fraction(text: str) -> float:
+    """argparse type: a finite number >= 0 (NaN would let every frame through)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
+    return value
+
+
+def _out_file(text: str) -> Path:
+    """argparse type: a file name (``Path("")`` would be the current folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"must name a file such as camera.yaml, got {text!r}")
+    return Path(text)
 
 
 def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
@@ -79,23 +125,24 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
     source.add_argument("--images", metavar="GLOB_OR_DIR",
                         help="a folder of photos or a glob such as 'calib/*.jpg' (quote it)")
     source.add_argument("--video", type=Path, metavar="FILE", help="a video of the board")
-    source.add_argument("--camera", type=int, metavar="INDEX", help="a webcam, e.g. 0")
+    source.add_argument("--camera", type=_camera_index, metavar="INDEX",
+                        help="a webcam, e.g. 0")
     board = parser.add_argument_group("board")
     board.add_argument("--pattern", choices=("chessboard", "charuco"), default="chessboard",
                        help="calibration target (default: chessboard)")
     board.add_argument("--board", type=_board_size, default=None, metavar="COLSxROWS",
                        help="chessboard: inner corners (default 9x6, the book's); "
                             "charuco: squares (default 5x7)")
-    board.add_argument("--square-size", type=positive_float, default=1.0, metavar="M",
+    board.add_argument("--square-size", type=_finite_positive, default=1.0, metavar="M",
                        help="side of a square in metres (default 1.0, i.e. results in units of "
                             "squares; K and the distortion do not depend on it)")
-    board.add_argument("--marker-size", type=positive_float, default=None, metavar="M",
+    board.add_argument("--marker-size", type=_finite_positive, default=None, metavar="M",
                        help="charuco: side of a marker in metres (default: half a square)")
     board.add_argument("--dictionary", default="DICT_6X6_250",
                        help="charuco: ArUco dictionary (default DICT_6X6_250)")
     parser.add_argument("--frames", type=int, default=20, metavar="N",
                         help="video/webcam: distinct views to collect (default 20, the book's)")
-    parser.add_argument("--min-motion", type=float, default=0.05, metavar="FRACTION",
+    parser.add_argument("--min-motion", type=_motion_fraction, default=0.05, metavar="FRACTION",
                         help="video/webcam: a view counts as distinct when its corners moved by "
                              "this fraction of the image diagonal (default 0.05)")
     parser.add_argument("--skip-other-sizes", action="store_true",
@@ -107,8 +154,9 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
     parser.add_argument("--max-rms", type=positive_float, default=MAX_RMS_PX, metavar="PX",
                         help="refuse a calibration whose RMS reprojection error exceeds this "
                              f"(default {MAX_RMS_PX:g} px; a wrong --board gives far more)")
-    parser.add_argument("--out", type=Path, default=Path("camera.yaml"), metavar="FILE",
-                        help="output calibration (default camera.yaml)")
+    parser.add_argument("--out", type=_out_file, default=Path("camera.yaml"), metavar="FILE",
+                        help="output calibration: .yaml, .yml, .xml or .json "
+                             "(default camera.yaml)")
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
     parser.add_argument("--uncertainty-limit", type=positive_float, default=CORNER_LIMIT_PX,
                         metavar="PX",
@@ -157,8 +205,28 @@ def _photos(args: argparse.Namespace) -> Iterator[tuple[str, np.ndarray]]:
         logger.warning("skipping %d image(s) not %dx%d: %s", len(skipped), *keep,
                        ", ".join(skipped))
         files = [path for path in files if sizes[path] == keep]
+    _check_distinct_files(files)
+    by_pixels: dict[bytes, Path] = {}
     for path in files:
-        yield path.name, load_bgr(path)
+        img = load_bgr(path)
+        digest = hashlib.blake2b(img.tobytes(), digest_size=16)
+        digest.update(repr(img.shape).encode())
+        first = by_pixels.setdefault(digest.digest(), path)
+        if first != path:  # e.g. one photo saved again as PNG
+            raise UsageError(f"photo given twice: '{first}' and '{path}' (the same pixels)")
+        yield path.name, img
+
+
+def _check_distinct_files(files: list[Path]) -> None:
+    """Raise :class:`UsageError` when one photo is given twice (a link to it, a copy):
+    a view counted twice drags the calibration towards it (fx 935 px instead of 533
+    from four links to one of OpenCV's left*.jpg)."""
+    by_content: dict[bytes, Path] = {}
+    for path in files:
+        digest = hashlib.blake2b(path.read_bytes(), digest_size=16).digest()
+        first = by_content.setdefault(digest, path)
+        if first != path:
+            raise UsageError(f"photo given twice: '{first}' and '{path}'")
 
 
 def _frames(args: argparse.Namespace) -> Iterator[tuple[str, np.ndarray]]:
@@ -191,19 +259,42 @@ def _is_distinct(det: Detection, kept: list[Detection], min_motion_px: float) ->
     return True
 
 
+@dataclass(frozen=True)
+class CollectedViews:
+    """What :func:`collect_views` found.
+
+    Attributes
+    ----------
+    views : list of Detection
+    images : list of (H, W, 3) uint8
+        The images of ``views`` (only with ``keep_images``, otherwise empty).
+    image_size : tuple[int, int]
+        (width, height) of every view.
+    seen : int
+        Photos or frames read.
+    not_distinct : int
+        Video/webcam frames with the board that were dropped because its corners had
+        moved less than ``--min-motion`` from a view already kept.
+    """
+
+    views: list[Detection]
+    images: list[np.ndarray]
+    image_size: tuple[int, int]
+    seen: int
+    not_distinct: int = 0
+
+
 def collect_views(args: argparse.Namespace, board: BoardSpec, keep_images: bool = False
-                  ) -> tuple[list[Detection], list[np.ndarray], tuple[int, int], int]:
+                  ) -> CollectedViews:
     """Detect the board in every photo, or in video frames until ``--frames`` distinct views.
 
-    Returns the detections, the images they came from (only with ``keep_images``;
-    otherwise an empty list, and one image at a time is in memory), the image size
-    and the number of images or frames seen.
+    Only one image at a time is in memory unless ``keep_images``.
     """
     from_stream = args.images is None
     source = _frames(args) if from_stream else _photos(args)
     views: list[Detection] = []
     images: list[np.ndarray] = []
-    size, seen, without_board = None, 0, []
+    size, seen, without_board, not_distinct = None, 0, [], 0
     for name, img in source:
         seen += 1
         if size is None:
@@ -218,6 +309,7 @@ def collect_views(args: argparse.Namespace, board: BoardSpec, keep_images: bool 
         if from_stream:
             min_motion = args.min_motion * float(np.hypot(*size))
             if not _is_distinct(det, views, min_motion):
+                not_distinct += 1
                 continue
             print(f"view {len(views) + 1}/{args.frames} from {name}", file=sys.stderr)
         else:
@@ -237,7 +329,7 @@ def collect_views(args: argparse.Namespace, board: BoardSpec, keep_images: bool 
         elif not from_stream and without_board:
             logger.warning("the board was not found in %d of the %d photos, left out: %s",
                            len(without_board), seen, ", ".join(without_board))
-    return views, images, size, seen
+    return CollectedViews(views, images, size, seen, not_distinct)
 
 
 def _stream_kind(args: argparse.Namespace) -> str:
@@ -301,26 +393,89 @@ def _outputs(args: argparse.Namespace) -> list[Path]:
     return outputs
 
 
+def _require_writable(folder: Path, option: str, path: Path) -> None:
+    """Raise :class:`UsageError` unless a file can be created in ``folder`` (a read-only
+    folder or file system fails here, before the work, not when writing the results)."""
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".scene3d-write-test-", dir=folder)
+    except OSError as exc:
+        raise UsageError(f"{option} '{path}': cannot write in '{folder}': "
+                         f"{exc.strerror or exc}") from None
+    os.close(fd)
+    os.unlink(probe)
+
+
+def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:
+    """Refuse, before any work, outputs that could not be written or would overwrite files."""
+    out = args.out
+    if out.is_dir():
+        raise UsageError(f"--out '{out}' is a folder; name a file in it, such as "
+                         f"'{out / 'camera.yaml'}'")
+    if out.suffix.lower() not in CALIBRATION_SUFFIXES:
+        raise UsageError(f"--out must end in {', '.join(CALIBRATION_SUFFIXES[:-1])} or "
+                         f"{CALIBRATION_SUFFIXES[-1]}, got '{out}'")
+    folders = [p for p in outputs if p.is_dir()]
+    if folders:
+        raise UsageError(f"'{folders[0]}' is a folder; it stands where an output goes")
+    existing = [p for p in outputs if p.exists()]
+    if existing and not args.force:
+        raise UsageError(f"'{existing[0]}' exists; use --force to overwrite it")
+    require_parent_folder(out, "--out")
+    _require_writable(out.parent, "--out", out)
+    target = args.save_undistorted
+    if target is not None:
+        if target.exists() and not target.is_dir():
+            raise UsageError(f"--save-undistorted '{target}' is a file, not a folder")
+        existing_folder = next(p for p in (target, *target.parents) if p.exists())
+        if not existing_folder.is_dir():
+            raise UsageError(f"--save-undistorted '{target}': '{existing_folder}' is a file, "
+                             "not a folder")
+        _require_writable(existing_folder, "--save-undistorted", target)
+
+
+@contextmanager
+def _no_glyph_warnings() -> Iterator[None]:
+    """Silence matplotlib's "Glyph ... missing from font(s)" warnings: a view name in a
+    script the font lacks is drawn as boxes, and said twice per character on stderr."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r"Glyph \d+ .*missing from",
+                                category=UserWarning)
+        yield
+
+
+def _too_few_views(args: argparse.Namespace, board: BoardSpec, found: CollectedViews) -> str:
+    """Why ``found`` holds fewer than 3 views, for the error."""
+    seen, n = found.seen, len(found.views)
+    if found.not_distinct:
+        kind = "video" if args.video is not None else "camera stream"
+        return (f"only {n} distinct view(s) of the board in {seen} frames of the {kind}: "
+                f"{found.not_distinct} more with the board were dropped as not distinct "
+                f"(its corners moved less than --min-motion {args.min_motion:g} of the image "
+                "diagonal from a view already kept); calibration needs at least 3")
+    if not found.views:
+        w, h = found.image_size
+        if min(w, h) < min_image_side_px(board):
+            hint = (f"the views are {w}x{h} px, too small to show a {board.size[0]}x"
+                    f"{board.size[1]} board")
+        elif board.pattern == "chessboard":
+            hint = "check --board: it counts inner corners (a board of 10x7 squares has 9x6)"
+        else:
+            hint = "check --board (squares), --marker-size and --dictionary"
+        return f"the board was not found in any of the {seen} views; {hint}"
+    return f"the board was found in only {n} of {seen} views; calibration needs at least 3"
+
+
 def run(args: argparse.Namespace) -> int:
     board = _board_from_args(args)
     if args.frames < 3:
         raise UsageError(f"--frames must be at least 3, got {args.frames}")
     outputs = _outputs(args)
-    existing = [p for p in outputs if p.exists()]
-    if existing and not args.force:
-        raise UsageError(f"'{existing[0]}' exists; use --force to overwrite it")
-    require_parent_folder(args.out, "--out")
+    _check_outputs(args, outputs)
 
-    views, images, size, seen = collect_views(args, board,
-                                              keep_images=args.save_undistorted is not None)
-    if not views:
-        hint = ("check --board: it counts inner corners (a board of 10x7 squares has 9x6)"
-                if board.pattern == "chessboard" else
-                "check --board (squares), --marker-size and --dictionary")
-        raise UsageError(f"the board was not found in any of the {seen} views; {hint}")
+    found = collect_views(args, board, keep_images=args.save_undistorted is not None)
+    views, images, size = found.views, found.images, found.image_size
     if len(views) < 3:
-        raise UsageError(f"the board was found in only {len(views)} of {seen} views; "
-                         "calibration needs at least 3")
+        raise UsageError(_too_few_views(args, board, found))
     try:
         result = calibrate(views, size, board, reject_outliers=not args.no_reject,
                            max_rms_px=args.max_rms)
@@ -337,8 +492,8 @@ def run(args: argparse.Namespace) -> int:
                                "cannot be computed")
     umap = uncertainty_map(result.K, result.dist, result.covariance, size,
                            limit_px=args.uncertainty_limit)
-    warnings = coverage_warnings(counts) + umap.warnings
-    for w in warnings:
+    advice = coverage_warnings(counts) + umap.warnings
+    for w in advice:
         logger.warning("%s", w)
 
     from ..plotting import plot_calibration_coverage, plot_uncertainty_map, plot_view_errors
@@ -357,43 +512,52 @@ def run(args: argparse.Namespace) -> int:
     }
     undistorted = []
     if args.save_undistorted is not None:
-        undistorted = [args.save_undistorted / f"{Path(v.name).stem.replace(' ', '_')}.png"
-                       for v in views]
+        names = [Path(v.name).stem for v in views]
+        if len(set(names)) < len(names):  # a.jpg and a.png: keep both
+            names = [Path(v.name).name for v in views]
+        undistorted = [args.save_undistorted / f"{name.replace(' ', '_')}.png"
+                       for name in names]
         existing = [target for target in undistorted if target.exists()]
         if existing and not args.force:
             raise UsageError(f"'{existing[0]}' exists; use --force to overwrite it")
 
     # Everything in memory first; the files are written once all of it exists.
-    figures = {
-        outputs[1].name: _png(plot_calibration_coverage([v.image_points for v in kept], size,
-                                                        counts)),
-        outputs[2].name: _png(plot_view_errors(result.per_view_errors_px,
-                                               result.rejected_views)),
-        outputs[3].name: _png(plot_uncertainty_map(umap)),
-    }
+    with _no_glyph_warnings():
+        figures = {
+            outputs[1].name: _png(plot_calibration_coverage([v.image_points for v in kept],
+                                                            size, counts)),
+            outputs[2].name: _png(plot_view_errors(result.per_view_errors_px,
+                                                   result.rejected_views)),
+            outputs[3].name: _png(plot_uncertainty_map(umap)),
+        }
     lines = _result_lines(result, umap)
     report = None
     if not args.no_report:
         from ..report import calibration_report
 
         report = calibration_report(lines, _report_numbers(result), result.per_view_errors_px,
-                                    result.rejected_views, warnings, umap, figures)
+                                    result.rejected_views, advice, umap, figures)
 
+    # The folder may have gone read-only (or away) during the work: say so in one line.
+    _require_writable(args.out.parent, "--out", args.out)
     if args.save_undistorted is not None:
         args.save_undistorted.mkdir(parents=True, exist_ok=True)
-    written = [save_calibration(args.out, result.as_camera(), extras, overwrite=args.force)]
-    written += [atomic_write_bytes(path, figures[path.name]) for path in outputs[1:4]]
-    if report is not None:
-        written.append(atomic_write_pieces(outputs[4], report.encoded()))
-    for target, img in zip(undistorted, images):  # one undistorted image in memory at a time
-        png = cv2.imencode(".png", undistort_image(img, result.K, result.dist))[1]
-        written.append(atomic_write_bytes(target, png.tobytes()))
+    with all_or_nothing():  # a write that fails leaves the earlier files as they were
+        written = [save_calibration(args.out, result.as_camera(), extras,
+                                    overwrite=args.force)]
+        written += [atomic_write_bytes(path, figures[path.name]) for path in outputs[1:4]]
+        if report is not None:
+            written.append(atomic_write_pieces(outputs[4], report.encoded()))
+        for target, img in zip(undistorted, images):  # one undistorted image at a time
+            png = cv2.imencode(".png", undistort_image(img, result.K, result.dist))[1]
+            written.append(atomic_write_bytes(target, png.tobytes()))
     if not args.quiet:
         print("\n".join(lines))
     for path in written:
         print(f"Wrote '{path}'")
     if args.show:
-        show_images(written[1:4])
+        with _no_glyph_warnings():
+            show_images(written[1:4])
     return EXIT_OK
 
 
