@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .camera import check_principal_point, validate_intrinsics
 from .errors import DatasetError
 from .geometry import FloatArray
 from .geometry import relative_pose as _relative_pose
@@ -222,7 +223,8 @@ class StrechaCamera:
 def strecha_views(dataset: str | os.PathLike) -> list[tuple[Path, Path]]:
     """The views of a Strecha-format dataset: ``(image, camera file)`` paths, by image name.
 
-    An image counts when ``gt_dense_cameras/`` holds its ``NAME.camera``.
+    An image counts when ``gt_dense_cameras/`` holds its ``NAME.camera``; the others are
+    named in a warning.
 
     Raises
     ------
@@ -237,8 +239,14 @@ def strecha_views(dataset: str | os.PathLike) -> list[tuple[Path, Path]]:
         raise FileNotFoundError(f"scene folder not found: '{dataset}'")
     if not images.is_dir() or not cameras.is_dir():
         raise FileNotFoundError(f"'{dataset}' needs images/ and gt_dense_cameras/ folders")
-    views = [(p, cameras / f"{p.name}.camera") for p in sorted(images.iterdir())
-             if p.suffix.lower() in IMAGE_SUFFIXES and (cameras / f"{p.name}.camera").is_file()]
+    photos = [p for p in sorted(images.iterdir()) if p.suffix.lower() in IMAGE_SUFFIXES]
+    views = [(p, cameras / f"{p.name}.camera") for p in photos
+             if (cameras / f"{p.name}.camera").is_file()]
+    if len(views) < len(photos):  # left out, and the indices count without them
+        without = [p.name for p in photos if not (cameras / f"{p.name}.camera").is_file()]
+        logger.warning("%d image(s) of '%s' have no camera file and are left out (the "
+                       "indices count the others): %s", len(without), dataset,
+                       ", ".join(without))
     if len(views) < 2:
         raise ValueError(f"'{dataset}' has fewer than two images with a .camera file")
     return views
@@ -279,25 +287,71 @@ def read_strecha_scene(dataset: str | os.PathLike) -> StrechaScene:
                         [read_strecha_camera(camera) for _, camera in views])
 
 
+#: How far a stored ``R`` may be from orthonormal (``max |R R^T - I|``): the files print
+#: six significant digits, which leaves up to about 1e-6 (fountain-P11, castle-P19).
+ROTATION_TOLERANCE = 1e-5
+
+
 def read_strecha_camera(path: str | os.PathLike) -> StrechaCamera:
-    """Read a Strecha ``.camera`` file (see the module docstring for the layout)."""
+    """Read a Strecha ``.camera`` file (see the module docstring for the layout).
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    ValueError
+        The file does not hold 26 numbers, or one of its fields is not valid: ``K`` not
+        a finite camera matrix with positive focal lengths and last row ``0 0 1`` (and its
+        principal point within reach of the image), a
+        non-finite distortion or centre, ``R`` not a rotation (orthonormal within
+        :data:`ROTATION_TOLERANCE`, determinant +1), the size not two positive whole
+        numbers. The message names the file and the field.
+    """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"camera file not found: '{path}'")
     try:
         values = np.array(path.read_text().split(), dtype=np.float64)
-    except ValueError as exc:
+    except (ValueError, UnicodeDecodeError) as exc:
         raise ValueError(f"cannot read camera file '{path}': {exc}") from exc
     if values.size != 9 + 3 + 9 + 3 + 2:
         raise ValueError(f"camera file '{path}' must hold 26 numbers, got {values.size}")
-    K = values[0:9].reshape(3, 3)
+
+    def bad(field: str, why: str) -> ValueError:
+        return ValueError(f"camera file '{path}': {field} {why}")
+
+    try:
+        K = validate_intrinsics(values[0:9].reshape(3, 3))
+    except ValueError as exc:
+        raise ValueError(f"camera file '{path}': {str(exc).replace('`K`', 'K')}") from None
+    if not np.all(np.isfinite(values[9:12])):
+        raise bad("the distortion", f"must be finite, got {_numbers(values[9:12])}")
     k1, k2, k3 = values[9:12]
     dist = np.array([k1, k2, 0.0, 0.0, k3])  # radial terms in OpenCV's order
     R_cam_to_world = values[12:21].reshape(3, 3)
+    if not np.all(np.isfinite(R_cam_to_world)):
+        raise bad("R", "contains non-finite values")
+    off = float(np.abs(R_cam_to_world @ R_cam_to_world.T - np.eye(3)).max())
+    if off > ROTATION_TOLERANCE:
+        raise bad("R", f"is not a rotation (R R^T differs from the identity by {off:.2g})")
+    if np.linalg.det(R_cam_to_world) < 0:
+        raise bad("R", "is not a rotation (a reflection: its determinant is -1)")
     center = values[21:24]
+    if not np.all(np.isfinite(center)):
+        raise bad("the camera centre", f"must be finite, got {_numbers(center)}")
+    size = values[24:26]
+    if not (np.all(np.isfinite(size)) and np.all(size >= 1) and np.all(size == np.round(size))):
+        raise bad("the image size", f"must be two positive whole numbers, got {_numbers(size)}")
+    try:
+        check_principal_point(K, (int(size[0]), int(size[1])))
+    except ValueError as exc:
+        raise bad("K:", str(exc)) from None
     R = R_cam_to_world.T
-    return StrechaCamera(K, dist, R, -R @ center, center,
-                         (int(values[24]), int(values[25])))
+    return StrechaCamera(K, dist, R, -R @ center, center, (int(size[0]), int(size[1])))
+
+
+def _numbers(values: np.ndarray) -> str:
+    return " ".join(f"{v:g}" for v in values)
 
 
 def relative_pose(cam1: StrechaCamera, cam2: StrechaCamera) -> tuple[FloatArray, FloatArray]:

@@ -76,6 +76,16 @@ def place_file(tmp: Path, path: Path) -> None:
         tmp.unlink(missing_ok=True)
 
 
+def written_bytes(path: str | os.PathLike) -> bytes:
+    """The content of a file this module wrote: within :func:`all_or_nothing`, from its
+    temporary file while the rename waits; else from ``path``."""
+    path = Path(path)
+    for tmp, target in reversed(_staged.get() or []):
+        if target == path:
+            return tmp.read_bytes()
+    return path.read_bytes()
+
+
 def check_target(path: Path) -> None:
     """Raise ``IsADirectoryError`` when a folder stands where the file ``path`` is to go
     (the rename over it would fail only after every other file was written)."""

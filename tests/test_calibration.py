@@ -327,7 +327,7 @@ def test_cli_refuses_a_negative_camera_index(tmp_path, camera):
     ("--min-motion", "-1", "argument --min-motion: must be a finite number >= 0, got -1"),
     ("--square-size", "inf", "argument --square-size: must be a finite number, got inf"),
     ("--square-size", "nan", "argument --square-size: must be positive, got nan"),
-    ("--out", "", "argument --out: must name a file such as camera.yaml, got ''"),
+    ("--out", "", "argument --out: must name a file or folder, got ''"),
 ])
 def test_cli_refuses_bad_numbers_and_names(tmp_path, chessboards, capsys, option, value,
                                            message):

@@ -2,6 +2,7 @@
 
 import functools
 import http.server
+import logging
 import shutil
 import threading
 
@@ -88,7 +89,7 @@ def test_unknown_file_is_refused(tmp_path):
         fetch_fountain_p11(("images/9999.jpg",), data_root=tmp_path)
 
 
-def test_strecha_views_pair_each_image_with_its_camera_file(tmp_path):
+def test_strecha_views_pair_each_image_with_its_camera_file(tmp_path, caplog):
     images, cameras = tmp_path / "images", tmp_path / "gt_dense_cameras"
     images.mkdir()
     cameras.mkdir()
@@ -96,8 +97,11 @@ def test_strecha_views_pair_each_image_with_its_camera_file(tmp_path):
         (images / name).write_bytes(b"")
     for name in ("a.JPG", "b.jpg"):  # c.png has no camera file: not a view
         (cameras / f"{name}.camera").write_text("")
-    assert strecha_views(tmp_path) == [(images / "a.JPG", cameras / "a.JPG.camera"),
-                                       (images / "b.jpg", cameras / "b.jpg.camera")]
+    with caplog.at_level(logging.WARNING):
+        assert strecha_views(tmp_path) == [(images / "a.JPG", cameras / "a.JPG.camera"),
+                                           (images / "b.jpg", cameras / "b.jpg.camera")]
+    assert "1 image(s) of" in caplog.text and "left out (the indices count the others): c.png" \
+        in caplog.text
     (cameras / "b.jpg.camera").unlink()
     with pytest.raises(ValueError, match="fewer than two images with a .camera file"):
         strecha_views(tmp_path)
@@ -118,3 +122,50 @@ def test_a_strecha_scene_holds_each_image_with_its_true_camera(data_root):
     np.testing.assert_array_equal(scene.R[4], fifth.R)
     np.testing.assert_array_equal(scene.centers[4], fifth.center)
     assert scene.R.shape == (11, 3, 3) and scene.centers.shape == (11, 3)
+
+
+def camera_text(fountain, lines):
+    """0004.jpg's camera file with some of its lines (index -> text) replaced."""
+    text = (fountain / "gt_dense_cameras" / "0004.jpg.camera").read_text().splitlines()
+    for index, line in lines.items():
+        text[index] = line
+    return "\n".join(text) + "\n"
+
+
+# Lines: K 0-2, distortion 3, R (camera-to-world) 4-6, centre 7, size 8.
+@pytest.mark.parametrize("lines, message", [
+    ({8: "inf inf"}, "the image size must be two positive whole numbers, got inf inf"),
+    ({8: "nan nan"}, "the image size must be two positive whole numbers, got nan nan"),
+    ({8: "3072 0"}, "the image size must be two positive whole numbers"),
+    ({8: "3072.5 2048"}, "the image size must be two positive whole numbers"),
+    ({4: "1 0 0", 5: "0 1 0", 6: "0 1 0"}, "R is not a rotation"),
+    ({4: "-0.890856 0.0211638 0.453793"}, "R is not a rotation (a reflection"),
+    ({5: "nan 0 0"}, "R contains non-finite values"),
+    ({0: "-2759.48 0 1520.69"}, "K must have positive focal lengths"),
+    ({1: "0 nan 1006.81"}, "K contains non-finite values"),
+    ({2: "0 0 2"}, "K must be upper triangular with last row [0, 0, 1]"),
+    ({0: "2759.48 0 -50000"}, "K: the principal point (-50000, 1006.81) lies far outside"),
+    ({3: "0 inf 0"}, "the distortion must be finite"),
+    ({7: "nan -3.81315 0.110559"}, "the camera centre must be finite"),
+])
+def test_an_invalid_camera_file_is_refused_naming_the_file_and_the_field(fountain, tmp_path,
+                                                                          lines, message):
+    from scene3D.datasets import read_strecha_camera
+
+    path = tmp_path / "0004.jpg.camera"
+    path.write_text(camera_text(fountain, lines))
+    with pytest.raises(ValueError) as info:
+        read_strecha_camera(path)
+    assert str(info.value).startswith(f"camera file '{path}': ")
+    assert message in str(info.value) and "\n" not in str(info.value)
+
+
+def test_every_shared_camera_file_is_valid(data_root):
+    """The tolerance on R leaves the stored six digits of every Strecha scene through."""
+    from scene3D.datasets import read_strecha_camera
+
+    files = sorted(data_root.glob("*/gt_dense_cameras/*.camera"))
+    assert len(files) >= 11
+    for path in files:
+        camera = read_strecha_camera(path)
+        np.testing.assert_allclose(camera.R @ camera.R.T, np.eye(3), atol=1e-5)

@@ -38,3 +38,84 @@ def test_evaluate_no_calib_refuses_a_pair_of_two_cameras(fountain, tmp_path, cap
     assert "| 0004.jpg-0005.jpg | inf | inf | - | - | 0 | 0 | - | no |" in out
     assert "refused: '0005.jpg' was taken with a Canon EOS 6D" in out
     assert "no pair gave a focal length" in out
+
+
+# -- bad input, refused before any pair is run ---------------------------------------------
+
+def _scene(fountain, folder, broken=None):
+    """0003-0005 of fountain-P11 in ``folder`` (images linked), with 0004.jpg's camera file
+    lines replaced by ``broken`` (index -> text)."""
+    from .test_datasets import camera_text
+
+    for sub in ("images", "gt_dense_cameras"):
+        (folder / sub).mkdir(parents=True)
+    for name in ("0003.jpg", "0004.jpg", "0005.jpg"):
+        (folder / "images" / name).symlink_to(fountain / "images" / name)
+        (folder / "gt_dense_cameras" / f"{name}.camera").write_text(
+            camera_text(fountain, broken) if broken and name == "0004.jpg" else
+            (fountain / "gt_dense_cameras" / f"{name}.camera").read_text())
+    return folder
+
+
+@pytest.fixture
+def no_pairs(monkeypatch):
+    """Fail the test if any pair is run."""
+    import scene3D.cli.evaluate as evaluate
+
+    def refuse(*args, **kwargs):
+        pytest.fail("a pair was run before the input was checked")
+
+    monkeypatch.setattr(evaluate, "evaluate_pairs", refuse)
+
+
+@pytest.mark.parametrize("broken, message", [
+    ({8: "inf inf"}, "the image size must be two positive whole numbers, got inf inf"),
+    ({8: "nan nan"}, "the image size must be two positive whole numbers, got nan nan"),
+    ({4: "1 0 0", 5: "0 1 0", 6: "0 1 0"}, "R is not a rotation"),
+    ({5: "nan nan nan"}, "R contains non-finite values"),
+    ({0: "0 0 1520.69"}, "K must have positive focal lengths"),
+])
+def test_evaluate_refuses_an_invalid_camera_file(fountain, tmp_path, capsys, no_pairs,
+                                                 broken, message):
+    scene = _scene(fountain, tmp_path / "scene", broken)
+    assert main([str(scene), "--pairs", "0-1"]) == 2
+    err = capsys.readouterr().err
+    camera = scene / "gt_dense_cameras" / "0004.jpg.camera"
+    assert err == f"error: camera file '{camera}': {err.split(': ', 2)[2]}"
+    assert message in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("pairs, message", [
+    (["0-1", "0-1"], "pair 0-1 is given twice"),
+    (["consecutive", "1-2"], "pair 1-2 is given twice (by 'consecutive' and '1-2')"),
+])
+def test_evaluate_refuses_a_pair_given_twice(fountain, tmp_path, capsys, no_pairs, pairs,
+                                             message):
+    assert main([str(_scene(fountain, tmp_path / "scene")), "--pairs", *pairs]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
+
+
+def test_evaluate_refuses_a_csv_folder_it_cannot_write_before_any_pair(
+        fountain, tmp_path, capsys, monkeypatch, no_pairs):
+    """A folder that refuses new files (read-only; chmod does not stop root, so every
+    file opened in it fails as on a read-only mount)."""
+    import errno
+    import os
+
+    locked = tmp_path / "rofs"
+    locked.mkdir()
+    real_open = os.open
+
+    def read_only(path, flags, *args, **kwargs):
+        if os.path.dirname(os.path.abspath(path)) == str(locked) and flags & os.O_CREAT:
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(path))
+        return real_open(path, flags, *args, **kwargs)
+
+    monkeypatch.setattr(os, "open", read_only)
+    scene = _scene(fountain, tmp_path / "scene")
+    assert main([str(scene), "--pairs", "0-1", "--csv", str(locked / "x.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: --csv '{locked / 'x.csv'}' cannot be written")
+    assert "Read-only file system" in err and len(err.strip().splitlines()) == 1
+    assert list(locked.iterdir()) == []

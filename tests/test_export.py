@@ -12,6 +12,7 @@ from scene3D.export import (
     save_figure,
     write_json,
     write_ply,
+    written_bytes,
 )
 
 
@@ -81,6 +82,7 @@ def test_a_run_that_fails_while_writing_leaves_the_earlier_results_whole(tmp_pat
         with all_or_nothing():
             atomic_write_bytes(tmp_path / "a.txt", b"new")
             assert (tmp_path / "a.txt").read_text() == "old"  # not yet
+            assert written_bytes(tmp_path / "a.txt") == b"new"  # what the block wrote
             raise OSError(28, "No space left on device")  # as the next write would
     assert [(p.name, p.read_text()) for p in sorted(tmp_path.iterdir())] == \
         [("a.txt", "old"), ("b.txt", "old")]  # and no temporary file is left

@@ -632,3 +632,89 @@ def test_a_view_that_fails_at_first_is_registered_with_further_candidates(founta
     assert "more pairs" not in engine.labels
     assert stuck.unregistered == ("0005.jpg",)
     assert stuck.unregistered_reasons["0005.jpg"].startswith("too few 2D-3D matches")
+
+
+def test_ground_truth_is_read_and_checked_before_the_reconstruction(fountain, tmp_path, capsys,
+                                                                    monkeypatch):
+    """A broken or missing camera file stops the command at once (exit 2, the file named),
+    not after the whole reconstruction."""
+    from scene3D.cli import multiview
+
+    from .test_datasets import camera_text
+
+    monkeypatch.setattr(multiview, "reconstruct_views", lambda *a, **k: pytest.fail(
+        "the reconstruction ran before the ground truth was checked"))
+    gt = tmp_path / "gt"
+    gt.mkdir()
+    (gt / "0004.jpg.camera").write_text(camera_text(fountain, {8: "inf inf"}))
+    images = [str(fountain / "images" / f"000{i}.jpg") for i in (4, 5)]
+    argv = [*images, "--calib", str(REPO / "data" / "fountain_P11_intrinsics.yaml"),
+            "--ground-truth", str(gt), "--out", str(tmp_path / "out")]
+    assert multiview.main(argv) == 2
+    err = capsys.readouterr().err
+    assert err == (f"error: camera file '{gt / '0004.jpg.camera'}': the image size must be "
+                   "two positive whole numbers, got inf inf\n")
+    (gt / "0004.jpg.camera").write_text(camera_text(fountain, {5: "nan nan nan"}))
+    assert multiview.main(argv) == 2
+    assert "0004.jpg.camera': R contains non-finite values" in capsys.readouterr().err
+    (gt / "0004.jpg.camera").write_text(camera_text(fountain, {}))
+    assert multiview.main(argv) == 2
+    assert capsys.readouterr().err == (f"error: --ground-truth '{gt}' has no camera file for "
+                                       f"'0005.jpg' (expected '{gt / '0005.jpg.camera'}')\n")
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("case", ["tiny", "blank", "max-width 16"])
+def test_images_without_keypoints_end_with_the_reason(fountain, tmp_path, capsys, case):
+    """No view has keypoints (10x10 px, black, or fountain at 12x8 px): no start, exit 1,
+    and the line says the images have too few keypoints."""
+    from scene3D.cli.multiview import main
+
+    if case == "max-width 16":
+        images = [str(fountain / "images" / f"000{i}.jpg") for i in (4, 5)]
+        extra = ["--calib", str(REPO / "data" / "fountain_P11_intrinsics.yaml"),
+                 "--max-width", "16"]
+    else:
+        rng = np.random.default_rng(1)
+        images = []
+        for i in range(2):
+            img = (rng.integers(0, 256, (10, 10, 3)) if case == "tiny"
+                   else np.zeros((200, 300, 3))).astype(np.uint8)
+            images.append(str(tmp_path / f"{case}{i}.png"))
+            cv2.imwrite(images[-1], img)
+        extra = []
+    assert main([*images, *extra, "--no-plots", "--out", str(tmp_path / "out"), "-q"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: too few keypoints to match: 0 in ")
+    assert "where a pair needs 30; are the images blank, blurred or tiny?" in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_a_model_without_points_is_a_failure(fountain, tmp_path, monkeypatch, capsys):
+    """Two registered views and no point (as a calibration that does not fit can leave
+    them): exit 1, status 'failed', the reason on stderr; not a success."""
+    from scene3D.cli.multiview import main
+    from scene3D.multiview import state
+
+    original = state.GrowingModel.result
+
+    def without_points(self, check):
+        return dataclasses.replace(
+            original(self, check), points3d=np.zeros((0, 3)), colors=np.zeros((0, 3), np.uint8),
+            observations=Observations(np.zeros(0, int), np.zeros(0, int), np.zeros((0, 2))),
+            reprojection_rmse_px=float("nan"))
+
+    monkeypatch.setattr(state.GrowingModel, "result", without_points)
+    out = tmp_path / "out"
+    code = main([str(fountain / "images" / f"000{i}.jpg") for i in (4, 5)]
+                + ["--calib", str(REPO / "data" / "fountain_P11_intrinsics.yaml"),
+                   "--max-width", "400", "--no-plots", "--no-report", "--out", str(out), "-q"])
+    assert code == 1
+    err = capsys.readouterr().err
+    assert err == ("error: the largest model has 0 points for its 2 views, fewer than 10: its "
+                   "cameras rest on nothing (does the calibration fit these photos?); see "
+                   "reconstruction.json, the files are written for inspection only\n")
+    summary = json.loads((out / "reconstruction.json").read_text())
+    assert summary["status"] == "failed" and summary["points"] == 0
+    assert summary["models"][0]["status"] == "failed"
+    assert summary["models"][0]["check"]["status"] == "ok"  # consistent, but empty

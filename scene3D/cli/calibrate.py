@@ -8,7 +8,6 @@ import glob
 import hashlib
 import io
 import logging
-import math
 import os
 import sys
 import tempfile
@@ -42,9 +41,14 @@ from ..export import all_or_nothing, atomic_write_bytes, atomic_write_pieces
 from ..imageio import IMAGE_SUFFIXES, image_size, load_bgr, read_image_size
 from .common import (
     EXIT_OK,
+    ArgumentParser,
     UsageError,
     add_common_args,
     exit_codes_help,
+    finite_non_negative_float,
+    finite_positive_float,
+    non_negative_int,
+    path_arg,
     positive_float,
     require_parent_folder,
     run_command,
@@ -64,45 +68,8 @@ def _board_size(text: str) -> tuple[int, int]:
     return cols, rows
 
 
-def _camera_index(text: str) -> int:
-    """argparse type: a webcam index >= 0 (OpenCV crashes on a negative one)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be 0 or more, got {text}")
-    return value
-
-
-def _finite_positive(text: str) -> float:
-    """argparse type: a finite number > 0."""
-    value = positive_float(text)
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
-    return value
-
-
-def _motion_fraction(text: str) -> float:
-    """argparse type: a finite number >= 0 (NaN would let every frame through)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
-    if not (math.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
-    return value
-
-
-def _out_file(text: str) -> Path:
-    """argparse type: a file name (``Path("")`` would be the current folder)."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError(f"must name a file such as camera.yaml, got {text!r}")
-    return Path(text)
-
-
 def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog=prog,
         description=(
             "Calibrate a camera from views of a chessboard or ChArUco board and write its "
@@ -125,7 +92,7 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
     source.add_argument("--images", metavar="GLOB_OR_DIR",
                         help="a folder of photos or a glob such as 'calib/*.jpg' (quote it)")
     source.add_argument("--video", type=Path, metavar="FILE", help="a video of the board")
-    source.add_argument("--camera", type=_camera_index, metavar="INDEX",
+    source.add_argument("--camera", type=non_negative_int, metavar="INDEX",
                         help="a webcam, e.g. 0")
     board = parser.add_argument_group("board")
     board.add_argument("--pattern", choices=("chessboard", "charuco"), default="chessboard",
@@ -133,16 +100,17 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
     board.add_argument("--board", type=_board_size, default=None, metavar="COLSxROWS",
                        help="chessboard: inner corners (default 9x6, the book's); "
                             "charuco: squares (default 5x7)")
-    board.add_argument("--square-size", type=_finite_positive, default=1.0, metavar="M",
+    board.add_argument("--square-size", type=finite_positive_float, default=1.0, metavar="M",
                        help="side of a square in metres (default 1.0, i.e. results in units of "
                             "squares; K and the distortion do not depend on it)")
-    board.add_argument("--marker-size", type=_finite_positive, default=None, metavar="M",
+    board.add_argument("--marker-size", type=finite_positive_float, default=None, metavar="M",
                        help="charuco: side of a marker in metres (default: half a square)")
     board.add_argument("--dictionary", default="DICT_6X6_250",
                        help="charuco: ArUco dictionary (default DICT_6X6_250)")
     parser.add_argument("--frames", type=int, default=20, metavar="N",
                         help="video/webcam: distinct views to collect (default 20, the book's)")
-    parser.add_argument("--min-motion", type=_motion_fraction, default=0.05, metavar="FRACTION",
+    parser.add_argument("--min-motion", type=finite_non_negative_float, default=0.05,
+                        metavar="FRACTION",
                         help="video/webcam: a view counts as distinct when its corners moved by "
                              "this fraction of the image diagonal (default 0.05)")
     parser.add_argument("--skip-other-sizes", action="store_true",
@@ -154,7 +122,7 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
     parser.add_argument("--max-rms", type=positive_float, default=MAX_RMS_PX, metavar="PX",
                         help="refuse a calibration whose RMS reprojection error exceeds this "
                              f"(default {MAX_RMS_PX:g} px; a wrong --board gives far more)")
-    parser.add_argument("--out", type=_out_file, default=Path("camera.yaml"), metavar="FILE",
+    parser.add_argument("--out", type=path_arg, default=Path("camera.yaml"), metavar="FILE",
                         help="output calibration: .yaml, .yml, .xml or .json "
                              "(default camera.yaml)")
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")

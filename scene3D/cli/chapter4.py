@@ -31,6 +31,7 @@ from ..scene import SceneReconstruction3D
 from ..twoview import TwoViewSettings
 from .common import (
     EXIT_OK,
+    ArgumentParser,
     UsageError,
     add_bundle_adjust_arg,
     add_common_args,
@@ -40,6 +41,7 @@ from .common import (
     check_report_viewer,
     exit_codes_help,
     focal_sigma_text,
+    path_arg,
     prepare_output_dir,
     run_command,
     show_images,
@@ -59,7 +61,7 @@ REPORT_FILE = "report.html"
 
 
 def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog=prog,
         description=(
             "Reconstruct a 3D scene from two photos of it taken by one calibrated camera "
@@ -95,7 +97,7 @@ def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
     parser.add_argument("--dense", action="store_true",
                         help="also match every pixel of the rectified pair (SGBM) and write "
                              "dense.ply and disparity.png")
-    parser.add_argument("--out", type=Path, default=Path("out"), metavar="DIR",
+    parser.add_argument("--out", type=path_arg, default=Path("out"), metavar="DIR",
                         help="output folder (default: out/)")
     parser.add_argument("--no-plots", action="store_true",
                         help="skip the PNG figures")

@@ -11,7 +11,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from ..engines import Engine, LocalEngine, Progress
 from ..errors import (
@@ -33,29 +33,70 @@ def exit_codes_help(failed: str, success: str = "success") -> str:
     return f"Exit codes: 0 {success}; 1 {failed}; 2 bad usage or input"
 
 
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse's parser, with a usage error in one line and exit code 2: ``error: argument
+    --max-width: must be > 0, got 0 (see chapter4.py --help)``, not the usage block first."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"error: {message} (see {self.prog} --help)\n")
+
+
 class UsageError(Exception):
     """A command-line mistake the user can fix (exit code 2)."""
 
 
+def path_arg(text: str) -> Path:
+    """argparse type: a path, not empty (``Path("")`` would quietly be the current folder,
+    as an unset shell variable gives)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("must name a file or folder, got ''")
+    return Path(text)
+
+
+def _number(text: str, kind: type, name: str) -> float:
+    try:
+        return kind(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be {name}, got {text!r}") from None
+
+
 def positive_float(text: str) -> float:
     """argparse type: a number > 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
+    value = _number(text, float, "a number")
     if not value > 0:
         raise argparse.ArgumentTypeError(f"must be positive, got {text}")
     return value
 
 
+def finite_positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    value = positive_float(text)
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
+    return value
+
+
+def finite_non_negative_float(text: str) -> float:
+    """argparse type: a finite number >= 0 (NaN, which every comparison fails, refused)."""
+    value = _number(text, float, "a number")
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
+    return value
+
+
 def positive_int(text: str) -> int:
     """argparse type: a whole number >= 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
+    value = _number(text, int, "a whole number")
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    """argparse type: a whole number >= 0."""
+    value = _number(text, int, "a whole number")
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, got {text}")
     return value
 
 

@@ -7,8 +7,10 @@ import csv
 import io
 import logging
 import math
+import os
 import re
 import sys
+import tempfile
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -36,6 +38,7 @@ from ..twoview import TwoViewSettings, reconstruct_from_matches
 from ..uncertainty import pose_error_chi2
 from .common import (
     EXIT_OK,
+    ArgumentParser,
     UsageError,
     add_bundle_adjust_arg,
     add_common_args,
@@ -44,6 +47,7 @@ from .common import (
     add_size_args,
     exit_codes_help,
     open_engine,
+    path_arg,
     require_parent_folder,
     run_command,
 )
@@ -52,7 +56,7 @@ logger = logging.getLogger(__name__)
 
 
 def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog=prog,
         description=(
             "Run the two-view reconstruction on image pairs of a dataset in the Strecha "
@@ -83,7 +87,7 @@ def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
                              "focal length, as chapter4.py does without --calib; the 'focal "
                              "fit' column is then the focal length found over the camera "
                              "file's, and the summary gives the median focal error")
-    parser.add_argument("--csv", type=Path, metavar="FILE",
+    parser.add_argument("--csv", type=path_arg, metavar="FILE",
                         help="also write the per-pair rows (with notes) to this CSV file")
     parser.add_argument("--force", action="store_true",
                         help="overwrite an existing --csv file")
@@ -100,12 +104,15 @@ def _views(dataset: Path) -> list[tuple[Path, Path]]:
 
 
 def _pairs(specs: list[str], count: int) -> list[tuple[int, int]]:
+    """The index pairs that ``specs`` select, in order; a pair selected twice (``4-5 4-5``,
+    or ``consecutive 4-5``) is refused: it would count twice in the summary."""
     pairs: list[tuple[int, int]] = []
+    given_by: dict[tuple[int, int], str] = {}
     for spec in specs:
         skip = re.fullmatch(r"skip(\d+)", spec)
         if spec == "consecutive" or skip:
             gap = 1 + (int(skip.group(1)) if skip else 0)
-            pairs += [(i, i + gap) for i in range(count - gap)]
+            selected = [(i, i + gap) for i in range(count - gap)]
         else:
             try:
                 a, b = (int(v) for v in spec.split("-"))
@@ -115,7 +122,14 @@ def _pairs(specs: list[str], count: int) -> list[tuple[int, int]]:
                 raise UsageError(f"pair {spec!r} is out of range 0..{count - 1}")
             if a == b:
                 raise UsageError(f"pair {spec!r} pairs an image with itself")
-            pairs.append((a, b))
+            selected = [(a, b)]
+        for pair in selected:
+            if pair in given_by:
+                by = f" (by {given_by[pair]!r} and {spec!r})" if given_by[pair] != spec else ""
+                raise UsageError(f"pair {pair[0]}-{pair[1]} is given twice{by}: list each pair "
+                                 "once (it would count twice in the summary)")
+            given_by[pair] = spec
+        pairs += selected
     if not pairs:
         raise UsageError(f"no image pairs: {' '.join(specs)} selects none of the {count} images")
     return pairs
@@ -314,6 +328,13 @@ def _check_csv_target(path: Path | None, force: bool) -> None:
         raise UsageError(f"--csv '{path}' exists; use --force to overwrite it"
                          if not path.is_dir() else f"--csv '{path}' is a folder")
     require_parent_folder(path, "--csv")
+    try:  # a file created and removed beside the target: a folder we may not write refuses
+        fd, probe = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".probe")
+    except OSError as exc:
+        raise UsageError(f"--csv '{path}' cannot be written: its folder '{path.parent}' "
+                         f"refuses new files ({exc.strerror})") from None
+    os.close(fd)
+    os.unlink(probe)
 
 
 def _csv_text(rows: list[dict]) -> str:

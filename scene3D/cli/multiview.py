@@ -13,9 +13,17 @@ import numpy as np
 
 from ..calibration_io import load_calibration
 from ..camera import adapt_intrinsics_to_size
-from ..datasets import read_strecha_camera
+from ..datasets import StrechaCamera, read_strecha_camera
 from ..evaluation import camera_set_error
-from ..export import colmap_text_files, save_figure, write_json, write_ply, write_text_files
+from ..export import (
+    all_or_nothing,
+    colmap_text_files,
+    save_figure,
+    write_json,
+    write_ply,
+    write_text_files,
+    written_bytes,
+)
 from ..features import FEATURE_MODES, resolve_feature_mode
 from ..imageio import BOOK_MAX_WIDTH_PX, IMAGE_SUFFIXES, read_image_size
 from ..multiview import (
@@ -28,6 +36,7 @@ from ..multiview import (
 from .common import (
     EXIT_FAILED,
     EXIT_OK,
+    ArgumentParser,
     UsageError,
     add_common_args,
     add_engine_args,
@@ -38,6 +47,7 @@ from .common import (
     exit_codes_help,
     focal_sigma_text,
     open_engine,
+    path_arg,
     positive_int,
     prepare_output_dir,
     run_command,
@@ -45,9 +55,13 @@ from .common import (
 
 logger = logging.getLogger("scene3D.cli")
 
+#: A model with fewer points than this is a failure, not a result: its cameras rest on
+#: (almost) nothing (a two-view start alone triangulates dozens).
+MIN_MODEL_POINTS = 10
+
 
 def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog=prog,
         description=(
             "Incremental structure from motion: register many photos of one camera and "
@@ -64,10 +78,12 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
             "views are in which model, which are in none and why) and report.html (the "
             "summary with an interactive 3D view of the largest model; opens offline). "
             "A model that fails the "
-            "consistency check (a view whose pose contradicts its pair geometry, a fold) is "
+            "consistency check (a view whose pose contradicts its pair geometry, a fold) "
+            f"or has fewer than {MIN_MODEL_POINTS} points is "
             "written for inspection, its status 'failed', and the exit code is 1. "
             + exit_codes_help("no pair gives a trustworthy start, a model failed its "
-                              "consistency check, or the cluster gave a task up") + "."
+                              f"consistency check or has fewer than {MIN_MODEL_POINTS} "
+                              "points, or the cluster gave a task up") + "."
         ),
     )
     parser.add_argument("images", nargs="+", metavar="IMAGES",
@@ -96,7 +112,7 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
     parser.add_argument("--ground-truth", type=Path, metavar="DIR",
                         help="Strecha .camera files (NAME.camera per image): report camera "
                              "errors after a similarity alignment")
-    parser.add_argument("--out", type=Path, default=Path("out/views"), metavar="DIR",
+    parser.add_argument("--out", type=path_arg, default=Path("out/views"), metavar="DIR",
                         help="output folder (default out/views)")
     parser.add_argument("--no-plots", action="store_true", help="skip cameras.png")
     parser.add_argument("--no-report", action="store_true",
@@ -127,14 +143,30 @@ def image_paths(specs: list[str]) -> list[Path]:
     return paths
 
 
-def evaluate_against(folder: Path, names: list[str], model: SfMModel,
+def read_ground_truth(folder: Path, names: list[str]) -> list[StrechaCamera]:
+    """The Strecha camera of every image (``folder/NAME.camera``), read and checked
+    before any work: a missing or invalid file is a one-line input error."""
+    if not folder.is_dir():
+        raise UsageError(f"--ground-truth '{folder}' is not a folder")
+    cameras = []
+    for name in names:
+        path = folder / f"{name}.camera"
+        if not path.is_file():
+            raise UsageError(f"--ground-truth '{folder}' has no camera file for '{name}' "
+                             f"(expected '{path}')")
+        cameras.append(read_strecha_camera(path))
+    return cameras
+
+
+def evaluate_against(cameras: list[StrechaCamera], names: list[str], model: SfMModel,
                      K: np.ndarray | None = None, image_size: tuple[int, int] | None = None
                      ) -> dict:
-    """Camera errors of a model's views against Strecha ground truth; with the model's
-    self-calibrated ``K`` (working images of ``image_size``) also its focal error against
-    the camera files' (``sqrt(fx fy)``, scaled to the working width)."""
+    """Camera errors of a model's views against Strecha ground truth (``cameras``, one per
+    view: :func:`read_ground_truth`); with the model's self-calibrated ``K`` (working
+    images of ``image_size``) also its focal error against the camera files'
+    (``sqrt(fx fy)``, scaled to the working width)."""
     reg = [i for i in range(len(names)) if model.registered[i]]
-    truth = [read_strecha_camera(folder / f"{names[i]}.camera") for i in reg]
+    truth = [cameras[i] for i in reg]
     err = camera_set_error(model.R[reg], model.centers[reg], np.array([c.R for c in truth]),
                            np.array([c.center for c in truth]))
     focal = {}
@@ -180,7 +212,7 @@ def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, s
                      f"({recon.calibration_source}; {recon.prior_description})")
     figures = {}
     if plots:
-        figures["cameras.png"] = (out / "cameras.png").read_bytes()
+        figures["cameras.png"] = written_bytes(out / "cameras.png")
     view = prepare_view(*multi_view_layers(names, recon.K, recon.image_size, recon.registered,
                                            recon.R, recon.t, recon.points3d, recon.colors))
     page = multi_view_report(names, recon.registered, summary, lines, figures, view)
@@ -238,9 +270,9 @@ def run(args: argparse.Namespace) -> int:
         prior = read_camera_prior(paths)  # one camera, or a one-line error (exit code 2)
     else:
         camera = load_calibration(args.calib)
+    names = [p.name for p in paths]
+    truth = None if args.ground_truth is None else read_ground_truth(args.ground_truth, names)
     out = prepare_output_dir(args.out)
-    if args.ground_truth is not None and not args.ground_truth.is_dir():
-        raise UsageError(f"--ground-truth '{args.ground_truth}' is not a folder")
     if not args.no_report:
         check_report_viewer()
 
@@ -255,7 +287,6 @@ def run(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(message, file=sys.stderr)
 
-    names = [p.name for p in paths]
     with open_engine(args) as engine:
         recon = reconstruct_views(
             paths, K_native, dist,
@@ -264,55 +295,62 @@ def run(args: argparse.Namespace) -> int:
             settings=SfMSettings(neighbours=args.neighbours,
                                  retrieval_neighbours=args.retrieval_neighbours),
             progress=progress, engine=engine, focal_prior=prior)
-    timings = {k: v for k, v in recon.timings_s.items() if k != "total"}
-    models = []
-    written: list[Path] = []
-    for m, model in enumerate(recon.models):
-        folder = out if m == 0 else out / f"model-{m}"
-        entry = {
-            "folder": "." if m == 0 else folder.name,
-            "views": [names[i] for i in model.views], "registered": len(model.views),
-            "points": len(model.points3d), "mean_track_length": model.mean_track_length,
-            "reprojection_rmse_px": model.reprojection_rmse_px,
-            "check": check_summary(model, names),
+    # The files of every model, all or none: a write that fails leaves the earlier run's.
+    with all_or_nothing():
+        timings = {k: v for k, v in recon.timings_s.items() if k != "total"}
+        models = []
+        written: list[Path] = []
+        for m, model in enumerate(recon.models):
+            folder = out if m == 0 else out / f"model-{m}"
+            entry = {
+                "folder": "." if m == 0 else folder.name,
+                "status": "ok" if model.check.ok and len(model.points3d) >= MIN_MODEL_POINTS
+                else "failed",
+                "views": [names[i] for i in model.views], "registered": len(model.views),
+                "points": len(model.points3d), "mean_track_length": model.mean_track_length,
+                "reprojection_rmse_px": model.reprojection_rmse_px,
+                "check": check_summary(model, names),
+            }
+            if model.focal is not None:
+                entry["K"] = recon.model_K(model)
+                entry["focal_px_sigma"] = model.focal.sigma_px
+                entry["calibration_source"] = model.focal.source
+            if truth is not None:
+                entry["ground_truth"] = evaluate_against(
+                    truth, names, model,
+                    recon.model_K(model) if model.focal is not None else None, recon.image_size)
+            models.append(entry)
+            written += write_model(folder, names, recon, model, not args.no_plots)
+        main_model = models[0]
+        # A model without points has cameras resting on nothing (e.g. a calibration that
+        # does not fit): a failure, not a result.
+        thin = [(m, entry) for m, entry in enumerate(models) if entry["points"] < MIN_MODEL_POINTS]
+        summary = {
+            "status": "ok" if recon.ok and not thin else "failed",
+            "views": len(names), "registered": main_model["registered"],
+            "unregistered": list(recon.unregistered),
+            "unregistered_reasons": recon.unregistered_reasons,
+            "models": models, "points": main_model["points"],
+            "mean_track_length": recon.mean_track_length,
+            "reprojection_rmse_px": recon.reprojection_rmse_px,
+            "pair_selection": recon.pair_selection, "matched_pairs": recon.matched_pairs,
+            "verified_pairs": recon.verified_pairs,
+            "image_size": list(recon.image_size), "K": recon.K,
+            "calibration_source": recon.calibration_source,
+            "focal_px_sigma": recon.focal_px_sigma,
+            "self_calibration": focal_summary(recon, recon.main, prior.camera_name)
+            if prior is not None else None,
+            "feature": resolve_feature_mode(args.feature), "feature_requested": args.feature,
+            "conventions": "each model: world = camera frame of the first view of its initial "
+                           "pair; x_cam = R @ X + t; arbitrary scale",
         }
-        if model.focal is not None:
-            entry["K"] = recon.model_K(model)
-            entry["focal_px_sigma"] = model.focal.sigma_px
-            entry["calibration_source"] = model.focal.source
-        if args.ground_truth is not None:
-            entry["ground_truth"] = evaluate_against(
-                args.ground_truth, names, model,
-                recon.model_K(model) if model.focal is not None else None, recon.image_size)
-        models.append(entry)
-        written += write_model(folder, names, recon, model, not args.no_plots)
-    main_model = models[0]
-    summary = {
-        "status": "ok" if recon.ok else "failed",
-        "views": len(names), "registered": main_model["registered"],
-        "unregistered": list(recon.unregistered),
-        "unregistered_reasons": recon.unregistered_reasons,
-        "models": models, "points": main_model["points"],
-        "mean_track_length": recon.mean_track_length,
-        "reprojection_rmse_px": recon.reprojection_rmse_px,
-        "pair_selection": recon.pair_selection, "matched_pairs": recon.matched_pairs,
-        "verified_pairs": recon.verified_pairs,
-        "image_size": list(recon.image_size), "K": recon.K,
-        "calibration_source": recon.calibration_source,
-        "focal_px_sigma": recon.focal_px_sigma,
-        "self_calibration": focal_summary(recon, recon.main, prior.camera_name)
-        if prior is not None else None,
-        "feature": resolve_feature_mode(args.feature), "feature_requested": args.feature,
-        "conventions": "each model: world = camera frame of the first view of its initial "
-                       "pair; x_cam = R @ X + t; arbitrary scale",
-    }
-    if "ground_truth" in main_model:
-        summary["ground_truth"] = main_model["ground_truth"]
-    timings["total"] = time.perf_counter() - t_start
-    summary["timings_s"] = timings
-    written.append(write_json(out / "reconstruction.json", summary))
-    if not args.no_report:
-        written.append(_write_report(out, names, recon, summary, not args.no_plots))
+        if "ground_truth" in main_model:
+            summary["ground_truth"] = main_model["ground_truth"]
+        timings["total"] = time.perf_counter() - t_start
+        summary["timings_s"] = timings
+        written.append(write_json(out / "reconstruction.json", summary))
+        if not args.no_report:
+            written.append(_write_report(out, names, recon, summary, not args.no_plots))
 
     for name in recon.unregistered:
         logger.warning("view '%s' could not be registered: %s", name,
@@ -344,13 +382,19 @@ def run(args: argparse.Namespace) -> int:
                      if "focal_error_fraction" in gt else ""))
     for path in written:
         print(f"Wrote '{path}'")
+    for m, entry in thin:
+        which = "the largest model" if m == 0 else f"model {m} ({entry['folder']}/)"
+        print(f"error: {which} has {entry['points']} point{'s' * (entry['points'] != 1)} "
+              f"for its {entry['registered']} views, fewer than {MIN_MODEL_POINTS}: its "
+              "cameras rest on nothing (does the calibration fit these photos?); see "
+              "reconstruction.json, the files are written for inspection only",
+              file=sys.stderr)
     if not recon.ok:
         bad = [f"{names[v]}" for model in recon.models for v in model.check.suspect_views]
         print(f"error: the reconstruction failed its consistency check: the poses of "
               f"{', '.join(bad)} contradict their pair geometry (see reconstruction.json; "
               "the files are written for inspection only)", file=sys.stderr)
-        return EXIT_FAILED
-    return EXIT_OK
+    return EXIT_FAILED if thin or not recon.ok else EXIT_OK
 
 
 def main(argv: list[str] | None = None, prog: str = "scene3d reconstruct-views") -> int:

@@ -82,6 +82,20 @@ def _focal_prior(images: Sequence[ImageSource], names: Sequence[str]) -> FocalPr
     return camera_prior([(name, None, size) for name, size in zip(names, sizes)])
 
 
+def _too_few_keypoints(found: Sequence[tuple], names: Sequence[str], needed: int,
+                       working_size: tuple[int, int]) -> str | None:
+    """Why no pair could start when fewer than two views have the ``needed`` keypoints a
+    verified pair needs (blank, tiny or too far downscaled images); else None."""
+    counts = [len(f[0].keypoints) for f in found]
+    if sum(n >= needed for n in counts) >= 2:
+        return None
+    shown = ", ".join(f"{n} in '{name}'" for name, n in list(zip(names, counts))[:4])
+    more = f", ... ({len(counts)} images)" if len(counts) > 4 else ""
+    return (f"too few keypoints to match: {shown}{more}, where a pair needs {needed}; are "
+            f"the images blank, blurred or tiny? (working size {working_size[0]}x"
+            f"{working_size[1]} px)")
+
+
 def reconstruct_views(
     images: Sequence[ImageSource],
     K: ArrayLike | None,
@@ -141,7 +155,8 @@ def reconstruct_views(
     Raises
     ------
     ReconstructionError
-        Fewer than two views, or no pair gives a trustworthy start.
+        Fewer than two views, or no pair gives a trustworthy start (the message says so
+        when the images have too few keypoints for any pair).
     FileNotFoundError, ValueError
         Unreadable images or images of different sizes; without ``K``, photos from
         different cameras (EXIF make and model, or focal length).
@@ -233,8 +248,15 @@ def reconstruct_views(
         verified.extend(new)
         return new
 
-    models, reasons, sfm_timings = reconstruct_models(features, verified, K_work, s, more_pairs,
-                                                      say, canonical_names, focal)
+    try:
+        models, reasons, sfm_timings = reconstruct_models(features, verified, K_work, s,
+                                                          more_pairs, say, canonical_names,
+                                                          focal)
+    except ReconstructionError as exc:
+        few = _too_few_keypoints(found, names, s.min_pair_inliers, working_size)
+        if exc.reason != "no_initial_pair" or few is None:
+            raise
+        raise ReconstructionError(exc.reason, few, **exc.counts) from None
     timings["matching"] += sfm_timings.pop("matching")
     timings.update(sfm_timings)
     timings["total"] = sum(timings.values())

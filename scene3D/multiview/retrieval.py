@@ -66,11 +66,14 @@ def kmeans(samples: np.ndarray, k: int, iterations: int = 15, seed: int = 0) -> 
 
     Seeded and independent of anything but ``samples``: the same rows in the same
     order give the same centres. A centre left without samples moves to the sample
-    farthest from its centre.
+    farthest from its centre. Fewer samples than ``k`` give as many centres as samples
+    (none without samples: images without keypoints).
     """
     samples = np.asarray(samples, np.float32)
     rng = np.random.default_rng(seed)
     k = min(k, len(samples))
+    if k == 0:
+        return np.zeros((0, samples.shape[1] if samples.ndim == 2 else 0), np.float32)
     centres = np.empty((k, samples.shape[1]), np.float32)
     centres[0] = samples[rng.integers(len(samples))]
     closest = _squared_distances(samples, centres[:1])[:, 0]
@@ -121,15 +124,17 @@ def describe_view(features: ViewFeatures, vocabulary: Vocabulary,
 
     Returns
     -------
-    words : (N, probe_words) int16
+    words : (N, min(probe_words, C)) int16
         Each descriptor's nearest words, nearest first.
     vlad : (C * D,) float32
-        Unit VLAD vector (zero for a view without descriptors).
+        Unit VLAD vector (zero for a view without descriptors; empty when no view has
+        any, and the vocabulary no words).
     """
     x = descriptor_space(features.descriptors, vocabulary.binary)
     C = vocabulary.size
-    if len(x) == 0:
-        return np.zeros((0, probe_words), np.int16), np.zeros(C * x.shape[1], np.float32)
+    if len(x) == 0 or C == 0:  # no keypoints here, or in any view (an empty vocabulary)
+        return (np.zeros((len(x), min(probe_words, C)), np.int16),
+                np.zeros(C * vocabulary.centres.shape[1], np.float32))
     d = _squared_distances(x, vocabulary.centres)
     p = min(probe_words, C)
     nearest = np.argpartition(d, p - 1, axis=1)[:, :p] if p < C else np.tile(np.arange(C),
