@@ -27,7 +27,6 @@ EXIT_FAILED = 1  # valid input, but the reconstruction / calibration failed
 EXIT_USAGE = 2  # bad usage or bad input
 
 
-
 def exit_codes_help(failed: str, success: str = "success") -> str:
     """The ``--help`` sentence on exit codes; ``failed`` says what exit code 1 means."""
     return f"Exit codes: 0 {success}; 1 {failed}; 2 bad usage or input"
@@ -35,7 +34,8 @@ def exit_codes_help(failed: str, success: str = "success") -> str:
 
 class ArgumentParser(argparse.ArgumentParser):
     """argparse's parser, with a usage error in one line and exit code 2: ``error: argument
-    --max-width: must be > 0, got 0 (see chapter4.py --help)``, not the usage block first."""
+    --max-width: must be at least 1, got 0 (see chapter4.py --help)``, not the usage block
+    first."""
 
     def error(self, message: str) -> NoReturn:
         self.exit(EXIT_USAGE, f"error: {message} (see {self.prog} --help)\n")
@@ -54,6 +54,7 @@ def path_arg(text: str) -> Path:
 
 
 def _number(text: str, kind: type, name: str) -> float:
+    """``kind(text)`` (``int`` or ``float``), or argparse's error saying it must be ``name``."""
     try:
         return kind(text)
     except ValueError:
