@@ -15,7 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .camera import check_principal_point, validate_distortion, validate_intrinsics
+from .camera import check_intrinsics_for_size, validate_distortion, validate_intrinsics
 from .export import check_target, place_file
 from .geometry import FloatArray
 
@@ -78,7 +78,7 @@ def load_calibration(path: str | os.PathLike) -> CameraCalibration:
     try:
         K = validate_intrinsics(K)
         dist = validate_distortion(dist)
-        check_principal_point(K, size)
+        check_intrinsics_for_size(K, size)
     except ValueError as exc:
         raise ValueError(f"calibration file '{path}': {exc}") from exc
     return CameraCalibration(K, dist, size)

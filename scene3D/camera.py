@@ -14,6 +14,14 @@ from .geometry import FloatArray
 
 VALID_DIST_LENGTHS = (0, 4, 5, 8, 12, 14)
 
+#: The focal lengths :func:`check_intrinsics_for_size` takes, as multiples of the image's
+#: longer side: from a fisheye's (about 0.3) to a 2000 mm lens on a 36 mm sensor (about 55).
+FOCAL_RANGE_OF_SIDE = (0.05, 100.0)
+
+#: The largest ratio of ``fy`` to ``fx`` (or back) that :func:`check_intrinsics_for_size`
+#: takes: pixels are square on almost every camera; anamorphic formats stretch by up to 2.
+MAX_PIXEL_ASPECT = 4.0
+
 #: The largest skew ``K[0, 1]`` that :func:`validate_intrinsics` takes, as a fraction of
 #: ``fx``: pixel axes about 84 degrees apart. Real cameras have none; a larger value is a
 #: mistyped matrix, not a camera.
@@ -48,16 +56,26 @@ def validate_intrinsics(K: ArrayLike) -> FloatArray:
     return arr
 
 
-def check_principal_point(K: FloatArray, image_size: tuple[int, int]) -> None:
-    """Raise ``ValueError`` when ``K``'s principal point lies far outside an image of
-    ``image_size`` (width, height): more than half the image beyond its edges, which no
-    camera's lens and sensor give (it lies near the centre; a crop moves it, but within
-    the image the calibration holds for)."""
+def check_intrinsics_for_size(K: FloatArray, image_size: tuple[int, int]) -> None:
+    """Raise ``ValueError`` when ``K`` cannot be a camera's for images of ``image_size``
+    (width, height): a principal point more than half the image beyond its edges (it lies
+    near the centre; a crop moves it, but within the image the calibration holds for), a
+    focal length outside :data:`FOCAL_RANGE_OF_SIDE` times the longer side, or pixels
+    more than :data:`MAX_PIXEL_ASPECT` times longer one way than the other."""
     w, h = image_size
     cx, cy = K[0, 2], K[1, 2]
     if not (-0.5 * w <= cx <= 1.5 * w and -0.5 * h <= cy <= 1.5 * h):
         raise ValueError(f"the principal point ({cx:g}, {cy:g}) lies far outside the "
                          f"{w}x{h} image (it is near the centre for a real camera)")
+    low, high = (bound * max(w, h) for bound in FOCAL_RANGE_OF_SIDE)
+    for name, f in (("fx", K[0, 0]), ("fy", K[1, 1])):
+        if not low <= f <= high:
+            raise ValueError(f"the focal length {name}={f:g} px is not a camera's for a {w}x{h} "
+                             f"image (between {low:g} and {high:g} px: a fisheye to a long "
+                             "telephoto)")
+    if not 1 / MAX_PIXEL_ASPECT <= K[1, 1] / K[0, 0] <= MAX_PIXEL_ASPECT:
+        raise ValueError(f"fx={K[0, 0]:g} and fy={K[1, 1]:g} px differ more than a camera's "
+                         "do (they are equal for square pixels)")
 
 
 def validate_distortion(dist: ArrayLike | None) -> FloatArray:

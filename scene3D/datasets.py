@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .camera import check_principal_point, validate_intrinsics
+from .camera import check_intrinsics_for_size, validate_intrinsics
 from .errors import DatasetError
 from .geometry import FloatArray
 from .geometry import relative_pose as _relative_pose
@@ -343,7 +343,7 @@ def read_strecha_camera(path: str | os.PathLike) -> StrechaCamera:
     if not (np.all(np.isfinite(size)) and np.all(size >= 1) and np.all(size == np.round(size))):
         raise bad("the image size", f"must be two positive whole numbers, got {_numbers(size)}")
     try:
-        check_principal_point(K, (int(size[0]), int(size[1])))
+        check_intrinsics_for_size(K, (int(size[0]), int(size[1])))
     except ValueError as exc:
         raise bad("K:", str(exc)) from None
     R = R_cam_to_world.T

@@ -255,6 +255,7 @@ def test_cli_video_collects_distinct_views(tmp_path, board_views, capsys):
     ("board_never_found", "check --board"),
     ("two_views", "found in only 2 of 2 views"),
     ("camera", "cannot open camera 99"),
+    ("camera_beyond_int", "cannot open camera 2147483648: no such camera index"),
     ("video_missing", "video not found"),
     ("out_folder_missing", "does not exist"),
     ("out_under_a_file", "is a file, not a folder"),
@@ -277,6 +278,7 @@ def test_cli_bad_inputs(tmp_path, chessboards, capsys, case, message):
         "board_never_found": ["--images", str(left), "--board", "10x7"],  # squares counted
         "two_views": ["--images", str(two)],
         "camera": ["--camera", "99"],
+        "camera_beyond_int": ["--camera", "2147483648"],
         "video_missing": ["--video", str(tmp_path / "none.avi")],
         "out_folder_missing": ["--images", str(left), "--out", str(tmp_path / "x" / "c.yaml")],
         "out_under_a_file": ["--images", str(left), "--out",
@@ -346,6 +348,7 @@ def test_cli_refuses_bad_numbers_and_names(tmp_path, chessboards, capsys, option
     ("folder", "--out '{tmp}/photos' is a folder; name a file in it"),
     ("read_only", "--out '{tmp}/ro/c.yaml': cannot write in '{tmp}/ro': Read-only file system"),
     ("undistorted_file", "--save-undistorted '{tmp}/photos/left01.jpg' is a file"),
+    ("undistorted_over_photos", "--save-undistorted '{tmp}/photos' is the folder of the photos"),
 ])
 def test_cli_refuses_unwritable_outputs_before_any_work(tmp_path, chessboards, capsys,
                                                         monkeypatch, case, message):
@@ -376,6 +379,9 @@ def test_cli_refuses_unwritable_outputs_before_any_work(tmp_path, chessboards, c
         "read_only": ["--out", str(read_only / "c.yaml")],
         "undistorted_file": ["--out", str(tmp_path / "c.yaml"), "--save-undistorted",
                              str(photos / "left01.jpg")],
+        # Even with --force: NAME.png copies could replace PNG photos.
+        "undistorted_over_photos": ["--out", str(tmp_path / "c.yaml"), "--force",
+                                    "--save-undistorted", str(photos)],
     }[case]
     assert main(argv) == 2
     err = capsys.readouterr().err

@@ -1,10 +1,12 @@
+import re
+
 import cv2
 import numpy as np
 import pytest
 
 from scene3D.camera import (
     adapt_intrinsics_to_size,
-    check_principal_point,
+    check_intrinsics_for_size,
     scale_intrinsics_resize,
     validate_distortion,
     validate_intrinsics,
@@ -62,11 +64,25 @@ def test_distortion_lengths():
         validate_distortion([0.1, 0.0, 0.0])
 
 
-def test_principal_point_within_reach_of_the_image():
+def test_intrinsics_that_no_camera_has_for_the_image_size():
     K = np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]])
-    check_principal_point(K, (640, 480))
-    K[0, 2] = -400  # more than half the width left of the image
+    check_intrinsics_for_size(K, (640, 480))
+    far = K.copy()
+    far[0, 2] = -400  # more than half the width left of the image
     with pytest.raises(ValueError, match=r"\(-400, 240\) lies far outside the 640x480 image"):
-        check_principal_point(K, (640, 480))
-    K[0, 2], K[1, 2] = 900, -200  # within half the image of its edges: a crop's
-    check_principal_point(K, (640, 480))
+        check_intrinsics_for_size(far, (640, 480))
+    far[0, 2], far[1, 2] = 900, -200  # within half the image of its edges: a crop's
+    check_intrinsics_for_size(far, (640, 480))
+    for fx, fy, message in ((0.001, 0.001, "fx=0.001 px is not a camera's for a 640x480"),
+                            (1e12, 1e12, "fx=1e+12 px"),
+                            (500, 5, "fy=5 px is not"),
+                            (500, 100, "fx=500 and fy=100 px differ")):
+        odd = K.copy()
+        odd[0, 0], odd[1, 1] = fx, fy
+        with pytest.raises(ValueError, match=re.escape(message)):
+            check_intrinsics_for_size(odd, (640, 480))
+    wide, long = K.copy(), K.copy()
+    wide[0, 0] = wide[1, 1] = 0.25 * 640  # a fisheye's
+    long[0, 0] = long[1, 1] = 50 * 640  # a 1800 mm lens on a full-frame sensor
+    check_intrinsics_for_size(wide, (640, 480))
+    check_intrinsics_for_size(long, (640, 480))

@@ -3,6 +3,7 @@
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -170,6 +171,8 @@ def test_console_script_reconstruct(tmp_path, synthetic_files):
     ("hard_link", 2, "image given twice"),
     ("bad_option_value", 2, "error: argument --max-width: must be at least 1, got 0 (see "),
     ("empty_out", 2, "error: argument --out: must name a file or folder, got ''"),
+    ("non_utf8_name", 2, "is not valid UTF-8 (from another system?): rename it"),
+    ("non_utf8_out", 2, "argument --out: the name"),
     ("rotation", 1, "pure rotation"),
     ("blank", 1, "image 2 has no keypoints"),
     ("blank_no_calib", 1, "image 2 has no keypoints"),
@@ -183,6 +186,7 @@ def test_bad_inputs_exit_codes_and_messages(tmp_path, synthetic_files, case, cod
     (tmp_path / "nomatrix.yaml").write_text("%YAML:1.0\n---\nimage_width: 640\n")
     (tmp_path / "file").write_text("x")
     os.link(f / "a.png", tmp_path / "linked.png")  # the same file under another name
+    shutil.copy(f / "b.png", tmp_path / os.fsdecode(b"b\xe9.png"))  # Latin-1 bytes
     matrix = ("camera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
               "  data: [500., {skew}, {cx}, 0., 500., 240., 0., 0., 1.]\n")
     for name, head, width in (("scalar", "camera_matrix: 5.0\n", "640"),
@@ -215,6 +219,8 @@ def test_bad_inputs_exit_codes_and_messages(tmp_path, synthetic_files, case, cod
         "hard_link": [f / "a.png", tmp_path / "linked.png", "--calib", calib],
         "bad_option_value": [f / "a.png", f / "b.png", "--max-width", "0"],
         "empty_out": [f / "a.png", f / "b.png", "--out", ""],
+        "non_utf8_name": [f / "a.png", tmp_path / os.fsdecode(b"b\xe9.png"), "--calib", calib],
+        "non_utf8_out": [f / "a.png", f / "b.png", "--out", tmp_path / os.fsdecode(b"o\xe9")],
         "rotation": [f / "a.png", f / "rot.png", "--calib", calib],
         "blank": [f / "a.png", f / "blank.png", "--calib", calib],
         "blank_no_calib": [f / "a.png", f / "blank.png"],

@@ -359,6 +359,7 @@ def _free_port() -> int:
     (["--scheduler", "tcp://127.0.0.1:{port}"], "cannot connect to the Dask scheduler at"),
     (["--scheduler", "nonsense"], "bad Dask scheduler address 'nonsense'"),
     (["--workers", "0"], "must be at least 1"),
+    (["--workers", "100000"], "local workers beyond"),
     (["--workers", "2", "--scheduler", "tcp://127.0.0.1:{port}"], "not allowed with"),
 ])
 def test_evaluate_command_bad_engine_options(fountain, capsys, argv, message):
@@ -367,6 +368,17 @@ def test_evaluate_command_bad_engine_options(fountain, capsys, argv, message):
     err = capsys.readouterr().err
     assert code == 2 and message in err
     assert "Traceback" not in err
+
+
+def test_a_server_that_is_no_scheduler_is_refused_in_time():
+    """The dashboard's port given for the scheduler's: a server that sends nothing (or no
+    Dask handshake) is named as such, not waited on or misread."""
+    with socket.socket() as silent:
+        silent.bind(("127.0.0.1", 0))
+        silent.listen()
+        address = f"tcp://127.0.0.1:{silent.getsockname()[1]}"
+        with pytest.raises(OSError, match="does not answer as a Dask scheduler"):
+            DaskEngine.connect(address, timeout_s=0.5)
 
 
 @pytest.mark.parametrize("command, option", [

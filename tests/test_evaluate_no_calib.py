@@ -119,3 +119,31 @@ def test_evaluate_refuses_a_csv_folder_it_cannot_write_before_any_pair(
     assert err.startswith(f"error: --csv '{locked / 'x.csv'}' cannot be written")
     assert "Read-only file system" in err and len(err.strip().splitlines()) == 1
     assert list(locked.iterdir()) == []
+
+
+def test_evaluate_scales_the_camera_files_K_to_photos_stored_smaller(fountain, tmp_path,
+                                                                      capsys):
+    """The camera file's K holds for its size (3072x2048): photos stored at half that size
+    take it halved, and give the pose they give at full size; a crop is refused."""
+    import cv2
+
+    for sub in ("images", "gt_dense_cameras"):
+        (tmp_path / sub).mkdir()
+    for name in ("0004.jpg", "0005.jpg"):
+        img = cv2.imread(str(fountain / "images" / name))
+        cv2.imwrite(str(tmp_path / "images" / name), cv2.resize(img, (1536, 1024),
+                                                                 interpolation=cv2.INTER_AREA))
+        camera = fountain / "gt_dense_cameras" / f"{name}.camera"
+        (tmp_path / "gt_dense_cameras" / f"{name}.camera").write_text(camera.read_text())
+    csv_path = tmp_path / "rows.csv"
+    assert main([str(tmp_path), "--pairs", "0-1", "--csv", str(csv_path), "-q"]) == 0
+    with open(csv_path, newline="") as f:
+        row = next(csv.DictReader(f))
+    assert float(row["rotation_deg"]) < 0.1 and float(row["translation_deg"]) < 0.5
+    img = cv2.imread(str(tmp_path / "images" / "0005.jpg"))
+    cv2.imwrite(str(tmp_path / "images" / "0005.jpg"), img[:, :1400])  # another aspect ratio
+    capsys.readouterr()
+    assert main([str(tmp_path), "--pairs", "0-1", "-q"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "0005.jpg': images are 1400x1024 but the calibration is for 3072x2048" in err
+    assert len(err.splitlines()) == 1

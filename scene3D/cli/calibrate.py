@@ -51,6 +51,7 @@ from .common import (
     path_arg,
     positive_float,
     require_parent_folder,
+    require_utf8,
     run_command,
     show_images,
 )
@@ -154,6 +155,8 @@ def _image_files(spec: str) -> list[Path]:
         files = sorted(Path(p) for p in glob.glob(spec) if Path(p).is_file())
     if not files:
         raise UsageError(f"no images found in '{spec}'")
+    for path in files:
+        require_utf8(path)
     return files
 
 
@@ -203,6 +206,8 @@ def _frames(args: argparse.Namespace) -> Iterator[tuple[str, np.ndarray]]:
             raise FileNotFoundError(f"video not found: '{args.video}'")
         capture, what = cv2.VideoCapture(str(args.video)), f"video '{args.video}'"
     else:
+        if args.camera >= 2**31:  # OpenCV takes a C int, and raises on more
+            raise UsageError(f"cannot open camera {args.camera}: no such camera index")
         capture, what = cv2.VideoCapture(args.camera), f"camera {args.camera}"
     if not capture.isOpened():
         raise UsageError(f"cannot open {what}")
@@ -399,6 +404,12 @@ def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:
             raise UsageError(f"--save-undistorted '{target}': '{existing_folder}' is a file, "
                              "not a folder")
         _require_writable(existing_folder, "--save-undistorted", target)
+        if args.images is not None and target.is_dir() and any(
+                photo.parent.resolve() == target.resolve()
+                for photo in _image_files(args.images)):
+            # Their undistorted copies (NAME.png) could replace the photos themselves.
+            raise UsageError(f"--save-undistorted '{target}' is the folder of the photos; "
+                             "choose another folder for their undistorted copies")
 
 
 @contextmanager

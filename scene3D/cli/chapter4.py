@@ -37,7 +37,7 @@ from .common import (
     add_common_args,
     add_feature_arg,
     add_size_args,
-    check_distinct_images,
+    check_image_paths,
     check_report_viewer,
     exit_codes_help,
     focal_sigma_text,
@@ -116,7 +116,7 @@ def _resolve_inputs(args: argparse.Namespace) -> tuple[Path, Path, Path | None]:
                          f"{len(args.images)}")
     if args.images:
         path1, path2 = Path(args.images[0]), Path(args.images[1])
-        check_distinct_images([path1, path2])
+        check_image_paths([path1, path2])
         return path1, path2, args.calib
     folder = fetch_fountain_p11(BOOK_PAIR)
     calib = args.calib if args.calib is not None else DEFAULT_CALIB

@@ -26,6 +26,9 @@ EXIT_OK = 0
 EXIT_FAILED = 1  # valid input, but the reconstruction / calibration failed
 EXIT_USAGE = 2  # bad usage or bad input
 
+#: ``--workers`` takes at most this many worker processes per core of the machine.
+MAX_WORKERS_PER_CORE = 4
+
 
 def exit_codes_help(failed: str, success: str = "success") -> str:
     """The ``--help`` sentence on exit codes; ``failed`` says what exit code 1 means."""
@@ -47,10 +50,24 @@ class UsageError(Exception):
 
 def path_arg(text: str) -> Path:
     """argparse type: a path, not empty (``Path("")`` would quietly be the current folder,
-    as an unset shell variable gives)."""
+    as an unset shell variable gives) and valid UTF-8 (:func:`require_utf8`)."""
     if not text.strip():
         raise argparse.ArgumentTypeError("must name a file or folder, got ''")
+    try:
+        require_utf8(Path(text))
+    except UsageError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
     return Path(text)
+
+
+def require_utf8(path: Path) -> None:
+    """Raise :class:`UsageError` when ``path`` is not valid UTF-8 (bytes of another
+    system's encoding): OpenCV, JSON and the reports cannot carry its name."""
+    try:
+        str(path).encode("utf-8")
+    except UnicodeEncodeError:
+        raise UsageError(f"the name {str(path)!r} is not valid UTF-8 (from another system?): "
+                         "rename it") from None
 
 
 def _number(text: str, kind: type, name: str) -> float:
@@ -109,11 +126,13 @@ def focal_sigma_text(focal_px: float, sigma_px: float) -> str:
             else f"(1 sigma: a factor of {math.exp(sigma_log):.1f})")
 
 
-def check_distinct_images(paths: list[Path]) -> None:
-    """Raise :class:`UsageError` when one file is given twice (a view cannot pair with itself):
-    the same path, a symbolic link to it or a hard link (the same file on disk)."""
+def check_image_paths(paths: list[Path]) -> None:
+    """Raise :class:`UsageError` when a name is not valid UTF-8 (:func:`require_utf8`) or
+    one file is given twice (a view cannot pair with itself): the same path, a symbolic
+    link to it or a hard link (the same file on disk)."""
     seen: dict[object, Path] = {}
     for path in paths:
+        require_utf8(path)
         try:
             stat = path.stat()
             key: object = (stat.st_dev, stat.st_ino)
@@ -235,6 +254,11 @@ def open_engine(args: argparse.Namespace) -> Iterator[Engine]:
     )
 
     option = "--scheduler" if scheduler is not None else "--workers"
+    cores = os.cpu_count() or 1
+    if workers is not None and workers > MAX_WORKERS_PER_CORE * cores:
+        raise UsageError(f"--workers {workers}: this machine has {cores} cores, and local "
+                         f"workers beyond {MAX_WORKERS_PER_CORE * cores} only wait for them "
+                         "(--scheduler runs the tasks on a cluster)")
     try:
         require_distributed()
     except MissingExtraError:

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera import scale_intrinsics_halved
+from ..camera import adapt_intrinsics_to_size, scale_intrinsics_halved
 from ..datasets import StrechaCamera, read_strecha_camera, relative_pose, strecha_views
 from ..engines import Engine, Progress
 from ..errors import ReconstructionError
@@ -33,7 +33,7 @@ from ..features import (
     match_features,
     normalize_feature_mode,
 )
-from ..imageio import BOOK_MAX_WIDTH_PX, load_working_image
+from ..imageio import BOOK_MAX_WIDTH_PX, load_working_image, read_image_size
 from ..twoview import TwoViewSettings, reconstruct_from_matches
 from ..uncertainty import pose_error_chi2
 from .common import (
@@ -162,19 +162,26 @@ class _View:
     photo: tuple | None = None
 
 
-def _load_view(path: Path, K: np.ndarray, dist: np.ndarray, max_width: int | None,
+def _load_view(path: Path, camera: StrechaCamera, max_width: int | None,
                feature: str, no_calib: bool = False) -> _View:
     """The working image of one view and its features (a task: see :func:`evaluate_pairs`).
 
-    With ``no_calib`` the camera file's distortion is not removed and the photo's EXIF
-    and size are kept for the pair's focal-length prior.
+    The camera file's ``K`` holds for its image size: a photo stored smaller (of the same
+    aspect ratio) takes ``K`` scaled; another aspect ratio is an input error. With
+    ``no_calib`` the camera file's distortion is not removed and the photo's EXIF and size
+    are kept for the pair's focal-length prior.
     """
+    size = read_image_size(path)
+    try:
+        K = adapt_intrinsics_to_size(camera.K, camera.image_size, size)
+    except ValueError as exc:
+        raise ValueError(f"'{path}': {exc}") from None
+    dist = camera.dist  # in normalised coordinates: the same at any size
     if no_calib:
         from ..exif import read_exif
-        from ..imageio import read_image_size
 
         dist = np.zeros(5)
-        photo = (path.name, read_exif(path), read_image_size(path))
+        photo = (path.name, read_exif(path), size)
     else:
         photo = None
     img, _, levels = load_working_image(path, K, dist, max_width)
@@ -293,8 +300,8 @@ def evaluate_pairs(engine: Engine, images: list[Path], cameras: list[StrechaCame
     handles, so a view's features travel to a worker once, not with every pair.
     """
     used = sorted({i for pair in pairs for i in pair})
-    views = engine.map(_load_view, [(images[i], cameras[i].K, cameras[i].dist, max_width,
-                                     feature, no_calib) for i in used],
+    views = engine.map(_load_view, [(images[i], cameras[i], max_width, feature, no_calib)
+                                    for i in used],
                        label="views", progress=progress)
     shared = {i: engine.share(view) for i, view in zip(used, views)}
     rows = engine.map(_evaluate_pair_no_calib if no_calib else _evaluate_pair,

@@ -42,7 +42,7 @@ from .common import (
     add_engine_args,
     add_feature_arg,
     add_size_args,
-    check_distinct_images,
+    check_image_paths,
     check_report_viewer,
     exit_codes_help,
     focal_sigma_text,
@@ -139,7 +139,7 @@ def image_paths(specs: list[str]) -> list[Path]:
             paths += matched
     if len(paths) < 2:
         raise UsageError(f"need at least two images, got {len(paths)}")
-    check_distinct_images(paths)
+    check_image_paths(paths)
     return paths
 
 

@@ -180,6 +180,24 @@ def _task_counts(engine_id: str) -> dict[str, int]:
 
 # -- on the client ----------------------------------------------------------------------
 
+def _probe_scheduler(address: str, host: str, port: int, timeout_s: float) -> None:
+    """Raise ``OSError`` unless a Dask scheduler listens at ``host:port``: one sends its
+    handshake (a frame whose 8-byte length header comes first) as soon as a connection
+    opens. Another server (the dashboard's web server, say) sends nothing, or something
+    else, and Dask's client would wait on it or misread it."""
+    try:
+        with socket.create_connection((host, port), timeout=timeout_s) as probe:
+            header = probe.recv(8)
+    except TimeoutError:
+        header = b""
+    except OSError as exc:
+        raise OSError(f"cannot connect to the Dask scheduler at {address!r}: "
+                      f"{exc.strerror or exc}") from None
+    if len(header) < 8 or int.from_bytes(header, "little") > 1 << 20:
+        raise OSError(f"what listens at {address!r} does not answer as a Dask scheduler (the "
+                      "scheduler's port is 8786 by default, its dashboard's 8787)")
+
+
 class DaskEngine:
     """Tasks on the workers of a Dask cluster (see the module docstring).
 
@@ -246,11 +264,7 @@ class DaskEngine:
             raise ValueError(f"bad Dask scheduler address {address!r} ({exc}); expected "
                              "such as tcp://10.0.0.5:8786") from None
         if scheme == "tcp":  # a quick look first: nothing listening is said at once
-            try:
-                socket.create_connection((host, port), timeout=timeout_s).close()
-            except OSError as exc:
-                raise OSError(f"cannot connect to the Dask scheduler at {address!r}: "
-                              f"{exc.strerror or exc}") from None
+            _probe_scheduler(address, host, port, timeout_s)
         try:
             client = distributed.Client(address, timeout=f"{timeout_s}s",
                                         set_as_default=False)
