@@ -78,6 +78,12 @@ def read_exif(path: str | os.PathLike) -> ExifCamera | None:
                 exif = img.getexif()
                 ifd0 = dict(exif)
                 sub = dict(exif.get_ifd(_EXIF_IFD)) if _EXIF_IFD in ifd0 else {}
+        except Image.DecompressionBombError as exc:
+            # Pillow refuses to open it before any pixel is read: its EXIF is out of reach
+            # too, which is not a corrupt block (reading the image decides about the pixels).
+            logger.warning("'%s': Pillow will not open it (%s): its EXIF is not read",
+                           path, str(exc).split(",")[0])
+            return None
         except (UnidentifiedImageError, OSError) as exc:
             if isinstance(exc, FileNotFoundError):
                 raise
@@ -124,7 +130,9 @@ def read_camera_prior(paths: Sequence[str | os.PathLike]) -> FocalPrior:
     ValueError
         A file is not an image, or the photos come from different cameras or sizes.
     """
-    photos = [(Path(p).name, read_exif(p), read_image_size(p)) for p in paths]
+    # The size first: a damaged header is refused before Pillow warns about it.
+    sizes = [read_image_size(p) for p in paths]
+    photos = [(Path(p).name, read_exif(p), size) for p, size in zip(paths, sizes)]
     prior = camera_prior(photos)
     for message in prior.warnings:
         logger.warning("%s", message)

@@ -71,8 +71,18 @@ _HEIF_BRANDS = {b"heic", b"heix", b"heim", b"heis", b"hevc", b"hevx", b"mif1", b
 
 
 def _decode(data: np.ndarray, flags: int, path: str | os.PathLike) -> np.ndarray:
-    img = cv2.imdecode(data, flags | cv2.IMREAD_IGNORE_ORIENTATION)
-    if img is None:
+    head = data[:_HEADER_BYTES]
+    _check_header(head, data.size, path)
+    try:
+        img = cv2.imdecode(data, flags | cv2.IMREAD_IGNORE_ORIENTATION)
+    except cv2.error as exc:  # OpenCV asserts rather than returning None for some files
+        size = header_size(head)
+        claim = f" (its header says {size[0]}x{size[1]} pixels)" if size is not None else ""
+        if "validateInputImageSize" in str(exc):
+            raise ValueError(f"cannot read image '{path}': too large for OpenCV{claim}, or a "
+                             "damaged file") from None
+        raise ValueError(f"cannot read image '{path}': a damaged image file{claim}") from None
+    if img is None or img.size == 0:
         head = data[:12].tobytes()
         if head[4:8] == b"ftyp" and head[8:12] in _HEIF_BRANDS:
             raise ValueError(f"cannot read image '{path}': a HEIC/HEIF photo, which OpenCV "
@@ -93,7 +103,8 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     FileNotFoundError
         If ``path`` does not exist.
     ValueError
-        If the file is empty or not an image OpenCV can decode.
+        If the file is empty or not an image OpenCV can decode: damaged, too large
+        for OpenCV, or a JPEG whose header claims more pixels than the file holds.
     """
     return _decode(_read_bytes(path), _AS_STORED, path)
 
@@ -107,6 +118,16 @@ def header_size(head: bytes | np.ndarray) -> tuple[int, int] | None:
     head = memoryview(head).cast("B")
     if bytes(head[:8]) == b"\x89PNG\r\n\x1a\n" and len(head) >= 24:
         return (int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big"))
+    frame = _jpeg_frame(head)
+    return frame[1] if frame is not None else None
+
+
+def _jpeg_frame(head: memoryview) -> tuple[int, tuple[int, int], list[tuple[int, int]]] | None:
+    """The first JPEG frame header in ``head``: ``(marker, (width, height), sampling)``.
+
+    ``sampling`` holds each component's ``(H, V)`` sampling factors (empty when the
+    header is cut off within them); None when ``head`` is not a JPEG or holds no frame.
+    """
     if bytes(head[:2]) != b"\xff\xd8":
         return None
     i = 2
@@ -124,9 +145,53 @@ def header_size(head: bytes | np.ndarray) -> tuple[int, int] | None:
         if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
             height = int.from_bytes(head[i + 5:i + 7], "big")
             width = int.from_bytes(head[i + 7:i + 9], "big")
-            return (width, height) if width and height else None
+            if not (width and height):
+                return None
+            count = head[i + 9] if i + 9 < len(head) else 0
+            end = i + 10 + 3 * count
+            sampling = ([(head[j] >> 4, head[j] & 15) for j in range(i + 11, end, 3)]
+                        if end <= len(head) else [])
+            return marker, (width, height), sampling
         i += 2 + int.from_bytes(head[i + 2:i + 4], "big")
     return None
+
+
+#: JPEG frame markers of Huffman coding (the arithmetic-coded ones, C9-CF, can be
+#: smaller than one bit per block).
+_HUFFMAN_FRAMES = frozenset({0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7})
+
+
+def _ceil_div(a: int, b: int) -> int:
+    return -(-a // b)
+
+
+def _jpeg_min_bytes(frame: tuple[int, tuple[int, int], list[tuple[int, int]]]) -> int:
+    """A lower bound on the size of a complete Huffman-coded JPEG with this frame header.
+
+    Every 8x8 block of every component carries at least its DC code, a Huffman code
+    of at least one bit. Halved for safety; 0 when the bound does not apply.
+    """
+    marker, (width, height), sampling = frame
+    if marker not in _HUFFMAN_FRAMES or not sampling or min(min(s) for s in sampling) < 1:
+        return 0
+    h_max = max(h for h, _ in sampling)
+    v_max = max(v for _, v in sampling)
+    blocks = sum(_ceil_div(_ceil_div(width * h, h_max), 8)
+                 * _ceil_div(_ceil_div(height * v, v_max), 8) for h, v in sampling)
+    return blocks // 16
+
+
+def _check_header(head: bytes | np.ndarray, file_bytes: int, path: str | os.PathLike) -> None:
+    """Raise ``ValueError`` when a JPEG's header claims more pixels than its
+    ``file_bytes`` can hold (a damaged or tampered header), naming ``path``.
+
+    ``head`` is the first bytes of the file. Cheap: no pixel is decoded.
+    """
+    frame = _jpeg_frame(memoryview(head).cast("B"))
+    if frame is not None and file_bytes < _jpeg_min_bytes(frame):
+        w, h = frame[1]
+        raise ValueError(f"cannot read image '{path}': a damaged JPEG file (its header says "
+                         f"{w}x{h} pixels, more than its {file_bytes} bytes can hold)")
 
 
 def read_image_size(path: str | os.PathLike) -> tuple[int, int]:
@@ -137,7 +202,9 @@ def read_image_size(path: str | os.PathLike) -> tuple[int, int]:
     path = Path(path)
     if path.is_file():
         with open(path, "rb") as f:
-            size = header_size(f.read(_HEADER_BYTES))
+            head = f.read(_HEADER_BYTES)
+            _check_header(head, os.fstat(f.fileno()).st_size, path)
+        size = header_size(head)
         if size is not None:
             return size
     return image_size(read_image(path))
@@ -209,6 +276,14 @@ _REDUCED_COLOR = {1: cv2.IMREAD_REDUCED_COLOR_2, 2: cv2.IMREAD_REDUCED_COLOR_4,
                   3: cv2.IMREAD_REDUCED_COLOR_8}
 
 
+def _check_halvable(size: tuple[int, int], levels: int, label: str | os.PathLike) -> None:
+    """Raise ``ValueError`` naming ``label`` when halving ``size`` ``levels`` times leaves
+    no pixel (a strip far wider than high), as :func:`halve` would."""
+    if size[0] >> levels == 0 or size[1] >> levels == 0:
+        raise ValueError(f"'{label}': a {size[0]}x{size[1]} image cannot be halved {levels} "
+                         f"times (to {size[0] >> levels}x{size[1] >> levels} pixels)")
+
+
 def load_working_image(
     source: ImageSource, K: np.ndarray, dist: np.ndarray,
     max_width: int | None = BOOK_MAX_WIDTH_PX, name: str = "image",
@@ -232,6 +307,8 @@ def load_working_image(
         data = _read_bytes(source)
         size = header_size(data[:_HEADER_BYTES])
         levels = halving_levels(size[0], max_width) if size is not None else 0
+        if levels:
+            _check_halvable(size, levels, source)
         if levels and not has_distortion(dist) and bytes(data[:2]) == b"\xff\xd8":
             direct = min(levels, 3)
             img = to_bgr8(_decode(data, _REDUCED_COLOR[direct], source), str(source))
@@ -246,6 +323,7 @@ def load_working_image(
         img = to_bgr8(source, name=name)
     native = image_size(img)
     levels = halving_levels(native[0], max_width)
+    _check_halvable(native, levels, source if isinstance(source, (str, os.PathLike)) else name)
     if has_distortion(dist):
         img = undistort_image(img, K, dist)
     return halve(img, levels), native, levels

@@ -284,14 +284,9 @@ def focal_prior(exif: ExifCamera | None, image_size: tuple[int, int]) -> FocalPr
     return camera_prior([("image", exif, image_size)])
 
 
-def _focal_key(exif: ExifCamera | None) -> float | None:
-    """The zoom setting an EXIF block records (mm, 35 mm equivalent first), if any."""
-    if exif is None or exif.error is not None:
-        return None
-    for value in (exif.focal_length_35mm, exif.focal_length_mm):
-        if _usable(value):
-            return float(value)
-    return None
+#: The EXIF focal lengths that :func:`check_one_camera` compares, each with its own kind
+#: only: a real focal length is not comparable with a 35 mm equivalent.
+_FOCAL_KINDS = (("focal_length_mm", ""), ("focal_length_35mm", ", 35 mm equivalent"))
 
 
 def check_one_camera(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, int]]]) -> None:
@@ -299,7 +294,9 @@ def check_one_camera(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, i
 
     ``photos`` are ``(name, exif, (width, height))``. They must have one stored
     size, one EXIF make and model (among those that record one) and one EXIF focal
-    length (among those that record one: a zoom lens at two settings is two cameras).
+    length (among those that record one: a zoom lens at two settings is two cameras),
+    like compared with like: ``FocalLength`` values with each other, and
+    ``FocalLengthIn35mmFilm`` values with each other.
     """
     if not photos:
         raise ValueError("no photos given")
@@ -317,12 +314,14 @@ def check_one_camera(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, i
         if camera != named[0][1]:
             raise ValueError(f"'{name}' was taken with a {camera} and '{named[0][0]}' with a "
                              f"{named[0][1]}: one camera is needed (or give --calib)")
-    zooms = [(n, _focal_key(e)) for n, e, _ in photos if _focal_key(e) is not None]
-    for name, focal in zooms[1:]:
-        if abs(focal / zooms[0][1] - 1.0) > SAME_FOCAL_TOLERANCE:
-            raise ValueError(f"'{name}' was taken at {focal:g} mm and '{zooms[0][0]}' at "
-                             f"{zooms[0][1]:g} mm (EXIF): one focal length is needed "
-                             "(or give --calib)")
+    for field, kind in _FOCAL_KINDS:
+        zooms = [(n, float(getattr(e, field))) for n, e, _ in photos
+                 if e is not None and e.error is None and _usable(getattr(e, field))]
+        for name, focal in zooms[1:]:
+            if abs(focal / zooms[0][1] - 1.0) > SAME_FOCAL_TOLERANCE:
+                raise ValueError(f"'{name}' was taken at {focal:g} mm and '{zooms[0][0]}' at "
+                                 f"{zooms[0][1]:g} mm (EXIF{kind}): one focal length is "
+                                 "needed (or give --calib)")
 
 
 def camera_prior(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, int]]]

@@ -1,5 +1,7 @@
 """Reading EXIF with Pillow from real files (written by Pillow in a temporary folder)."""
 
+import zlib
+
 import numpy as np
 import pytest
 from PIL import ExifTags, Image
@@ -97,3 +99,27 @@ def test_absurd_focal_length_is_not_used(tmp_path):
     path = save(tmp_path / "a.jpg", exif_bytes(focal_35mm=5000))
     prior = read_camera_prior([path])
     assert prior.source == "prior" and "implausible" in prior.warnings[0]
+
+
+def test_a_35mm_equivalent_is_not_compared_with_a_real_focal_length(tmp_path):
+    """One camera: 'a.jpg' records FocalLength 7 mm and its 35 mm equivalent 32 mm, 'b.jpg'
+    FocalLength 7 mm only. Not 'taken at 7 mm and at 32 mm': one focal length, from 'a.jpg'."""
+    a = save(tmp_path / "a.jpg", exif_bytes(focal_35mm=32, focal_mm=7.0))
+    b = save(tmp_path / "b.jpg", exif_bytes(focal_mm=7.0))
+    for paths in ([a, b], [b, a]):
+        prior = read_camera_prior(paths)
+        assert prior.source == "exif"
+        assert prior.focal_px == pytest.approx(focal_px_from_35mm(32, SIZE))
+
+
+def test_a_photo_pillow_will_not_open_has_no_exif_not_a_corrupt_one(tmp_path, caplog):
+    """Pillow refuses more than 2 x MAX_IMAGE_PIXELS (DecompressionBombError) before reading a
+    pixel: not a corrupt EXIF block; reading the image reports what is wrong with it."""
+    path = save(tmp_path / "a.png")
+    data = bytearray(path.read_bytes())
+    data[16:24] = (100000).to_bytes(4, "big") * 2  # IHDR: 100000x100000
+    data[29:33] = zlib.crc32(data[12:29]).to_bytes(4, "big")
+    path.write_bytes(bytes(data))
+    with caplog.at_level("WARNING", logger="scene3D.exif"):
+        assert read_exif(path) is None
+    assert "'" + str(path) + "': Pillow will not open it" in caplog.text

@@ -168,3 +168,96 @@ def test_working_images_stream_in_order_and_stop_at_another_size(tmp_path):
         assert img[0, 0, 0] == 40 * i and size == (64, 48) and levels == 0
     with pytest.raises(ValueError, match=r"3.png' is 80x48, not 64x48"):
         next(stream)
+
+
+def _png_claiming(width, height):
+    """A 67-byte PNG whose IHDR claims ``width x height`` RGB pixels; its IDAT holds two bytes."""
+    import struct
+    import zlib
+
+    def chunk(kind, body):
+        return (struct.pack(">I", len(body)) + kind + body
+                + struct.pack(">I", zlib.crc32(kind + body) & 0xFFFFFFFF))
+
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2,
+                                                              0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(b"\x00\x00")) + chunk(b"IEND", b""))
+
+
+def test_an_image_too_large_for_opencv_is_a_one_line_error(tmp_path, monkeypatch):
+    """OpenCV asserts (cv2.error) on a header beyond CV_IO_MAX_IMAGE_PIXELS; that is a ValueError
+    naming the file, on every path that decodes: whole, halved, and the size probe."""
+    from scene3D import imageio
+
+    big = tmp_path / "big.png"
+    big.write_bytes(_png_claiming(100000, 100000))
+    message = (r"cannot read image '.*big.png': too large for OpenCV \(its header says "
+               r"100000x100000 pixels\), or a damaged file")
+    with pytest.raises(ValueError, match=message):
+        read_image(big)
+    for max_width in (None, 768):
+        with pytest.raises(ValueError, match=message):
+            load_working_image(big, np.eye(3), np.zeros(5), max_width)
+    bmp = tmp_path / "big.bmp"  # no size header read: the size probe decodes it
+    bmp.write_bytes(b"BM" + (70).to_bytes(4, "little") + bytes(4) + (54).to_bytes(4, "little")
+                    + (40).to_bytes(4, "little") + (100000).to_bytes(4, "little") * 2
+                    + (1).to_bytes(2, "little") + (24).to_bytes(2, "little") + bytes(40))
+    with pytest.raises(ValueError, match=r"cannot read image '.*big.bmp': too large for OpenCV"):
+        read_image_size(bmp)
+    # Any other assertion of a decoder, here in libjpeg's reduced-size path, says damaged.
+    photo = tmp_path / "photo.jpg"
+    cv2.imwrite(str(photo), _textured(1200, 800))
+
+    def asserting(data, flags):
+        raise cv2.error("OpenCV(5.0.0) loadsave.cpp: error: (-215:Assertion failed) in imdecode_")
+
+    monkeypatch.setattr(imageio.cv2, "imdecode", asserting)
+    with pytest.raises(ValueError, match=r"'.*photo.jpg': a damaged image file \(its header "
+                                         r"says 1200x800 pixels\)$"):
+        load_working_image(photo, np.eye(3), np.zeros(5), 300)
+
+
+@pytest.mark.parametrize("height", [1, 3])
+@pytest.mark.parametrize("ext", [".jpg", ".png"])
+def test_a_strip_too_thin_to_halve_is_named_before_decoding(tmp_path, ext, height):
+    """3072 px wide, 1 or 3 high, at --max-width 768: libjpeg's reduced decoding would give
+    an empty image; JPEG and PNG are refused alike, naming the file."""
+    path = tmp_path / f"pano{ext}"
+    cv2.imwrite(str(path), _textured(3072, height))
+    with pytest.raises(ValueError, match=rf"'.*pano{ext}': a 3072x{height} image cannot be "
+                                         rf"halved 2 times \(to 768x0 pixels\)"):
+        load_working_image(path, np.eye(3), np.zeros(5), 768)
+    thin = tmp_path / f"thin{ext}"  # halved once, three rows still leave one
+    cv2.imwrite(str(thin), _textured(3072, 3))
+    img, native, levels = load_working_image(thin, np.eye(3), np.zeros(5), 1536)
+    assert native == (3072, 3) and levels == 1 and img.shape == (1, 1536, 3)
+
+
+def test_a_jpeg_header_claiming_more_pixels_than_the_file_holds_is_damaged(tmp_path):
+    """A 1200x800 JPEG whose frame header was patched to 65000x65000: libjpeg would make a
+    grey 8125x8125 image of it at 1/8 size (no keypoints); it is refused as damaged, without
+    decoding, by the size probe and the readers alike."""
+    photo = tmp_path / "photo.jpg"
+    cv2.imwrite(str(photo), _textured(1200, 800))
+    data = bytearray(photo.read_bytes())
+    sof = data.index(b"\xff\xc0")
+    data[sof + 5:sof + 9] = (65000).to_bytes(2, "big") * 2
+    patched = tmp_path / "patched.jpg"
+    patched.write_bytes(bytes(data))
+    message = (r"cannot read image '.*patched.jpg': a damaged JPEG file \(its header says "
+               r"65000x65000 pixels, more than its \d+ bytes can hold\)")
+    with pytest.raises(ValueError, match=message):
+        read_image_size(patched)
+    with pytest.raises(ValueError, match=message):
+        read_image(patched)
+    for max_width in (None, 768):
+        with pytest.raises(ValueError, match=message):
+            load_working_image(patched, np.eye(3), np.zeros(5), max_width)
+    # Complete files of one flat colour, the smallest JPEGs there are, are not refused.
+    for progressive, shape in [(0, (4000, 4000)), (1, (4000, 4000, 3))]:
+        flat = tmp_path / f"flat{progressive}.jpg"
+        cv2.imwrite(str(flat), np.full(shape, 77, np.uint8),
+                    [cv2.IMWRITE_JPEG_PROGRESSIVE, progressive, cv2.IMWRITE_JPEG_OPTIMIZE, 1,
+                     cv2.IMWRITE_JPEG_QUALITY, 10])
+        assert read_image_size(flat) == (4000, 4000)
+        assert load_working_image(flat, np.eye(3), np.zeros(5), 1000)[0].shape == (1000, 1000, 3)

@@ -148,6 +148,25 @@ def test_two_cameras_are_refused(second, message):
         camera_prior([first, second])
 
 
+def test_focal_lengths_are_compared_like_with_like():
+    """A 35 mm equivalent (32) is not a real focal length (7): a photo recording both and one
+    recording FocalLength only are one camera, at one zoom setting."""
+    both = ("a.jpg", ExifCamera(make="Canon", model="EOS 5D", focal_length_mm=7,
+                                focal_length_35mm=32), STRECHA)
+    real = ("b.jpg", ExifCamera(make="Canon", model="EOS 5D", focal_length_mm=7), STRECHA)
+    for photos in ([both, real], [real, both]):
+        prior = camera_prior(photos)
+        assert prior.source == "exif" and prior.description == "EXIF FocalLengthIn35mmFilm 32 mm"
+    zoomed = ("c.jpg", ExifCamera(make="Canon", model="EOS 5D", focal_length_mm=12), STRECHA)
+    with pytest.raises(ValueError, match=r"'c.jpg' was taken at 12 mm and 'a.jpg' at 7 mm "
+                                         r"\(EXIF\): one focal length is needed"):
+        camera_prior([both, real, zoomed])
+    wide = ("d.jpg", ExifCamera(make="Canon", model="EOS 5D", focal_length_35mm=24), STRECHA)
+    with pytest.raises(ValueError, match=r"'d.jpg' was taken at 24 mm and 'a.jpg' at 32 mm "
+                                         r"\(EXIF, 35 mm equivalent\)"):
+        camera_prior([both, real, wide])
+
+
 def test_one_camera_passes():
     exif = ExifCamera(make="Canon", model="Canon EOS 5D", focal_length_35mm=32)
     check_one_camera([("a", exif, STRECHA), ("b", exif, STRECHA), ("c", None, STRECHA)])
