@@ -718,3 +718,22 @@ def test_a_model_without_points_is_a_failure(fountain, tmp_path, monkeypatch, ca
     assert summary["status"] == "failed" and summary["points"] == 0
     assert summary["models"][0]["status"] == "failed"
     assert summary["models"][0]["check"]["status"] == "ok"  # consistent, but empty
+
+
+def test_a_copy_of_a_photo_under_another_name_is_refused(fountain, tmp_path):
+    """A byte-identical copy is one view twice (chapter4.py and calibrate refuse it too)."""
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    for name in ("0003.jpg", "0004.jpg"):
+        shutil.copy(fountain / "images" / name, folder / name)
+    shutil.copy(fountain / "images" / "0004.jpg", folder / "0004 copy.jpg")
+    proc = subprocess.run(
+        [sys.executable, "-m", "scene3D", "reconstruct-views", str(folder), "--calib",
+         str(REPO / "data" / "fountain_P11_intrinsics.yaml"), "--max-width", "400",
+         "--no-report", "--out", str(tmp_path / "out")], capture_output=True, text=True,
+        timeout=300)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines()[-1] == (
+        "error: '0004.jpg' and '0004 copy.jpg' are the same photo (the same keypoints): a "
+        "view cannot pair with itself")
+    assert "Traceback" not in proc.stderr

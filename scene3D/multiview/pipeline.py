@@ -96,6 +96,18 @@ def _too_few_keypoints(found: Sequence[tuple], names: Sequence[str], needed: int
             f"{working_size[1]} px)")
 
 
+def _check_distinct_photos(keys: Sequence[bytes], keypoints: Sequence[int],
+                           names: Sequence[str]) -> None:
+    """Raise ``ValueError`` when two views are one photo (the same keypoints and
+    descriptors: a copy under another name); views without keypoints are left to the
+    reconstruction, which says they have too few."""
+    first: dict[bytes, int] = {}
+    for v, key in enumerate(keys):
+        if keypoints[v] and first.setdefault(key, v) != v:
+            raise ValueError(f"'{names[v]}' and '{names[first[key]]}' are the same photo (the "
+                             "same keypoints): a view cannot pair with itself")
+
+
 def reconstruct_views(
     images: Sequence[ImageSource],
     K: ArrayLike | None,
@@ -158,8 +170,9 @@ def reconstruct_views(
         Fewer than two views, or no pair gives a trustworthy start (the message says so
         when the images have too few keypoints for any pair).
     FileNotFoundError, ValueError
-        Unreadable images or images of different sizes; without ``K``, photos from
-        different cameras (EXIF make and model, or focal length).
+        Unreadable images or images of different sizes, one photo given twice (a copy);
+        without ``K``, photos from different cameras (EXIF make and model, or focal
+        length).
     """
     s = settings or SfMSettings()
     engine = engine or LocalEngine()
@@ -203,6 +216,7 @@ def reconstruct_views(
 
     # Canonical order: by content, so that names and input order change nothing.
     keys = [content_key(f[0]) for f in found]
+    _check_distinct_photos(keys, [len(f[0].keypoints) for f in found], names)
     order = np.array(sorted(range(len(found)), key=lambda v: (keys[v], v)), dtype=int)
     position = np.empty_like(order)
     position[order] = np.arange(len(order))
