@@ -239,11 +239,11 @@ def strecha_views(dataset: str | os.PathLike) -> list[tuple[Path, Path]]:
         raise FileNotFoundError(f"scene folder not found: '{dataset}'")
     if not images.is_dir() or not cameras.is_dir():
         raise FileNotFoundError(f"'{dataset}' needs images/ and gt_dense_cameras/ folders")
-    photos = [p for p in sorted(images.iterdir()) if p.suffix.lower() in IMAGE_SUFFIXES]
-    views = [(p, cameras / f"{p.name}.camera") for p in photos
-             if (cameras / f"{p.name}.camera").is_file()]
+    photos = [(p, cameras / f"{p.name}.camera") for p in sorted(images.iterdir())
+              if p.suffix.lower() in IMAGE_SUFFIXES]
+    views = [(p, camera) for p, camera in photos if camera.is_file()]
     if len(views) < len(photos):  # left out, and the indices count without them
-        without = [p.name for p in photos if not (cameras / f"{p.name}.camera").is_file()]
+        without = [p.name for p, camera in photos if (p, camera) not in views]
         logger.warning("%d image(s) of '%s' have no camera file and are left out (the "
                        "indices count the others): %s", len(without), dataset,
                        ", ".join(without))

@@ -8,9 +8,7 @@ import glob
 import hashlib
 import io
 import logging
-import os
 import sys
-import tempfile
 import warnings
 from collections import Counter
 from collections.abc import Iterator
@@ -52,6 +50,7 @@ from .common import (
     positive_float,
     require_parent_folder,
     require_utf8,
+    require_writable_folder,
     run_command,
     show_images,
 )
@@ -366,18 +365,6 @@ def _outputs(args: argparse.Namespace) -> list[Path]:
     return outputs
 
 
-def _require_writable(folder: Path, option: str, path: Path) -> None:
-    """Raise :class:`UsageError` unless a file can be created in ``folder`` (a read-only
-    folder or file system fails here, before the work, not when writing the results)."""
-    try:
-        fd, probe = tempfile.mkstemp(prefix=".scene3d-write-test-", dir=folder)
-    except OSError as exc:
-        raise UsageError(f"{option} '{path}': cannot write in '{folder}': "
-                         f"{exc.strerror or exc}") from None
-    os.close(fd)
-    os.unlink(probe)
-
-
 def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:
     """Refuse, before any work, outputs that could not be written or would overwrite files."""
     out = args.out
@@ -394,7 +381,7 @@ def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:
     if existing and not args.force:
         raise UsageError(f"'{existing[0]}' exists; use --force to overwrite it")
     require_parent_folder(out, "--out")
-    _require_writable(out.parent, "--out", out)
+    require_writable_folder(out.parent, f"--out '{out}': cannot write in '{out.parent}'")
     target = args.save_undistorted
     if target is not None:
         if target.exists() and not target.is_dir():
@@ -403,7 +390,8 @@ def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:
         if not existing_folder.is_dir():
             raise UsageError(f"--save-undistorted '{target}': '{existing_folder}' is a file, "
                              "not a folder")
-        _require_writable(existing_folder, "--save-undistorted", target)
+        require_writable_folder(existing_folder, f"--save-undistorted '{target}': cannot "
+                                f"write in '{existing_folder}'")
         if args.images is not None and target.is_dir() and any(
                 photo.parent.resolve() == target.resolve()
                 for photo in _image_files(args.images)):
@@ -426,8 +414,8 @@ def _too_few_views(args: argparse.Namespace, board: BoardSpec, found: CollectedV
     """Why ``found`` holds fewer than 3 views, for the error."""
     seen, n = found.seen, len(found.views)
     if found.not_distinct:
-        kind = "video" if args.video is not None else "camera stream"
-        return (f"only {n} distinct view(s) of the board in {seen} frames of the {kind}: "
+        return (f"only {n} distinct view(s) of the board in {seen} frames of the "
+                f"{_stream_kind(args)}: "
                 f"{found.not_distinct} more with the board were dropped as not distinct "
                 f"(its corners moved less than --min-motion {args.min_motion:g} of the image "
                 "diagonal from a view already kept); calibration needs at least 3")
@@ -518,7 +506,8 @@ def run(args: argparse.Namespace) -> int:
                                     result.rejected_views, advice, umap, figures)
 
     # The folder may have gone read-only (or away) during the work: say so in one line.
-    _require_writable(args.out.parent, "--out", args.out)
+    require_writable_folder(args.out.parent,
+                            f"--out '{args.out}': cannot write in '{args.out.parent}'")
     if args.save_undistorted is not None:
         args.save_undistorted.mkdir(parents=True, exist_ok=True)
     with all_or_nothing():  # a write that fails leaves the earlier files as they were

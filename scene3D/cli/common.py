@@ -7,6 +7,7 @@ import logging
 import math
 import os
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
@@ -322,6 +323,19 @@ def require_parent_folder(path: Path, option: str) -> None:
     if not parent.is_dir():
         what = "is a file, not a folder" if parent.exists() else "does not exist"
         raise UsageError(f"{option} '{path}': '{parent}' {what}")
+
+
+def require_writable_folder(folder: Path, what: str) -> None:
+    """Raise :class:`UsageError` ``"{what}: {reason}"`` unless a file can be created in
+    ``folder``: a read-only folder or file system fails here, before the work, not when
+    the results are written (a file is created and removed; root may write where the
+    permissions say no, so they are not asked)."""
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".scene3d-write-test-", dir=folder)
+    except OSError as exc:
+        raise UsageError(f"{what}: {exc.strerror or exc}") from None
+    os.close(fd)
+    os.unlink(probe)
 
 
 def prepare_output_dir(path: Path) -> Path:

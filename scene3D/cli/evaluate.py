@@ -7,10 +7,8 @@ import csv
 import io
 import logging
 import math
-import os
 import re
 import sys
-import tempfile
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -49,6 +47,7 @@ from .common import (
     open_engine,
     path_arg,
     require_parent_folder,
+    require_writable_folder,
     run_command,
 )
 
@@ -335,13 +334,8 @@ def _check_csv_target(path: Path | None, force: bool) -> None:
         raise UsageError(f"--csv '{path}' exists; use --force to overwrite it"
                          if not path.is_dir() else f"--csv '{path}' is a folder")
     require_parent_folder(path, "--csv")
-    try:  # a file created and removed beside the target: a folder we may not write refuses
-        fd, probe = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".probe")
-    except OSError as exc:
-        raise UsageError(f"--csv '{path}' cannot be written: its folder '{path.parent}' "
-                         f"refuses new files ({exc.strerror})") from None
-    os.close(fd)
-    os.unlink(probe)
+    require_writable_folder(path.parent, f"--csv '{path}' cannot be written: its folder "
+                            f"'{path.parent}' refuses new files")
 
 
 def _csv_text(rows: list[dict]) -> str:
