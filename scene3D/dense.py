@@ -21,8 +21,16 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from .camera import validate_intrinsics
+from .errors import ReconstructionError
 from .geometry import FloatArray
-from .rectification import RectifiedPair, rectify_pair, rectify_points
+from .imageio import image_size
+from .rectification import (
+    RectifiedPair,
+    rectify_pair,
+    rectify_points,
+    rectifying_transforms,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -49,10 +57,14 @@ class DenseReconstruction:
     pixels : (N, 2) float64
         Where each point is seen in rectified image 1.
     disparity : (H, W) float32
-        Disparity ``x1 - x2`` of rectified image 1 in pixels, NaN where invalid.
+        Disparity ``x1 - x2`` of rectified image 1 in pixels, zero at infinity, NaN where
+        invalid.
     disparity_range : tuple[int, int]
         The searched range ``[min, max)`` (pixels, in the matcher's orientation).
     rectified : RectifiedPair
+        The rectified pair; image 2 shifted along x by the start of the search range
+        (its ``P2`` says by how much), so the disparities between the two images run
+        from zero up.
     """
 
     points3d: FloatArray
@@ -82,6 +94,28 @@ def disparity_range(
     hi = int(np.ceil(hi + pad))
     width = int(np.ceil((hi - lo) / 16.0) * 16)
     return lo, lo + max(width, 16)
+
+
+def require_searchable_range(lo: int, hi: int, width: int, offset: int = 0) -> None:
+    """Raise :class:`ReconstructionError` when searching ``[lo, hi)`` on rectified images
+    ``width`` pixels wide, image 2 shifted by ``offset`` (:func:`search_disparity`), would
+    leave no column a disparity.
+
+    SGBM gives no disparity to the leftmost ``hi`` columns (their match would lie left
+    of image 2) nor, for a negative ``lo``, to the rightmost ``-lo``; a search wider than
+    the image fails inside OpenCV. A range that wide comes from a pair rectification
+    cannot serve: the epipole in or near the image (the camera moved towards the scene)
+    or a pose too uncertain to rectify by. (A narrower range that still costs many
+    columns gives a partial cloud: fountain-P11 0007-0008 at 768 px searches [177, 433).)
+    """
+    lost = max(hi - offset, 0) + max(offset - lo, 0)
+    if lost >= width:
+        raise ReconstructionError(
+            "no_dense_range",
+            f"dense matching cannot serve this pair: its sparse disparities span [{lo}, {hi}) "
+            f"px, too wide a search for rectified images {width} px wide (the epipole lies in "
+            "or near the image, or the pose is too uncertain to rectify by); the sparse "
+            "result does not need it (run without --dense)")
 
 
 def _sgbm(min_disp: int, num_disp: int, block: int) -> cv2.StereoSGBM:
@@ -155,7 +189,7 @@ def range_edges_cut(disparity: np.ndarray, lo: int, hi: int) -> tuple[bool, bool
 
 def search_disparity(
     left: np.ndarray, right: np.ndarray, lo: int, hi: int, block_size: int = 5,
-    max_widenings: int = 2,
+    max_widenings: int = 2, offset: int = 0,
 ) -> tuple[np.ndarray, tuple[int, int]]:
     """:func:`compute_disparity` over ``[lo, hi)``, widened where it cuts the scene off.
 
@@ -163,23 +197,32 @@ def search_disparity(
     their range may stop short. A side where the result piles up
     (:func:`range_edges_cut`) moves out by half the range's width (a multiple of 16)
     and the pair is matched again, at most ``max_widenings`` times. The low side
-    goes no lower than 0 (points at infinity); the high side at half the image width, since
-    SGBM leaves the leftmost ``hi`` columns without disparities.
+    goes no lower than 0 (points at infinity); the high side no further than half the
+    image width beyond ``offset``, since SGBM leaves the leftmost ``hi - offset`` columns
+    without disparities.
 
-    Returns the disparity map (H, W) float32 and the range ``(lo, hi)`` it searched.
+    ``offset`` is how far ``right`` was shifted (``rectify_pair``'s ``shift2_px``): a
+    disparity ``d`` lies ``d - offset`` apart in the images, so SGBM searches
+    ``[lo - offset, hi - offset)`` and ``offset`` is added back.
+
+    Returns the disparity map (H, W) float32 (zero at infinity) and the range ``(lo, hi)``
+    it searched.
     """
-    disparity = compute_disparity(left, right, lo, hi - lo, block_size)
+    def match(lo: int, hi: int) -> np.ndarray:
+        return compute_disparity(left, right, lo - offset, hi - lo, block_size) + offset
+
+    disparity = match(lo, hi)
     for _ in range(max_widenings):
         cut_low, cut_high = range_edges_cut(disparity, lo, hi)
         step = 16 * int(np.ceil((hi - lo) / 32))
         low_step = min(step, 16 * (lo // 16))  # the width stays a multiple of 16
         cut_low = cut_low and low_step > 0
-        cut_high = cut_high and hi + step <= left.shape[1] // 2
+        cut_high = cut_high and hi - offset + step <= left.shape[1] // 2
         if not (cut_low or cut_high):
             break
         lo, hi = lo - (low_step if cut_low else 0), hi + (step if cut_high else 0)
         logger.info("disparities pile up at the range's edge: widened to [%d, %d)", lo, hi)
-        disparity = compute_disparity(left, right, lo, hi - lo, block_size)
+        disparity = match(lo, hi)
     return disparity, (lo, hi)
 
 
@@ -209,22 +252,56 @@ def dense_point_cloud(
     Returns
     -------
     DenseReconstruction
+
+    Raises
+    ------
+    ReconstructionError
+        ``"no_dense_range"`` when the sparse disparities need a search range wider than
+        the images (:func:`require_searchable_range`);
+        ``"no_dense_points"`` when no pixel passes the left-right check.
+    ValueError
+        The images are not colour images of one size, or ``K``, ``R``, ``t`` are not a
+        camera matrix, a rotation and a translation.
     """
-    rect = rectify_pair(img1, img2, K, R, t, alpha=0.0)
-    r1 = rectify_points(np.asarray(sparse_pts1, np.float64), K, rect.R1, rect.P1)
-    r2 = rectify_points(np.asarray(sparse_pts2, np.float64), K, rect.R2, rect.P2)
+    for name, img in (("img1", img1), ("img2", img2)):
+        if not (isinstance(img, np.ndarray) and img.dtype == np.uint8 and img.ndim == 3
+                and img.shape[2] == 3):
+            got = f"{img.dtype} {img.shape}" if isinstance(img, np.ndarray) else type(img).__name__
+            raise ValueError(f"`{name}` must be an (H, W, 3) uint8 BGR image, got {got}")
+    if img1.shape != img2.shape:
+        raise ValueError(f"`img1` and `img2` must have the same size, got {img1.shape[:2]} "
+                         f"and {img2.shape[:2]} (H, W)")
+    K = validate_intrinsics(K)
+    R, t = np.asarray(R, np.float64), np.asarray(t, np.float64).reshape(-1)
+    if R.shape != (3, 3) or t.shape != (3,) or not (np.all(np.isfinite(R))
+                                                    and np.all(np.isfinite(t))):
+        raise ValueError(f"`R` and `t` must be a finite (3, 3) rotation and (3,) translation, "
+                         f"got shapes {R.shape} and {t.shape}")
+    R1, R2, P1, P2, _ = rectifying_transforms(K, R, t, image_size(img1), alpha=0.0)
+    r1 = rectify_points(np.asarray(sparse_pts1, np.float64), K, R1, P1)
+    r2 = rectify_points(np.asarray(sparse_pts2, np.float64), K, R2, P2)
     sparse_disp = r1[:, 0] - r2[:, 0]
     # SGBM searches positive disparities; if image 2 is the left view, mirror both.
     mirrored = float(np.median(sparse_disp)) < 0
+    sign = -1 if mirrored else 1
+    lo, hi = disparity_range(sign * sparse_disp)
+    # Rectified image 2 shifted so that the search starts at zero: a converging pair's
+    # disparities (zero at infinity) can exceed the image width.
+    offset = lo
+    logger.info("SGBM disparity range [%d, %d) from %d sparse points", lo, hi, len(sparse_disp))
+    require_searchable_range(lo, hi, img1.shape[1], offset)
+    rect = rectify_pair(img1, img2, K, R, t, alpha=0.0, shift2_px=sign * offset)
     left, right = rect.img1, rect.img2
     if mirrored:
-        left, right, sparse_disp = left[:, ::-1].copy(), right[:, ::-1].copy(), -sparse_disp
-    lo, hi = disparity_range(sparse_disp)
-    logger.info("SGBM disparity range [%d, %d) from %d sparse points", lo, hi, len(sparse_disp))
-    disparity, (lo, hi) = search_disparity(left, right, lo, hi, block_size)
+        left, right = left[:, ::-1].copy(), right[:, ::-1].copy()
+    disparity, (lo, hi) = search_disparity(left, right, lo, hi, block_size, offset=offset)
     if mirrored:
         disparity = -disparity[:, ::-1]
     ys, xs = np.nonzero(np.isfinite(disparity) & (np.abs(disparity) > 0.5))
+    if len(xs) == 0:
+        raise ReconstructionError(
+            "no_dense_points", "dense matching found no pixel whose disparity the left and "
+            "right views agree on; the sparse result does not need it (run without --dense)")
     d = np.abs(disparity[ys, xs]).astype(np.float64)
     f, cx, cy = rect.P1[0, 0], rect.P1[0, 2], rect.P1[1, 2]
     baseline = float(np.linalg.norm(t))

@@ -29,7 +29,7 @@ class ReconstructionError(RuntimeError):
     reason : str
         Short machine-readable cause: ``"too_few_matches"``, ``"too_few_inliers"``,
         ``"no_parallax"``, ``"planar_scene"``, ``"no_cheirality_winner"``,
-        ``"too_few_points"``.
+        ``"too_few_points"``; from dense matching ``"no_dense_range"``, ``"no_dense_points"``.
     counts : dict[str, int | float]
         The numbers behind the decision (matches, inliers, parallax, ...).
     """

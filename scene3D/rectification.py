@@ -37,6 +37,19 @@ class RectifiedPair:
     Q: FloatArray
 
 
+def rectifying_transforms(
+    K: FloatArray, R: FloatArray, t: FloatArray, size: tuple[int, int], alpha: float = 1.0,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """``R1, R2, P1, P2, Q`` of ``cv2.stereoRectify`` with zero disparity at infinity
+    (both rectified cameras share ``f`` and the principal point); ``size`` is (W, H)."""
+    no_dist = np.zeros(5)
+    R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(
+        K, no_dist, K, no_dist, size, np.asarray(R, np.float64),
+        np.asarray(t, np.float64).reshape(3, 1), flags=cv2.CALIB_ZERO_DISPARITY, alpha=alpha,
+    )
+    return R1, R2, P1, P2, Q
+
+
 def rectify_pair(
     img1: np.ndarray,
     img2: np.ndarray,
@@ -44,6 +57,7 @@ def rectify_pair(
     R: FloatArray,
     t: FloatArray,
     alpha: float = 1.0,
+    shift2_px: float = 0.0,
 ) -> RectifiedPair:
     """Rectify two undistorted images with ``cv2.stereoRectify``.
 
@@ -57,13 +71,21 @@ def rectify_pair(
         ``x_cam2 = R x_cam1 + t``.
     alpha : float
         0 crops to valid pixels only, 1 keeps every source pixel (the book's choice).
+    shift2_px : float
+        Moves rectified image 2's principal point this far along x, so that a point of
+        disparity ``d`` (zero at infinity) has ``d - shift2_px`` between the two rectified
+        images. A converging pair's disparities can exceed the image width, putting
+        image 2's view of what image 1 sees beyond its left edge; the shift brings it
+        back. ``P2`` and ``Q`` include it.
     """
     size = image_size(img1)  # (width, height): the book passed (height, width)
+    R1, R2, P1, P2, Q = rectifying_transforms(K, R, t, size, alpha)
+    if shift2_px:
+        P2 = P2.copy()
+        P2[0, 2] += shift2_px
+        Q = Q.copy()
+        Q[3, 3] = (P1[0, 2] - P2[0, 2]) / P2[0, 3] * P2[0, 0]  # (cx1 - cx2) / Tx
     no_dist = np.zeros(5)
-    R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(
-        K, no_dist, K, no_dist, size, np.asarray(R, np.float64),
-        np.asarray(t, np.float64).reshape(3, 1), flags=cv2.CALIB_ZERO_DISPARITY, alpha=alpha,
-    )
     map1x, map1y = cv2.initUndistortRectifyMap(K, no_dist, R1, P1, size, cv2.CV_32FC1)
     map2x, map2y = cv2.initUndistortRectifyMap(K, no_dist, R2, P2, size, cv2.CV_32FC1)
     rect1 = cv2.remap(img1, map1x, map1y, cv2.INTER_LINEAR)

@@ -9,8 +9,10 @@ from scene3D.dense import (
     compute_disparity,
     disparity_range,
     range_edges_cut,
+    require_searchable_range,
     search_disparity,
 )
+from scene3D.errors import ReconstructionError
 from scene3D.geometry import project
 from scene3D.synthetic import render_planes
 
@@ -31,6 +33,17 @@ def test_constant_shift_gives_a_constant_disparity():
     valid = np.isfinite(disp)
     assert valid.mean() > 0.5
     assert np.median(disp[valid]) == pytest.approx(12.0, abs=0.1)
+
+
+def test_a_range_leaving_no_column_a_disparity_is_refused():
+    require_searchable_range(0, 639, 640)  # one column keeps a disparity
+    require_searchable_range(-320, 319, 640)
+    require_searchable_range(300, 939, 640, offset=300)  # image 2 shifted by 300 px
+    for lo, hi, offset in ((0, 640, 0), (-320, 320, 0), (-337, 2591, 0), (300, 940, 300)):
+        with pytest.raises(ReconstructionError) as info:
+            require_searchable_range(lo, hi, 640, offset)
+        assert info.value.reason == "no_dense_range"
+        assert f"[{lo}, {hi}) px" in str(info.value) and "without --dense" in str(info.value)
 
 
 def test_range_edges_cut_counts_the_disparities_piled_at_each_edge():
@@ -77,15 +90,23 @@ def test_dense_points_lie_on_the_rendered_surfaces(synthetic_dense):
     assert dense.colors.shape == (dense.num_points, 3)
 
 
-def test_dense_agrees_with_sparse_on_the_book_pair(fountain):
+@pytest.mark.parametrize("pair, min_ratio, min_compared", [
+    ((4, 5), 100, 150),  # the book's pair: 193 of 569 sparse points compared
+    # A converging pair: disparities [305, 641) px at 768 px wide, so rectified image 2 is
+    # shifted by 305 px. Unshifted, no pixel passed the left-right check.
+    ((1, 3), 100, 50),
+])
+def test_dense_agrees_with_sparse(fountain, pair, min_ratio, min_compared):
     from scene3D.datasets import read_strecha_camera
 
-    cam = read_strecha_camera(fountain / "gt_dense_cameras" / "0004.jpg.camera")
+    i, j = pair
+    cam = read_strecha_camera(fountain / "gt_dense_cameras" / f"{i:04d}.jpg.camera")
     scene = SceneReconstruction3D(cam.K)
-    scene.load_image_pair(fountain / "images" / "0004.jpg", fountain / "images" / "0005.jpg")
+    scene.load_image_pair(fountain / "images" / f"{i:04d}.jpg",
+                          fountain / "images" / f"{j:04d}.jpg")
     sparse = scene.reconstruct()
     dense = scene.dense_point_cloud()
-    assert dense.num_points >= 100 * sparse.num_points
+    assert dense.num_points >= min_ratio * sparse.num_points
     # Compare depths where both exist: the dense point at each sparse point's rectified pixel.
     from scene3D.rectification import rectify_points
 
@@ -93,12 +114,28 @@ def test_dense_agrees_with_sparse_on_the_book_pair(fountain):
     r1 = np.rint(rectify_points(sparse.pts1, scene.K, rect.R1, rect.P1)).astype(int)
     index = {(x, y): i for i, (x, y) in enumerate(dense.pixels.astype(int))}
     pairs = [(i, index[(x, y)]) for i, (x, y) in enumerate(r1) if (x, y) in index]
-    assert len(pairs) > 150  # sparse points whose rectified pixel has one (193 of 569 here)
+    assert len(pairs) > min_compared
     s_idx, d_idx = np.array(pairs).T
     z_sparse = np.linalg.norm(sparse.points3d[s_idx], axis=1)
     z_dense = np.linalg.norm(dense.points3d[d_idx], axis=1)
     # Stated bound: median relative range difference below 1 %.
     assert np.median(np.abs(z_dense - z_sparse) / z_sparse) < 0.01
+
+
+def test_dense_refuses_images_it_cannot_use(rendered_pair):
+    from scene3D.dense import dense_point_cloud
+
+    img1, img2, K, R, t = rendered_pair
+    pts = np.array([[100.0, 100.0], [200.0, 150.0]])
+    bad = {
+        "img1` must be an \\(H, W, 3\\) uint8": (img1[..., 0], img2, K, R, t),
+        "same size": (img1, img2[:400], K, R, t),
+        "shape \\(3, 3\\)": (img1, img2, np.eye(3, 4), R, t),
+        "`R` and `t`": (img1, img2, K, R, t[:2]),
+    }
+    for message, (a, b, K_, R_, t_) in bad.items():
+        with pytest.raises(ValueError, match=message):
+            dense_point_cloud(a, b, K_, R_, t_, pts, pts)
 
 
 def test_disparity_against_the_middlebury_ground_truth(chessboards):

@@ -39,3 +39,27 @@ def test_rectified_images_are_consistent_with_the_maps(rendered_pair):
     patch2 = rect.img2[int(round(y2)) - 2:int(round(y2)) + 3, int(round(x2)) - 2:int(round(x2)) + 3]
     assert patch1.std() > 1  # real texture, not a black border
     assert np.abs(patch1.astype(float) - patch2.astype(float)).mean() < 12
+
+
+def test_a_shifted_image_2_keeps_rows_and_its_Q_gives_the_point(rendered_pair):
+    """``shift2_px`` moves rectified image 2 along x: disparities drop by the shift, rows
+    and depths stay (Q includes the shift)."""
+    import cv2
+
+    img1, img2, K, R, t = rendered_pair
+    plain = rectify_pair(img1, img2, K, R, t, alpha=0.0)
+    shifted = rectify_pair(img1, img2, K, R, t, alpha=0.0, shift2_px=40.0)
+    X, pts1, pts2 = correspondences(K, R, t, n=20)
+    x1 = rectify_points(pts1, K, shifted.R1, shifted.P1)
+    x2 = rectify_points(pts2, K, shifted.R2, shifted.P2)
+    x2_plain = rectify_points(pts2, K, plain.R2, plain.P2)
+    np.testing.assert_allclose(x2[:, 0], x2_plain[:, 0] + 40.0, atol=1e-6)
+    np.testing.assert_allclose(x2[:, 1], x1[:, 1], atol=1e-6)
+    np.testing.assert_array_equal(shifted.img1, plain.img1)
+    # Q maps (x, y, d) with the shifted disparity to the point in the rectified frame 1.
+    disparity = np.zeros(img1.shape[:2], np.float32)
+    u, v = np.rint(x1[0]).astype(int)
+    disparity[v, u] = x1[0, 0] - x2[0, 0]
+    point = cv2.reprojectImageTo3D(disparity, shifted.Q)[v, u]
+    expected = shifted.R1 @ X[0]
+    np.testing.assert_allclose(point[2], expected[2], rtol=1e-5)  # depth: from d alone
