@@ -352,6 +352,54 @@ def test_a_still_camera_before_a_moving_board_gives_no_trusted_pose(tmp_path, ch
             assert "error:" in err and not (out / "reconstruction.json").exists(), (a, b, err)
 
 
+def test_dense_on_a_pair_it_cannot_rectify_fails_in_one_line(tmp_path, chessboards, capsys):
+    """left04/left08: the board moved before a still camera, so the epipole lies in the
+    image and the rectified disparities span [-337, 2591) px on 640 px (SGBM failed to
+    allocate 2^64 bytes before). Exit 1, nothing written; without --dense a result."""
+    from scene3D.cli.chapter4 import main
+
+    folder = chessboards / "opencv-left"
+    args = [str(folder / "left04.jpg"), str(folder / "left08.jpg"),
+            "--calib", str(folder / "left_intrinsics.yml"), "--no-plots", "--no-report", "-q"]
+    out = tmp_path / "out"
+    assert main(args + ["--dense", "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: dense matching cannot serve this pair") and "\n" not in err
+    assert "run without --dense" in err
+    assert not out.exists()  # the folder it created, removed again
+    assert main(args + ["--out", str(out)]) == 0
+
+
+def test_a_run_replaces_the_previous_runs_files_and_keeps_the_users(tmp_path, synthetic_files):
+    """The second run writes no figures and no report: the first run's go with the rest of
+    its results, the user's file stays, and reconstruction.json lists what is there."""
+    f = synthetic_files
+    out = tmp_path / "out"
+    args = [f / "a.png", f / "b.png", "--calib", f / "camera.yaml", "--out", out]
+    assert run(args, cwd=tmp_path).returncode == 0
+    first = json.loads((out / "reconstruction.json").read_text())["files"]
+    assert "report.html" in first and "point_cloud.png" in first
+    assert sorted(first) == sorted(p.name for p in out.iterdir())
+    (out / "notes.txt").write_text("mine")
+    assert run(args + ["--no-plots", "--no-report"], cwd=tmp_path).returncode == 0
+    second = json.loads((out / "reconstruction.json").read_text())["files"]
+    assert second == ["point_cloud.ply", "reconstruction.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt", *second]
+
+
+def test_a_reconstruction_json_of_someone_else_is_not_replaced(tmp_path, synthetic_files):
+    f = synthetic_files
+    (tmp_path / "reconstruction.json").write_text('{"my": "data"}')
+    proc = run([f / "a.png", f / "b.png", "--calib", f / "camera.yaml", "--out", tmp_path,
+                "--no-plots", "--no-report"], cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == (f"error: '{tmp_path / 'reconstruction.json'}' was not "
+                                   "written by scene3D and would be replaced; choose another "
+                                   "--out")
+    assert (tmp_path / "reconstruction.json").read_text() == '{"my": "data"}'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["reconstruction.json"]
+
+
 def test_a_write_that_fails_leaves_the_previous_run_whole(tmp_path, synthetic_files):
     """A folder where report.html goes: refused before any file is replaced."""
     f = synthetic_files

@@ -513,6 +513,22 @@ def test_unconnected_scenes_become_two_models(fountain, data_root, tmp_path):
     assert json.loads((out / "model-1" / "cameras.json").read_text()).keys() == {
         f"h{i}.jpg" for i in range(4)}
     assert "model 1 (model-1/): 4 more views" in proc.stdout
+    assert sorted(summary["files"]) == _files_in(out)
+    # Again on the fountain alone into the same folder, without the report: the earlier
+    # run's model-1/ and report.html go; a file of the user's there stays.
+    (out / "notes.txt").write_text("mine")
+    for link in folder.glob("h*.jpg"):
+        link.unlink()
+    proc, out = _cli([str(folder), "--no-report"], tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((out / "reconstruction.json").read_text())
+    assert len(summary["models"]) == 1
+    assert not (out / "model-1").exists() and not (out / "report.html").exists()
+    assert sorted([*summary["files"], "notes.txt"]) == _files_in(out)
+
+
+def _files_in(folder):
+    return sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file())
 
 
 def test_a_broken_reconstruction_is_reported_not_written_as_a_success(fountain, tmp_path,

@@ -42,9 +42,16 @@ from .common import (
     exit_codes_help,
     focal_sigma_text,
     path_arg,
-    prepare_output_dir,
     run_command,
     show_images,
+)
+from .outputs import (
+    FILES_KEY,
+    SUMMARY_FILE,
+    prepare_output_dir,
+    previous_outputs,
+    recorded_files,
+    remove_stale_outputs,
 )
 
 logger = logging.getLogger("scene3D.cli")
@@ -320,6 +327,7 @@ def run(args: argparse.Namespace) -> int:
     path1, path2, calib_path = _resolve_inputs(args)
     camera = _load_camera(calib_path, (path1, path2))
     out = prepare_output_dir(args.out)
+    previous = previous_outputs(out)
     if not args.no_report:
         check_report_viewer()
 
@@ -376,7 +384,9 @@ def run(args: argparse.Namespace) -> int:
                            camera)
         if dense is not None:
             summary["dense"] = _dense_summary(dense)
-        written.append(write_json(out / "reconstruction.json", summary))
+        summary[FILES_KEY] = recorded_files(out, [*written, out / SUMMARY_FILE])
+        written.append(write_json(out / SUMMARY_FILE, summary))
+    remove_stale_outputs(out, previous, written)
 
     if not args.quiet:
         lines[0] += f", {timings['total']:.2f} s"

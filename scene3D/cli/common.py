@@ -11,6 +11,7 @@ import tempfile
 import time
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -338,22 +339,38 @@ def require_writable_folder(folder: Path, what: str) -> None:
     os.unlink(probe)
 
 
-def prepare_output_dir(path: Path) -> Path:
-    """Create ``path`` (and parents) or raise ``UsageError`` naming why it cannot be used."""
-    if path.exists() and not path.is_dir():
-        raise UsageError(f"--out '{path}' exists and is not a folder")
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UsageError(f"cannot create output folder '{path}': {exc.strerror}") from exc
-    if not os.access(path, os.W_OK | os.X_OK):
-        raise UsageError(f"output folder '{path}' is not writable")
-    return path
+#: The folders the running command created for its outputs (``note_created_folders``).
+_created_folders: ContextVar[list[Path] | None] = ContextVar("scene3d_created_folders",
+                                                            default=None)
+
+
+def note_created_folders(folders: Iterable[Path]) -> None:
+    """Record folders the running command created: removed again, if still empty, when it
+    fails (a failed run leaves no empty ``--out`` behind)."""
+    created = _created_folders.get()
+    if created is not None:
+        created.extend(folders)
 
 
 def run_command(args: argparse.Namespace, body: Callable[[argparse.Namespace], int]) -> int:
     """Run ``body(args)`` and turn exceptions into one-line errors and exit codes."""
     configure_logging(args)
+    created: list[Path] = []
+    token = _created_folders.set(created)
+    try:
+        code = _exit_code(args, body)
+    finally:
+        _created_folders.reset(token)
+    if code != EXIT_OK:
+        for folder in sorted(created, key=lambda p: len(p.parts), reverse=True):
+            try:
+                folder.rmdir()
+            except OSError:  # not empty
+                pass
+    return code
+
+
+def _exit_code(args: argparse.Namespace, body: Callable[[argparse.Namespace], int]) -> int:
     try:
         return body(args)
     except KeyboardInterrupt:

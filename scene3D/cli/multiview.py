@@ -46,14 +46,24 @@ from .common import (
     check_report_viewer,
     exit_codes_help,
     focal_sigma_text,
+    note_created_folders,
     open_engine,
     path_arg,
     positive_int,
-    prepare_output_dir,
     run_command,
+)
+from .outputs import (
+    FILES_KEY,
+    SUMMARY_FILE,
+    prepare_output_dir,
+    previous_outputs,
+    recorded_files,
+    remove_stale_outputs,
 )
 
 logger = logging.getLogger("scene3D.cli")
+
+REPORT_FILE = "report.html"
 
 #: A model with fewer points than this is a failure, not a result: its cameras rest on
 #: (almost) nothing (a two-view start alone triangulates dozens).
@@ -216,13 +226,15 @@ def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, s
     view = prepare_view(*multi_view_layers(names, recon.K, recon.image_size, recon.registered,
                                            recon.R, recon.t, recon.points3d, recon.colors))
     page = multi_view_report(names, recon.registered, summary, lines, figures, view)
-    return atomic_write_pieces(out / "report.html", page.encoded())
+    return atomic_write_pieces(out / REPORT_FILE, page.encoded())
 
 
 def write_model(folder: Path, names: list[str], recon: MultiViewReconstruction,
                 model: SfMModel, plots: bool) -> list[Path]:
     """The files of one model: PLY, cameras JSON, COLMAP text model, figure."""
-    folder.mkdir(exist_ok=True)
+    if not folder.exists():
+        folder.mkdir()
+        note_created_folders([folder])
     obs = model.observations
     K = recon.model_K(model)
     colmap = colmap_text_files(names, K, recon.image_size, model.registered, model.R,
@@ -273,6 +285,7 @@ def run(args: argparse.Namespace) -> int:
     names = [p.name for p in paths]
     truth = None if args.ground_truth is None else read_ground_truth(args.ground_truth, names)
     out = prepare_output_dir(args.out)
+    previous = previous_outputs(out)
     if not args.no_report:
         check_report_viewer()
 
@@ -348,9 +361,12 @@ def run(args: argparse.Namespace) -> int:
             summary["ground_truth"] = main_model["ground_truth"]
         timings["total"] = time.perf_counter() - t_start
         summary["timings_s"] = timings
-        written.append(write_json(out / "reconstruction.json", summary))
+        summary[FILES_KEY] = recorded_files(out, [
+            *written, out / SUMMARY_FILE, *([] if args.no_report else [out / REPORT_FILE])])
+        written.append(write_json(out / SUMMARY_FILE, summary))
         if not args.no_report:
             written.append(_write_report(out, names, recon, summary, not args.no_plots))
+    remove_stale_outputs(out, previous, written)
 
     for name in recon.unregistered:
         logger.warning("view '%s' could not be registered: %s", name,

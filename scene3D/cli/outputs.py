@@ -1,0 +1,96 @@
+"""The ``--out`` folder of ``reconstruct`` and ``reconstruct-views``.
+
+A run creates the folder (removed again if the run fails and leaves it empty), refuses
+a ``reconstruction.json`` there that scene3D did not write, lists the files it writes
+in its own ``reconstruction.json`` (``"files"``, relative to the folder), and, once its
+files are in place, removes those of the previous run it did not write again: a
+report.html after ``--no-report``, a model-2/ when fewer models came out. Nothing else in
+the folder is touched.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+from pathlib import Path, PurePosixPath
+
+from .common import UsageError, note_created_folders
+
+logger = logging.getLogger(__name__)
+
+SUMMARY_FILE = "reconstruction.json"
+#: The summary's key for the files a run wrote, relative to ``--out``, '/'-separated.
+FILES_KEY = "files"
+#: A key every summary scene3D has written holds (also before ``FILES_KEY`` existed).
+_OWN_SUMMARY_KEY = "conventions"
+
+
+def prepare_output_dir(path: Path) -> Path:
+    """Create ``path`` (and parents) or raise ``UsageError`` naming why it cannot be used."""
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"--out '{path}' exists and is not a folder")
+    missing = [folder for folder in (path, *path.parents) if not folder.exists()]
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"cannot create output folder '{path}': {exc.strerror}") from exc
+    note_created_folders(missing)
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise UsageError(f"output folder '{path}' is not writable")
+    return path
+
+
+def previous_outputs(out: Path) -> list[Path]:
+    """The files the previous run in ``out`` recorded in its summary (none without one).
+
+    Raises ``UsageError`` when ``out`` holds a ``reconstruction.json`` that scene3D did not
+    write: it would be replaced.
+    """
+    summary = out / SUMMARY_FILE
+    if not summary.is_file():
+        return []
+    try:
+        recorded = json.loads(summary.read_text("utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        recorded = None
+    if not isinstance(recorded, dict) or _OWN_SUMMARY_KEY not in recorded:
+        raise UsageError(f"'{summary}' was not written by scene3D and would be replaced; "
+                         "choose another --out")
+    files = recorded.get(FILES_KEY)
+    if not isinstance(files, list):
+        return []
+    return [out / name for name in files if isinstance(name, str) and _within(name)]
+
+
+def _within(name: str) -> bool:
+    """Whether a recorded name stays inside the folder (relative, no '..')."""
+    path = PurePosixPath(name)
+    return bool(name) and not path.is_absolute() and ".." not in path.parts \
+        and "\\" not in name
+
+
+def recorded_files(out: Path, paths: list[Path]) -> list[str]:
+    """``paths`` inside ``out`` as the summary records them: relative, '/'-separated."""
+    return sorted({path.relative_to(out).as_posix() for path in paths})
+
+
+def remove_stale_outputs(out: Path, previous: list[Path], written: list[Path]) -> None:
+    """Remove the previous run's files this run did not write, then the folders of theirs
+    left empty; a file that cannot be removed is named in a warning."""
+    kept = set(written)
+    for path in previous:
+        if path in kept or not path.is_file() or path.is_symlink():
+            continue
+        try:
+            path.unlink()
+        except OSError as exc:
+            logger.warning("could not remove '%s' of an earlier run: %s", path,
+                           exc.strerror or exc)
+    folders = {parent for path in previous for parent in path.parents
+               if parent != out and out in parent.parents}
+    for folder in sorted(folders, key=lambda p: len(p.parts), reverse=True):
+        try:
+            folder.rmdir()
+        except OSError:  # not empty: it holds this run's files or the user's
+            pass

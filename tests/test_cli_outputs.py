@@ -1,0 +1,77 @@
+"""The --out folder of reconstruct and reconstruct-views (scene3D.cli.outputs): a run
+records its files, removes the previous run's it did not write again and nothing else,
+refuses a reconstruction.json it did not write, and a failed run leaves no empty folder."""
+
+import json
+
+import pytest
+
+from scene3D.cli.common import EXIT_FAILED, EXIT_OK, UsageError, run_command
+from scene3D.cli.outputs import (
+    prepare_output_dir,
+    previous_outputs,
+    recorded_files,
+    remove_stale_outputs,
+)
+
+
+def _summary(out, files):
+    (out / "reconstruction.json").write_text(json.dumps({"conventions": "x", "files": files}))
+
+
+def test_stale_files_of_the_previous_run_go_and_nothing_else(tmp_path):
+    out = tmp_path / "out"
+    (out / "model-2" / "colmap").mkdir(parents=True)
+    names = ["reconstruction.json", "report.html", "points.ply", "model-2/points.ply",
+             "model-2/colmap/images.txt"]
+    for name in names[1:]:
+        (out / name).write_text("old")
+    (out / "notes.txt").write_text("the user's")
+    (tmp_path / "outside.txt").write_text("the user's")
+    _summary(out, names + ["../outside.txt", "/etc/hostname", ""])
+    previous = previous_outputs(out)
+    assert recorded_files(out, previous) == sorted(names)
+    written = [out / "reconstruction.json", out / "points.ply"]
+    remove_stale_outputs(out, previous, written)
+    left = sorted(p.relative_to(out).as_posix() for p in out.rglob("*"))
+    assert left == ["notes.txt", "points.ply", "reconstruction.json"]
+    assert (tmp_path / "outside.txt").exists()
+
+
+@pytest.mark.parametrize("content", ['{"status": "mine"}', "not json", "[1, 2]"])
+def test_a_reconstruction_json_scene3d_did_not_write_is_refused(tmp_path, content):
+    (tmp_path / "reconstruction.json").write_text(content)
+    with pytest.raises(UsageError, match="not written by scene3D"):
+        previous_outputs(tmp_path)
+
+
+def test_a_summary_from_before_the_file_list_removes_nothing(tmp_path):
+    (tmp_path / "reconstruction.json").write_text('{"conventions": "x"}')
+    assert previous_outputs(tmp_path) == []
+
+
+def test_a_failed_run_removes_the_folders_it_created_if_empty(tmp_path):
+    class Args:
+        debug = False
+        verbose = 0
+        quiet = True
+
+    def fails(args):
+        prepare_output_dir(tmp_path / "a" / "b")
+        return EXIT_FAILED
+
+    def writes_then_fails(args):
+        out = prepare_output_dir(tmp_path / "c")
+        (out / "kept.txt").write_text("x")
+        raise UsageError("bad")
+
+    def succeeds(args):
+        prepare_output_dir(tmp_path / "d")
+        return EXIT_OK
+
+    assert run_command(Args(), fails) == EXIT_FAILED
+    assert not (tmp_path / "a").exists()
+    assert run_command(Args(), writes_then_fails) == 2
+    assert (tmp_path / "c" / "kept.txt").exists()
+    assert run_command(Args(), succeeds) == EXIT_OK
+    assert (tmp_path / "d").is_dir()
