@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .camera import (
+    check_intrinsics_for_size,
     scale_intrinsics,
     scale_intrinsics_halved,
     validate_distortion,
@@ -114,11 +115,19 @@ class SceneReconstruction3D:
         FileNotFoundError
             A path does not exist.
         ValueError
-            A file is not an image, or the two images differ in size.
+            A file is not an image, the two images differ in size, or ``K`` cannot be a
+            camera matrix for their native size (a principal point far outside them, a
+            focal length no lens has: :func:`~scene3D.camera.check_intrinsics_for_size`),
+            as when ``K`` was calibrated on larger photos than these.
         """
         (a, b), size, levels = load_working_images(
             (img1, img2), self.K_native, self.d, max_width if use_pyr_down else None,
             ("img1", "img2"))
+        try:
+            check_intrinsics_for_size(self.K_native, size)
+        except ValueError as exc:
+            raise ValueError(f"`K` does not fit images of {size[0]}x{size[1]} px, their "
+                             f"native size, which it must be for: {exc}") from None
         self.img1, self.img2 = a, b
         self.native_size = size
         self.halvings = levels

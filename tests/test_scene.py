@@ -104,3 +104,22 @@ def test_bad_inputs(tmp_path, rendered_pair):
         s.reconstruct("HOG")
     with pytest.raises(RuntimeError, match="load_image_pair"):
         SceneReconstruction3D(K).reconstruct()
+
+
+def test_a_K_for_larger_photos_is_refused_not_trusted(fountain, tmp_path):
+    """K of the 3072x2048 originals with photos stored at 768x512: the principal point
+    (1520, 1007) lies far outside them. It gave a pose 39 deg off, marked trusted."""
+    import cv2
+
+    from scene3D.datasets import read_strecha_camera
+
+    cam = read_strecha_camera(fountain / "gt_dense_cameras" / "0004.jpg.camera")
+    paths = []
+    for name in ("0004.jpg", "0005.jpg"):
+        small = cv2.resize(cv2.imread(str(fountain / "images" / name)), (768, 512),
+                           interpolation=cv2.INTER_AREA)
+        paths.append(tmp_path / name)
+        cv2.imwrite(str(paths[-1]), small)
+    scene = SceneReconstruction3D(cam.K)
+    with pytest.raises(ValueError, match=r"`K` does not fit images of 768x512 px.*principal"):
+        scene.load_image_pair(*paths)
