@@ -45,14 +45,7 @@ from .common import (
     run_command,
     show_images,
 )
-from .outputs import (
-    FILES_KEY,
-    SUMMARY_FILE,
-    prepare_output_dir,
-    previous_outputs,
-    recorded_files,
-    remove_stale_outputs,
-)
+from .outputs import FILES_KEY, SUMMARY_FILE, OutputFolder
 
 logger = logging.getLogger("scene3D.cli")
 
@@ -326,8 +319,8 @@ def run(args: argparse.Namespace) -> int:
     mode = normalize_feature_mode(args.feature)
     path1, path2, calib_path = _resolve_inputs(args)
     camera = _load_camera(calib_path, (path1, path2))
-    out = prepare_output_dir(args.out)
-    previous = previous_outputs(out)
+    out_folder = OutputFolder(args.out)
+    out = out_folder.path
     if not args.no_report:
         check_report_viewer()
 
@@ -384,9 +377,9 @@ def run(args: argparse.Namespace) -> int:
                            camera)
         if dense is not None:
             summary["dense"] = _dense_summary(dense)
-        summary[FILES_KEY] = recorded_files(out, [*written, out / SUMMARY_FILE])
+        summary[FILES_KEY] = out_folder.record([*written, out / SUMMARY_FILE])
         written.append(write_json(out / SUMMARY_FILE, summary))
-    remove_stale_outputs(out, previous, written)
+    out_folder.remove_stale(written)
 
     if not args.quiet:
         lines[0] += f", {timings['total']:.2f} s"

@@ -52,14 +52,7 @@ from .common import (
     positive_int,
     run_command,
 )
-from .outputs import (
-    FILES_KEY,
-    SUMMARY_FILE,
-    prepare_output_dir,
-    previous_outputs,
-    recorded_files,
-    remove_stale_outputs,
-)
+from .outputs import FILES_KEY, SUMMARY_FILE, OutputFolder
 
 logger = logging.getLogger("scene3D.cli")
 
@@ -284,8 +277,8 @@ def run(args: argparse.Namespace) -> int:
         camera = load_calibration(args.calib)
     names = [p.name for p in paths]
     truth = None if args.ground_truth is None else read_ground_truth(args.ground_truth, names)
-    out = prepare_output_dir(args.out)
-    previous = previous_outputs(out)
+    out_folder = OutputFolder(args.out)
+    out = out_folder.path
     if not args.no_report:
         check_report_viewer()
 
@@ -361,12 +354,12 @@ def run(args: argparse.Namespace) -> int:
             summary["ground_truth"] = main_model["ground_truth"]
         timings["total"] = time.perf_counter() - t_start
         summary["timings_s"] = timings
-        summary[FILES_KEY] = recorded_files(out, [
+        summary[FILES_KEY] = out_folder.record([
             *written, out / SUMMARY_FILE, *([] if args.no_report else [out / REPORT_FILE])])
         written.append(write_json(out / SUMMARY_FILE, summary))
         if not args.no_report:
             written.append(_write_report(out, names, recon, summary, not args.no_plots))
-    remove_stale_outputs(out, previous, written)
+    out_folder.remove_stale(written)
 
     for name in recon.unregistered:
         logger.warning("view '%s' could not be registered: %s", name,

@@ -94,3 +94,21 @@ def remove_stale_outputs(out: Path, previous: list[Path], written: list[Path]) -
             folder.rmdir()
         except OSError:  # not empty: it holds this run's files or the user's
             pass
+
+
+class OutputFolder:
+    """A run's ``--out``: created and checked on construction (:func:`prepare_output_dir`,
+    :func:`previous_outputs`); :meth:`record` lists the run's files for its summary and
+    :meth:`remove_stale` clears what the previous run left that this one did not write."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = prepare_output_dir(path)
+        self.previous = previous_outputs(self.path)
+
+    def record(self, paths: list[Path]) -> list[str]:
+        """The summary's ``FILES_KEY`` entry for ``paths`` (:func:`recorded_files`)."""
+        return recorded_files(self.path, paths)
+
+    def remove_stale(self, written: list[Path]) -> None:
+        """:func:`remove_stale_outputs` once the run's files are in place."""
+        remove_stale_outputs(self.path, self.previous, written)
