@@ -20,13 +20,16 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from numbers import Integral, Real
 
 import cv2
 import numpy as np
 
 from .calibration_io import CameraCalibration, load_calibration, save_calibration
 from .calibration_uncertainty import IntrinsicsCovariance, intrinsics_covariance
+from .camera import check_intrinsics_for_size
 from .errors import CalibrationError
+from .features import check_image
 from .geometry import FloatArray
 
 logger = logging.getLogger(__name__)
@@ -38,8 +41,16 @@ __all__ = [
 ]
 
 _SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01)
+#: Seed of OpenCV's RNG before ``findChessboardCornersSB``, which draws from it: a fixed
+#: seed makes :func:`detect_board` give the same answer for the same image every time.
+_SB_SEED = 0
 DISTORTION_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4",
                     "tx", "ty")
+
+
+def _is_real(value: object) -> bool:
+    """True for a finite real number (not a bool)."""
+    return isinstance(value, Real) and not isinstance(value, bool) and bool(np.isfinite(value))
 
 
 @dataclass(frozen=True)
@@ -52,7 +63,7 @@ class BoardSpec:
         ``"chessboard"`` or ``"charuco"``.
     size : tuple[int, int]
         Chessboard: inner corners (columns, rows), e.g. the book's (9, 6).
-        ChArUco: squares (columns, rows), e.g. (5, 7).
+        ChArUco: squares (columns, rows), e.g. (5, 7). Two integers >= 2.
     square_size_m : float
         Side of one square. The default 1.0 gives results in units of squares;
         only the extrinsics depend on it, never ``K`` or the distortion.
@@ -71,19 +82,23 @@ class BoardSpec:
     def __post_init__(self) -> None:
         if self.pattern not in ("chessboard", "charuco"):
             raise ValueError(f"`pattern` must be 'chessboard' or 'charuco', got {self.pattern!r}")
-        if len(self.size) != 2 or min(self.size) < 2:
-            raise ValueError(f"board size must be two integers >= 2, got {self.size}")
-        if not (np.isfinite(self.square_size_m) and self.square_size_m > 0):
+        size = self.size
+        if (isinstance(size, (str, bytes)) or not hasattr(size, "__len__") or len(size) != 2
+                or not all(isinstance(v, Integral) and not isinstance(v, bool) for v in size)
+                or min(size) < 2):
+            raise ValueError(f"`size` must be two integers >= 2 (columns, rows), got {size!r}")
+        object.__setattr__(self, "size", (int(size[0]), int(size[1])))
+        if not (_is_real(self.square_size_m) and self.square_size_m > 0):
             raise ValueError("`square_size_m` must be a finite positive number, got "
-                             f"{self.square_size_m}")
+                             f"{self.square_size_m!r}")
         if self.pattern == "charuco":
-            if not (np.isfinite(self.marker_size_m)
+            if not (_is_real(self.marker_size_m)
                     and 0 < self.marker_size_m < self.square_size_m):
                 raise ValueError(
                     "`marker_size_m` must be positive and smaller than the square, got "
                     f"{self.marker_size_m} for squares of {self.square_size_m}"
                 )
-            if not hasattr(cv2.aruco, self.dictionary):
+            if not (isinstance(self.dictionary, str) and hasattr(cv2.aruco, self.dictionary)):
                 raise ValueError(f"unknown ArUco dictionary {self.dictionary!r}")
 
     def describe(self) -> str:
@@ -165,13 +180,16 @@ def detect_chessboard(gray: np.ndarray, board: BoardSpec) -> tuple[FloatArray, s
 
     The classic detector runs first, with sub-pixel refinement in a window that
     scales with the corner spacing; when it fails, the sector-based detector
-    (``findChessboardCornersSB``) runs, refined the same way.
+    (``findChessboardCornersSB``) runs, refined the same way. That detector draws
+    from OpenCV's global RNG, which is reseeded (``cv2.setRNGSeed``) right before it
+    so that an image gives the same answer on every call.
     """
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
     found, corners = cv2.findChessboardCorners(gray, board.size, flags=flags)
     method = "classic"
     if not found:
         sb_flags = cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
+        cv2.setRNGSeed(_SB_SEED)  # it samples from the global RNG: same image, same answer
         found, corners = cv2.findChessboardCornersSB(gray, board.size, flags=sb_flags)
         method = "sector"
     if not found or corners is None:
@@ -193,8 +211,29 @@ def detect_charuco(gray: np.ndarray, board: BoardSpec,
 
 
 def detect_board(gray: np.ndarray, board: BoardSpec, name: str = "") -> Detection | None:
-    """Find ``board`` in a grey ``uint8`` image; None when it is not (fully) visible,
-    or the image is too small to show it (:func:`min_image_side_px`)."""
+    """Find ``board`` in an image; None when it is not (fully) visible, or the image is
+    too small to show it (:func:`min_image_side_px`).
+
+    The result is deterministic: the chessboard fallback detector's random draws come
+    from OpenCV's global RNG, which this reseeds (:func:`detect_chessboard`).
+
+    Parameters
+    ----------
+    gray : (H, W) or (H, W, 3) uint8
+        Grey, or BGR as cv2 loads it (converted to grey).
+    board : BoardSpec
+    name : str
+        Stored in the :class:`Detection` (the file name, say).
+
+    Raises
+    ------
+    TypeError, ValueError
+        If ``gray`` is not such an array: None (``cv2.imread`` of a missing or unreadable
+        file), a path, or a float image (:func:`scene3D.features.check_image`).
+    """
+    gray = check_image(gray, "gray")
+    if not isinstance(board, BoardSpec):
+        raise TypeError(f"`board` must be a BoardSpec, got {type(board).__name__}")
     if min(gray.shape[:2]) < min_image_side_px(board):
         return None
     if gray.ndim == 3:
@@ -288,7 +327,8 @@ def calibrate(
     detections : list of Detection
         At least ``min_views`` views with at least 6 corners each.
     image_size : tuple[int, int]
-        (width, height) of every view.
+        (width, height) of every view, ``img.shape[1::-1]`` (not ``img.shape[:2]``). Every
+        detected corner must lie inside it.
     flags : int
         ``cv2.CALIB_*`` flags for ``calibrateCameraExtended``.
     reject_outliers : bool
@@ -299,11 +339,17 @@ def calibrate(
 
     Raises
     ------
+    ValueError
+        ``image_size`` is not two positive integers, or a detected corner lies outside
+        it (the message says when width and height look swapped).
     CalibrationError
-        Too few views, the solver fails or diverges, or the corners do not fit one
+        Too few views, the solver fails or diverges, the corners do not fit one
         camera (RMS above ``max_rms_px``: typically a wrong board size, whose
-        detections are not the board's corners).
+        detections are not the board's corners), or the result is no camera's for
+        ``image_size`` (:func:`scene3D.camera.check_intrinsics_for_size`, which
+        :func:`load_calibration` applies too).
     """
+    image_size = _check_image_size(image_size, detections)
     views = [d for d in detections if len(d.image_points) >= 6]
     if len(views) < min_views:
         raise CalibrationError(
@@ -331,6 +377,11 @@ def calibrate(
             f"{len(views)} views, above the limit of {max_rms_px:g} px",
             reason="corners_do_not_fit",
         )
+    try:  # what load_calibration will check: a file it would refuse is not written
+        check_intrinsics_for_size(K, image_size)
+    except ValueError as exc:
+        raise CalibrationError(f"the calibration is no camera's for image_size "
+                               f"{image_size[0]}x{image_size[1]}: {exc}") from exc
     dist = dist.ravel().astype(np.float64)
     std = std_int.ravel()
     std_names = ("fx", "fy", "cx", "cy") + DISTORTION_NAMES
@@ -350,6 +401,41 @@ def calibrate(
         tvecs=tuple(np.ravel(t).astype(np.float64) for t in tvecs),
         covariance=covariance,
     )
+
+
+def _check_image_size(image_size: tuple[int, int], detections: list[Detection]
+                      ) -> tuple[int, int]:
+    """``image_size`` as ``(width, height)`` ints once every detected corner lies inside it.
+
+    Raises ``ValueError`` naming the likely swap of width and height (``img.shape[:2]``
+    is ``(height, width)``) when the swapped size would hold the corners.
+    """
+    if (isinstance(image_size, (str, bytes)) or not hasattr(image_size, "__len__")
+            or len(image_size) != 2
+            or not all(isinstance(v, Integral) and not isinstance(v, bool) and v > 0
+                       for v in image_size)):
+        raise ValueError(f"`image_size` must be (width, height), two positive integers, "
+                         f"got {image_size!r}")
+    w, h = int(image_size[0]), int(image_size[1])
+    points = [np.asarray(d.image_points, dtype=np.float64).reshape(-1, 2) for d in detections]
+    points = [p for p in points if len(p)]
+    if not points:
+        return w, h
+    lo = np.min([p.min(axis=0) for p in points], axis=0)
+    hi = np.max([p.max(axis=0) for p in points], axis=0)
+
+    def holds(width: int, height: int) -> bool:  # pixel centres at integers: edges at -0.5
+        return bool(np.all(lo >= -0.5) and hi[0] <= width - 0.5 and hi[1] <= height - 0.5)
+
+    if holds(w, h):
+        return w, h
+    reach = f"detected corners reach x = {hi[0]:.0f}, y = {hi[1]:.0f} px"
+    if holds(h, w):
+        raise ValueError(f"`image_size` {w}x{h} does not hold the corners ({reach}), but "
+                         f"{h}x{w} does: pass (width, height) = ({h}, {w}); img.shape[:2] is "
+                         "(height, width)")
+    raise ValueError(f"`image_size` {w}x{h} does not hold the corners ({reach}): it must be "
+                     "the (width, height) of the images the corners were found in")
 
 
 def corner_coverage(

@@ -129,7 +129,7 @@ def save_calibration(
     if path.suffix.lower() not in CALIBRATION_SUFFIXES:
         raise ValueError(f"calibration file must end in .yaml, .yml, .xml or .json, got '{path}'")
     if path.exists() and not overwrite:
-        raise FileExistsError(f"'{path}' exists; use --force to overwrite it")
+        raise FileExistsError(f"'{path}' exists; pass overwrite=True to replace it")
     check_target(path)
     tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
     try:  # an unwritable folder fails here with its reason, not in OpenCV's log

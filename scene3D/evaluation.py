@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .geometry import angle_between_deg, rotation_error_deg
+from .geometry import FloatArray, angle_between_deg, as_matrix, rotation_error_deg
 from .uncertainty import CHI2_90
 
 
@@ -30,8 +30,43 @@ class PoseError:
 def relative_pose_error(
     R_est: ArrayLike, t_est: ArrayLike, R_true: ArrayLike, t_true: ArrayLike
 ) -> PoseError:
-    """Errors of ``(R_est, t_est)`` against ``(R_true, t_true)``, both ``x_cam2 = R x_cam1 + t``."""
-    return PoseError(rotation_error_deg(R_est, R_true), angle_between_deg(t_est, t_true))
+    """Angular errors of an estimated relative pose against the true one.
+
+    Parameters
+    ----------
+    R_est, R_true : (3, 3) array_like
+        Rotations ``R_cam2_from_cam1``: ``x_cam2 = R @ x_cam1 + t``.
+    t_est, t_true : (3,) array_like
+        Translations in the camera-2 frame, same convention; ``(3, 1)`` is taken too.
+        Only their directions count (a two-view ``t`` has unit norm, scale unknown),
+        so neither may be zero.
+
+    Returns
+    -------
+    PoseError
+        ``rotation_deg``: angle of ``R_est @ R_true.T``; ``translation_deg``: angle
+        between ``t_est`` and ``t_true`` (0 to 180 deg: a negated ``t`` is 180 deg off).
+
+    Raises
+    ------
+    ValueError
+        If a shape is wrong (naming the argument), a value is not finite, or a
+        translation is zero.
+    """
+    rotations = [as_matrix(R, (3, 3), name) for R, name in ((R_est, "R_est"), (R_true, "R_true"))]
+    directions = [_direction(t, name) for t, name in ((t_est, "t_est"), (t_true, "t_true"))]
+    return PoseError(rotation_error_deg(*rotations), angle_between_deg(*directions))
+
+
+def _direction(t: ArrayLike, name: str) -> FloatArray:
+    """``t`` as a finite, non-zero ``(3,) float64`` vector (``(3, 1)`` accepted)."""
+    arr = np.asarray(t, dtype=np.float64)
+    if arr.shape not in ((3,), (3, 1)):
+        raise ValueError(f"`{name}` must have shape (3,), got {arr.shape}")
+    arr = as_matrix(arr.reshape(3), (3,), name)
+    if not np.any(arr):
+        raise ValueError(f"`{name}` must be non-zero: its direction is compared")
+    return arr
 
 
 def pose_auc(max_errors_deg: ArrayLike, threshold_deg: float = 5.0) -> float:

@@ -19,6 +19,7 @@ gone. The test suite checks this.
 from __future__ import annotations
 
 import logging
+import os
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -186,6 +187,7 @@ def image_features(img: np.ndarray, mode: str = "SIFT", max_features: int = 8000
     ``mode`` is a descriptor mode of :data:`FEATURE_MODES` (not ``"flow"``, which
     tracks between two images); ``max_features`` is the budget of SIFT and ORB.
     """
+    img = check_image(img, "img")
     t0 = time.perf_counter()
     detector, norm, name = create_detector(mode, max_features)
     pixels, descriptors = detect_features(to_gray(img), detector)
@@ -325,6 +327,35 @@ def track_flow(
     return pts1, pts2, len(p1)
 
 
+def check_image(img: np.ndarray, name: str = "img") -> np.ndarray:
+    """``img`` once it is known to be a BGR ``(H, W, 3)`` or grey ``(H, W)`` ``uint8`` image.
+
+    Raises
+    ------
+    TypeError
+        If ``img`` is not a numpy array: a path (read it with
+        :func:`scene3D.imageio.read_image`) or None (what ``cv2.imread`` returns for a
+        file it cannot read).
+    ValueError
+        If the array is empty, not ``uint8``, or not of shape ``(H, W)`` or ``(H, W, 3)``.
+    """
+    expected = f"`{name}` must be a uint8 image array (H, W) or (H, W, 3)"
+    if isinstance(img, (str, os.PathLike)):
+        raise TypeError(f"{expected}, got the path '{img}': read it with "
+                        "scene3D.imageio.read_image(path)")
+    if img is None:
+        raise TypeError(f"{expected}, got None (cv2.imread returns None for a file it cannot "
+                        "read; scene3D.imageio.read_image says why)")
+    if not isinstance(img, np.ndarray):
+        raise TypeError(f"{expected}, got {type(img).__name__}")
+    if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] != 3) or img.size == 0:
+        raise ValueError(f"{expected}, got shape {img.shape}")
+    if img.dtype != np.uint8:
+        raise ValueError(f"{expected}, got dtype {img.dtype} "
+                         "(scene3D.imageio.to_bgr8 converts 16-bit images)")
+    return img
+
+
 def to_gray(img: np.ndarray) -> np.ndarray:
     """BGR or grey ``uint8`` to grey."""
     return img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
@@ -354,9 +385,16 @@ def find_matches(
     -------
     Matches
         Correspondences in pixels of ``img1`` and ``img2``.
+
+    Raises
+    ------
+    TypeError, ValueError
+        If an image is not a ``uint8`` array of one of those shapes (a path, None, a
+        float image; :func:`check_image`), or ``mode`` is unknown.
     """
     mode = normalize_feature_mode(mode)
-    gray1, gray2 = to_gray(img1), to_gray(img2)
+    gray1 = to_gray(check_image(img1, "img1"))
+    gray2 = to_gray(check_image(img2, "img2"))
     t0 = time.perf_counter()
     if mode == "flow":
         pts1, pts2, num_corners = track_flow(gray1, gray2)

@@ -15,6 +15,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from .calibration_uncertainty import UncertaintyMap
+from .camera import validate_intrinsics
 from .drawing import (
     Raster,
     draw_disparity,
@@ -84,17 +85,57 @@ def _display_axes(points: FloatArray) -> tuple[FloatArray, FloatArray, FloatArra
     return points[:, 0], points[:, 2], -points[:, 1]
 
 
+def _check_cloud(points3d: FloatArray, colors: np.ndarray | None
+                 ) -> tuple[FloatArray, np.ndarray | None]:
+    """``points3d`` as ``(N, 3) float64`` and ``colors`` as ``(N, 3)`` after checking them."""
+    pts = np.asarray(points3d, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        hint = (" (a (3, N) array? pass its transpose)"
+                if pts.ndim == 2 and pts.shape[0] == 3 else "")
+        raise ValueError(f"`points3d` must have shape (N, 3), got {pts.shape}{hint}")
+    if colors is None:
+        return pts, None
+    rgb = np.asarray(colors)
+    if rgb.ndim != 2 or rgb.shape[1] != 3:
+        raise ValueError(f"`colors` must have shape (N, 3) (RGB, 0-255), got {rgb.shape}")
+    if len(rgb) != len(pts):
+        raise ValueError(f"`colors` must have one row per point: {len(rgb)} colours for "
+                         f"{len(pts)} points")
+    return pts, rgb
+
+
 def plot_point_cloud(
     points3d: FloatArray,
     colors: np.ndarray | None = None,
     ax: Axes | None = None,
     max_points: int = 20000,
 ) -> Figure:
-    """3D scatter of the points (camera-1 frame), drawn with ``-y`` up and depth ``z`` away.
+    """3D scatter of the points, drawn with ``-y`` up and depth ``z`` away.
 
     The axis limits cover the 2nd to 98th percentile so that a few far points do
     not flatten the view.
+
+    Parameters
+    ----------
+    points3d : (N, 3) array_like
+        Points in one frame, drawn in its axes: the camera-1 frame of a two-view result
+        (x right, y down, z forward; in units of the baseline), or the world frame of a
+        many-view model.
+    colors : (N, 3) uint8, optional
+        RGB colour of each point, 0-255 (``TwoViewReconstruction.colors``); None: one
+        colour.
+    ax : 3D matplotlib Axes, optional
+        Drawn into when given, else a new figure.
+    max_points : int
+        At most this many points are drawn, evenly spaced through the array.
+
+    Raises
+    ------
+    ValueError
+        If ``points3d`` is not ``(N, 3)`` (a ``(3, N)`` array is refused, not drawn as
+        three points) or ``colors`` is not ``(N, 3)`` with one row per point.
     """
+    points3d, colors = _check_cloud(points3d, colors)
     fig, (ax,) = _axes(ax, figsize=(8, 7), projection="3d")
     idx = subsample_indices(len(points3d), max_points)
     pts = points3d[idx]
@@ -176,12 +217,47 @@ def plot_cameras_and_points(
     ax: Axes | None = None,
     max_points: int = 20000,
 ) -> Figure:
-    """The point cloud with a frustum per camera (world frame, poses ``x_cam = R X + t``).
+    """The point cloud with a frustum per camera, in the world frame.
 
-    Views with NaN poses (not registered) are skipped. Frusta are drawn at a
-    depth of 8 % of the extent of the cloud.
+    Frusta are drawn at a depth of 8 % of the extent of the cloud.
+
+    Parameters
+    ----------
+    points3d : (N, 3) array_like
+        Points in the world frame.
+    colors : (N, 3) uint8 or None
+        RGB colour of each point, 0-255.
+    R : (V, 3, 3) array_like
+        World-to-camera rotations, ``x_cam = R[v] @ X + t[v]`` for a world point ``X``.
+        Views with NaN poses (not registered) are skipped. For a two-view result (world =
+        camera-1 frame) pass ``np.stack([np.eye(3), r.R])`` and
+        ``np.stack([np.zeros(3), r.t])``.
+    t : (V, 3) array_like
+        World-to-camera translations (the camera centres are ``-R[v].T @ t[v]``).
+    K : (3, 3) array_like
+        Intrinsics shared by the views (the frusta's shape).
+    image_size : tuple[int, int]
+        (width, height) the intrinsics hold for.
+    ax, max_points
+        As for :func:`plot_point_cloud`.
+
+    Raises
+    ------
+    ValueError
+        If a shape is wrong, ``R`` and ``t`` differ in their number of views, or ``K``
+        is not a camera matrix.
     """
+    R = np.asarray(R, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64)
+    if R.ndim != 3 or R.shape[1:] != (3, 3):
+        raise ValueError(f"`R` must have shape (V, 3, 3), got {R.shape}")
+    if t.shape != (len(R), 3):
+        raise ValueError(f"`t` must have shape (V, 3) with V = {len(R)} like `R`, got {t.shape}")
+    K = validate_intrinsics(K)
+    if len(image_size) != 2 or min(image_size) <= 0:
+        raise ValueError(f"`image_size` must be (width, height), got {image_size!r}")
     fig = plot_point_cloud(points3d, colors, ax=ax, max_points=max_points)
+    points3d = np.asarray(points3d, dtype=np.float64)
     ax = fig.axes[0]
     lo, hi = robust_extent(points3d)
     depth = 0.08 * float(np.linalg.norm(hi - lo))

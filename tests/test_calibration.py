@@ -16,6 +16,7 @@ from scene3D.calibration import (
     coverage_warnings,
     detect_board,
     load_calibration,
+    save_calibration,
 )
 from scene3D.cli.calibrate import main
 from scene3D.synthetic import render_board
@@ -114,6 +115,44 @@ def test_corners_that_fit_no_camera_are_refused(board_views):
     assert calibrate(dets, (640, 480), board).rms_px < 0.2
 
 
+def test_image_size_must_hold_the_corners(board_views, tmp_path):
+    board = BoardSpec()
+    dets = [detect_board(img, board, f"v{i}") for i, img in enumerate(board_views)]
+    # img.shape[:2] is (height, width): the swap is named.
+    with pytest.raises(ValueError, match=r"`image_size` 480x640 does not hold the corners "
+                                         r".*but 640x480 does: pass \(width, height\) = "
+                                         r"\(640, 480\)"):
+        calibrate(dets, (480, 640), board)
+    # Too small either way: nothing is calibrated, so no file that load_calibration refuses.
+    with pytest.raises(ValueError, match=r"`image_size` 64x48 does not hold the corners "
+                                         r"\(detected corners reach x = 6\d\d"):
+        calibrate(dets, (64, 48), board)
+    with pytest.raises(ValueError, match=r"`image_size` must be \(width, height\), two "
+                                         r"positive integers"):
+        calibrate(dets, (640.0, 480.0), board)
+    result = calibrate(dets, np.array([640, 480]), board)
+    assert result.image_size == (640, 480)
+    saved = save_calibration(tmp_path / "c.yaml", result.as_camera())
+    assert load_calibration(saved).image_size == (640, 480)
+
+
+def test_detect_board_is_repeatable(chessboards):
+    # The 7x5 search on this 9x6 photo falls back to findChessboardCornersSB, which draws
+    # from OpenCV's global RNG: from seed 0, six unseeded calls answered T F T T T F.
+    gray = cv2.imread(str(chessboards / "opencv-left" / "left12.jpg"), cv2.IMREAD_GRAYSCALE)
+    board = BoardSpec(size=(7, 5))
+    cv2.setRNGSeed(0)
+    found = [detect_board(gray, board) for _ in range(6)]
+    assert len({d is None for d in found}) == 1
+    assert found[0] is not None and found[0].method == "sector"
+    for d in found[1:]:
+        np.testing.assert_array_equal(d.image_points, found[0].image_points)
+    for seed in (1, 7, 12345):  # whatever state other code left the RNG in
+        cv2.setRNGSeed(seed)
+        np.testing.assert_array_equal(detect_board(gray, board).image_points,
+                                      found[0].image_points)
+
+
 def test_cli_refuses_a_wrong_board_size(tmp_path, chessboards, capsys):
     # On the 9x6 board, a 5x5 search finds corner sets that are not a 5x5 grid.
     argv = ["--images", str(chessboards / "opencv-left"), "--board", "5x5",
@@ -125,6 +164,12 @@ def test_cli_refuses_a_wrong_board_size(tmp_path, chessboards, capsys):
     assert warning.startswith("WARNING: the board was not found in 6 of the 13 photos")
     assert "do not fit one camera" in error and "check --board" in error
     assert list(tmp_path.iterdir()) == []
+    # Insisting on these 5x5 corners gives no camera (a principal point thousands of pixels
+    # off): refused, as load_calibration would refuse its file.
+    assert main(argv + ["--max-rms", "50", "-q"]) == 1
+    assert "no camera's for image_size 640x480" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+    argv[argv.index("5x5")] = "7x5"
     assert main(argv + ["--max-rms", "50", "-q"]) == 0  # the user can insist
 
 

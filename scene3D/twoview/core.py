@@ -25,7 +25,7 @@ from ..epipolar import (
 )
 from ..errors import ReconstructionError, log_result_warnings
 from ..essential_fit import fit_essential, inlier_threshold_px, loss_scale_px, noise_sigma_px
-from ..features import Matches
+from ..features import Matches, check_image
 from ..geometry import (
     FloatArray,
     as_points2d,
@@ -50,7 +50,8 @@ logger = logging.getLogger(__name__)
 
 
 def sample_colors(img_bgr: np.ndarray, points: FloatArray) -> np.ndarray:
-    """RGB ``uint8`` colours ``(N, 3)`` of a BGR image at pixels ``(N, 2)`` (nearest pixel)."""
+    """RGB ``uint8`` colours ``(N, 3)`` of a BGR ``(H, W, 3)`` image at pixels ``(N, 2)``
+    (nearest pixel); a grey ``(H, W)`` image gives its value in all three channels."""
     h, w = img_bgr.shape[:2]
     x = np.clip(np.rint(points[:, 0]).astype(int), 0, w - 1)
     y = np.clip(np.rint(points[:, 1]).astype(int), 0, h - 1)
@@ -316,11 +317,41 @@ def reconstruct_two_view(
     K: ArrayLike,
     settings: TwoViewSettings | None = None,
 ) -> TwoViewReconstruction:
-    """Reconstruct a pair from its matches; ``img1`` (BGR) gives the point colours.
+    """Reconstruct a pair from its matches; ``img1`` gives the point colours.
 
-    See :func:`reconstruct_from_matches` for the steps and the errors raised
-    (:func:`require_enough_matches` for too few matches).
+    Parameters
+    ----------
+    img1 : (H, W, 3) or (H, W) uint8
+        Image 1, the image ``matches.pts1`` were found in: BGR as cv2 loads it, whose
+        colours come back as RGB, or grey, whose value is repeated in all three
+        channels (grey points).
+    matches : Matches
+        Correspondences between image 1 and image 2
+        (:func:`scene3D.features.find_matches`).
+    K : (3, 3) array_like
+        Intrinsics shared by both images.
+    settings : TwoViewSettings, optional
+
+    Returns
+    -------
+    TwoViewReconstruction
+        The pose ``x_cam2 = R @ x_cam1 + t`` (``|t| = 1``, scale unknown), the points
+        in the camera-1 frame and their ``(N, 3)`` RGB ``uint8`` colours.
+
+    Raises
+    ------
+    TypeError, ValueError
+        If ``img1`` is not such an image (a path, None, a float array;
+        :func:`scene3D.features.check_image`), ``matches`` is not a :class:`Matches`,
+        or ``K`` is not a camera matrix.
+    ReconstructionError
+        See :func:`reconstruct_from_matches` for the steps and the reasons
+        (:func:`require_enough_matches` for too few matches).
     """
+    img1 = check_image(img1, "img1")
+    if not isinstance(matches, Matches):
+        raise TypeError(f"`matches` must be a scene3D.features.Matches (find_matches gives "
+                        f"one), got {type(matches).__name__}")
     require_enough_matches(matches, settings)
     t0 = time.perf_counter()
     geometry = reconstruct_from_matches(matches.pts1, matches.pts2, K, settings)

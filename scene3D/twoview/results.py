@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
+from numbers import Integral, Real
 
 import numpy as np
 
@@ -17,13 +19,13 @@ class TwoViewSettings:
     Attributes
     ----------
     threshold_px : float
-        Robust-estimation inlier threshold for F, E and H, in pixels. The local
+        Robust-estimation inlier threshold for F, E and H, in pixels (> 0). The local
         optimisation of E raises it, at most twofold, when the matches are noisier
         than it assumes (:func:`scene3D.essential_fit.inlier_threshold_px`).
     max_starts : int
         Most robust estimations of E (each locally optimised); the best is kept
         once two starts agree on it (:func:`scene3D.essential_fit.fit_essential`).
-        1 gives a single start, as plain OpenCV does.
+        1 gives a single start, as plain OpenCV does (>= 1).
     restart_agreement_deg : float
         When no pose was found twice, the result is still trusted if every start's
         optimum lies within this angle of the best (distinct optima, one pose to
@@ -31,27 +33,30 @@ class TwoViewSettings:
         (:func:`scene3D.twoview.rival_chi2`: the sigmas already say it); beyond
         both the result is marked untrusted: a covariance describes one optimum
         and cannot see the others. When the best was found twice, a rival outside
-        that region counts from ``uncertainty_limit_deg`` on.
+        that region counts from ``uncertainty_limit_deg`` on. 0 to 180.
     min_matches, min_inliers, min_points : int
-        Below these counts the pair is refused.
+        Below these counts the pair is refused (at least 5, 5 and 1: five
+        correspondences determine an essential matrix).
     min_point_parallax_deg : float
         Points seen under a smaller angle are dropped (their depth is unreliable),
         unless that leaves fewer than ``min_points`` (a small baseline): then every
-        point in front of both cameras is kept, with its depth uncertainty.
+        point in front of both cameras is kept, with its depth uncertainty (0 to 180).
     max_reprojection_px : float
-        Points reprojecting worse than this in either view are dropped.
+        Points reprojecting worse than this in either view are dropped (> 0; ``inf``
+        keeps them all).
     planar_ratio : float
         Homography inliers / essential inliers above which the pair is checked for
-        the planar ambiguity (:func:`scene3D.degeneracy.off_plane_evidence`).
+        the planar ambiguity (:func:`scene3D.degeneracy.off_plane_evidence`; 0 to 1).
     min_off_plane_matches : int
         A (nearly) planar pair is refused unless at least this many matches off the
-        plane rule out the other pose that the plane allows.
+        plane rule out the other pose that the plane allows (>= 0).
     uncertainty_limit_deg, uncertainty_sigmas : float, float
         The purpose: a pose is untrusted when ``uncertainty_sigmas`` standard
         deviations of its rotation or of its translation direction
         (``rotation_sigma_deg``, ``translation_sigma_deg`` of the result) exceed
         ``uncertainty_limit_deg``. The default, 3 sigma within 2 deg, keeps the
-        direction within 2 deg with at least 98.9 % probability.
+        direction within 2 deg with at least 98.9 % probability. Both > 0; the limit
+        may be ``inf`` (no limit), the sigmas not.
     max_noise_cut_share : float
         The pose is untrusted when the inlier threshold cuts off more than this share
         of the matches that fit it (:func:`scene3D.uncertainty.truncated_noise`: the
@@ -62,7 +67,7 @@ class TwoViewSettings:
         for it. On a synthetic pair with a 1 px threshold (raised to 2 px), 1 px of
         noise is cut by about 4 % and the allowance keeps the errors within their
         90 % bounds (89 % / 87 %); 1.5 px is cut by about 14 %, and 68 % / 70 % are
-        (41 % / 41 % without the allowance; docs/benchmarks.md).
+        (41 % / 41 % without the allowance; docs/benchmarks.md). 0 to 1.
     max_rotation_share : float
         The pose is untrusted when a rotation alone explains more than this share of
         the inliers (within three noise standard deviations;
@@ -70,7 +75,7 @@ class TwoViewSettings:
         parallax, and the translation rests on the others, which a moving object
         would explain as well as a camera that moved (on OpenCV's ``left*.jpg``, a
         still camera and a chessboard moved by hand, 5 of 78 pairs came back
-        trusted, with translation sigmas of 0.001-0.5 deg, without this check).
+        trusted, with translation sigmas of 0.001-0.5 deg, without this check). 0 to 1.
     trusted_inliers : int
         Fewer inliers leave the pose untrusted whatever its covariance says: a
         covariance estimated from few residuals is itself uncertain, and random
@@ -78,12 +83,14 @@ class TwoViewSettings:
         few hundred; ``tests/test_twoview.py``). For the same reason the robust fit
         tests its last refinement against its covariance only above this count
         (``shift_test_min_inliers`` of :func:`scene3D.essential_fit.fit_essential`).
+        >= 0.
     trusted_inlier_ratio, trusted_parallax_deg, planar_warning_ratio : float
         Not verdicts: when the uncertainty is too large, the warning names the
         likely causes, an inlier share of the matches below ``trusted_inlier_ratio``
         (wide baseline, repeated texture), a median parallax below
         ``trusted_parallax_deg`` (short baseline), a homography explaining more
-        than ``planar_warning_ratio`` of the inliers (a nearly planar scene).
+        than ``planar_warning_ratio`` of the inliers (a nearly planar scene). All
+        three 0 to 1 (the angle 0 to 180).
     max_focal_mismatch, focal_mismatch_sigmas : float, float
         The result is marked untrusted when the matches call for a focal length more
         than ``1 + max_focal_mismatch`` times larger or smaller than the
@@ -92,7 +99,8 @@ class TwoViewSettings:
         for another camera, lens or zoom, and the pose is off by degrees. Three
         standard deviations of the sandwich estimate (five of the optimistic IRLS
         estimate before it): with the true K no right pose of the three Strecha
-        scenes is flagged for its focal length (gaps 1-5, 768 and 1536 px).
+        scenes is flagged for its focal length (gaps 1-5, 768 and 1536 px). Both
+        >= 0 (``max_focal_mismatch`` may be ``inf``: never flagged).
     bundle_adjust : bool
         Finish with a two-view bundle adjustment of pose and points
         (:func:`scene3D.bundle_two_view.bundle_adjust_two_view`) with the same Cauchy
@@ -100,6 +108,11 @@ class TwoViewSettings:
         benchmark pairs it moves the poses by hundredths of a degree at most, closer
         to the truth on some pairs and further on others (at 768 px AUC@5deg 98.2
         against 98.4 without), for about 70-160 ms a pair (768-1536 px).
+
+    Raises
+    ------
+    ValueError
+        When a field is outside its range (NaN never is in one), or of the wrong type.
     """
 
     threshold_px: float = 1.0
@@ -123,6 +136,58 @@ class TwoViewSettings:
     max_focal_mismatch: float = 0.15
     focal_mismatch_sigmas: float = 3.0
     bundle_adjust: bool = False
+
+    def __post_init__(self) -> None:
+        for name, (low, high, low_open, inf_ok) in _REAL_RANGES.items():
+            value = getattr(self, name)
+            if not _in_range(value, low, high, low_open, inf_ok):
+                bound = f"{'>' if low_open else '>='} {low:g}"
+                allowed = (f"a number from {low:g} to {high:g}" if high < math.inf else
+                           f"a number {bound} or inf" if inf_ok else f"a finite number {bound}")
+                raise ValueError(f"TwoViewSettings.{name} must be {allowed}, got {value!r}")
+        for name, low in _INT_MINIMA.items():
+            value = getattr(self, name)
+            if not (isinstance(value, Integral) and not isinstance(value, bool) and value >= low):
+                raise ValueError(f"TwoViewSettings.{name} must be an integer >= {low}, "
+                                 f"got {value!r}")
+        if not isinstance(self.bundle_adjust, (bool, np.bool_)):
+            raise ValueError(f"TwoViewSettings.bundle_adjust must be True or False, got "
+                             f"{self.bundle_adjust!r}")
+
+
+def _in_range(value: object, low: float, high: float, low_open: bool, inf_ok: bool) -> bool:
+    """True for a real number (not a bool, not NaN) within ``low..high``."""
+    if not isinstance(value, Real) or isinstance(value, bool) or math.isnan(value):
+        return False
+    if math.isinf(value) and not inf_ok:
+        return False
+    return (value > low if low_open else value >= low) and value <= high
+
+
+#: Allowed ranges of the real fields of :class:`TwoViewSettings`:
+#: ``(low, high, low excluded, inf allowed)``.
+_REAL_RANGES: dict[str, tuple[float, float, bool, bool]] = {
+    "threshold_px": (0.0, math.inf, True, False),
+    "restart_agreement_deg": (0.0, 180.0, False, False),
+    "min_point_parallax_deg": (0.0, 180.0, False, False),
+    "max_reprojection_px": (0.0, math.inf, True, True),
+    "planar_ratio": (0.0, 1.0, False, False),
+    "uncertainty_limit_deg": (0.0, math.inf, True, True),
+    "uncertainty_sigmas": (0.0, math.inf, True, False),
+    "max_rotation_share": (0.0, 1.0, False, False),
+    "trusted_inlier_ratio": (0.0, 1.0, False, False),
+    "trusted_parallax_deg": (0.0, 180.0, False, False),
+    "planar_warning_ratio": (0.0, 1.0, False, False),
+    "max_noise_cut_share": (0.0, 1.0, False, False),
+    "max_focal_mismatch": (0.0, math.inf, False, True),
+    "focal_mismatch_sigmas": (0.0, math.inf, False, False),
+}
+
+#: Smallest values of the integer fields of :class:`TwoViewSettings`.
+_INT_MINIMA: dict[str, int] = {
+    "max_starts": 1, "min_matches": 5, "min_inliers": 5, "min_points": 1,
+    "min_off_plane_matches": 0, "trusted_inliers": 0,
+}
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,211 @@
+"""Misuse of the library gives one clear error naming the argument and what was expected."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import cv2
+import numpy as np
+import pytest
+
+from scene3D.calibration import BoardSpec, detect_board
+from scene3D.calibration_io import CameraCalibration, load_calibration, save_calibration
+from scene3D.evaluation import relative_pose_error
+from scene3D.features import Matches, find_matches, image_features
+from scene3D.plotting import plot_cameras_and_points, plot_point_cloud
+from scene3D.twoview import TwoViewSettings, reconstruct_two_view
+
+from .helpers import correspondences
+
+
+@pytest.fixture(scope="module")
+def image() -> np.ndarray:
+    rng = np.random.default_rng(0)
+    return cv2.GaussianBlur(rng.integers(0, 256, (120, 160, 3), dtype=np.uint8), (5, 5), 1.5)
+
+
+# -- images ----------------------------------------------------------------------------
+
+def test_find_matches_refuses_paths_with_a_hint_to_read_them():
+    with pytest.raises(TypeError, match=r"`img1` must be a uint8 image.*read_image"):
+        find_matches("a.jpg", "b.jpg")
+
+
+def test_find_matches_refuses_none_saying_what_imread_did(image):
+    with pytest.raises(TypeError, match=r"`img1` .*got None.*cv2.imread"):
+        find_matches(None, image)
+    with pytest.raises(TypeError, match=r"`img2` .*got None"):
+        find_matches(image, None)
+
+
+@pytest.mark.parametrize("bad, expected", [
+    (lambda img: img.astype(float), r"`img1` must be a uint8 image .*got dtype float64"),
+    (lambda img: img.astype(np.uint16), r"`img1` .*got dtype uint16.*to_bgr8"),
+    (lambda img: np.dstack([img, img[..., :1]]),
+     r"`img1` .*\(H, W, 3\), got shape \(120, 160, 4\)"),
+    (lambda img: img[:0], r"`img1` .*got shape \(0, 160, 3\)"),
+])
+def test_find_matches_refuses_arrays_that_are_not_uint8_images(image, bad, expected):
+    with pytest.raises(ValueError, match=expected) as info:
+        find_matches(bad(image), image)
+    assert "\n" not in str(info.value)
+
+
+def test_image_features_checks_its_image_too():
+    with pytest.raises(TypeError, match=r"`img` .*read_image"):
+        image_features("a.jpg")
+
+
+def test_detect_board_refuses_none_and_float_images(image):
+    board = BoardSpec()
+    with pytest.raises(TypeError, match=r"`gray` must be a uint8 image.*got None.*cv2.imread"):
+        detect_board(None, board)
+    with pytest.raises(ValueError, match=r"`gray` must be a uint8 image.*got dtype float32"):
+        detect_board(image[..., 0].astype(np.float32), board)
+    with pytest.raises(TypeError, match=r"`board` must be a BoardSpec"):
+        detect_board(image, (9, 6))
+
+
+# -- two views -------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def synthetic_matches(camera, true_pose) -> Matches:
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, t, n=120)
+    return Matches(pts1, pts2, "SIFT", (120, 120))
+
+
+def test_reconstruct_two_view_refuses_a_path(camera, synthetic_matches):
+    with pytest.raises(TypeError, match=r"`img1` must be a uint8 image.*read_image"):
+        reconstruct_two_view("a.jpg", synthetic_matches, camera)
+
+
+def test_reconstruct_two_view_refuses_what_is_not_matches(camera, synthetic_matches):
+    img = np.zeros((480, 640, 3), np.uint8)
+    pair = (synthetic_matches.pts1, synthetic_matches.pts2)
+    with pytest.raises(TypeError, match=r"`matches` must be a scene3D.features.Matches.*tuple"):
+        reconstruct_two_view(img, pair, camera)
+
+
+def test_reconstruct_two_view_gives_grey_points_for_a_grey_image(camera, synthetic_matches):
+    grey = np.tile((np.arange(640) // 3).astype(np.uint8), (480, 1))  # value = x // 3
+    result = reconstruct_two_view(grey, synthetic_matches, camera)
+    assert result.colors.shape == (result.num_points, 3) and result.colors.dtype == np.uint8
+    x = np.clip(np.rint(result.pts1[:, 0]).astype(int), 0, 639)
+    np.testing.assert_array_equal(result.colors, np.repeat((x // 3)[:, None], 3, axis=1))
+
+
+# -- TwoViewSettings -------------------------------------------------------------------
+
+def test_two_view_settings_defaults_are_valid():
+    assert TwoViewSettings() == TwoViewSettings(**dataclasses.asdict(TwoViewSettings()))
+
+
+@pytest.mark.parametrize("name", [f.name for f in dataclasses.fields(TwoViewSettings)])
+def test_every_two_view_setting_refuses_nan(name):
+    with pytest.raises(ValueError, match=rf"TwoViewSettings\.{name} must be"):
+        TwoViewSettings(**{name: float("nan")})
+
+
+@pytest.mark.parametrize("kwargs, expected", [
+    ({"threshold_px": -1.0}, r"threshold_px must be a finite number > 0, got -1.0"),
+    ({"threshold_px": float("inf")}, r"threshold_px must be a finite number > 0"),
+    ({"min_inliers": -3}, r"min_inliers must be an integer >= 5, got -3"),
+    ({"max_starts": 0}, r"max_starts must be an integer >= 1, got 0"),
+    ({"min_matches": 20.0}, r"min_matches must be an integer >= 5, got 20.0"),
+    ({"planar_ratio": 1.5}, r"planar_ratio must be a number from 0 to 1, got 1.5"),
+    ({"max_noise_cut_share": -0.1}, r"max_noise_cut_share must be a number from 0 to 1"),
+    ({"uncertainty_sigmas": 0.0}, r"uncertainty_sigmas must be a finite number > 0"),
+    ({"min_point_parallax_deg": 200.0}, r"min_point_parallax_deg must be a number from 0 "
+                                        r"to 180"),
+    ({"bundle_adjust": "yes"}, r"bundle_adjust must be True or False"),
+])
+def test_two_view_settings_name_the_field_and_its_range(kwargs, expected):
+    with pytest.raises(ValueError, match=expected):
+        TwoViewSettings(**kwargs)
+
+
+def test_two_view_settings_take_inf_where_it_means_no_limit():
+    s = TwoViewSettings(max_reprojection_px=np.inf, uncertainty_limit_deg=np.inf,
+                        max_focal_mismatch=np.inf, max_starts=np.int64(2), threshold_px=2)
+    assert s.max_reprojection_px == np.inf and s.max_starts == 2
+
+
+# -- plotting --------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def cloud():
+    rng = np.random.default_rng(3)
+    points = rng.normal(size=(50, 3)) + [0.0, 0.0, 5.0]
+    colors = rng.integers(0, 256, (50, 3), dtype=np.uint8)
+    return points, colors
+
+
+def test_plot_point_cloud_refuses_colours_of_another_length(cloud):
+    points, colors = cloud
+    with pytest.raises(ValueError, match=r"`colors` must have one row per point: 10 colours "
+                                         r"for 50 points"):
+        plot_point_cloud(points, colors[:10])
+
+
+def test_plot_point_cloud_refuses_a_transposed_cloud(cloud):
+    points, _ = cloud
+    with pytest.raises(ValueError, match=r"`points3d` must have shape \(N, 3\), got \(3, 50\)"
+                                         r".*transpose"):
+        plot_point_cloud(points.T)
+    with pytest.raises(ValueError, match=r"`colors` must have shape \(N, 3\)"):
+        plot_point_cloud(points, cloud[1].T)
+
+
+def test_plot_point_cloud_draws_every_point(cloud):
+    points, colors = cloud
+    fig = plot_point_cloud(points.tolist(), colors)
+    assert fig.axes[0].collections[0].get_offsets().shape == (50, 2)
+
+
+def test_plot_cameras_and_points_checks_the_poses(cloud, camera):
+    points, colors = cloud
+    R = np.stack([np.eye(3), np.eye(3)])
+    with pytest.raises(ValueError, match=r"`t` must have shape \(V, 3\) with V = 2"):
+        plot_cameras_and_points(points, colors, R, np.zeros((3, 3)), camera, (640, 480))
+    with pytest.raises(ValueError, match=r"`R` must have shape \(V, 3, 3\), got \(3, 3\)"):
+        plot_cameras_and_points(points, colors, np.eye(3), np.zeros(3), camera, (640, 480))
+    fig = plot_cameras_and_points(points, colors, R, [[0, 0, 0], [-1, 0, 0]], camera, (640, 480))
+    assert fig.axes[0].get_title() == "50 points, 2 cameras"
+
+
+# -- evaluation ------------------------------------------------------------------------
+
+def test_relative_pose_error_names_a_misshapen_argument():
+    t = np.array([1.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match=r"`R_est` must have shape \(3, 3\), got \(3, 4\)"):
+        relative_pose_error(np.eye(3, 4), t, np.eye(3), t)
+    with pytest.raises(ValueError, match=r"`t_true` must have shape \(3,\), got \(4,\)"):
+        relative_pose_error(np.eye(3), t, np.eye(3), np.ones(4))
+    with pytest.raises(ValueError, match=r"`t_est` must be non-zero"):
+        relative_pose_error(np.eye(3), np.zeros(3), np.eye(3), t)
+    err = relative_pose_error(np.eye(3), t.reshape(3, 1), np.eye(3), -t)
+    assert err.rotation_deg == 0.0 and err.translation_deg == pytest.approx(180.0)
+
+
+# -- calibration -----------------------------------------------------------------------
+
+@pytest.mark.parametrize("size", [9, (9,), (9, 6, 1), (9.0, 6.0), "96", (True, 6), (1, 6)])
+def test_board_spec_refuses_a_size_that_is_not_two_integers(size):
+    with pytest.raises(ValueError, match=r"`size` must be two integers >= 2 \(columns, rows\)"):
+        BoardSpec(size=size)
+
+
+def test_board_spec_keeps_a_list_size_as_a_tuple():
+    assert BoardSpec(size=[np.int64(7), 5]).size == (7, 5)
+
+
+def test_save_calibration_names_the_python_parameter(tmp_path):
+    camera = CameraCalibration(np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]]),
+                               np.zeros(5), (640, 480))
+    path = save_calibration(tmp_path / "camera.yaml", camera)
+    with pytest.raises(FileExistsError, match=r"camera.yaml' exists; pass overwrite=True") as info:
+        save_calibration(path, camera)
+    assert "--force" not in str(info.value)
+    save_calibration(path, camera, overwrite=True)
+    assert load_calibration(path).image_size == (640, 480)
