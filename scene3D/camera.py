@@ -169,7 +169,24 @@ def adapt_intrinsics_to_size(
 
 
 def undistort_image(img: np.ndarray, K: FloatArray, dist: FloatArray) -> np.ndarray:
-    """Remove lens distortion, keeping ``K`` as the camera matrix of the result."""
+    """Remove lens distortion, keeping ``K`` as the camera matrix of the result.
+
+    Parameters
+    ----------
+    img : (H, W) or (H, W, C) ndarray
+        The image as read (any dtype ``cv2.undistort`` takes), pixels ``img[y, x]``.
+    K : (3, 3) float64
+        Intrinsics of ``img``'s size (pixels, OpenCV convention).
+    dist : (k,) float64
+        OpenCV distortion coefficients (:func:`validate_distortion`).
+
+    Returns
+    -------
+    ndarray
+        The same shape and dtype as ``img``, as a pinhole camera with ``K`` would see it
+        (pixels mapped from outside the image are black); ``img`` itself when ``dist``
+        is all zeros.
+    """
     if not has_distortion(dist):
         return img
     return cv2.undistort(img, K, dist, None, K)

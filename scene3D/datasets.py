@@ -156,9 +156,16 @@ def fetch_fountain_p11(
 
     Raises
     ------
+    TypeError
+        ``files`` is one name (a str or Path) rather than a tuple of them.
+    ValueError
+        A name is not a fountain-P11 file.
     DatasetError
         A file is missing locally and cannot be downloaded, or its hash is wrong.
     """
+    if isinstance(files, (str, bytes, os.PathLike)):
+        raise TypeError(f"`files` must be a tuple of file names, got one: "
+                        f"'{os.fsdecode(files)}'; write ('{os.fsdecode(files)}',)")
     wanted = tuple(FOUNTAIN_P11_SHA256) if files is None else tuple(files)
     unknown = [f for f in wanted if f not in FOUNTAIN_P11_SHA256]
     if unknown:
@@ -187,8 +194,8 @@ def _missing_message(name: str, cache: Path, exc: Exception | None) -> str:
     why = f"cannot download it ({getattr(exc, 'reason', exc)})" if exc else "downloads are off"
     return (
         f"fountain-P11 file '{name}' is not available and {why}; set SCENE3D_DATA to a folder "
-        f"that holds fountain-P11/, put the files in '{cache}', or pass your own images "
-        "and --calib"
+        f"that holds fountain-P11/, put the files in '{cache}', or use your own images "
+        "with their calibration `K` (--calib on the command line)"
     )
 
 
@@ -357,6 +364,17 @@ def _numbers(values: np.ndarray) -> str:
 def relative_pose(cam1: StrechaCamera, cam2: StrechaCamera) -> tuple[FloatArray, FloatArray]:
     """``(R, t)`` with ``x_cam2 = R x_cam1 + t`` between two world-to-camera poses.
 
-    ``t`` keeps the metric scale of the ground truth (not unit norm).
+    Parameters
+    ----------
+    cam1, cam2 : StrechaCamera
+        Ground-truth cameras, world-to-camera ``x_cam = R X + t`` (metres).
+
+    Returns
+    -------
+    R : (3, 3) float64
+        ``R_cam2_from_cam1 = R2 R1^T``.
+    t : (3,) float64
+        ``t2 - R t1``, in the camera-2 frame; it keeps the metric scale of the ground
+        truth (not unit norm: normalise it to compare with a two-view estimate).
     """
     return _relative_pose(cam1.R, cam1.t, cam2.R, cam2.t)

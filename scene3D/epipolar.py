@@ -146,14 +146,43 @@ def homography_transfer_errors(H: ArrayLike, pts1: ArrayLike, pts2: ArrayLike) -
 
 
 def essential_from_pose(R: ArrayLike, t: ArrayLike) -> FloatArray:
-    """``E = [t]x R`` for ``x_cam2 = R x_cam1 + t`` (H&Z eq. 9.12)."""
+    """``E = [t]x R`` for ``x_cam2 = R x_cam1 + t`` (H&Z eq. 9.12).
+
+    Parameters
+    ----------
+    R : (3, 3) array_like
+        ``R_cam2_from_cam1``.
+    t : (3,) array_like
+        Translation in the camera-2 frame (camera 1's centre seen from camera 2); its
+        norm scales ``E``.
+
+    Returns
+    -------
+    E : (3, 3) float64
+        Essential matrix with ``x2n^T E x1n = 0`` for normalised image coordinates
+        ``xn = K^-1 [u, v, 1]``; not normalised.
+    """
     return skew(t) @ np.asarray(R, dtype=np.float64)
 
 
 def fundamental_from_essential(
     E: ArrayLike, K1: ArrayLike, K2: ArrayLike | None = None
 ) -> FloatArray:
-    """``F = K2^-T E K1^-1`` scaled to unit Frobenius norm (H&Z eq. 9.12)."""
+    """``F = K2^-T E K1^-1`` scaled to unit Frobenius norm (H&Z eq. 9.12).
+
+    Parameters
+    ----------
+    E : (3, 3) array_like
+        Essential matrix, ``x2n^T E x1n = 0`` in normalised coordinates.
+    K1, K2 : (3, 3) array_like
+        Intrinsics of images 1 and 2 (pixels); ``K2`` defaults to ``K1``.
+
+    Returns
+    -------
+    F : (3, 3) float64
+        Fundamental matrix in pixels, ``x2^T F x1 = 0`` (OpenCV pixel convention), unit
+        Frobenius norm.
+    """
     K1 = np.asarray(K1, dtype=np.float64)
     K2 = K1 if K2 is None else np.asarray(K2, dtype=np.float64)
     F = np.linalg.inv(K2).T @ np.asarray(E, dtype=np.float64) @ np.linalg.inv(K1)

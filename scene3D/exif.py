@@ -123,13 +123,25 @@ def read_camera_prior(paths: Sequence[str | os.PathLike]) -> FocalPrior:
     or the default ``1.2 * max(w, h)``. The prior's ``warnings`` name the photos
     whose EXIF could not be used.
 
+    Parameters
+    ----------
+    paths : sequence of str or PathLike
+        The photos' files: a list, not one path (for a folder:
+        ``sorted(Path(folder).glob("*.jpg"))``).
+
     Raises
     ------
+    TypeError
+        ``paths`` is one path (a str or Path) rather than a list of them.
     FileNotFoundError
         A photo does not exist.
     ValueError
         A file is not an image, or the photos come from different cameras or sizes.
     """
+    if isinstance(paths, (str, bytes, os.PathLike)):
+        raise TypeError(f"`paths` must be a list of image paths, got one path "
+                        f"'{os.fsdecode(paths)}'; for a folder list its photos, e.g. "
+                        "sorted(Path(folder).glob('*.jpg'))")
     # The size first: a damaged header is refused before Pillow warns about it.
     sizes = [read_image_size(p) for p in paths]
     photos = [(Path(p).name, read_exif(p), size) for p, size in zip(paths, sizes)]

@@ -98,6 +98,13 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     The pixels are taken as stored: EXIF orientation is not applied, so that
     they match the sensor layout a calibration describes.
 
+    Returns
+    -------
+    (H, W) or (H, W, 3) ndarray
+        ``img[y, x]``: ``(H, W)`` for a grey file, ``(H, W, 3)`` in OpenCV's **BGR**
+        channel order for a colour one (alpha dropped); ``uint8``, or ``uint16`` for a
+        16-bit file. :func:`load_working_image` converts to BGR ``uint8``.
+
     Raises
     ------
     FileNotFoundError

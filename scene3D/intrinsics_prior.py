@@ -284,6 +284,9 @@ def focal_prior(exif: ExifCamera | None, image_size: tuple[int, int]) -> FocalPr
     return camera_prior([("image", exif, image_size)])
 
 
+#: How to give a calibration, for Python and command-line users alike.
+_GIVE_CALIBRATION = "give the calibration as `K` (--calib on the command line)"
+
 #: The EXIF focal lengths that :func:`check_one_camera` compares, each with its own kind
 #: only: a real focal length is not comparable with a 35 mm equivalent.
 _FOCAL_KINDS = (("focal_length_mm", ""), ("focal_length_35mm", ", 35 mm equivalent"))
@@ -307,13 +310,13 @@ def check_one_camera(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, i
             raise ValueError(
                 f"'{name}' is {size[0]}x{size[1]} but '{name0}' is {size0[0]}x{size0[1]}: "
                 + ("one was rotated; store both the same way round" if rotated else
-                   "photos of one camera at one size are needed (resize or crop them alike, "
-                   "or give --calib)"))
+                   "photos of one camera at one size are needed; resize or crop them alike, "
+                   f"or {_GIVE_CALIBRATION}"))
     named = [(n, e.camera_name) for n, e, _ in photos if e is not None and e.camera_name]
     for name, camera in named[1:]:
         if camera != named[0][1]:
             raise ValueError(f"'{name}' was taken with a {camera} and '{named[0][0]}' with a "
-                             f"{named[0][1]}: one camera is needed (or give --calib)")
+                             f"{named[0][1]}: one camera is needed; or {_GIVE_CALIBRATION}")
     for field, kind in _FOCAL_KINDS:
         zooms = [(n, float(getattr(e, field))) for n, e, _ in photos
                  if e is not None and e.error is None and _usable(getattr(e, field))]
@@ -321,7 +324,7 @@ def check_one_camera(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, i
             if abs(focal / zooms[0][1] - 1.0) > SAME_FOCAL_TOLERANCE:
                 raise ValueError(f"'{name}' was taken at {focal:g} mm and '{zooms[0][0]}' at "
                                  f"{zooms[0][1]:g} mm (EXIF{kind}): one focal length is "
-                                 "needed (or give --calib)")
+                                 f"needed; or {_GIVE_CALIBRATION}")
 
 
 def camera_prior(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, int]]]

@@ -236,23 +236,39 @@ class FocalEstimate:
 class SfMModel:
     """One connected reconstruction: some views' cameras and the points they see.
 
+    Conventions: the model's world is the camera frame of the first view of its
+    initial pair (that camera is ``[I | 0]``); poses are world-to-camera,
+    ``x_cam = R X + t``; the scale is arbitrary (set by the initial pair's unit
+    baseline). ``V`` is the number of input views, in the input order; pixels are
+    those of the working images (OpenCV convention).
+
     Attributes
     ----------
     registered : (V,) bool
         Which of all input views are in this model.
-    R, t : (V, 3, 3), (V, 3) float64
-        World-to-camera poses (NaN for views not in the model).
+    R : (V, 3, 3) float64
+        World-to-camera rotations (NaN for views not in the model).
+    t : (V, 3) float64
+        World-to-camera translations, in each camera's frame (NaN for views not in it).
     points3d : (P, 3) float64
+        Points in the model's world frame.
     colors : (P, 3) uint8
+        RGB colour of each point, from its first observation.
     observations : Observations
-        Every measurement kept, as (view, point, pixel).
+        Every measurement kept: ``view`` (O,) input-view indices, ``point`` (O,)
+        indices into ``points3d``, ``xy`` (O, 2) working-image pixels.
     reprojection_rmse_px : float
+        Root mean square of the reprojection residuals' x and y components over all
+        observations (unweighted), with the model's intrinsics; NaN without any.
     check : ModelCheck
     K : (3, 3) float64 or None
         The intrinsics this model was adjusted with, when it refined its focal length
         (photos without a calibration file); None: the reconstruction's ``K``.
     focal : FocalEstimate or None
         How its focal length was found (None with a calibration file).
+
+    The property ``centers`` ``(V, 3)`` gives the camera centres ``C = -R^T t`` in the
+    world frame (NaN for views not in the model).
     """
 
     registered: np.ndarray
@@ -292,9 +308,27 @@ class SfMModel:
 class MultiViewReconstruction:
     """Cameras and points of a multi-view reconstruction: one model or several.
 
-    The pose and point attributes (``registered``, ``R``, ``t``, ``points3d``, ...)
-    are those of the largest model, ``models[0]``; views that could not be joined to
-    it are in further models when they connect among themselves.
+    The pose and point properties below are those of the largest model, ``models[0]``
+    (:class:`SfMModel`); views that could not be joined to it are in further models
+    when they connect among themselves, each in its own frame and scale.
+
+    Conventions: world = the camera frame of the first view of the largest model's
+    initial pair; poses world-to-camera, ``x_cam = R X + t``; arbitrary scale (the
+    initial pair's unit baseline). ``V = len(names)`` views in the input order;
+    pixels are those of the working images (``image_size``), OpenCV convention.
+
+    Properties of the largest model:
+
+    - ``registered`` : (V,) bool, which views it holds;
+    - ``R`` : (V, 3, 3) float64, world-to-camera rotations (NaN for views not in it);
+    - ``t`` : (V, 3) float64, world-to-camera translations (NaN likewise);
+    - ``centers`` : (V, 3) float64, camera centres ``C = -R^T t`` in the world frame;
+    - ``points3d`` : (P, 3) float64, points in the world frame;
+    - ``colors`` : (P, 3) uint8, RGB colour of each point;
+    - ``observations`` : :class:`scene3D.bundle.Observations`, ``view`` (O,) input-view
+      indices, ``point`` (O,) indices into ``points3d``, ``xy`` (O, 2) working pixels;
+    - ``reprojection_rmse_px`` : float, RMS of the residuals' x and y components over
+      the observations, with ``model_K(main)``.
 
     Attributes
     ----------

@@ -24,7 +24,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..bundle import Observations
-from ..camera import scale_intrinsics_halved, validate_distortion, validate_intrinsics
+from ..camera import (
+    check_intrinsics_for_size,
+    scale_intrinsics_halved,
+    validate_distortion,
+    validate_intrinsics,
+)
 from ..engines import Engine, LocalEngine
 from ..errors import ReconstructionError
 from ..imageio import BOOK_MAX_WIDTH_PX, ImageSource
@@ -82,6 +87,28 @@ def _focal_prior(images: Sequence[ImageSource], names: Sequence[str]) -> FocalPr
     return camera_prior([(name, None, size) for name, size in zip(names, sizes)])
 
 
+def _refuse_single_path(images: object) -> None:
+    """Raise ``TypeError`` when ``images`` is one path (a str would be iterated by character)."""
+    if isinstance(images, (str, bytes, os.PathLike)):
+        raise TypeError(f"`images` must be a list of image paths or arrays, got one path "
+                        f"'{os.fsdecode(images)}'; for a folder list its photos, e.g. "
+                        "sorted(Path(folder).glob('*.jpg'))")
+
+
+def _check_K_for_size(K: np.ndarray, size: tuple[int, int], prior: FocalPrior | None) -> None:
+    """Raise ``ValueError`` unless ``K`` (given, or the prior's) suits the native ``size``."""
+    if prior is not None and tuple(prior.image_size) != tuple(size):
+        raise ValueError(f"`focal_prior` is for {prior.image_size[0]}x{prior.image_size[1]} "
+                         f"images, not {size[0]}x{size[1]} px, the images' native size, "
+                         "which it must be for")
+    try:
+        check_intrinsics_for_size(K, size)
+    except ValueError as exc:
+        what = "`K`" if prior is None else "`focal_prior.K`"
+        raise ValueError(f"{what} does not fit images of {size[0]}x{size[1]} px, their native "
+                         f"size, which it must be for: {exc}") from None
+
+
 def _too_few_keypoints(found: Sequence[tuple], names: Sequence[str], needed: int,
                        working_size: tuple[int, int]) -> str | None:
     """Why no pair could start when fewer than two views have the ``needed`` keypoints a
@@ -127,11 +154,14 @@ def reconstruct_views(
     Parameters
     ----------
     images : sequence of paths or (H, W[, C]) arrays
-        Photos of the same size, in any order.
+        Photos of the same size, in any order; a list, not one path (for a folder:
+        ``sorted(Path(folder).glob("*.jpg"))``).
     K : (3, 3) array_like or None
-        Intrinsics of the **native** images; None for photos without a calibration:
-        one focal length (the principal point at the centre, no distortion) starts
-        from ``focal_prior`` and is refined by the photos
+        Intrinsics of the **native** (stored) images; one that cannot be theirs (a
+        ``K`` for larger photos: :func:`scene3D.camera.check_intrinsics_for_size`)
+        is refused. None for photos without a calibration: one focal length (the
+        principal point at the centre, no distortion) starts from ``focal_prior``
+        and is refined by the photos
         (:mod:`scene3D.multiview.focal`); the result's ``K`` is the one found, its
         ``calibration_source`` and ``focal`` say how.
     dist : array_like, optional
@@ -169,14 +199,18 @@ def reconstruct_views(
     ReconstructionError
         Fewer than two views, or no pair gives a trustworthy start (the message says so
         when the images have too few keypoints for any pair).
+    TypeError
+        ``images`` is one path (a str or Path) rather than a list of them.
     FileNotFoundError, ValueError
-        Unreadable images or images of different sizes, one photo given twice (a copy);
+        Unreadable images or images of different sizes, one photo given twice (a copy),
+        a ``K`` (or ``focal_prior``) for another image size than the images' native one;
         without ``K``, photos from different cameras (EXIF make and model, or focal
         length).
     """
     s = settings or SfMSettings()
     engine = engine or LocalEngine()
     say = progress or (lambda message: logger.info("%s", message))
+    _refuse_single_path(images)
     if names is None:
         names = [Path(src).name if isinstance(src, (str, os.PathLike)) else f"view{i}"
                  for i, src in enumerate(images)]
@@ -207,6 +241,7 @@ def reconstruct_views(
             raise ValueError(f"'{label}' is {size[0]}x{size[1]}, not {first[0]}x{first[1]} "
                              "like the first image: the images must have the same size "
                              "(one camera, one size)")
+    _check_K_for_size(K_native, first, focal_prior)
     working_size, levels = found[0][2], found[0][3]
     K_work = scale_intrinsics_halved(K_native, levels)
     focal = None if focal_prior is None else FocalSettings(

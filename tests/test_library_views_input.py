@@ -1,0 +1,103 @@
+"""What the library says about the inputs of its many-view and photo functions: a K for
+another image size, one path where a list of paths is expected, how to give a calibration."""
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from scene3D.camera import scale_intrinsics_halved
+from scene3D.datasets import fetch_fountain_p11, read_strecha_camera
+from scene3D.errors import DatasetError
+from scene3D.exif import read_camera_prior
+from scene3D.intrinsics_prior import ExifCamera, camera_prior, check_one_camera, focal_prior
+from scene3D.multiview import reconstruct_views
+
+VIEWS = ("0004.jpg", "0005.jpg", "0006.jpg")
+
+
+@pytest.fixture(scope="module")
+def small_views(fountain: Path) -> list[np.ndarray]:
+    """Three fountain-P11 photos stored at 768x512 (a quarter of the native 3072x2048)."""
+    return [cv2.resize(cv2.imread(str(fountain / "images" / name)), (768, 512),
+                       interpolation=cv2.INTER_AREA) for name in VIEWS]
+
+
+def test_K_for_larger_photos_is_refused(fountain, small_views):
+    K_native = read_strecha_camera(fountain / "gt_dense_cameras" / "0000.jpg.camera").K
+    with pytest.raises(ValueError, match=r"`K` does not fit images of 768x512 px, their "
+                                         r"native size, which it must be for") as info:
+        reconstruct_views(small_views, K_native, max_width=None)
+    assert "principal point" in str(info.value)
+
+
+def test_focal_prior_for_another_size_is_refused(small_views):
+    prior = focal_prior(None, (3072, 2048))
+    with pytest.raises(ValueError, match=r"`focal_prior` is for 3072x2048 images, not "
+                                         r"768x512 px, the images' native size"):
+        reconstruct_views(small_views, None, max_width=None, focal_prior=prior)
+
+
+def test_K_of_the_stored_size_passes_the_check(fountain, small_views):
+    """The same K scaled to the stored size is a camera's for it (the check is on size)."""
+    K_small = scale_intrinsics_halved(
+        read_strecha_camera(fountain / "gt_dense_cameras" / "0000.jpg.camera").K, 2)
+    result = reconstruct_views(small_views, K_small, max_width=None)
+    assert result.image_size == (768, 512)
+    assert result.registered.sum() == 3 and result.ok
+
+
+@pytest.mark.parametrize("as_path", [str, Path])
+def test_one_folder_is_not_a_list_of_images(fountain, as_path):
+    folder = as_path(fountain / "images")
+    with pytest.raises(TypeError, match=r"`images` must be a list of image paths") as info:
+        reconstruct_views(folder, None)
+    assert "sorted(Path(folder).glob('*.jpg'))" in str(info.value)
+    assert str(fountain / "images") in str(info.value)
+
+
+@pytest.mark.parametrize("as_path", [str, Path])
+def test_one_photo_is_not_a_list_for_the_prior(fountain, as_path):
+    photo = as_path(fountain / "images" / "0004.jpg")
+    with pytest.raises(TypeError, match=r"`paths` must be a list of image paths, got one "
+                                        r"path") as info:
+        read_camera_prior(photo)
+    assert "0004.jpg" in str(info.value) and "glob" in str(info.value)
+    assert read_camera_prior([photo]).image_size == (3072, 2048)  # the list works
+
+
+def test_one_dataset_file_is_not_a_tuple(tmp_path):
+    with pytest.raises(TypeError, match=r"`files` must be a tuple of file names, got one: "
+                                        r"'images/K.txt'; write \('images/K.txt',\)"):
+        fetch_fountain_p11("images/K.txt", data_root=tmp_path, download=False)
+
+
+SIZE = (3072, 2048)
+
+
+@pytest.mark.parametrize("photos, words", [
+    ([("a.jpg", None, SIZE), ("b.jpg", None, (1536, 1024))],
+     "photos of one camera at one size are needed"),
+    ([("a.jpg", ExifCamera(make="Canon", model="EOS 5D"), SIZE),
+      ("b.jpg", ExifCamera(make="Apple", model="iPhone 12"), SIZE)],
+     "one camera is needed"),
+    ([("a.jpg", ExifCamera(focal_length_mm=35.0), SIZE),
+      ("b.jpg", ExifCamera(focal_length_mm=50.0), SIZE)],
+     "one focal length is needed"),
+])
+def test_one_camera_messages_speak_to_python_and_the_shell(photos, words):
+    with pytest.raises(ValueError, match=words) as info:
+        check_one_camera(photos)
+    message = str(info.value)
+    assert "give the calibration as `K` (--calib on the command line)" in message
+    assert "give --calib" not in message
+    with pytest.raises(ValueError, match=r"`K` \(--calib on the command line\)"):
+        camera_prior(photos)
+
+
+def test_missing_dataset_message_names_K_and_calib(tmp_path):
+    with pytest.raises(DatasetError, match="SCENE3D_DATA") as info:
+        fetch_fountain_p11(("images/K.txt",), data_root=tmp_path, cache_dir=tmp_path,
+                           download=False)
+    assert "with their calibration `K` (--calib on the command line)" in str(info.value)
