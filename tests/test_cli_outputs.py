@@ -38,6 +38,17 @@ def test_stale_files_of_the_previous_run_go_and_nothing_else(tmp_path):
     assert (tmp_path / "outside.txt").exists()
 
 
+def test_a_recorded_file_behind_a_link_out_of_the_folder_stays(tmp_path):
+    out, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
+    out.mkdir()
+    elsewhere.mkdir()
+    (elsewhere / "points.ply").write_text("the user's")
+    (out / "model-1").symlink_to(elsewhere)
+    _summary(out, ["reconstruction.json", "model-1/points.ply"])
+    remove_stale_outputs(out, previous_outputs(out), [out / "reconstruction.json"])
+    assert (elsewhere / "points.ply").read_text() == "the user's"
+
+
 @pytest.mark.parametrize("content", ['{"status": "mine"}', "not json", "[1, 2]"])
 def test_a_reconstruction_json_scene3d_did_not_write_is_refused(tmp_path, content):
     (tmp_path / "reconstruction.json").write_text(content)

@@ -79,8 +79,11 @@ def remove_stale_outputs(out: Path, previous: list[Path], written: list[Path]) -
     """Remove the previous run's files this run did not write, then the folders of theirs
     left empty; a file that cannot be removed is named in a warning."""
     kept = set(written)
+    inside = out.resolve()
     for path in previous:
         if path in kept or not path.is_file() or path.is_symlink():
+            continue
+        if inside not in path.resolve().parents:  # reached through a link out of --out
             continue
         try:
             path.unlink()
