@@ -45,7 +45,7 @@ from .common import (
     run_command,
     show_images,
 )
-from .outputs import FILES_KEY, SUMMARY_FILE, OutputFolder
+from .outputs import FILES_KEY, SUMMARY_FILE, OutputFolder, out_help
 
 logger = logging.getLogger("scene3D.cli")
 
@@ -96,9 +96,11 @@ def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
     add_bundle_adjust_arg(parser)
     parser.add_argument("--dense", action="store_true",
                         help="also match every pixel of the rectified pair (SGBM) and write "
-                             "dense.ply and disparity.png")
+                             "dense.ply and disparity.png; a pair that cannot be rectified "
+                             "into a disparity search (the camera moved towards the scene) "
+                             "fails with exit code 1")
     parser.add_argument("--out", type=path_arg, default=Path("out"), metavar="DIR",
-                        help="output folder (default: out/)")
+                        help=out_help("out/"))
     parser.add_argument("--no-plots", action="store_true",
                         help="skip the PNG figures")
     parser.add_argument("--no-report", action="store_true",

@@ -52,7 +52,7 @@ from .common import (
     positive_int,
     run_command,
 )
-from .outputs import FILES_KEY, SUMMARY_FILE, OutputFolder
+from .outputs import FILES_KEY, SUMMARY_FILE, OutputFolder, out_help
 
 logger = logging.getLogger("scene3D.cli")
 
@@ -116,7 +116,7 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
                         help="Strecha .camera files (NAME.camera per image): report camera "
                              "errors after a similarity alignment")
     parser.add_argument("--out", type=path_arg, default=Path("out/views"), metavar="DIR",
-                        help="output folder (default out/views)")
+                        help=out_help("out/views"))
     parser.add_argument("--no-plots", action="store_true", help="skip cameras.png")
     parser.add_argument("--no-report", action="store_true",
                         help="skip report.html (one self-contained page: the numbers, the "

@@ -26,6 +26,13 @@ FILES_KEY = "files"
 _OWN_SUMMARY_KEY = "conventions"
 
 
+def out_help(default: str) -> str:
+    """``--out``'s help text, the same for both commands."""
+    return (f"output folder (default: {default}); a successful run replaces an earlier "
+            "run's files there and removes those it does not write again (as listed in "
+            "that run's reconstruction.json); anything else in the folder is kept")
+
+
 def prepare_output_dir(path: Path) -> Path:
     """Create ``path`` (and parents) or raise ``UsageError`` naming why it cannot be used."""
     if path.exists() and not path.is_dir():
