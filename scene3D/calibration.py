@@ -429,7 +429,8 @@ def _check_image_size(image_size: tuple[int, int], detections: list[Detection]
 
     if holds(w, h):
         return w, h
-    reach = f"detected corners reach x = {hi[0]:.0f}, y = {hi[1]:.0f} px"
+    reach = (f"detected corners span x = {lo[0]:.0f} to {hi[0]:.0f}, y = {lo[1]:.0f} to "
+             f"{hi[1]:.0f} px")
     if holds(h, w):
         raise ValueError(f"`image_size` {w}x{h} does not hold the corners ({reach}), but "
                          f"{h}x{w} does: pass (width, height) = ({h}, {w}); img.shape[:2] is "

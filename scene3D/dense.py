@@ -10,7 +10,10 @@ same scale as the sparse ones (units of the baseline).
 Rectified geometry (``cv2.stereoRectify`` with ``CALIB_ZERO_DISPARITY``): both
 rectified cameras share ``f`` and the principal point, rows correspond, and a
 pixel ``(x, y)`` of image 1 with disparity ``d = x1 - x2`` lies at depth
-``Z = f B / |d|`` with ``B = |t|``.
+``Z = f B / |d|`` with ``B = |t|``. (A mostly vertical baseline is rectified by
+columns, ``d = y1 - y2``, and matched transposed.) Rectified image 2 is shifted along
+the baseline by the start of the search range, so SGBM searches from zero disparity
+however far the cameras converge; the shift is added back.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from .geometry import FloatArray
 from .imageio import image_size
 from .rectification import (
     RectifiedPair,
+    baseline_axis,
     rectify_pair,
     rectify_points,
     rectifying_transforms,
@@ -57,14 +61,16 @@ class DenseReconstruction:
     pixels : (N, 2) float64
         Where each point is seen in rectified image 1.
     disparity : (H, W) float32
-        Disparity ``x1 - x2`` of rectified image 1 in pixels, zero at infinity, NaN where
-        invalid.
+        Disparity ``x1 - x2`` of rectified image 1 in pixels (``y1 - y2`` when the
+        baseline is mostly vertical: :func:`~scene3D.rectification.baseline_axis`), zero
+        at infinity, NaN where invalid. ``cv2.reprojectImageTo3D(disparity, Q)`` gives
+        the points in the rectified camera-1 frame (:attr:`Q`).
     disparity_range : tuple[int, int]
         The searched range ``[min, max)`` (pixels, in the matcher's orientation).
     rectified : RectifiedPair
-        The rectified pair; image 2 shifted along x by the start of the search range
-        (its ``P2`` says by how much), so the disparities between the two images run
-        from zero up.
+        The rectified pair; image 2 shifted along the baseline by the start of the
+        search range (its ``P2`` says by how much), so the disparities between the two
+        images, which its ``Q`` takes, run from zero up.
     """
 
     points3d: FloatArray
@@ -77,6 +83,15 @@ class DenseReconstruction:
     @property
     def num_points(self) -> int:
         return len(self.points3d)
+
+    @property
+    def Q(self) -> FloatArray:
+        """(4, 4) disparity-to-depth matrix for :attr:`disparity` (zero at infinity), for
+        ``cv2.reprojectImageTo3D``; the rectified pair's ``Q`` takes the disparities
+        between its shifted images instead."""
+        Q = self.rectified.Q.copy()
+        Q[3, 3] = 0.0  # both rectified cameras' principal points coincide before the shift
+        return Q
 
 
 def disparity_range(
@@ -98,24 +113,24 @@ def disparity_range(
 
 def require_searchable_range(lo: int, hi: int, width: int, offset: int = 0) -> None:
     """Raise :class:`ReconstructionError` when searching ``[lo, hi)`` on rectified images
-    ``width`` pixels wide, image 2 shifted by ``offset`` (:func:`search_disparity`), would
-    leave no column a disparity.
+    ``width`` pixels across the baseline, image 2 shifted by ``offset``
+    (:func:`search_disparity`), would leave no column a disparity.
 
-    SGBM gives no disparity to the leftmost ``hi`` columns (their match would lie left
-    of image 2) nor, for a negative ``lo``, to the rightmost ``-lo``; a search wider than
-    the image fails inside OpenCV. A range that wide comes from a pair rectification
-    cannot serve: the epipole in or near the image (the camera moved towards the scene)
-    or a pose too uncertain to rectify by. (A narrower range that still costs many
-    columns gives a partial cloud: fountain-P11 0007-0008 at 768 px searches [177, 433).)
+    SGBM gives no disparity to the leftmost ``hi - offset`` columns (their match would
+    lie left of image 2) nor to the rightmost ``offset - lo``; a search wider than the
+    image fails inside OpenCV. A range that wide comes from cameras that converge
+    strongly on a scene deep in range, from an epipole in or near the image (the camera
+    moved towards the scene), or from a pose too uncertain to rectify by.
     """
     lost = max(hi - offset, 0) + max(offset - lo, 0)
     if lost >= width:
         raise ReconstructionError(
             "no_dense_range",
             f"dense matching cannot serve this pair: its sparse disparities span [{lo}, {hi}) "
-            f"px, too wide a search for rectified images {width} px wide (the epipole lies in "
-            "or near the image, or the pose is too uncertain to rectify by); the sparse "
-            "result does not need it (run without --dense)")
+            f"px, too wide a search for rectified images {width} px across (cameras that "
+            "converge strongly on a scene deep in range, an epipole in or near the image, "
+            "or a pose too uncertain to rectify by); the sparse result does not need it "
+            "(run without --dense)")
 
 
 def _sgbm(min_disp: int, num_disp: int, block: int) -> cv2.StereoSGBM:
@@ -278,9 +293,12 @@ def dense_point_cloud(
         raise ValueError(f"`R` and `t` must be a finite (3, 3) rotation and (3,) translation, "
                          f"got shapes {R.shape} and {t.shape}")
     R1, R2, P1, P2, _ = rectifying_transforms(K, R, t, image_size(img1), alpha=0.0)
+    # SGBM matches along rows; a pair rectified by columns (a mostly vertical baseline)
+    # is matched transposed.
+    axis = baseline_axis(P2)
     r1 = rectify_points(np.asarray(sparse_pts1, np.float64), K, R1, P1)
     r2 = rectify_points(np.asarray(sparse_pts2, np.float64), K, R2, P2)
-    sparse_disp = r1[:, 0] - r2[:, 0]
+    sparse_disp = r1[:, axis] - r2[:, axis]
     # SGBM searches positive disparities; if image 2 is the left view, mirror both.
     mirrored = float(np.median(sparse_disp)) < 0
     sign = -1 if mirrored else 1
@@ -289,14 +307,19 @@ def dense_point_cloud(
     # disparities (zero at infinity) can exceed the image width.
     offset = lo
     logger.info("SGBM disparity range [%d, %d) from %d sparse points", lo, hi, len(sparse_disp))
-    require_searchable_range(lo, hi, img1.shape[1], offset)
+    require_searchable_range(lo, hi, img1.shape[1 - axis], offset)
     rect = rectify_pair(img1, img2, K, R, t, alpha=0.0, shift2_px=sign * offset)
     left, right = rect.img1, rect.img2
+    if axis == 1:
+        left, right = left.transpose(1, 0, 2), right.transpose(1, 0, 2)
     if mirrored:
-        left, right = left[:, ::-1].copy(), right[:, ::-1].copy()
+        left, right = left[:, ::-1], right[:, ::-1]
+    left, right = np.ascontiguousarray(left), np.ascontiguousarray(right)
     disparity, (lo, hi) = search_disparity(left, right, lo, hi, block_size, offset=offset)
     if mirrored:
         disparity = -disparity[:, ::-1]
+    if axis == 1:
+        disparity = np.ascontiguousarray(disparity.T)
     ys, xs = np.nonzero(np.isfinite(disparity) & (np.abs(disparity) > 0.5))
     if len(xs) == 0:
         raise ReconstructionError(

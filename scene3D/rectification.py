@@ -13,7 +13,8 @@ from .imageio import image_size
 
 @dataclass(frozen=True)
 class RectifiedPair:
-    """Two images warped so that corresponding points share a row.
+    """Two images warped so that corresponding points share a row (a column, when the
+    baseline is mostly vertical: :func:`baseline_axis`).
 
     Attributes
     ----------
@@ -23,9 +24,10 @@ class RectifiedPair:
         Rotations from each camera frame to its rectified frame.
     P1, P2 : (3, 4) float64
         Projection matrices of the rectified cameras (in the rectified camera-1
-        frame); ``P2[0, 3] = -f * baseline``.
+        frame); ``P2[0, 3] = -f * baseline`` (``P2[1, 3]`` for a vertical one).
     Q : (4, 4) float64
-        Disparity-to-depth matrix for ``cv2.reprojectImageTo3D``.
+        Disparity-to-depth matrix for ``cv2.reprojectImageTo3D``, for disparities
+        between these two images.
     """
 
     img1: np.ndarray
@@ -50,6 +52,13 @@ def rectifying_transforms(
     return R1, R2, P1, P2, Q
 
 
+def baseline_axis(P2: FloatArray) -> int:
+    """0 when rectified image 2 lies beside image 1 (rows correspond, disparities along
+    x), 1 when OpenCV rectified a mostly vertical baseline (columns correspond,
+    disparities along y); read off ``P2``'s translation column."""
+    return int(abs(P2[1, 3]) > abs(P2[0, 3]))
+
+
 def rectify_pair(
     img1: np.ndarray,
     img2: np.ndarray,
@@ -72,19 +81,22 @@ def rectify_pair(
     alpha : float
         0 crops to valid pixels only, 1 keeps every source pixel (the book's choice).
     shift2_px : float
-        Moves rectified image 2's principal point this far along x, so that a point of
-        disparity ``d`` (zero at infinity) has ``d - shift2_px`` between the two rectified
-        images. A converging pair's disparities can exceed the image width, putting
-        image 2's view of what image 1 sees beyond its left edge; the shift brings it
-        back. ``P2`` and ``Q`` include it.
+        Moves rectified image 2's principal point this far along the baseline (x, or y
+        where OpenCV rectifies a mostly vertical baseline by columns:
+        :func:`baseline_axis`), so that a point of disparity ``d`` (zero at infinity)
+        has ``d - shift2_px`` between the two rectified images. A converging pair's
+        disparities can exceed the image width, putting image 2's view of what image 1
+        sees beyond its edge; the shift brings it back. ``P2`` and ``Q`` include it.
     """
     size = image_size(img1)  # (width, height): the book passed (height, width)
     R1, R2, P1, P2, Q = rectifying_transforms(K, R, t, size, alpha)
     if shift2_px:
+        axis = baseline_axis(P2)
         P2 = P2.copy()
-        P2[0, 2] += shift2_px
+        P2[axis, 2] += shift2_px
         Q = Q.copy()
-        Q[3, 3] = (P1[0, 2] - P2[0, 2]) / P2[0, 3] * P2[0, 0]  # (cx1 - cx2) / Tx
+        # (c1 - c2) / T along the baseline, T = P2[axis, 3] / f: OpenCV's last entry.
+        Q[3, 3] = (P1[axis, 2] - P2[axis, 2]) / P2[axis, 3] * P2[axis, axis]
     no_dist = np.zeros(5)
     map1x, map1y = cv2.initUndistortRectifyMap(K, no_dist, R1, P1, size, cv2.CV_32FC1)
     map2x, map2y = cv2.initUndistortRectifyMap(K, no_dist, R2, P2, size, cv2.CV_32FC1)

@@ -381,7 +381,9 @@ def test_a_run_replaces_the_previous_runs_files_and_keeps_the_users(tmp_path, sy
     assert "report.html" in first and "point_cloud.png" in first
     assert sorted(first) == sorted(p.name for p in out.iterdir())
     (out / "notes.txt").write_text("mine")
-    assert run(args + ["--no-plots", "--no-report"], cwd=tmp_path).returncode == 0
+    proc = run(args + ["--no-plots", "--no-report"], cwd=tmp_path)
+    assert proc.returncode == 0
+    assert f"Removed '{out / 'report.html'}' (an earlier run's, not written again)" in proc.stdout
     second = json.loads((out / "reconstruction.json").read_text())["files"]
     assert second == ["point_cloud.ply", "reconstruction.json"]
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt", *second]

@@ -38,6 +38,23 @@ def test_stale_files_of_the_previous_run_go_and_nothing_else(tmp_path):
     assert (tmp_path / "outside.txt").exists()
 
 
+def test_a_recorded_file_behind_a_link_or_another_name_of_a_written_file_stays(tmp_path):
+    """Hand-edited entries: one through a link inside the folder, one naming a file this
+    run wrote under another name (a hard link here; a case-insensitive disk's REPORT.HTML
+    is the same)."""
+    out = tmp_path / "out"
+    (out / "inner").mkdir(parents=True)
+    (out / "inner" / "k.txt").write_text("the user's")
+    (out / "linkin").symlink_to(out / "inner")
+    (out / "report.html").write_text("this run's")
+    (out / "alias.html").hardlink_to(out / "report.html")
+    _summary(out, ["linkin/k.txt", "alias.html", "reconstruction.json"])
+    removed = remove_stale_outputs(out, previous_outputs(out),
+                                   [out / "reconstruction.json", out / "report.html"])
+    assert removed == []
+    assert (out / "inner" / "k.txt").exists() and (out / "alias.html").exists()
+
+
 def test_a_recorded_file_behind_a_link_out_of_the_folder_stays(tmp_path):
     out, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
     out.mkdir()
@@ -86,3 +103,21 @@ def test_a_failed_run_removes_the_folders_it_created_if_empty(tmp_path):
     assert (tmp_path / "c" / "kept.txt").exists()
     assert run_command(Args(), succeeds) == EXIT_OK
     assert (tmp_path / "d").is_dir()
+
+    # Only what this run made goes: "new/../old" makes "new", not "old".
+    (tmp_path / "old").mkdir()
+
+    def via_dotdot(args):
+        prepare_output_dir(tmp_path / "new" / ".." / "old")
+        return EXIT_FAILED
+
+    assert run_command(Args(), via_dotdot) == EXIT_FAILED
+    assert (tmp_path / "old").is_dir() and not (tmp_path / "new").exists()
+
+    def crashes(args):  # an exception no handler expects still cleans up, then shows
+        prepare_output_dir(tmp_path / "e")
+        raise RuntimeError("a bug")
+
+    with pytest.raises(RuntimeError):
+        run_command(Args(), crashes)
+    assert not (tmp_path / "e").exists()

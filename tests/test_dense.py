@@ -66,9 +66,18 @@ def test_a_range_holding_the_scene_is_searched_once():
     assert np.array_equal(disp, compute_disparity(left, right, 0, 32), equal_nan=True)
 
 
-@pytest.fixture(scope="module")
-def synthetic_dense(rendered_pair):
+@pytest.fixture(scope="module", params=["sideways", "upwards"])
+def synthetic_dense(request, rendered_pair):
+    """The box scene, camera 2 to the right (rectified by rows) or above camera 1
+    (by columns: matched transposed)."""
     img1, img2, K, R, t = rendered_pair
+    if request.param == "upwards":
+        from scene3D.geometry import rotation_about_axis
+
+        R = rotation_about_axis([1.0, 0.2, 0.1], 6.0)
+        center = np.array([0.15, -0.8, 0.2])  # y points down: above, a little right
+        t = -R @ center
+        img2, _ = render_planes(K, R, t)
     scene = SceneReconstruction3D(K)
     scene.load_image_pair(img1, img2)
     return scene, scene.dense_point_cloud(), K, R, t
@@ -88,6 +97,26 @@ def test_dense_points_lie_on_the_rendered_surfaces(synthetic_dense):
     assert np.percentile(rel, 90) < 0.03
     assert dense.num_points > 0.3 * 640 * 480  # most of the image is textured surface
     assert dense.colors.shape == (dense.num_points, 3)
+
+
+def test_the_disparities_and_their_Q_give_the_points(synthetic_dense):
+    """cv2.reprojectImageTo3D: dense.Q takes dense.disparity (zero at infinity); the
+    rectified pair's Q takes the disparity between its images, shifted by the offset."""
+    import cv2
+
+    from scene3D.rectification import baseline_axis
+
+    _, dense, *_ = synthetic_dense
+    rect = dense.rectified
+    xs, ys = dense.pixels.astype(int).T
+    expected = dense.points3d @ rect.R1.T  # the rectified camera-1 frame
+    points = cv2.reprojectImageTo3D(dense.disparity, dense.Q)[ys, xs]
+    np.testing.assert_allclose(points, expected, rtol=1e-4, atol=1e-6)
+    axis = baseline_axis(rect.P2)
+    shift = rect.P2[axis, 2] - rect.P1[axis, 2]
+    between = (dense.disparity - shift).astype(np.float32)
+    np.testing.assert_allclose(cv2.reprojectImageTo3D(between, rect.Q)[ys, xs], expected,
+                               rtol=1e-4, atol=1e-6)
 
 
 @pytest.mark.parametrize("pair, min_ratio, min_compared", [

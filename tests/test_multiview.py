@@ -524,6 +524,7 @@ def test_unconnected_scenes_become_two_models(fountain, data_root, tmp_path):
     summary = json.loads((out / "reconstruction.json").read_text())
     assert len(summary["models"]) == 1
     assert not (out / "model-1").exists() and not (out / "report.html").exists()
+    assert f"Removed '{out / 'model-1' / 'points.ply'}'" in proc.stdout
     assert sorted([*summary["files"], "notes.txt"]) == _files_in(out)
 
 

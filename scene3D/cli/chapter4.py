@@ -381,13 +381,15 @@ def run(args: argparse.Namespace) -> int:
             summary["dense"] = _dense_summary(dense)
         summary[FILES_KEY] = out_folder.record([*written, out / SUMMARY_FILE])
         written.append(write_json(out / SUMMARY_FILE, summary))
-    out_folder.remove_stale(written)
+    removed = out_folder.remove_stale(written)
 
     if not args.quiet:
         lines[0] += f", {timings['total']:.2f} s"
         print("\n".join(lines))
     for path in written:
         print(f"Wrote '{path}'")
+    for path in removed:
+        print(f"Removed '{path}' (an earlier run's, not written again)")
     if args.show and figures:
         show_images([out / name for name in figures])
     return EXIT_OK

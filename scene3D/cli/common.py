@@ -357,16 +357,17 @@ def run_command(args: argparse.Namespace, body: Callable[[argparse.Namespace], i
     configure_logging(args)
     created: list[Path] = []
     token = _created_folders.set(created)
+    code = EXIT_FAILED  # an exception that escapes (a bug: its traceback shows) too
     try:
         code = _exit_code(args, body)
     finally:
         _created_folders.reset(token)
-    if code != EXIT_OK:
-        for folder in sorted(created, key=lambda p: len(p.parts), reverse=True):
-            try:
-                folder.rmdir()
-            except OSError:  # not empty
-                pass
+        if code != EXIT_OK:
+            for folder in reversed(created):  # in the order made: innermost last
+                try:
+                    folder.rmdir()
+                except OSError:  # not empty
+                    pass
     return code
 
 

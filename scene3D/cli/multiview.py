@@ -225,9 +225,10 @@ def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, s
 def write_model(folder: Path, names: list[str], recon: MultiViewReconstruction,
                 model: SfMModel, plots: bool) -> list[Path]:
     """The files of one model: PLY, cameras JSON, COLMAP text model, figure."""
-    if not folder.exists():
-        folder.mkdir()
-        note_created_folders([folder])
+    for made in (folder, folder / "colmap"):  # removed again if the run fails
+        if not made.exists():
+            made.mkdir()
+            note_created_folders([made])
     obs = model.observations
     K = recon.model_K(model)
     colmap = colmap_text_files(names, K, recon.image_size, model.registered, model.R,
@@ -359,7 +360,7 @@ def run(args: argparse.Namespace) -> int:
         written.append(write_json(out / SUMMARY_FILE, summary))
         if not args.no_report:
             written.append(_write_report(out, names, recon, summary, not args.no_plots))
-    out_folder.remove_stale(written)
+    removed = out_folder.remove_stale(written)
 
     for name in recon.unregistered:
         logger.warning("view '%s' could not be registered: %s", name,
@@ -391,6 +392,8 @@ def run(args: argparse.Namespace) -> int:
                      if "focal_error_fraction" in gt else ""))
     for path in written:
         print(f"Wrote '{path}'")
+    for path in removed:
+        print(f"Removed '{path}' (an earlier run's, not written again)")
     for m, entry in thin:
         which = "the largest model" if m == 0 else f"model {m} ({entry['folder']}/)"
         print(f"error: {which} has {entry['points']} point{'s' * (entry['points'] != 1)} "

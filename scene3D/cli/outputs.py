@@ -34,15 +34,24 @@ def out_help(default: str) -> str:
 
 
 def prepare_output_dir(path: Path) -> Path:
-    """Create ``path`` (and parents) or raise ``UsageError`` naming why it cannot be used."""
+    """Create ``path`` (and parents) or raise ``UsageError`` naming why it cannot be used.
+
+    The folders created are noted (:func:`~scene3D.cli.common.note_created_folders`) one
+    by one as ``mkdir`` makes them, so that a failed run removes those and no other
+    (``new/../old`` creates ``new`` only).
+    """
     if path.exists() and not path.is_dir():
         raise UsageError(f"--out '{path}' exists and is not a folder")
-    missing = [folder for folder in (path, *path.parents) if not folder.exists()]
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UsageError(f"cannot create output folder '{path}': {exc.strerror}") from exc
-    note_created_folders(missing)
+    for folder in (*reversed(path.parents), path):
+        if folder.exists():
+            continue
+        try:
+            folder.mkdir()
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise UsageError(f"cannot create output folder '{path}': {exc.strerror}") from exc
+        note_created_folders([folder])
     if not os.access(path, os.W_OK | os.X_OK):
         raise UsageError(f"output folder '{path}' is not writable")
     return path
@@ -58,8 +67,13 @@ def previous_outputs(out: Path) -> list[Path]:
     if not summary.is_file():
         return []
     try:
-        recorded = json.loads(summary.read_text("utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError):
+        text = summary.read_bytes()
+    except OSError as exc:
+        raise UsageError(f"cannot read '{summary}' (of an earlier run?): "
+                         f"{exc.strerror or exc}") from None
+    try:
+        recorded = json.loads(text.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError):
         recorded = None
     if not isinstance(recorded, dict) or _OWN_SUMMARY_KEY not in recorded:
         raise UsageError(f"'{summary}' was not written by scene3D and would be replaced; "
@@ -82,28 +96,43 @@ def recorded_files(out: Path, paths: list[Path]) -> list[str]:
     return sorted({path.relative_to(out).as_posix() for path in paths})
 
 
-def remove_stale_outputs(out: Path, previous: list[Path], written: list[Path]) -> None:
+def remove_stale_outputs(out: Path, previous: list[Path], written: list[Path]) -> list[Path]:
     """Remove the previous run's files this run did not write, then the folders of theirs
-    left empty; a file that cannot be removed is named in a warning."""
-    kept = set(written)
+    left empty; return the files removed. A file reached through a link, or that is one
+    of ``written`` under another spelling (a case-insensitive disk), stays; one that
+    cannot be removed is named in a warning."""
+    kept = {_file_id(path) for path in written} - {None}
     inside = out.resolve()
+    removed = []
     for path in previous:
-        if path in kept or not path.is_file() or path.is_symlink():
+        if path in written or not path.is_file() or _file_id(path) in kept:
             continue
-        if inside not in path.resolve().parents:  # reached through a link out of --out
+        if path.resolve() != inside / path.relative_to(out):  # a link on the way
             continue
         try:
             path.unlink()
         except OSError as exc:
             logger.warning("could not remove '%s' of an earlier run: %s", path,
                            exc.strerror or exc)
+            continue
+        removed.append(path)
     folders = {parent for path in previous for parent in path.parents
                if parent != out and out in parent.parents}
     for folder in sorted(folders, key=lambda p: len(p.parts), reverse=True):
         try:
             folder.rmdir()
-        except OSError:  # not empty: it holds this run's files or the user's
+        except OSError:  # not empty (this run's files or the user's), or a link
             pass
+    return removed
+
+
+def _file_id(path: Path) -> tuple[int, int] | None:
+    """The (device, inode) of a file, None when it is missing."""
+    try:
+        stat = path.stat()
+    except OSError:
+        return None
+    return stat.st_dev, stat.st_ino
 
 
 class OutputFolder:
@@ -119,6 +148,7 @@ class OutputFolder:
         """The summary's ``FILES_KEY`` entry for ``paths`` (:func:`recorded_files`)."""
         return recorded_files(self.path, paths)
 
-    def remove_stale(self, written: list[Path]) -> None:
-        """:func:`remove_stale_outputs` once the run's files are in place."""
-        remove_stale_outputs(self.path, self.previous, written)
+    def remove_stale(self, written: list[Path]) -> list[Path]:
+        """:func:`remove_stale_outputs` once the run's files are in place; the files
+        removed."""
+        return remove_stale_outputs(self.path, self.previous, written)
