@@ -78,6 +78,29 @@ def check_intrinsics_for_size(K: FloatArray, image_size: tuple[int, int]) -> Non
                          "do (they are equal for square pixels)")
 
 
+def check_intrinsics_for_native_size(K: FloatArray, image_size: tuple[int, int],
+                                     what: str = "`K`") -> None:
+    """:func:`check_intrinsics_for_size` for a ``K`` given with images (the library's
+    ``K`` is for their native, stored size): the ``ValueError`` says so, and when the
+    principal point sits where a ``K`` for larger photos puts it (as far beyond the
+    centre in x as in y), by how much to scale it."""
+    try:
+        check_intrinsics_for_size(K, image_size)
+    except ValueError as exc:
+        w, h = image_size
+        message = (f"{what} does not fit images of {w}x{h} px, their native size, which it "
+                   f"must be for: {exc}")
+        ratios = np.array([K[0, 2] / (w / 2), K[1, 2] / (h / 2)])
+        if ratios.min() > 1.5 and ratios.max() < 1.15 * ratios.min():
+            s = float(ratios.mean())
+            nice = round(2 * s) / 2  # photos are mostly scaled by whole or half factors
+            s = nice if abs(nice - s) < 0.05 * s else round(s, 1)
+            message += (f"; a K for photos about {s:g} times larger (about {w * s:.0f}x"
+                        f"{h * s:.0f})? scene3D.camera.scale_intrinsics(K, {w} / W, {h} / H), "
+                        "W x H the size it was calibrated at, fits it to these")
+        raise ValueError(message) from None
+
+
 def validate_distortion(dist: ArrayLike | None) -> FloatArray:
     """Return OpenCV distortion coefficients as a flat ``(n,) float64`` array.
 

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .camera import (
-    check_intrinsics_for_size,
+    check_intrinsics_for_native_size,
     scale_intrinsics,
     scale_intrinsics_halved,
     validate_distortion,
@@ -123,11 +123,7 @@ class SceneReconstruction3D:
         (a, b), size, levels = load_working_images(
             (img1, img2), self.K_native, self.d, max_width if use_pyr_down else None,
             ("img1", "img2"))
-        try:
-            check_intrinsics_for_size(self.K_native, size)
-        except ValueError as exc:
-            raise ValueError(f"`K` does not fit images of {size[0]}x{size[1]} px, their "
-                             f"native size, which it must be for: {exc}") from None
+        check_intrinsics_for_native_size(self.K_native, size)
         self.img1, self.img2 = a, b
         self.native_size = size
         self.halvings = levels

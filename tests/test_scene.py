@@ -121,5 +121,8 @@ def test_a_K_for_larger_photos_is_refused_not_trusted(fountain, tmp_path):
         paths.append(tmp_path / name)
         cv2.imwrite(str(paths[-1]), small)
     scene = SceneReconstruction3D(cam.K)
-    with pytest.raises(ValueError, match=r"`K` does not fit images of 768x512 px.*principal"):
+    with pytest.raises(ValueError, match=r"`K` does not fit images of 768x512 px.*principal.*"
+                                         r"a K for photos about 4 times larger "
+                                         r"\(about 3072x2048\)\? "
+                                         r"scene3D.camera.scale_intrinsics\(K, 768 / W"):
         scene.load_image_pair(*paths)

@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike
 
 from ..bundle import Observations
 from ..camera import (
-    check_intrinsics_for_size,
+    check_intrinsics_for_native_size,
     scale_intrinsics_halved,
     validate_distortion,
     validate_intrinsics,
@@ -101,12 +101,7 @@ def _check_K_for_size(K: np.ndarray, size: tuple[int, int], prior: FocalPrior | 
         raise ValueError(f"`focal_prior` is for {prior.image_size[0]}x{prior.image_size[1]} "
                          f"images, not {size[0]}x{size[1]} px, the images' native size, "
                          "which it must be for")
-    try:
-        check_intrinsics_for_size(K, size)
-    except ValueError as exc:
-        what = "`K`" if prior is None else "`focal_prior.K`"
-        raise ValueError(f"{what} does not fit images of {size[0]}x{size[1]} px, their native "
-                         f"size, which it must be for: {exc}") from None
+    check_intrinsics_for_native_size(K, size, "`K`" if prior is None else "`focal_prior.K`")
 
 
 def _too_few_keypoints(found: Sequence[tuple], names: Sequence[str], needed: int,
