@@ -1,4 +1,5 @@
-"""Camera calibration from views of a chessboard or ChArUco board (pure functions).
+"""Camera calibration from views of a chessboard, a ChArUco board or a grid of circles
+(pure functions).
 
 The steps, usable one by one from a notebook:
 
@@ -40,6 +41,8 @@ __all__ = [
     "min_image_side_px", "save_calibration", "subpixel_window",
 ]
 
+#: The calibration targets :class:`BoardSpec` describes.
+PATTERNS = ("chessboard", "charuco", "circles", "acircles")
 _SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01)
 #: Seed of OpenCV's RNG before ``findChessboardCornersSB``, which draws from it: a fixed
 #: seed makes :func:`detect_board` give the same answer for the same image every time.
@@ -60,13 +63,19 @@ class BoardSpec:
     Attributes
     ----------
     pattern : str
-        ``"chessboard"`` or ``"charuco"``.
+        ``"chessboard"``, ``"charuco"``, ``"circles"`` (a symmetric grid of circles) or
+        ``"acircles"`` (an asymmetric one, alternate rows offset by half a column, as
+        OpenCV's ``acircles_pattern.png``).
     size : tuple[int, int]
         Chessboard: inner corners (columns, rows), e.g. the book's (9, 6).
-        ChArUco: squares (columns, rows), e.g. (5, 7). Two integers >= 2.
+        ChArUco: squares (columns, rows), e.g. (5, 7). Circle grids: circles per row and
+        rows, e.g. (4, 11) for OpenCV's asymmetric pattern. Two integers >= 2.
     square_size_m : float
-        Side of one square. The default 1.0 gives results in units of squares;
-        only the extrinsics depend on it, never ``K`` or the distortion.
+        Side of one square; for circle grids OpenCV's spacing: the distance between
+        neighbouring centres of a symmetric grid, half the distance between centres
+        in a row of an asymmetric one (the distance between rows). The default 1.0
+        gives results in these units; only the extrinsics depend on it, never ``K``
+        or the distortion.
     marker_size_m : float
         ChArUco only: side of the ArUco markers.
     dictionary : str
@@ -80,8 +89,9 @@ class BoardSpec:
     dictionary: str = "DICT_6X6_250"
 
     def __post_init__(self) -> None:
-        if self.pattern not in ("chessboard", "charuco"):
-            raise ValueError(f"`pattern` must be 'chessboard' or 'charuco', got {self.pattern!r}")
+        if self.pattern not in PATTERNS:
+            raise ValueError(f"`pattern` must be one of {', '.join(map(repr, PATTERNS))}, got "
+                             f"{self.pattern!r}")
         size = self.size
         if (isinstance(size, (str, bytes)) or not hasattr(size, "__len__") or len(size) != 2
                 or not all(isinstance(v, Integral) and not isinstance(v, bool) for v in size)
@@ -102,16 +112,24 @@ class BoardSpec:
                 raise ValueError(f"unknown ArUco dictionary {self.dictionary!r}")
 
     def describe(self) -> str:
+        cols, rows = self.size
         if self.pattern == "chessboard":
-            return (f"chessboard {self.size[0]}x{self.size[1]} inner corners, "
-                    f"square {self.square_size_m:g} m")
-        return (f"ChArUco {self.size[0]}x{self.size[1]} squares, square {self.square_size_m:g} m, "
+            return f"chessboard {cols}x{rows} inner corners, square {self.square_size_m:g} m"
+        if self.pattern == "circles":
+            return f"circles grid {cols}x{rows}, spacing {self.square_size_m:g} m"
+        if self.pattern == "acircles":
+            return f"asymmetric circles grid {cols}x{rows}, spacing {self.square_size_m:g} m"
+        return (f"ChArUco {cols}x{rows} squares, square {self.square_size_m:g} m, "
                 f"marker {self.marker_size_m:g} m, {self.dictionary}")
 
     def chessboard_object_points(self) -> FloatArray:
-        """``(cols * rows, 3)`` inner-corner positions on the plane ``z = 0``, row by row."""
+        """``(cols * rows, 3)`` positions of the grid's points (inner corners, circle
+        centres) on the plane ``z = 0``, row by row, in OpenCV's order: ``(j, i, 0) * s``
+        for column ``j`` of row ``i``; ``(2 j + i % 2, i, 0) * s`` for ``"acircles"``."""
         cols, rows = self.size
-        grid = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2) * self.square_size_m
+        j, i = np.meshgrid(np.arange(cols), np.arange(rows))
+        x = 2 * j + i % 2 if self.pattern == "acircles" else j
+        grid = np.column_stack([x.ravel(), i.ravel()]) * self.square_size_m
         return np.column_stack([grid, np.zeros(len(grid))])
 
     def charuco_board(self) -> cv2.aruco.CharucoBoard:
@@ -152,7 +170,7 @@ _MIN_DETECTOR_SIDE_PX = 15
 def min_image_side_px(board: BoardSpec) -> int:
     """The shorter side (px) below which an image cannot show ``board``: its squares
     across the board's narrower way, at least 3 px each."""
-    squares = min(board.size) + (1 if board.pattern == "chessboard" else 0)
+    squares = min(board.size) + (0 if board.pattern == "charuco" else 1)
     return max(_MIN_DETECTOR_SIDE_PX, _MIN_SQUARE_PX * squares)
 
 
@@ -196,6 +214,34 @@ def detect_chessboard(gray: np.ndarray, board: BoardSpec) -> tuple[FloatArray, s
         return None
     corners = corners.reshape(-1, 2).astype(np.float64)
     return _refine(gray, corners, subpixel_window(corners, board.size)), method
+
+
+def detect_circles(gray: np.ndarray, board: BoardSpec) -> FloatArray | None:
+    """Centres ``(N, 2)`` of a grid of dark circles on a light board (or light on dark)
+    in row order, or None.
+
+    ``cv2.findCirclesGrid`` with a blob detector whose largest blob is a quarter of the
+    image (OpenCV's default stops at 5000 px, a circle about 80 px across: a board
+    filling a photo has larger ones); an asymmetric grid is tried again with
+    ``CALIB_CB_CLUSTERING``, which copes with stronger perspective. The centres are the
+    blobs' centroids: under perspective a circle's image is an ellipse whose centroid
+    lies a little off the projected centre, so circles should stay small in the image
+    (measured on rendered boards in the calibration guide).
+    """
+    params = cv2.SimpleBlobDetector_Params()
+    params.minArea = 10.0
+    params.maxArea = 0.25 * gray.shape[0] * gray.shape[1]
+    symmetric = board.pattern == "circles"
+    base = cv2.CALIB_CB_SYMMETRIC_GRID if symmetric else cv2.CALIB_CB_ASYMMETRIC_GRID
+    tries = [base] if symmetric else [base, base | cv2.CALIB_CB_CLUSTERING]
+    for image in (gray, 255 - gray):  # dark circles, then light ones
+        detector = cv2.SimpleBlobDetector_create(params)
+        for flags in tries:
+            found, centres = cv2.findCirclesGrid(image, board.size, flags=flags,
+                                                 blobDetector=detector)
+            if found and centres is not None:
+                return centres.reshape(-1, 2).astype(np.float64)
+    return None
 
 
 def detect_charuco(gray: np.ndarray, board: BoardSpec,
@@ -244,6 +290,11 @@ def detect_board(gray: np.ndarray, board: BoardSpec, name: str = "") -> Detectio
             return None
         corners, method = found
         return Detection(name, corners, board.chessboard_object_points(), method)
+    if board.pattern in ("circles", "acircles"):
+        centres = detect_circles(gray, board)
+        if centres is None:
+            return None
+        return Detection(name, centres, board.chessboard_object_points(), "circles")
     found = detect_charuco(gray, board)
     if found is None:
         return None

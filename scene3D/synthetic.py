@@ -229,6 +229,37 @@ def render_planes(
     return np.clip(shade + 0.5, 0, 255).astype(np.uint8), depth
 
 
+def _board_plane_hits(
+    K: FloatArray, dist: FloatArray, rvec: FloatArray, tvec: FloatArray,
+    size: tuple[int, int], supersample: int,
+) -> tuple[FloatArray, np.ndarray]:
+    """Where each sub-pixel ray of a ``size`` image (``supersample`` x ``supersample``
+    per pixel) meets the board plane ``z = 0``: board coordinates ``(h*s*w*s, 2)`` in
+    row-major sub-pixel order, and whether the plane lies in front of the camera."""
+    w, h = size
+    offsets = (np.arange(supersample) + 0.5) / supersample - 0.5
+    xs = (np.arange(w)[:, None] + offsets[None, :]).ravel()
+    ys = (np.arange(h)[:, None] + offsets[None, :]).ravel()
+    gx, gy = np.meshgrid(xs, ys)
+    pix = np.stack([gx.ravel(), gy.ravel()], axis=1).reshape(-1, 1, 2)
+    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-10)
+    norm = cv2.undistortPoints(pix, K, dist, None, None, None, criteria).reshape(-1, 2)
+    rays = np.column_stack([norm, np.ones(len(norm))])
+    R, _ = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64))
+    tvec = np.asarray(tvec, dtype=np.float64).reshape(3)
+    # Board plane z_b = 0: points X = R [a, b, 0] + tvec; solve s ray = R [a b 0] + tvec.
+    n = R[:, 2]
+    s = (n @ tvec) / (rays @ n)
+    hit = (s[:, None] * rays - tvec) @ R  # board coordinates
+    return hit[:, :2], s > 0
+
+
+def _grey_image(value: FloatArray, size: tuple[int, int], supersample: int) -> np.ndarray:
+    w, h = size
+    img = value.reshape(h, supersample, w, supersample).mean(axis=(1, 3))
+    return np.clip(img + 0.5, 0, 255).astype(np.uint8)
+
+
 def render_board(
     K: FloatArray,
     dist: FloatArray,
@@ -245,27 +276,52 @@ def render_board(
     ``(i, j, 0) * square_size``; ``rvec, tvec`` map board to camera coordinates.
     A white margin of one square surrounds the squares.
     """
-    w, h = size
-    offsets = (np.arange(supersample) + 0.5) / supersample - 0.5
-    xs = (np.arange(w)[:, None] + offsets[None, :]).ravel()
-    ys = (np.arange(h)[:, None] + offsets[None, :]).ravel()
-    gx, gy = np.meshgrid(xs, ys)
-    pix = np.stack([gx.ravel(), gy.ravel()], axis=1).reshape(-1, 1, 2)
-    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-10)
-    norm = cv2.undistortPoints(pix, K, dist, None, None, None, criteria).reshape(-1, 2)
-    rays = np.column_stack([norm, np.ones(len(norm))])
-    R, _ = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64))
-    tvec = np.asarray(tvec, dtype=np.float64).reshape(3)
-    # Board plane z_b = 0: points X = R [a, b, 0] + tvec; solve s ray = R [a b 0] + tvec.
-    n = R[:, 2]
-    s = (n @ tvec) / (rays @ n)
-    hit = (s[:, None] * rays - tvec) @ R  # board coordinates
+    hit, front = _board_plane_hits(K, dist, rvec, tvec, size, supersample)
     a = hit[:, 0] / square_size + 1.0  # squares from the outer board edge
     b = hit[:, 1] / square_size + 1.0
     cols, rows = inner_corners
-    inside = (a >= 0) & (a < cols + 1) & (b >= 0) & (b < rows + 1) & (s > 0)
+    inside = (a >= 0) & (a < cols + 1) & (b >= 0) & (b < rows + 1) & front
     black = ((np.floor(a).astype(int) + np.floor(b).astype(int)) % 2 == 0) & inside
-    margin = (a >= -1) & (a < cols + 2) & (b >= -1) & (b < rows + 2) & (s > 0)
+    margin = (a >= -1) & (a < cols + 2) & (b >= -1) & (b < rows + 2) & front
     value = np.where(black, 20.0, np.where(margin, 235.0, 120.0))
-    img = value.reshape(h, supersample, w, supersample).mean(axis=(1, 3))
-    return np.clip(img + 0.5, 0, 255).astype(np.uint8)
+    return _grey_image(value, size, supersample)
+
+
+def render_circles_board(
+    K: FloatArray,
+    dist: FloatArray,
+    rvec: FloatArray,
+    tvec: FloatArray,
+    circles: tuple[int, int] = (4, 11),
+    spacing: float = 1.0,
+    asymmetric: bool = True,
+    size: tuple[int, int] = (640, 480),
+    supersample: int = 3,
+) -> np.ndarray:
+    """Grey ``uint8`` image of a grid of black circles on white, seen through a lens.
+
+    Circle ``(j, i)`` (column, row) is centred at OpenCV's object point: ``(j, i, 0) *
+    spacing`` for a symmetric grid, ``(2 j + i % 2, i, 0) * spacing`` for an asymmetric
+    one (its rows offset by half a column); radius ``0.3 * spacing`` and ``0.5 *
+    spacing``, with a white margin of two spacings around the centres.
+    """
+    hit, front = _board_plane_hits(K, dist, rvec, tvec, size, supersample)
+    a, b = hit[:, 0] / spacing, hit[:, 1] / spacing
+    cols, rows = circles
+    row = np.clip(np.rint(b), 0, rows - 1)
+    if asymmetric:
+        # The nearest centre lies in the nearest row or a neighbour of it.
+        best = np.full(len(a), np.inf)
+        for dr in (-1, 0, 1):
+            r = np.clip(row + dr, 0, rows - 1)
+            shift = r % 2
+            col = np.clip(np.rint((a - shift) / 2), 0, cols - 1)
+            best = np.minimum(best, np.hypot(a - (2 * col + shift), b - r))
+        radius, width = 0.5, 2 * cols - 1
+    else:
+        col = np.clip(np.rint(a), 0, cols - 1)
+        best = np.hypot(a - col, b - row)
+        radius, width = 0.3, cols
+    margin = (a >= -2) & (a <= width + 1) & (b >= -2) & (b <= rows + 1) & front
+    value = np.where((best <= radius) & front, 20.0, np.where(margin, 235.0, 120.0))
+    return _grey_image(value, size, supersample)

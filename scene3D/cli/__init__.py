@@ -15,7 +15,7 @@ os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")
 
 COMMANDS = {
     "reconstruct": "reconstruct a scene from two photos (chapter4.py)",
-    "calibrate": "calibrate a camera from chessboard or ChArUco views (calibrate.py)",
+    "calibrate": "calibrate a camera from chessboard, ChArUco or circle-grid views (calibrate.py)",
     "evaluate": "compare two-view poses with a Strecha-format ground truth",
     "reconstruct-views": "incremental SfM over many photos, with bundle adjustment",
 }

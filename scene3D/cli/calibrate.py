@@ -21,6 +21,7 @@ import numpy as np
 
 from ..calibration import (
     MAX_RMS_PX,
+    PATTERNS,
     BoardSpec,
     CalibrationResult,
     Detection,
@@ -72,8 +73,8 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
     parser = ArgumentParser(
         prog=prog,
         description=(
-            "Calibrate a camera from views of a chessboard or ChArUco board and write its "
-            "intrinsics for chapter4.py --calib. Headless unless --show."
+            "Calibrate a camera from views of a chessboard, a ChArUco board or a grid of "
+            "circles and write its intrinsics for chapter4.py --calib. Headless unless --show."
         ),
         epilog=(
             "The output is OpenCV FileStorage YAML (camera_matrix, distortion_coefficients, "
@@ -95,14 +96,20 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
     source.add_argument("--camera", type=non_negative_int, metavar="INDEX",
                         help="a webcam, e.g. 0")
     board = parser.add_argument_group("board")
-    board.add_argument("--pattern", choices=("chessboard", "charuco"), default="chessboard",
-                       help="calibration target (default: chessboard)")
+    board.add_argument("--pattern", choices=PATTERNS, default="chessboard",
+                       help="calibration target (default: chessboard): circles is a symmetric "
+                            "grid of circles, acircles an asymmetric one (rows offset by half "
+                            "a column, as OpenCV's acircles_pattern.png)")
     board.add_argument("--board", type=_board_size, default=None, metavar="COLSxROWS",
                        help="chessboard: inner corners (default 9x6, the book's); "
-                            "charuco: squares (default 5x7)")
+                            "charuco: squares (default 5x7); circles, acircles: circles per "
+                            "row x rows (acircles default 4x11, OpenCV's pattern; circles "
+                            "has no default)")
     board.add_argument("--square-size", type=finite_positive_float, default=1.0, metavar="M",
-                       help="side of a square in metres (default 1.0, i.e. results in units of "
-                            "squares; K and the distortion do not depend on it)")
+                       help="side of a square in metres (circles: the distance between "
+                            "neighbouring centres; acircles: between rows) (default 1.0, "
+                            "i.e. results in those units; K and the distortion do not "
+                            "depend on it)")
     board.add_argument("--marker-size", type=finite_positive_float, default=None, metavar="M",
                        help="charuco: side of a marker in metres (default: half a square)")
     board.add_argument("--dictionary", default="DICT_6X6_250",
@@ -142,6 +149,13 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
 def _board_from_args(args: argparse.Namespace) -> BoardSpec:
     if args.pattern == "chessboard":
         return BoardSpec("chessboard", args.board or (9, 6), args.square_size)
+    if args.pattern == "acircles":
+        return BoardSpec("acircles", args.board or (4, 11), args.square_size)
+    if args.pattern == "circles":
+        if args.board is None:
+            raise UsageError("--pattern circles needs --board COLSxROWS (circles per row x "
+                             "rows)")
+        return BoardSpec("circles", args.board, args.square_size)
     marker = args.marker_size if args.marker_size is not None else args.square_size / 2
     return BoardSpec("charuco", args.board or (5, 7), args.square_size, marker, args.dictionary)
 
@@ -426,6 +440,9 @@ def _too_few_views(args: argparse.Namespace, board: BoardSpec, found: CollectedV
                     f"{board.size[1]} board")
         elif board.pattern == "chessboard":
             hint = "check --board: it counts inner corners (a board of 10x7 squares has 9x6)"
+        elif board.pattern in ("circles", "acircles"):
+            hint = ("check --board (circles per row x rows) and --pattern (circles or "
+                    "acircles); the whole grid must be in view")
         else:
             hint = "check --board (squares), --marker-size and --dictionary"
         return f"the board was not found in any of the {seen} views; {hint}"
@@ -449,8 +466,9 @@ def run(args: argparse.Namespace) -> int:
     except CalibrationError as exc:
         if exc.reason != "corners_do_not_fit":
             raise
-        hint = ("check --board: it counts inner corners" if board.pattern == "chessboard"
-                else "check --board, --marker-size and --dictionary")
+        hint = {"chessboard": "check --board: it counts inner corners",
+                "charuco": "check --board, --marker-size and --dictionary"}.get(
+                    board.pattern, "check --board and --pattern")
         raise CalibrationError(f"{exc} (--max-rms); {hint}", exc.reason) from None
     kept = [v for v in views if v.name in result.per_view_errors_px]
     counts = corner_coverage([v.image_points for v in kept], size)
