@@ -77,7 +77,8 @@ class BoardSpec:
         gives results in these units; only the extrinsics depend on it, never ``K``
         or the distortion.
     marker_size_m : float
-        ChArUco only: side of the ArUco markers.
+        ChArUco only: side of the ArUco markers. A board with an even number of rows
+        may have OpenCV's layout before 4.6; both are tried (:func:`detect_charuco`).
     dictionary : str
         ChArUco only: an ``cv2.aruco`` dictionary name such as ``"DICT_6X6_250"``.
     """
@@ -244,16 +245,33 @@ def detect_circles(gray: np.ndarray, board: BoardSpec) -> FloatArray | None:
     return None
 
 
-def detect_charuco(gray: np.ndarray, board: BoardSpec,
-                   min_corners: int = 6) -> tuple[FloatArray, FloatArray] | None:
-    """ChArUco corners ``(N, 2)`` and their board points ``(N, 3)``, or None."""
-    charuco = board.charuco_board()
-    detector = cv2.aruco.CharucoDetector(charuco)
-    corners, ids, _, _ = detector.detectBoard(gray)
-    if corners is None or ids is None or len(ids) < min_corners:
+def detect_charuco(gray: np.ndarray, board: BoardSpec, min_corners: int = 6
+                   ) -> tuple[FloatArray, FloatArray, str] | None:
+    """ChArUco corners ``(N, 2)``, their board points ``(N, 3)`` and the layout that
+    found them (``"charuco"`` or ``"charuco-legacy"``), or None.
+
+    OpenCV 4.6 changed where the markers of a board with an even number of rows sit;
+    boards printed from earlier versions (and some board generators) have the old
+    layout, in which the new one finds markers but no corner. For such a size both
+    layouts are tried and the one that finds more corners is kept.
+    """
+    layouts = [("charuco", board.charuco_board())]
+    if board.size[1] % 2 == 0:
+        legacy = board.charuco_board()
+        legacy.setLegacyPattern(True)
+        layouts.append(("charuco-legacy", legacy))
+    best = None
+    for name, charuco in layouts:
+        corners, ids, _, _ = cv2.aruco.CharucoDetector(charuco).detectBoard(gray)
+        if corners is None or ids is None or len(ids) < min_corners:
+            continue
+        if best is None or len(ids) > len(best[1]):
+            best = (corners, ids, name, charuco)
+    if best is None:
         return None
+    corners, ids, name, charuco = best
     all_points = np.asarray(charuco.getChessboardCorners(), dtype=np.float64).reshape(-1, 3)
-    return corners.reshape(-1, 2).astype(np.float64), all_points[ids.ravel()]
+    return corners.reshape(-1, 2).astype(np.float64), all_points[ids.ravel()], name
 
 
 def detect_board(gray: np.ndarray, board: BoardSpec, name: str = "") -> Detection | None:
@@ -298,7 +316,7 @@ def detect_board(gray: np.ndarray, board: BoardSpec, name: str = "") -> Detectio
     found = detect_charuco(gray, board)
     if found is None:
         return None
-    return Detection(name, found[0], found[1], "charuco")
+    return Detection(name, *found)
 
 
 #: Largest RMS reprojection error (px) that :func:`calibrate` accepts. Good boards give

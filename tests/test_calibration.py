@@ -68,6 +68,26 @@ def test_charuco_matches_its_published_calibration(chessboards):
         assert abs(result.K[i, j] - published[i, j]) < 2 * result.std_intrinsics[name] + 1.0
 
 
+@pytest.mark.parametrize("legacy", [False, True])
+def test_charuco_boards_of_either_layout_are_found(legacy):
+    """OpenCV 4.6 moved the markers of boards with an even number of rows: a 5x6 board
+    printed with the old layout showed its markers but no corner to the new detector."""
+    dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_6X6_250)
+    printed = cv2.aruco.CharucoBoard((5, 6), 0.04, 0.02, dictionary)
+    printed.setLegacyPattern(legacy)
+    flat = cv2.copyMakeBorder(printed.generateImage((500, 600), marginSize=20), 60, 60, 60, 60,
+                              cv2.BORDER_CONSTANT, value=255)
+    H = np.array([[0.9, 0.08, 30.0], [-0.05, 0.85, 20.0], [1e-4, 5e-5, 1.0]])
+    photo = cv2.warpPerspective(flat, H, (720, 760), borderValue=255)
+    found = detect_board(photo, BoardSpec("charuco", (5, 6), 0.04, 0.02), "v")
+    assert found is not None and len(found.image_points) == 4 * 5
+    assert found.method == ("charuco-legacy" if legacy else "charuco")
+    # Each corner's board point maps onto it: the layout that found them is the printed one.
+    fit, _ = cv2.findHomography(found.object_points[:, :2], found.image_points)
+    mapped = cv2.perspectiveTransform(found.object_points[None, :, :2], fit)[0]
+    assert np.sqrt(np.mean(np.sum((mapped - found.image_points) ** 2, axis=1))) < 0.5
+
+
 def test_rendered_boards_give_the_true_intrinsics(board_views):
     board = BoardSpec()
     dets = [detect_board(img, board, f"v{i}") for i, img in enumerate(board_views)]
