@@ -53,6 +53,15 @@ def _text(value: object) -> str | None:
     return value or None
 
 
+def _register_heif_opener() -> None:
+    """Let Pillow open HEIC/HEIF photos (their EXIF) when ``pillow-heif`` is installed."""
+    try:
+        from pillow_heif import register_heif_opener
+    except ImportError:
+        return
+    register_heif_opener()
+
+
 def read_exif(path: str | os.PathLike) -> ExifCamera | None:
     """The camera's EXIF values of an image file; None when it has no EXIF block.
 
@@ -69,6 +78,8 @@ def read_exif(path: str | os.PathLike) -> ExifCamera | None:
     """
     path = check_image_file(path)
     from PIL import Image, UnidentifiedImageError
+
+    _register_heif_opener()
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")

@@ -10,6 +10,7 @@ Pixel centres map as ``x' = (x + 0.5) / 2^L - 0.5`` (see
 
 from __future__ import annotations
 
+import io
 import logging
 import os
 from collections import deque
@@ -26,9 +27,9 @@ logger = logging.getLogger(__name__)
 
 ImageSource = str | os.PathLike | np.ndarray
 
-#: File endings taken as images when a folder is given.
+#: File endings taken as images when a folder is given (HEIC/HEIF need ``pillow-heif``).
 IMAGE_SUFFIXES = frozenset({".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm",
-                            ".ppm"})
+                            ".ppm", ".heic", ".heif"})
 
 #: The book halves images while they are wider than this.
 BOOK_MAX_WIDTH_PX = 1200
@@ -70,8 +71,46 @@ def _read_bytes(path: str | os.PathLike) -> np.ndarray:
 _HEIF_BRANDS = {b"heic", b"heix", b"heim", b"heis", b"hevc", b"hevx", b"mif1", b"msf1"}
 
 
+def is_heif(head: bytes | np.ndarray) -> bool:
+    """Whether the first bytes of a file are those of a HEIC/HEIF photo."""
+    head = bytes(memoryview(head).cast("B")[:12])
+    return head[4:8] == b"ftyp" and head[8:12] in _HEIF_BRANDS
+
+
+def _pillow_heif(path: str | os.PathLike):
+    """The ``pillow_heif`` module, or a ``ValueError`` naming ``path`` and how to get it."""
+    try:
+        import pillow_heif
+    except ImportError:
+        raise ValueError(f"cannot read image '{path}': a HEIC/HEIF photo, which needs "
+                         "pillow-heif (pip install 'scene3D[heic]'), or convert it to JPEG "
+                         "(heif-convert, or export as JPEG from the photo app)") from None
+    return pillow_heif
+
+
+def _decode_heif(data: np.ndarray, path: str | os.PathLike) -> np.ndarray:
+    """A HEIC/HEIF photo's primary image as stored in BGR (``uint16`` for more than 8
+    bits), alpha dropped. libheif applies the file's rotation and mirroring (its
+    ``irot``/``imir`` properties), so a portrait photo comes out upright, taller than
+    wide, where a JPEG's pixels keep the sensor's layout (:func:`read_image`)."""
+    pillow_heif = _pillow_heif(path)
+    try:
+        heif = pillow_heif.open_heif(io.BytesIO(data.tobytes()), convert_hdr_to_8bit=False,
+                                     bgr_mode=True)
+        img = np.asarray(heif)
+    except Exception as exc:  # noqa: BLE001 - libheif's errors come as several types
+        raise ValueError(f"cannot read image '{path}': a damaged HEIC/HEIF file "
+                         f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})"
+                         ) from None
+    if img.ndim == 3 and img.shape[2] == 4:
+        img = img[:, :, :3]  # BGRA: alpha dropped
+    return np.ascontiguousarray(img)
+
+
 def _decode(data: np.ndarray, flags: int, path: str | os.PathLike) -> np.ndarray:
     head = data[:_HEADER_BYTES]
+    if is_heif(head):
+        return _decode_heif(data, path)
     _check_header(head, data.size, path)
     try:
         img = cv2.imdecode(data, flags | cv2.IMREAD_IGNORE_ORIENTATION)
@@ -83,11 +122,6 @@ def _decode(data: np.ndarray, flags: int, path: str | os.PathLike) -> np.ndarray
                              "damaged file") from None
         raise ValueError(f"cannot read image '{path}': a damaged image file{claim}") from None
     if img is None or img.size == 0:
-        head = data[:12].tobytes()
-        if head[4:8] == b"ftyp" and head[8:12] in _HEIF_BRANDS:
-            raise ValueError(f"cannot read image '{path}': a HEIC/HEIF photo, which OpenCV "
-                             "cannot decode; convert it to JPEG first (e.g. heif-convert, or "
-                             "export as JPEG from the photo app)")
         raise ValueError(f"cannot read image '{path}': not an image file, or a damaged one")
     return img
 
@@ -96,7 +130,9 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     """Read an image file as stored: grey or colour, 8 or 16 bits (an alpha channel is dropped).
 
     The pixels are taken as stored: EXIF orientation is not applied, so that
-    they match the sensor layout a calibration describes.
+    they match the sensor layout a calibration describes. HEIC/HEIF photos (iPhones'
+    default) are read with ``pillow-heif`` when it is installed (``scene3D[heic]``);
+    libheif applies their rotation, so a portrait one comes out upright.
 
     Returns
     -------
@@ -111,7 +147,8 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
         If ``path`` does not exist.
     ValueError
         If the file is empty or not an image OpenCV can decode: damaged, too large
-        for OpenCV, or a JPEG whose header claims more pixels than the file holds.
+        for OpenCV, or a JPEG whose header claims more pixels than the file holds; or a
+        HEIC/HEIF photo without ``pillow-heif`` installed (the message says how).
     """
     return _decode(_read_bytes(path), _AS_STORED, path)
 
@@ -210,10 +247,17 @@ def read_image_size(path: str | os.PathLike) -> tuple[int, int]:
     if path.is_file():
         with open(path, "rb") as f:
             head = f.read(_HEADER_BYTES)
-            _check_header(head, os.fstat(f.fileno()).st_size, path)
+            if not is_heif(head):
+                _check_header(head, os.fstat(f.fileno()).st_size, path)
         size = header_size(head)
         if size is not None:
             return size
+        if is_heif(head):  # libheif reads the size (after its rotation) without decoding
+            pillow_heif = _pillow_heif(path)
+            try:
+                return tuple(pillow_heif.open_heif(path).size)
+            except Exception:  # noqa: BLE001 - damaged: decoding below says how
+                pass
     return image_size(read_image(path))
 
 

@@ -50,10 +50,10 @@ def test_bad_files(tmp_path):
         read_image(tmp_path / "missing.jpg")
     with pytest.raises(FileNotFoundError, match="a folder, not an image file"):
         read_image(tmp_path)
-    # An iPhone's HEIC photo (its file box; OpenCV has no HEIF decoder) is named as such.
+    # A damaged HEIC photo (its file box and nothing else) is named as such.
     heic = tmp_path / "IMG_0001.HEIC"
     heic.write_bytes(b"\x00\x00\x00\x18ftypheic\x00\x00\x00\x00mif1heic" + bytes(1000))
-    with pytest.raises(ValueError, match="a HEIC/HEIF photo, which OpenCV cannot decode"):
+    with pytest.raises(ValueError, match="cannot read image .*a damaged HEIC/HEIF file"):
         read_image(heic)
     text = tmp_path / "notes.jpg"
     text.write_text("not an image")
