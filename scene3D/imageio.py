@@ -71,40 +71,86 @@ def _read_bytes(path: str | os.PathLike) -> np.ndarray:
 _HEIF_BRANDS = {b"heic", b"heix", b"heim", b"heis", b"hevc", b"hevx", b"mif1", b"msf1"}
 
 
+#: Brands of that container that mark AV1 images (AVIF), which OpenCV decodes itself.
+_AVIF_BRANDS = {b"avif", b"avis"}
+
+
 def is_heif(head: bytes | np.ndarray) -> bool:
-    """Whether the first bytes of a file are those of a HEIC/HEIF photo."""
-    head = bytes(memoryview(head).cast("B")[:12])
-    return head[4:8] == b"ftyp" and head[8:12] in _HEIF_BRANDS
+    """Whether the first bytes of a file are those of a HEIC/HEIF photo: an ISO media
+    ``ftyp`` box naming a HEIF brand and no AVIF one (an AVIF file may name ``mif1``
+    first and ``avif`` among its compatible brands)."""
+    head = bytes(memoryview(head).cast("B")[:64])
+    if head[4:8] != b"ftyp":
+        return False
+    end = min(int.from_bytes(head[:4], "big"), len(head))
+    brands = {head[8:12]} | {head[i:i + 4] for i in range(16, end - 3, 4)}
+    return head[8:12] in _HEIF_BRANDS and not brands & _AVIF_BRANDS
 
 
 def _pillow_heif(path: str | os.PathLike):
-    """The ``pillow_heif`` module, or a ``ValueError`` naming ``path`` and how to get it."""
+    """The ``pillow_heif`` module, its Pillow opener registered, or a ``ValueError``
+    naming ``path`` and how to get it."""
     try:
         import pillow_heif
     except ImportError:
         raise ValueError(f"cannot read image '{path}': a HEIC/HEIF photo, which needs "
                          "pillow-heif (pip install 'scene3D[heic]'), or convert it to JPEG "
                          "(heif-convert, or export as JPEG from the photo app)") from None
+    pillow_heif.register_heif_opener()
     return pillow_heif
 
 
-def _decode_heif(data: np.ndarray, path: str | os.PathLike) -> np.ndarray:
-    """A HEIC/HEIF photo's primary image as stored in BGR (``uint16`` for more than 8
-    bits), alpha dropped. libheif applies the file's rotation and mirroring (its
-    ``irot``/``imir`` properties), so a portrait photo comes out upright, taller than
-    wide, where a JPEG's pixels keep the sensor's layout (:func:`read_image`)."""
-    pillow_heif = _pillow_heif(path)
+#: How to undo each EXIF orientation (1-8) on an (H, W, ...) array: what libheif applied
+#: to the stored pixels to show them (2, 4, 5, 7 mirror; 3, 6, 8 turn).
+_UNDO_ORIENTATION = {
+    2: lambda a: a[:, ::-1], 3: lambda a: a[::-1, ::-1], 4: lambda a: a[::-1],
+    5: lambda a: a.swapaxes(0, 1), 6: lambda a: np.rot90(a, 1),
+    7: lambda a: a[::-1, ::-1].swapaxes(0, 1), 8: lambda a: np.rot90(a, -1),
+}
+
+
+def _open_heif(source, path: str | os.PathLike):
+    """The Pillow image of a HEIC/HEIF file (``source``: its path or a file object) and
+    the EXIF orientation libheif applied."""
+    from PIL import Image
+
+    _pillow_heif(path)
     try:
-        heif = pillow_heif.open_heif(io.BytesIO(data.tobytes()), convert_hdr_to_8bit=False,
-                                     bgr_mode=True)
-        img = np.asarray(heif)
+        img = Image.open(source)
+        img.size  # noqa: B018 - the header is read here
     except Exception as exc:  # noqa: BLE001 - libheif's errors come as several types
         raise ValueError(f"cannot read image '{path}': a damaged HEIC/HEIF file "
                          f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})"
                          ) from None
-    if img.ndim == 3 and img.shape[2] == 4:
-        img = img[:, :, :3]  # BGRA: alpha dropped
-    return np.ascontiguousarray(img)
+    return img, img.info.get("original_orientation") or 1
+
+
+def _decode_heif(data: np.ndarray, path: str | os.PathLike) -> np.ndarray:
+    """A HEIC/HEIF photo's primary image as stored, BGR ``uint8`` (grey ``(H, W)``),
+    alpha dropped. libheif turns the pixels as the file says they are shown; the
+    turn its EXIF orientation records is undone, so that a portrait photo's pixels keep
+    the sensor's layout as a JPEG's do (:func:`read_image`)."""
+    img, orientation = _open_heif(io.BytesIO(data.tobytes()), path)
+    try:
+        with img:
+            grey = img.mode in ("L", "I;16", "I")
+            pixels = np.asarray(img.convert("L" if grey else "RGB"))
+    except Exception as exc:  # noqa: BLE001 - as in _open_heif
+        raise ValueError(f"cannot read image '{path}': a damaged HEIC/HEIF file "
+                         f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})"
+                         ) from None
+    if not grey:
+        pixels = pixels[:, :, ::-1]  # RGB -> BGR
+    undo = _UNDO_ORIENTATION.get(orientation)
+    return np.ascontiguousarray(undo(pixels) if undo else pixels)
+
+
+def _heif_size(path: str | os.PathLike) -> tuple[int, int]:
+    """``(width, height)`` of a HEIC/HEIF photo as stored, from its header."""
+    img, orientation = _open_heif(path, path)
+    with img:
+        w, h = img.size
+    return (h, w) if orientation in (5, 6, 7, 8) else (w, h)
 
 
 def _decode(data: np.ndarray, flags: int, path: str | os.PathLike) -> np.ndarray:
@@ -131,8 +177,8 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
 
     The pixels are taken as stored: EXIF orientation is not applied, so that
     they match the sensor layout a calibration describes. HEIC/HEIF photos (iPhones'
-    default) are read with ``pillow-heif`` when it is installed (``scene3D[heic]``);
-    libheif applies their rotation, so a portrait one comes out upright.
+    default) are read with ``pillow-heif`` when it is installed (``scene3D[heic]``), in
+    8 bits, with the rotation their EXIF orientation records undone likewise.
 
     Returns
     -------
@@ -252,12 +298,8 @@ def read_image_size(path: str | os.PathLike) -> tuple[int, int]:
         size = header_size(head)
         if size is not None:
             return size
-        if is_heif(head):  # libheif reads the size (after its rotation) without decoding
-            pillow_heif = _pillow_heif(path)
-            try:
-                return tuple(pillow_heif.open_heif(path).size)
-            except Exception:  # noqa: BLE001 - damaged: decoding below says how
-                pass
+        if is_heif(head):  # read from its header, without decoding
+            return _heif_size(path)
     return image_size(read_image(path))
 
 

@@ -1,5 +1,6 @@
-"""HEIC/HEIF photos (iPhones' default format) through pillow-heif: pixels, size, EXIF, a
-pose against the Strecha ground truth, and the message without pillow-heif."""
+"""HEIC/HEIF photos (iPhones' default format) through pillow-heif: pixels and size as
+stored, EXIF, a pose against the Strecha ground truth, AVIF left to OpenCV, and the
+message without pillow-heif."""
 
 import sys
 
@@ -80,15 +81,18 @@ def test_a_heic_photos_exif_gives_the_focal_prior(heic_pair):
     assert prior.source == "exif" and abs(prior.focal_px - 1536 * 26 / 36) < 0.25 * 1536
 
 
-def test_a_portrait_heic_comes_out_upright(tmp_path):
-    """iPhones store a portrait photo's rotation in the file (irot); libheif applies it."""
+@pytest.mark.parametrize("orientation", [1, 2, 3, 4, 5, 6, 7, 8])
+def test_a_heic_photo_keeps_its_stored_layout(tmp_path, orientation):
+    """iPhones store a portrait photo's turn in the file (irot, and EXIF orientation);
+    libheif applies it, and the package undoes it: the pixels as stored, as for a JPEG."""
     img = np.zeros((480, 640, 3), np.uint8)
-    img[:, :320] = 255  # the left half white, as the sensor saw it
-    path = tmp_path / "portrait.heic"
-    _save_heic(path, img, _iphone_exif(orientation=6))  # 90 degrees clockwise to display
-    upright = read_image(path)
-    assert upright.shape[:2] == (640, 480) and read_image_size(path) == (480, 640)
-    assert upright[5, 5:240].mean() > 200 and upright[-5, 5:240].mean() < 50
+    img[:240, :320] = 255  # the top-left quarter white, as the sensor saw it
+    path = tmp_path / f"o{orientation}.heic"
+    _save_heic(path, img, _iphone_exif(orientation))
+    stored = read_image(path)
+    assert stored.shape == (480, 640, 3) and read_image_size(path) == (640, 480)
+    assert stored[5:235, 5:315].min() > 200 and stored[245:, :].max() < 50
+    assert stored[:, 325:].max() < 50
 
 
 def test_without_pillow_heif_the_message_says_how(heic_pair, monkeypatch):
@@ -96,3 +100,13 @@ def test_without_pillow_heif_the_message_says_how(heic_pair, monkeypatch):
     with pytest.raises(ValueError, match=r"a HEIC/HEIF photo, which needs pillow-heif "
                                          r"\(pip install 'scene3D\[heic\]'\)"):
         read_image(heic_pair[0])
+
+
+def test_an_avif_naming_mif1_first_is_left_to_opencv(tmp_path):
+    """AVIF files share HEIF's container; one may name mif1 as its major brand with avif
+    among its compatible ones. OpenCV decodes AVIF; libheif here has no AV1 decoder."""
+    from scene3D.imageio import is_heif
+
+    ftyp = (b"\x00\x00\x00\x1cftyp" + b"mif1" + b"\x00\x00\x00\x00" + b"mif1avifmiaf")
+    assert not is_heif(ftyp)
+    assert is_heif(b"\x00\x00\x00\x18ftypheic\x00\x00\x00\x00mif1heic")
