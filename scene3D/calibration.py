@@ -221,27 +221,29 @@ def detect_circles(gray: np.ndarray, board: BoardSpec) -> FloatArray | None:
     """Centres ``(N, 2)`` of a grid of dark circles on a light board (or light on dark)
     in row order, or None.
 
-    ``cv2.findCirclesGrid`` with a blob detector whose largest blob is a quarter of the
-    image (OpenCV's default stops at 5000 px, a circle about 80 px across: a board
-    filling a photo has larger ones); an asymmetric grid is tried again with
-    ``CALIB_CB_CLUSTERING``, which copes with stronger perspective. The centres are the
-    blobs' centroids: under perspective a circle's image is an ellipse whose centroid
-    lies a little off the projected centre, so circles should stay small in the image
-    (measured on rendered boards in the calibration guide).
+    ``cv2.findCirclesGrid`` with OpenCV's blob detector first; if it finds no grid,
+    with blobs up to the image's area shared among the circles (a circle is smaller
+    than its share of a grid that fits the image; OpenCV's default stops at 5000 px, a
+    circle 80 px across, which a board filling a photo exceeds, while no bound at all
+    lets the board's outline merge into a circle and pull its centre off). Each is tried
+    plain and with ``CALIB_CB_CLUSTERING``, which copes with stronger perspective. The
+    centres are the blobs' centroids: under perspective a circle's image is an ellipse
+    whose centroid lies a little off the projected centre, so circles should stay small
+    in the image (measured on rendered boards in the calibration guide).
     """
-    params = cv2.SimpleBlobDetector_Params()
-    params.minArea = 10.0
-    params.maxArea = 0.25 * gray.shape[0] * gray.shape[1]
-    symmetric = board.pattern == "circles"
-    base = cv2.CALIB_CB_SYMMETRIC_GRID if symmetric else cv2.CALIB_CB_ASYMMETRIC_GRID
-    tries = [base] if symmetric else [base, base | cv2.CALIB_CB_CLUSTERING]
-    for image in (gray, 255 - gray):  # dark circles, then light ones
-        detector = cv2.SimpleBlobDetector_create(params)
-        for flags in tries:
-            found, centres = cv2.findCirclesGrid(image, board.size, flags=flags,
-                                                 blobDetector=detector)
-            if found and centres is not None:
-                return centres.reshape(-1, 2).astype(np.float64)
+    large = cv2.SimpleBlobDetector_Params()
+    large.minArea = 10.0
+    large.maxArea = max(large.maxArea, gray.shape[0] * gray.shape[1] / np.prod(board.size))
+    base = (cv2.CALIB_CB_SYMMETRIC_GRID if board.pattern == "circles"
+            else cv2.CALIB_CB_ASYMMETRIC_GRID)
+    for params in (cv2.SimpleBlobDetector_Params(), large):
+        for image in (gray, 255 - gray):  # dark circles, then light ones
+            for flags in (base, base | cv2.CALIB_CB_CLUSTERING):
+                found, centres = cv2.findCirclesGrid(
+                    image, board.size, flags=flags,
+                    blobDetector=cv2.SimpleBlobDetector_create(params))
+                if found and centres is not None:
+                    return centres.reshape(-1, 2).astype(np.float64)
     return None
 
 
@@ -252,8 +254,10 @@ def detect_charuco(gray: np.ndarray, board: BoardSpec, min_corners: int = 6
 
     OpenCV 4.6 changed where the markers of a board with an even number of rows sit;
     boards printed from earlier versions (and some board generators) have the old
-    layout, in which the new one finds markers but no corner. For such a size both
-    layouts are tried and the one that finds more corners is kept.
+    layout, in which the new one finds markers but no corner of a whole board. For such
+    a size both layouts are tried and the one that finds more corners is kept, the
+    current one on a tie (a partial view of an old board can give both the same
+    corners one square apart: the same intrinsics, another board pose).
     """
     layouts = [("charuco", board.charuco_board())]
     if board.size[1] % 2 == 0:
