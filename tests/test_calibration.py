@@ -133,6 +133,34 @@ def test_rendered_circle_grids_give_the_true_intrinsics(pattern, size, centre, i
     assert np.hypot(*(result.K[:2, 2] - TRUE_K[:2, 2])) < 2.0
 
 
+@pytest.mark.parametrize("pattern, size", [("circles", (7, 6)), ("acircles", (4, 11))])
+def test_circle_centres_lie_on_the_true_ones(pattern, size):
+    """Twelve views at random tilts and rolls: every centre found lies on a circle's
+    projected centre (as a set: a symmetric grid may come back turned, which only
+    relabels the board). With no bound on the blobs the board's outline merged into a
+    circle and moved it 8-21 px."""
+    rng = np.random.default_rng(0)
+    board = BoardSpec(pattern, size)
+    points = board.chessboard_object_points()
+    centre = points.max(axis=0) / 2
+    found = 0
+    for _ in range(12):
+        yaw, pitch = rng.uniform(-0.9, 0.9, 2)
+        R = (cv2.Rodrigues(np.array([pitch, yaw, 0.0]))[0]
+             @ cv2.Rodrigues(np.array([0.0, 0.0, rng.uniform(0, 2 * np.pi)]))[0])
+        rvec, tvec = cv2.Rodrigues(R)[0].ravel(), np.array([0.0, 0.0, 22.0]) - R @ centre
+        img = render_circles_board(TRUE_K, TRUE_DIST, rvec, tvec, size, 1.0,
+                                   pattern == "acircles", supersample=2)
+        detection = detect_board(img, board)
+        if detection is None:
+            continue
+        found += 1
+        truth = cv2.projectPoints(points, rvec, tvec, TRUE_K, TRUE_DIST)[0].reshape(-1, 2)
+        gaps = np.linalg.norm(detection.image_points[:, None] - truth[None], axis=2)
+        assert gaps.min(axis=1).max() < 0.5 and len(set(gaps.argmin(axis=1))) == len(truth)
+    assert found >= 10
+
+
 def test_circle_grid_object_points_follow_opencv():
     """OpenCV's calibration sample: (j, i) * s symmetric, (2 j + i % 2, i) * s asymmetric."""
     sym = BoardSpec("circles", (3, 2), 0.5).chessboard_object_points()
