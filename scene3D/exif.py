@@ -16,7 +16,7 @@ import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
-from .imageio import check_image_file, read_image_size
+from .imageio import check_image_file, read_image_size, register_heif_opener
 from .intrinsics_prior import ExifCamera, FocalPrior, camera_prior
 
 logger = logging.getLogger(__name__)
@@ -53,15 +53,6 @@ def _text(value: object) -> str | None:
     return value or None
 
 
-def _register_heif_opener() -> None:
-    """Let Pillow open HEIC/HEIF photos (their EXIF) when ``pillow-heif`` is installed."""
-    try:
-        from pillow_heif import register_heif_opener
-    except ImportError:
-        return
-    register_heif_opener()
-
-
 def read_exif(path: str | os.PathLike) -> ExifCamera | None:
     """The camera's EXIF values of an image file; None when it has no EXIF block.
 
@@ -79,7 +70,7 @@ def read_exif(path: str | os.PathLike) -> ExifCamera | None:
     path = check_image_file(path)
     from PIL import Image, UnidentifiedImageError
 
-    _register_heif_opener()
+    register_heif_opener()  # HEIC photos' EXIF, when pillow-heif is installed
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")

@@ -87,17 +87,29 @@ def is_heif(head: bytes | np.ndarray) -> bool:
     return head[8:12] in _HEIF_BRANDS and not brands & _AVIF_BRANDS
 
 
-def _pillow_heif(path: str | os.PathLike):
-    """The ``pillow_heif`` module, its Pillow opener registered, or a ``ValueError``
-    naming ``path`` and how to get it."""
+def register_heif_opener() -> bool:
+    """Let Pillow open HEIC/HEIF files; False when ``pillow-heif`` is not installed."""
     try:
-        import pillow_heif
+        from pillow_heif import register_heif_opener as register
     except ImportError:
+        return False
+    register()
+    return True
+
+
+def _require_heif_opener(path: str | os.PathLike) -> None:
+    """:func:`register_heif_opener`, or a ``ValueError`` naming ``path`` and how to get
+    ``pillow-heif``."""
+    if not register_heif_opener():
         raise ValueError(f"cannot read image '{path}': a HEIC/HEIF photo, which needs "
                          "pillow-heif (pip install 'scene3D[heic]'), or convert it to JPEG "
-                         "(heif-convert, or export as JPEG from the photo app)") from None
-    pillow_heif.register_heif_opener()
-    return pillow_heif
+                         "(heif-convert, or export as JPEG from the photo app)")
+
+
+def _damaged_heif(path: str | os.PathLike, exc: Exception) -> ValueError:
+    """The error for a HEIC/HEIF file libheif cannot read, with its reason."""
+    reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return ValueError(f"cannot read image '{path}': a damaged HEIC/HEIF file ({reason})")
 
 
 #: How to undo each EXIF orientation (1-8) on an (H, W, ...) array: what libheif applied
@@ -114,14 +126,12 @@ def _open_heif(source, path: str | os.PathLike):
     the EXIF orientation libheif applied."""
     from PIL import Image
 
-    _pillow_heif(path)
+    _require_heif_opener(path)
     try:
         img = Image.open(source)
         img.size  # noqa: B018 - the header is read here
     except Exception as exc:  # noqa: BLE001 - libheif's errors come as several types
-        raise ValueError(f"cannot read image '{path}': a damaged HEIC/HEIF file "
-                         f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})"
-                         ) from None
+        raise _damaged_heif(path, exc) from None
     return img, img.info.get("original_orientation") or 1
 
 
@@ -136,9 +146,7 @@ def _decode_heif(data: np.ndarray, path: str | os.PathLike) -> np.ndarray:
             grey = img.mode in ("L", "I;16", "I")
             pixels = np.asarray(img.convert("L" if grey else "RGB"))
     except Exception as exc:  # noqa: BLE001 - as in _open_heif
-        raise ValueError(f"cannot read image '{path}': a damaged HEIC/HEIF file "
-                         f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})"
-                         ) from None
+        raise _damaged_heif(path, exc) from None
     if not grey:
         pixels = pixels[:, :, ::-1]  # RGB -> BGR
     undo = _UNDO_ORIENTATION.get(orientation)
@@ -293,13 +301,12 @@ def read_image_size(path: str | os.PathLike) -> tuple[int, int]:
     if path.is_file():
         with open(path, "rb") as f:
             head = f.read(_HEADER_BYTES)
-            if not is_heif(head):
-                _check_header(head, os.fstat(f.fileno()).st_size, path)
+            _check_header(head, os.fstat(f.fileno()).st_size, path)  # JPEG only
+        if is_heif(head):  # read from its header, without decoding
+            return _heif_size(path)
         size = header_size(head)
         if size is not None:
             return size
-        if is_heif(head):  # read from its header, without decoding
-            return _heif_size(path)
     return image_size(read_image(path))
 
 
