@@ -363,12 +363,18 @@ def run_command(args: argparse.Namespace, body: Callable[[argparse.Namespace], i
     finally:
         _created_folders.reset(token)
         if code != EXIT_OK:
-            for folder in reversed(created):  # in the order made: innermost last
-                try:
-                    folder.rmdir()
-                except OSError:  # not empty
-                    pass
+            remove_empty_folders(created)
     return code
+
+
+def remove_empty_folders(folders: Iterable[Path]) -> None:
+    """Remove those of ``folders`` that are empty, deepest first (a folder emptied by
+    removing its subfolder goes too); a folder that is not empty, or a link, stays."""
+    for folder in sorted(set(folders), key=lambda p: len(p.parts), reverse=True):
+        try:
+            folder.rmdir()
+        except OSError:
+            pass
 
 
 def _exit_code(args: argparse.Namespace, body: Callable[[argparse.Namespace], int]) -> int:

@@ -15,7 +15,7 @@ import logging
 import os
 from pathlib import Path, PurePosixPath
 
-from .common import UsageError, note_created_folders
+from .common import UsageError, note_created_folders, remove_empty_folders
 
 logger = logging.getLogger(__name__)
 
@@ -116,13 +116,9 @@ def remove_stale_outputs(out: Path, previous: list[Path], written: list[Path]) -
                            exc.strerror or exc)
             continue
         removed.append(path)
-    folders = {parent for path in previous for parent in path.parents
-               if parent != out and out in parent.parents}
-    for folder in sorted(folders, key=lambda p: len(p.parts), reverse=True):
-        try:
-            folder.rmdir()
-        except OSError:  # not empty (this run's files or the user's), or a link
-            pass
+    # Their folders left empty (not those holding this run's files or the user's).
+    remove_empty_folders(parent for path in previous for parent in path.parents
+                         if parent != out and out in parent.parents)
     return removed
 
 
