@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
-from numbers import Integral, Real
 
 import cv2
 import numpy as np
@@ -31,7 +30,7 @@ from .calibration_uncertainty import IntrinsicsCovariance, intrinsics_covariance
 from .camera import check_intrinsics_for_size
 from .errors import CalibrationError
 from .features import check_image
-from .geometry import FloatArray
+from .geometry import FloatArray, is_real_number, is_whole_number
 
 logger = logging.getLogger(__name__)
 
@@ -53,7 +52,7 @@ DISTORTION_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", 
 
 def _is_real(value: object) -> bool:
     """True for a finite real number (not a bool)."""
-    return isinstance(value, Real) and not isinstance(value, bool) and bool(np.isfinite(value))
+    return is_real_number(value) and bool(np.isfinite(value))
 
 
 @dataclass(frozen=True)
@@ -95,7 +94,7 @@ class BoardSpec:
                              f"{self.pattern!r}")
         size = self.size
         if (isinstance(size, (str, bytes)) or not hasattr(size, "__len__") or len(size) != 2
-                or not all(isinstance(v, Integral) and not isinstance(v, bool) for v in size)
+                or not all(is_whole_number(v) for v in size)
                 or min(size) < 2):
             raise ValueError(f"`size` must be two integers >= 2 (columns, rows), got {size!r}")
         object.__setattr__(self, "size", (int(size[0]), int(size[1])))
@@ -485,8 +484,7 @@ def _check_image_size(image_size: tuple[int, int], detections: list[Detection]
     """
     if (isinstance(image_size, (str, bytes)) or not hasattr(image_size, "__len__")
             or len(image_size) != 2
-            or not all(isinstance(v, Integral) and not isinstance(v, bool) and v > 0
-                       for v in image_size)):
+            or not all(is_whole_number(v) and v > 0 for v in image_size)):
         raise ValueError(f"`image_size` must be (width, height), two positive integers, "
                          f"got {image_size!r}")
     w, h = int(image_size[0]), int(image_size[1])

@@ -18,6 +18,8 @@ Conventions (used by every module of scene3D)
 
 from __future__ import annotations
 
+from numbers import Integral, Real
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -40,6 +42,16 @@ def as_points2d(points: ArrayLike, name: str = "points") -> FloatArray:
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"`{name}` contains non-finite values")
     return arr
+
+
+def is_real_number(value: object) -> bool:
+    """A real number that is not a bool (to Python, ``True`` is the integer 1)."""
+    return isinstance(value, Real) and not isinstance(value, bool)
+
+
+def is_whole_number(value: object) -> bool:
+    """An integer (Python's or numpy's) that is not a bool."""
+    return isinstance(value, Integral) and not isinstance(value, bool)
 
 
 def as_matrix(value: ArrayLike, shape: tuple[int, ...], name: str) -> FloatArray:

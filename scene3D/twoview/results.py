@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from numbers import Integral, Real
 
 import numpy as np
 
-from ..geometry import FloatArray
+from ..geometry import FloatArray, is_real_number, is_whole_number
 from ..uncertainty import PoseUncertainty, tangent_basis
 
 
@@ -147,7 +146,7 @@ class TwoViewSettings:
                 raise ValueError(f"TwoViewSettings.{name} must be {allowed}, got {value!r}")
         for name, low in _INT_MINIMA.items():
             value = getattr(self, name)
-            if not (isinstance(value, Integral) and not isinstance(value, bool) and value >= low):
+            if not (is_whole_number(value) and value >= low):
                 raise ValueError(f"TwoViewSettings.{name} must be an integer >= {low}, "
                                  f"got {value!r}")
         if not isinstance(self.bundle_adjust, (bool, np.bool_)):
@@ -157,7 +156,7 @@ class TwoViewSettings:
 
 def _in_range(value: object, low: float, high: float, low_open: bool, inf_ok: bool) -> bool:
     """True for a real number (not a bool, not NaN) within ``low..high``."""
-    if not isinstance(value, Real) or isinstance(value, bool) or math.isnan(value):
+    if not is_real_number(value) or math.isnan(value):
         return False
     if math.isinf(value) and not inf_ok:
         return False
