@@ -122,7 +122,7 @@ class BoardSpec:
         return (f"ChArUco {cols}x{rows} squares, square {self.square_size_m:g} m, "
                 f"marker {self.marker_size_m:g} m, {self.dictionary}")
 
-    def chessboard_object_points(self) -> FloatArray:
+    def grid_object_points(self) -> FloatArray:
         """``(cols * rows, 3)`` positions of the grid's points (inner corners, circle
         centres) on the plane ``z = 0``, row by row, in OpenCV's order: ``(j, i, 0) * s``
         for column ``j`` of row ``i``; ``(2 j + i % 2, i, 0) * s`` for ``"acircles"``."""
@@ -310,12 +310,12 @@ def detect_board(gray: np.ndarray, board: BoardSpec, name: str = "") -> Detectio
         if found is None:
             return None
         corners, method = found
-        return Detection(name, corners, board.chessboard_object_points(), method)
+        return Detection(name, corners, board.grid_object_points(), method)
     if board.pattern in ("circles", "acircles"):
         centres = detect_circles(gray, board)
         if centres is None:
             return None
-        return Detection(name, centres, board.chessboard_object_points(), "circles")
+        return Detection(name, centres, board.grid_object_points(), "circles")
     found = detect_charuco(gray, board)
     if found is None:
         return None

@@ -141,7 +141,7 @@ def test_circle_centres_lie_on_the_true_ones(pattern, size):
     circle and moved it 8-21 px."""
     rng = np.random.default_rng(0)
     board = BoardSpec(pattern, size)
-    points = board.chessboard_object_points()
+    points = board.grid_object_points()
     centre = points.max(axis=0) / 2
     found = 0
     for _ in range(12):
@@ -163,10 +163,10 @@ def test_circle_centres_lie_on_the_true_ones(pattern, size):
 
 def test_circle_grid_object_points_follow_opencv():
     """OpenCV's calibration sample: (j, i) * s symmetric, (2 j + i % 2, i) * s asymmetric."""
-    sym = BoardSpec("circles", (3, 2), 0.5).chessboard_object_points()
+    sym = BoardSpec("circles", (3, 2), 0.5).grid_object_points()
     np.testing.assert_allclose(sym[:, :2], [[0, 0], [0.5, 0], [1, 0], [0, 0.5], [0.5, 0.5],
                                             [1, 0.5]])
-    asym = BoardSpec("acircles", (2, 3), 1.0).chessboard_object_points()
+    asym = BoardSpec("acircles", (2, 3), 1.0).grid_object_points()
     np.testing.assert_allclose(asym[:, :2], [[0, 0], [2, 0], [1, 1], [3, 1], [0, 2], [2, 2]])
 
 
