@@ -16,7 +16,12 @@ import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
-from .imageio import check_image_file, read_image_size, register_heif_opener
+from .imageio import (
+    check_image_file,
+    read_image_size,
+    refuse_single_path,
+    register_heif_opener,
+)
 from .intrinsics_prior import ExifCamera, FocalPrior, camera_prior
 
 logger = logging.getLogger(__name__)
@@ -140,10 +145,7 @@ def read_camera_prior(paths: Sequence[str | os.PathLike]) -> FocalPrior:
     ValueError
         A file is not an image, or the photos come from different cameras or sizes.
     """
-    if isinstance(paths, (str, bytes, os.PathLike)):
-        raise TypeError(f"`paths` must be a list of image paths, got one path "
-                        f"'{os.fsdecode(paths)}'; for a folder list its photos, e.g. "
-                        "sorted(Path(folder).glob('*.jpg'))")
+    refuse_single_path(paths, "paths")
     # The size first: a damaged header is refused before Pillow warns about it.
     sizes = [read_image_size(p) for p in paths]
     photos = [(Path(p).name, read_exif(p), size) for p, size in zip(paths, sizes)]

@@ -57,6 +57,15 @@ def check_image_file(path: str | os.PathLike) -> Path:
     return path
 
 
+def refuse_single_path(value: object, name: str, accepted: str = "image paths") -> None:
+    """Raise ``TypeError`` when ``value``, where a list of paths is expected, is one path
+    (a str would otherwise be taken character by character)."""
+    if isinstance(value, (str, bytes, os.PathLike)):
+        raise TypeError(f"`{name}` must be a list of {accepted}, got one path "
+                        f"'{os.fsdecode(value)}'; for a folder list its photos, e.g. "
+                        "sorted(Path(folder).glob('*.jpg'))")
+
+
 def _read_bytes(path: str | os.PathLike) -> np.ndarray:
     """The bytes of an image file ``(n,) uint8``; checks that it exists and is not empty."""
     path = check_image_file(path)

@@ -32,7 +32,7 @@ from ..camera import (
 )
 from ..engines import Engine, LocalEngine
 from ..errors import ReconstructionError
-from ..imageio import BOOK_MAX_WIDTH_PX, ImageSource
+from ..imageio import BOOK_MAX_WIDTH_PX, ImageSource, refuse_single_path
 from ..intrinsics_prior import FocalPrior, camera_prior
 from .features import content_key, view_features
 from .focal import FocalSettings
@@ -85,14 +85,6 @@ def _focal_prior(images: Sequence[ImageSource], names: Sequence[str]) -> FocalPr
         return read_camera_prior(images)  # type: ignore[arg-type]
     sizes = [(int(np.shape(src)[1]), int(np.shape(src)[0])) for src in images]
     return camera_prior([(name, None, size) for name, size in zip(names, sizes)])
-
-
-def _refuse_single_path(images: object) -> None:
-    """Raise ``TypeError`` when ``images`` is one path (a str would be iterated by character)."""
-    if isinstance(images, (str, bytes, os.PathLike)):
-        raise TypeError(f"`images` must be a list of image paths or arrays, got one path "
-                        f"'{os.fsdecode(images)}'; for a folder list its photos, e.g. "
-                        "sorted(Path(folder).glob('*.jpg'))")
 
 
 def _check_K_for_size(K: np.ndarray, size: tuple[int, int], prior: FocalPrior | None) -> None:
@@ -205,7 +197,7 @@ def reconstruct_views(
     s = settings or SfMSettings()
     engine = engine or LocalEngine()
     say = progress or (lambda message: logger.info("%s", message))
-    _refuse_single_path(images)
+    refuse_single_path(images, "images", "image paths or arrays")
     if names is None:
         names = [Path(src).name if isinstance(src, (str, os.PathLike)) else f"view{i}"
                  for i, src in enumerate(images)]
