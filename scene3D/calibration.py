@@ -37,7 +37,8 @@ logger = logging.getLogger(__name__)
 __all__ = [
     "BoardSpec", "CalibrationResult", "CameraCalibration", "Detection", "calibrate",
     "corner_coverage", "coverage_warnings", "detect_board", "load_calibration",
-    "min_image_side_px", "save_calibration", "subpixel_window",
+    "min_image_side_px", "save_calibration", "subpixel_window", "board_size_problem",
+    "MIN_POINTS_PER_VIEW",
 ]
 
 #: The calibration targets :class:`BoardSpec` describes.
@@ -48,11 +49,28 @@ _SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01)
 _SB_SEED = 0
 DISTORTION_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4",
                     "tx", "ty")
+#: Board points a view needs to count (:func:`calibrate`).
+MIN_POINTS_PER_VIEW = 6
 
 
 def _is_real(value: object) -> bool:
     """True for a finite real number (not a bool)."""
     return is_real_number(value) and bool(np.isfinite(value))
+
+
+def board_size_problem(pattern: str, size: tuple[int, int]) -> str:
+    """Why a board of ``size`` (columns, rows, as :class:`BoardSpec` counts them) cannot
+    calibrate, or ``""``. A view needs :data:`MIN_POINTS_PER_VIEW` points, and OpenCV's
+    chessboard detector at least 3 inner corners a side."""
+    cols, rows = size
+    if pattern == "chessboard" and min(cols, rows) < 3:
+        return "a chessboard needs at least 3 inner corners a side (OpenCV's detector)"
+    points = (cols - 1) * (rows - 1) if pattern == "charuco" else cols * rows
+    if points < MIN_POINTS_PER_VIEW:
+        what = "inner corners" if pattern == "charuco" else "points"
+        return (f"the board has {points} {what}; a view needs at least "
+                f"{MIN_POINTS_PER_VIEW}")
+    return ""
 
 
 @dataclass(frozen=True)
@@ -98,6 +116,9 @@ class BoardSpec:
                 or min(size) < 2):
             raise ValueError(f"`size` must be two integers >= 2 (columns, rows), got {size!r}")
         object.__setattr__(self, "size", (int(size[0]), int(size[1])))
+        problem = board_size_problem(self.pattern, self.size)
+        if problem:
+            raise ValueError(f"`size` {self.size[0]}x{self.size[1]}: {problem}")
         if not (_is_real(self.square_size_m) and self.square_size_m > 0):
             raise ValueError("`square_size_m` must be a finite positive number, got "
                              f"{self.square_size_m!r}")
@@ -246,7 +267,7 @@ def detect_circles(gray: np.ndarray, board: BoardSpec) -> FloatArray | None:
     return None
 
 
-def detect_charuco(gray: np.ndarray, board: BoardSpec, min_corners: int = 6
+def detect_charuco(gray: np.ndarray, board: BoardSpec, min_corners: int = MIN_POINTS_PER_VIEW
                    ) -> tuple[FloatArray, FloatArray, str] | None:
     """ChArUco corners ``(N, 2)``, their board points ``(N, 3)`` and the layout that
     found them (``"charuco"`` or ``"charuco-legacy"``), or None.
@@ -344,7 +365,9 @@ class CalibrationResult:
     per_view_errors_px : dict[str, float]
         RMS reprojection error of each kept view.
     std_intrinsics : dict[str, float]
-        Standard deviations of fx, fy, cx, cy and the distortion coefficients.
+        Standard deviations of fx, fy, cx, cy and the distortion coefficients: the
+        diagonal of ``covariance`` (OpenCV's ``stdDeviationsIntrinsics`` when there is
+        none).
     rejected_views : dict[str, float]
         Views dropped as outliers, with their error in the first solve.
     board : BoardSpec
@@ -422,7 +445,7 @@ def calibrate(
         :func:`load_calibration` applies too).
     """
     image_size = _check_image_size(image_size, detections)
-    views = [d for d in detections if len(d.image_points) >= 6]
+    views = [d for d in detections if len(d.image_points) >= MIN_POINTS_PER_VIEW]
     if len(views) < min_views:
         raise CalibrationError(
             f"need at least {min_views} usable views of the board, got {len(views)}"
@@ -465,6 +488,11 @@ def calibrate(
     except ValueError as exc:  # flags the covariance does not model
         logger.warning("no covariance of the intrinsics: %s", exc)
         covariance = None
+    if covariance is not None:
+        # The same on a well-posed calibration; where the lens is poorly determined
+        # OpenCV's understate the distortion's (k3 +-0.10 against +-8412 on a rendered
+        # telephoto lens whose k3 came out at -17066, the truth being 0).
+        std_intrinsics = covariance.std()
     return CalibrationResult(
         K=K.astype(np.float64), dist=dist, image_size=tuple(image_size), rms_px=float(rms),
         per_view_errors_px={n: float(e) for n, e in zip(names, errors)},

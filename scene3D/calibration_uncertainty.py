@@ -59,7 +59,8 @@ logger = logging.getLogger(__name__)
 
 __all__ = [
     "IntrinsicsCovariance", "UncertaintyMap", "intrinsics_covariance",
-    "projection_covariance", "projection_sigma_px", "uncertainty_map",
+    "format_px", "projection_covariance", "projection_sigma_px", "reached_by_rays",
+    "uncertainty_map",
 ]
 
 INTRINSIC_NAMES = ("fx", "fy", "cx", "cy")
@@ -67,6 +68,9 @@ DISTORTION_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", 
                     "tx", "ty")
 #: Default limit (px) above which the corners of the map earn a warning.
 CORNER_LIMIT_PX = 1.0
+#: A pixel whose ray projects back farther than this is not reached by any ray
+#: (:func:`reached_by_rays`): the inversion converges to 1e-6 px where a ray exists.
+ROUND_TRIP_TOLERANCE_PX = 0.1
 
 _FIXED_BY_FLAG = (
     (cv2.CALIB_FIX_PRINCIPAL_POINT, ("cx", "cy")),
@@ -210,7 +214,13 @@ def intrinsics_covariance(
         raise ValueError(f"{num_residuals} residuals cannot determine {num_free} intrinsics "
                          f"and {len(rvecs)} poses")
     sigma2 = sum_sq / dof
-    cov_free = sigma2 * np.linalg.pinv(0.5 * (S + S.T))
+    # Scaled to a unit diagonal before the inversion: fx (hundreds of pixels) and k3 (a
+    # coefficient of r^6) differ by orders of magnitude, and unscaled, the pseudo-inverse
+    # took a barely determined k3 (a telephoto lens, r < 0.1) for an undetermined
+    # direction and gave it a variance of 0 (k3 -17066 +- 0.10 where the truth is 0).
+    S = 0.5 * (S + S.T)
+    scale = np.sqrt(np.maximum(np.diag(S), np.finfo(float).tiny))
+    cov_free = sigma2 * np.linalg.pinv(S / np.outer(scale, scale)) / np.outer(scale, scale)
     covariance = T @ cov_free @ T.T
     return IntrinsicsCovariance(names, covariance, float(np.sqrt(sigma2)), int(dof))
 
@@ -278,11 +288,12 @@ class UncertaintyMap:
         Pixel coordinates of the grid's columns and rows (from 0 to ``width - 1`` and
         ``height - 1``: the grid includes the image corners).
     sigma_px : (H', W') float64
-        1 sigma worst-direction projection error at each grid position, pixels.
+        1 sigma worst-direction projection error at each grid position, pixels; NaN
+        where no ray reaches the position (:attr:`unreachable_share`).
     image_size : tuple[int, int]
         (width, height).
     limit_px : float
-        The corner limit the warning uses.
+        The limit the warnings use.
     """
 
     xs: FloatArray
@@ -292,14 +303,21 @@ class UncertaintyMap:
     limit_px: float = CORNER_LIMIT_PX
 
     @property
+    def unreachable_share(self) -> float:
+        """The share of the grid that no ray reaches: the fitted distortion folds back
+        inside the image (it grows, then shrinks, with the distance from the centre), so
+        its pixels beyond the fold have no ray, and the calibration does not hold there."""
+        return float(np.mean(np.isnan(self.sigma_px)))
+
+    @property
     def median_px(self) -> float:
-        """Median over the image."""
-        return float(np.median(self.sigma_px))
+        """Median over the image (where rays reach)."""
+        return float(np.nanmedian(self.sigma_px)) if self.unreachable_share < 1 else np.nan
 
     @property
     def worst_px(self) -> float:
-        """Largest value over the image."""
-        return float(np.max(self.sigma_px))
+        """Largest value over the image (where rays reach)."""
+        return float(np.nanmax(self.sigma_px)) if self.unreachable_share < 1 else np.nan
 
     @property
     def centre_px(self) -> float:
@@ -317,13 +335,32 @@ class UncertaintyMap:
 
     @property
     def warnings(self) -> list[str]:
-        """A warning when an image corner exceeds ``limit_px``."""
-        over = {k: v for k, v in self.corners_px.items() if v > self.limit_px}
-        if not over:
-            return []
-        listing = ", ".join(f"{k} {v:.2f} px" for k, v in over.items())
-        return [f"the projection uncertainty at the image corners exceeds "
-                f"{self.limit_px:g} px ({listing}): add views with the board in the corners"]
+        """Warnings: the distortion folds inside the image; the uncertainty exceeds
+        ``limit_px`` at the centre too (the intrinsics themselves are poorly determined),
+        or only at image corners (the corners lack views)."""
+        warnings = []
+        if self.unreachable_share > 0:
+            lost = [k for k, v in self.corners_px.items() if np.isnan(v)]
+            warnings.append(
+                f"the fitted distortion folds back inside the image: no ray reaches "
+                f"{self.unreachable_share:.1%} of it"
+                + (f" (the {', '.join(lost)} corner{'s' if len(lost) > 1 else ''})"
+                   if lost else "")
+                + ", where the calibration does not hold; add views with the board there")
+        listing = ", ".join(f"{k} {v:.2f} px" for k, v in self.corners_px.items()
+                            if v > self.limit_px)
+        if self.centre_px > self.limit_px:
+            warnings.append(
+                f"the projection uncertainty exceeds {self.limit_px:g} px even at the image "
+                f"centre ({self.centre_px:.2f} px" + (f"; {listing}" if listing else "")
+                + "): the focal length and principal point themselves are poorly "
+                "determined; add views with the board tilted (by 20-45 degrees) and "
+                "filling more of the image")
+        elif listing:
+            warnings.append(f"the projection uncertainty at the image corners exceeds "
+                            f"{self.limit_px:g} px ({listing}): add views with the board in "
+                            "the corners")
+        return warnings
 
 
 def uncertainty_map(K: ArrayLike, dist: ArrayLike, covariance: IntrinsicsCovariance,
@@ -350,5 +387,27 @@ def uncertainty_map(K: ArrayLike, dist: ArrayLike, covariance: IntrinsicsCovaria
     xs = np.linspace(0.0, w - 1.0, max(2, int(np.ceil((w - 1) / step)) + 1))
     ys = np.linspace(0.0, h - 1.0, max(2, int(np.ceil((h - 1) / step)) + 1))
     grid = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
-    sigma = projection_sigma_px(grid, K, dist, covariance).reshape(len(ys), len(xs))
-    return UncertaintyMap(xs, ys, sigma, (w, h), float(limit_px))
+    sigma = projection_sigma_px(grid, K, dist, covariance)
+    sigma[~reached_by_rays(grid, K, dist)] = np.nan
+    return UncertaintyMap(xs, ys, sigma.reshape(len(ys), len(xs)), (w, h), float(limit_px))
+
+
+def format_px(value: float) -> str:
+    """A map value in pixels for people: ``"0.42 px"``, or ``"no ray"`` where none
+    reaches (NaN: :attr:`UncertaintyMap.unreachable_share`)."""
+    return "no ray" if np.isnan(value) else f"{value:.2f} px"
+
+
+def reached_by_rays(pixels: ArrayLike, K: ArrayLike, dist: ArrayLike,
+                    tolerance_px: float = ROUND_TRIP_TOLERANCE_PX) -> np.ndarray:
+    """Which ``pixels`` ``(N, 2)`` some ray projects to under ``K, dist``: ``(N,) bool``.
+
+    The ray through a pixel is found by inverting the distortion
+    (``cv2.undistortPoints``) and projected back; a pixel that the distortion folds away
+    (beyond where the distorted radius stops growing) comes back elsewhere, by pixels.
+    """
+    pixels = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+    K = np.asarray(K, dtype=np.float64)
+    dist = np.asarray(dist, dtype=np.float64).ravel()
+    back, _ = cv2.projectPoints(_rays(pixels, K, dist), np.zeros(3), np.zeros(3), K, dist)
+    return np.linalg.norm(back.reshape(-1, 2) - pixels, axis=1) <= tolerance_px

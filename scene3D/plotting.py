@@ -14,7 +14,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from .calibration_uncertainty import UncertaintyMap
+from .calibration_uncertainty import UncertaintyMap, format_px
 from .camera import validate_intrinsics
 from .drawing import (
     Raster,
@@ -282,29 +282,32 @@ def plot_uncertainty_map(umap: UncertaintyMap, ax: Axes | None = None) -> Figure
     extent = (-0.5, w - 0.5, h - 0.5, -0.5)
     from matplotlib.colors import LogNorm
 
-    lo = max(float(umap.sigma_px.min()), 1e-6)
-    norm = LogNorm(vmin=lo, vmax=max(float(umap.sigma_px.max()), 1.01 * lo))
-    image = ax.imshow(umap.sigma_px, extent=extent, cmap="magma_r", norm=norm,
+    sigma = np.ma.masked_invalid(umap.sigma_px)  # no ray reaches the masked part: blank
+    low, high = (float(sigma.min()), float(sigma.max())) if sigma.count() else (1.0, 1.0)
+    lo = max(low, 1e-6)
+    norm = LogNorm(vmin=lo, vmax=max(high, 1.01 * lo))
+    image = ax.imshow(sigma, extent=extent, cmap="magma_r", norm=norm,
                       interpolation="bilinear")
     fig.colorbar(image, ax=ax, label="1 sigma projection error, worst direction (px, log scale)",
                  shrink=0.85)
-    levels = [v for v in (0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0)
-              if umap.sigma_px.min() < v < umap.sigma_px.max()]
+    levels = [v for v in (0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0) if low < v < high]
     if levels:
-        contours = ax.contour(umap.xs, umap.ys, umap.sigma_px, levels=levels, colors="k",
+        contours = ax.contour(umap.xs, umap.ys, sigma, levels=levels, colors="k",
                               linewidths=0.7)
         ax.clabel(contours, fmt="%g px", fontsize=8)
     for value, (x, y, ha, va) in zip(umap.corners_px.values(), (
             (0, 0, "left", "top"), (w - 1, 0, "right", "top"), (w - 1, h - 1, "right", "bottom"),
             (0, h - 1, "left", "bottom"))):
-        color = "tab:red" if value > umap.limit_px else "k"
-        ax.annotate(f"{value:.2f} px", (x, y), xytext=(6 if ha == "left" else -6,
+        color = "k" if value <= umap.limit_px else "tab:red"  # NaN (no ray) in red too
+        ax.annotate(format_px(value), (x, y), xytext=(6 if ha == "left" else -6,
                                                        -6 if va == "top" else 6),
                     textcoords="offset points", ha=ha, va=va, fontsize=9, color=color,
                     bbox={"boxstyle": "round", "fc": "white", "alpha": 0.8, "lw": 0})
     ax.set_xlim(extent[0], extent[1])
     ax.set_ylim(extent[2], extent[3])
     ax.set_aspect("equal")
-    ax.set_title(f"Projection uncertainty: median {umap.median_px:.2f} px, "
-                 f"worst {umap.worst_px:.2f} px, centre {umap.centre_px:.2f} px")
+    ax.set_title(f"Projection uncertainty: median {format_px(umap.median_px)}, "
+                 f"worst {format_px(umap.worst_px)}, centre {format_px(umap.centre_px)}"
+                 + (f"; no ray reaches {umap.unreachable_share:.1%} (blank)"
+                    if umap.unreachable_share else ""))
     return fig

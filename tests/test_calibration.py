@@ -297,6 +297,14 @@ def test_board_spec_validation():
         BoardSpec("charuco", (5, 7), 0.04, 0.05)
     with pytest.raises(ValueError, match="dictionary"):
         BoardSpec("charuco", (5, 7), 0.04, 0.02, "DICT_NOPE")
+    # OpenCV's chessboard detector raises for a side of 2; a view needs 6 points.
+    with pytest.raises(ValueError, match="at least 3 inner corners a side"):
+        BoardSpec("chessboard", (4, 2))
+    with pytest.raises(ValueError, match="the board has 4 points; a view needs at least 6"):
+        BoardSpec("circles", (2, 2))
+    with pytest.raises(ValueError, match="4 inner corners"):
+        BoardSpec("charuco", (3, 3))
+    assert BoardSpec("circles", (2, 3)).size == (2, 3)
 
 
 # -- the command ---------------------------------------------------------------------
@@ -411,6 +419,11 @@ def test_cli_video_collects_distinct_views(tmp_path, board_views, capsys):
     ("video_missing", "video not found"),
     ("out_folder_missing", "does not exist"),
     ("out_under_a_file", "is a file, not a folder"),
+    ("board_side_of_two", "--board 4x2: a chessboard needs at least 3 inner corners a side"),
+    ("circles_too_few", "--board 2x2: the board has 4 points; a view needs at least 6"),
+    ("out_among_the_photos", "where --images finds the photos: the next run would take "
+                             "them for photos"),
+    ("turned_photos", "some are stored turned by 90 degrees"),
 ])
 def test_cli_bad_inputs(tmp_path, chessboards, capsys, case, message):
     left = chessboards / "opencv-left"
@@ -423,6 +436,12 @@ def test_cli_bad_inputs(tmp_path, chessboards, capsys, case, message):
     shutil.copy(left / "left01.jpg", bad / "left01.jpg")
     (bad / "broken.jpg").write_text("not a jpeg")
     (tmp_path / "empty").mkdir()
+    turned = tmp_path / "turned"
+    turned.mkdir()
+    for name in ("left01.jpg", "left02.jpg"):
+        shutil.copy(left / name, turned / name)
+    cv2.imwrite(str(turned / "left03.jpg"),
+                cv2.rotate(cv2.imread(str(left / "left03.jpg")), cv2.ROTATE_90_CLOCKWISE))
     out = ["--out", str(tmp_path / "c.yaml")]
     argv = {
         "no_images": ["--images", str(tmp_path / "empty")],
@@ -435,6 +454,10 @@ def test_cli_bad_inputs(tmp_path, chessboards, capsys, case, message):
         "out_folder_missing": ["--images", str(left), "--out", str(tmp_path / "x" / "c.yaml")],
         "out_under_a_file": ["--images", str(left), "--out",
                              str(bad / "left01.jpg" / "c.yaml")],
+        "board_side_of_two": ["--images", str(left), "--board", "4x2"],
+        "circles_too_few": ["--images", str(left), "--pattern", "circles", "--board", "2x2"],
+        "out_among_the_photos": ["--images", str(two), "--out", str(two / "c.yaml")],
+        "turned_photos": ["--images", str(turned)],
     }[case]
     if "--out" not in argv:
         argv += out
@@ -443,6 +466,35 @@ def test_cli_bad_inputs(tmp_path, chessboards, capsys, case, message):
     assert message in err
     assert len(err.strip().splitlines()) == 1
     assert not (tmp_path / "c.yaml").exists()
+
+
+def test_cli_skips_hidden_files_in_a_folder(tmp_path, chessboards, capsys):
+    """macOS leaves ._NAME files beside photos copied from its disks: not photos."""
+    for name in ("left01.jpg", "left02.jpg", "left03.jpg", "left04.jpg"):
+        shutil.copy(chessboards / "opencv-left" / name, tmp_path / name)
+    (tmp_path / "._left01.jpg").write_bytes(b"\x00\x05\x16\x07 AppleDouble")
+    out = tmp_path / "out" / "c.yaml"
+    out.parent.mkdir()
+    code = main(["--images", str(tmp_path), "--out", str(out)])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert "px over 4 views (640x480" in captured.out
+
+
+def test_cli_says_where_a_folding_distortion_leaves_no_ray(tmp_path, chessboards, capsys):
+    """left01-03 alone: the fitted distortion folds back before the image corners. The
+    corners read "no ray", the map leaves them blank, and the report says the share."""
+    for name in ("left01.jpg", "left02.jpg", "left03.jpg"):
+        shutil.copy(chessboards / "opencv-left" / name, tmp_path / name)
+    out = tmp_path / "out" / "c.yaml"
+    out.parent.mkdir()
+    code = main(["--images", str(tmp_path), "--out", str(out)])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert "the fitted distortion folds back inside the image: no ray reaches" in captured.err
+    assert "corners no ray, no ray, no ray, no ray; no ray reaches" in captured.out
+    assert (tmp_path / "out" / "c_uncertainty.png").read_bytes().startswith(b"\x89PNG")
+    assert "no ray" in (tmp_path / "out" / "c_report.html").read_text()
 
 
 def test_calibrate_script_help():

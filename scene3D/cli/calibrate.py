@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
+import fnmatch
 import glob
 import hashlib
 import io
 import logging
+import os
 import sys
 import warnings
 from collections import Counter
@@ -25,6 +27,7 @@ from ..calibration import (
     BoardSpec,
     CalibrationResult,
     Detection,
+    board_size_problem,
     calibrate,
     corner_coverage,
     coverage_warnings,
@@ -33,7 +36,12 @@ from ..calibration import (
     save_calibration,
 )
 from ..calibration_io import CALIBRATION_SUFFIXES
-from ..calibration_uncertainty import CORNER_LIMIT_PX, UncertaintyMap, uncertainty_map
+from ..calibration_uncertainty import (
+    CORNER_LIMIT_PX,
+    UncertaintyMap,
+    format_px,
+    uncertainty_map,
+)
 from ..camera import undistort_image
 from ..errors import CalibrationError
 from ..export import all_or_nothing, atomic_write_bytes, atomic_write_pieces
@@ -136,7 +144,8 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
     parser.add_argument("--uncertainty-limit", type=positive_float, default=CORNER_LIMIT_PX,
                         metavar="PX",
                         help="warn when the projection uncertainty (1 sigma) at an image corner "
-                             f"exceeds this (default {CORNER_LIMIT_PX:g} px)")
+                             "or at the centre exceeds this (default "
+                             f"{CORNER_LIMIT_PX:g} px)")
     parser.add_argument("--no-report", action="store_true", help="skip NAME_report.html")
     parser.add_argument("--save-undistorted", type=Path, metavar="DIR",
                         help="also write the undistorted views into DIR")
@@ -147,6 +156,10 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
 
 
 def _board_from_args(args: argparse.Namespace) -> BoardSpec:
+    if args.board is not None:
+        problem = board_size_problem(args.pattern, args.board)
+        if problem:
+            raise UsageError(f"--board {args.board[0]}x{args.board[1]}: {problem}")
     if args.pattern == "chessboard":
         return BoardSpec("chessboard", args.board or (9, 6), args.square_size)
     if args.pattern == "acircles":
@@ -162,8 +175,9 @@ def _board_from_args(args: argparse.Namespace) -> BoardSpec:
 
 def _image_files(spec: str) -> list[Path]:
     path = Path(spec)
-    if path.is_dir():
-        files = sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+    if path.is_dir():  # hidden files (macOS's ._IMG_0001.jpg) are no photos
+        files = sorted(p for p in path.iterdir()
+                       if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith("."))
     else:
         files = sorted(Path(p) for p in glob.glob(spec) if Path(p).is_file())
     if not files:
@@ -181,9 +195,13 @@ def _photos(args: argparse.Namespace) -> Iterator[tuple[str, np.ndarray]]:
     counts = Counter(sizes.values())
     if len(counts) > 1:
         listing = ", ".join(f"{w}x{h} ({n})" for (w, h), n in counts.most_common())
+        turned = any((h, w) in counts for w, h in counts if w != h)
         if not args.skip_other_sizes:
-            raise UsageError(f"the images have different sizes: {listing}; one calibration "
-                             "holds for one size (--skip-other-sizes keeps the most common)")
+            raise UsageError(
+                f"the images have different sizes: {listing}; one calibration holds for one "
+                "size (--skip-other-sizes keeps the most common)"
+                + ("; some are stored turned by 90 degrees (their pixels are read as stored, "
+                   "whatever their EXIF orientation says)" if turned else ""))
         keep = counts.most_common(1)[0][0]
         skipped = [path.name for path in files if sizes[path] != keep]
         logger.warning("skipping %d image(s) not %dx%d: %s", len(skipped), *keep,
@@ -339,9 +357,11 @@ def _result_lines(result: CalibrationResult, umap: UncertaintyMap) -> list[str]:
     if result.rejected_views:
         lines.append("dropped as outliers (> 3x median error): " + ", ".join(
             f"{n} ({e:.2f} px)" for n, e in result.rejected_views.items()))
-    corners = ", ".join(f"{v:.2f}" for v in umap.corners_px.values())
-    lines.append(f"projection uncertainty (1 sigma): median {umap.median_px:.2f} px, worst "
-                 f"{umap.worst_px:.2f} px, centre {umap.centre_px:.2f} px, corners {corners} px")
+    corners = ", ".join(format_px(v) for v in umap.corners_px.values())
+    lines.append(f"projection uncertainty (1 sigma): median {format_px(umap.median_px)}, worst "
+                 f"{format_px(umap.worst_px)}, centre {format_px(umap.centre_px)}, corners "
+                 f"{corners}" + (f"; no ray reaches {umap.unreachable_share:.1%} of the image"
+                                 if umap.unreachable_share else ""))
     return lines
 
 
@@ -379,6 +399,16 @@ def _outputs(args: argparse.Namespace) -> list[Path]:
     return outputs
 
 
+def _read_as_photo(path: Path, spec: str) -> bool:
+    """Would ``--images spec`` (a folder or a glob) list the file ``path``?"""
+    if Path(spec).is_dir():
+        return (path.parent.resolve() == Path(spec).resolve()
+                and path.suffix.lower() in IMAGE_SUFFIXES and not path.name.startswith("."))
+    return any(fnmatch.fnmatch(name, pattern) for name, pattern in (
+        (os.path.normpath(path), os.path.normpath(spec)),
+        (os.path.abspath(path), os.path.abspath(spec))))
+
+
 def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:
     """Refuse, before any work, outputs that could not be written or would overwrite files."""
     out = args.out
@@ -396,6 +426,12 @@ def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:
         raise UsageError(f"'{existing[0]}' exists; use --force to overwrite it")
     require_parent_folder(out, "--out")
     require_writable_folder(out.parent, f"--out '{out}': cannot write in '{out.parent}'")
+    if args.images is not None:
+        read_back = [p.name for p in outputs if _read_as_photo(p, args.images)]
+        if read_back:
+            raise UsageError(f"--out '{out}' puts {', '.join(read_back)} where --images "
+                             "finds the photos: the next run would take them for photos; "
+                             "write --out in another folder")
     target = args.save_undistorted
     if target is not None:
         if target.exists() and not target.is_dir():

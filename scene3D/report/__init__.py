@@ -319,9 +319,13 @@ def calibration_report(
         "and distortion (the board poses marginalised out) and the corner noise the "
         "residuals show. It does not include the uncertainty of the camera frame itself "
         "(mrcal's method removes that part) nor model errors.", "note")
-    page.key_values({"median (px)": umap.median_px, "worst (px)": umap.worst_px,
-                     "centre (px)": umap.centre_px,
-                     **{f"{k} corner (px)": v for k, v in umap.corners_px.items()},
+    def px(value: float) -> float | str:  # the page formats numbers; no ray, no number
+        return "no ray" if np.isnan(value) else value
+
+    page.key_values({"median (px)": px(umap.median_px), "worst (px)": px(umap.worst_px),
+                     "centre (px)": px(umap.centre_px),
+                     **{f"{k} corner (px)": px(v) for k, v in umap.corners_px.items()},
+                     "share that no ray reaches": f"{umap.unreachable_share:.1%}",
                      "corner limit (px)": umap.limit_px}, "uncertainty")
     page.heading("Per-view error")
     rows = [(n, e, "kept") for n, e in per_view_errors_px.items()]
