@@ -424,6 +424,8 @@ def test_cli_video_collects_distinct_views(tmp_path, board_views, capsys):
     ("out_among_the_photos", "where --images finds the photos: the next run would take "
                              "them for photos"),
     ("turned_photos", "some are stored turned by 90 degrees"),
+    ("found_by_chance", "found in only 1 of 13 views; calibration needs at least 3; if it "
+                        "is in more of them, check --board"),
 ])
 def test_cli_bad_inputs(tmp_path, chessboards, capsys, case, message):
     left = chessboards / "opencv-left"
@@ -458,6 +460,7 @@ def test_cli_bad_inputs(tmp_path, chessboards, capsys, case, message):
         "circles_too_few": ["--images", str(left), "--pattern", "circles", "--board", "2x2"],
         "out_among_the_photos": ["--images", str(two), "--out", str(two / "c.yaml")],
         "turned_photos": ["--images", str(turned)],
+        "found_by_chance": ["--images", str(left), "--board", "10x6"],  # a false 10x6 once
     }[case]
     if "--out" not in argv:
         argv += out

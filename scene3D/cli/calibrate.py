@@ -482,7 +482,10 @@ def _too_few_views(args: argparse.Namespace, board: BoardSpec, found: CollectedV
         else:
             hint = "check --board (squares), --marker-size and --dictionary"
         return f"the board was not found in any of the {seen} views; {hint}"
-    return f"the board was found in only {n} of {seen} views; calibration needs at least 3"
+    hint = ("; if it is in more of them, check --board (a wrong size can be found by "
+            "chance in a view or two)") if n < seen / 2 else ""
+    return (f"the board was found in only {n} of {seen} views; calibration needs at least 3"
+            + hint)
 
 
 def run(args: argparse.Namespace) -> int:
