@@ -239,6 +239,15 @@ def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = 100) -> Path:
     return atomic_write_bytes(path, buffer.getvalue())
 
 
+def colmap_image_name(name: str) -> str:
+    """``name`` as COLMAP's text format can hold it: every space (any whitespace) as '_'.
+
+    ``images.txt`` separates its fields by spaces and has no quoting, so COLMAP and
+    pycolmap read a name with a space only up to it (``'IMG 1.jpg'`` as ``'IMG'``).
+    """
+    return "".join("_" if c.isspace() else c for c in name)
+
+
 def colmap_text_files(
     names: list[str],
     K: np.ndarray,
@@ -258,6 +267,8 @@ def colmap_text_files(
     One PINHOLE camera; image poses world-to-camera as quaternion ``(qw, qx, qy, qz)``
     and translation. COLMAP puts pixel centres at ``+0.5``, so principal point and
     2D points are shifted by half a pixel from the OpenCV convention used elsewhere.
+    Image names are written as :func:`colmap_image_name` gives them: a space, which
+    the format cannot hold, becomes '_' (so such a name no longer matches its file).
     """
     from .geometry import quaternion_from_rotation
 
@@ -276,7 +287,7 @@ def colmap_text_files(
         point2d_index[mine] = np.arange(len(mine))
         q = quaternion_from_rotation(R[v])
         image_lines.append(f"{v + 1} " + " ".join(f"{x:.12g}" for x in (*q, *t[v]))
-                           + f" 1 {names[v]}")
+                           + f" 1 {colmap_image_name(names[v])}")
         image_lines.append(" ".join(f"{obs_xy[k, 0] + 0.5:.6f} {obs_xy[k, 1] + 0.5:.6f} "
                                     f"{obs_point[k] + 1}" for k in mine))
     point_lines = ["# 3D point list with one line of data per point:",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import glob
 import logging
+import re
 import sys
 import time
 from pathlib import Path
@@ -17,6 +18,7 @@ from ..datasets import StrechaCamera, read_strecha_camera
 from ..evaluation import camera_set_error
 from ..export import (
     all_or_nothing,
+    colmap_image_name,
     colmap_text_files,
     save_figure,
     write_json,
@@ -52,7 +54,7 @@ from .common import (
     positive_int,
     run_command,
 )
-from .outputs import FILES_KEY, SUMMARY_FILE, OutputFolder, out_help
+from .outputs import FILES_KEY, SUMMARY_FILE, OutputFolder
 
 logger = logging.getLogger("scene3D.cli")
 
@@ -80,11 +82,18 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
             "themselves but not to the first), and reconstruction.json (summary: which "
             "views are in which model, which are in none and why) and report.html (the "
             "summary with an interactive 3D view of the largest model; opens offline). "
-            "A model that fails the "
+            "Files of those names in --out are replaced, and the files of an earlier "
+            "run there (as its reconstruction.json lists them) that this run does not "
+            "write again are removed; other files are kept. A model that fails the "
             "consistency check (a view whose pose contradicts its pair geometry, a fold) "
             f"or has fewer than {MIN_MODEL_POINTS} points is "
-            "written for inspection, its status 'failed', and the exit code is 1. "
-            + exit_codes_help("no pair gives a trustworthy start, a model failed its "
+            "written all the same, for inspection (replacing the earlier run's files), its "
+            "status 'failed', and the exit code is 1; when no model can start or be kept, "
+            "nothing is written (an earlier run's files stay). Views are named by their "
+            "file names (two photos of one name are refused); colmap/images.txt, which "
+            "cannot hold spaces, has '_' for each. "
+            + exit_codes_help("no pair gives a trustworthy start or the check leaves no "
+                              "model, a model failed its "
                               f"consistency check or has fewer than {MIN_MODEL_POINTS} "
                               "points, or the cluster gave a task up") + "."
         ),
@@ -116,7 +125,11 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
                         help="Strecha .camera files (NAME.camera per image): report camera "
                              "errors after a similarity alignment")
     parser.add_argument("--out", type=path_arg, default=Path("out/views"), metavar="DIR",
-                        help=out_help("out/views"))
+                        help="output folder (default: out/views), not that of the "
+                             "photos: a run replaces the files there named as its outputs "
+                             "(below) and removes an earlier run's that it does not write "
+                             "again (as listed in that run's reconstruction.json); other "
+                             "files are kept")
     parser.add_argument("--no-plots", action="store_true", help="skip cameras.png")
     parser.add_argument("--no-report", action="store_true",
                         help="skip report.html (one self-contained page: the numbers, the "
@@ -127,12 +140,15 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
 
 
 def image_paths(specs: list[str]) -> list[Path]:
-    """Files, folders (their images, sorted) and globs, in the order given."""
+    """Files, folders (their images, sorted; hidden names starting with '.', such as
+    macOS's ``._IMG.jpg``, left out) and globs, in the order given; refused
+    (:class:`UsageError`) when one file comes twice or two share a name."""
     paths: list[Path] = []
     for spec in specs:
         p = Path(spec)
         if p.is_dir():
-            paths += sorted(q for q in p.iterdir() if q.suffix.lower() in IMAGE_SUFFIXES)
+            paths += sorted(q for q in p.iterdir()
+                            if q.suffix.lower() in IMAGE_SUFFIXES and not q.name.startswith("."))
         elif p.is_file():
             paths.append(p)
         else:
@@ -143,7 +159,44 @@ def image_paths(specs: list[str]) -> list[Path]:
     if len(paths) < 2:
         raise UsageError(f"need at least two images, got {len(paths)}")
     check_image_paths(paths)
+    check_view_names(paths)
     return paths
+
+
+def check_view_names(paths: list[Path]) -> None:
+    """Raise :class:`UsageError` when two photos share a file name (from two folders), or
+    two would share one in COLMAP's images.txt (:func:`~scene3D.export.colmap_image_name`):
+    the outputs name the views by it."""
+    seen: dict[str, Path] = {}
+    for path in paths:
+        if path.name in seen:
+            raise UsageError(f"two photos are named '{path.name}' ('{seen[path.name]}', "
+                             f"'{path}'): the outputs name views by file name; rename one")
+        seen[path.name] = path
+    in_colmap: dict[str, Path] = {}
+    for path in paths:
+        other = in_colmap.setdefault(colmap_image_name(path.name), path)
+        if other is not path:
+            raise UsageError(f"'{path.name}' and '{other.name}' would both be "
+                             f"'{colmap_image_name(path.name)}' in colmap/images.txt, which "
+                             "cannot hold spaces in names; rename one")
+
+
+def check_out_folder(out: Path, paths: list[Path]) -> None:
+    """Raise :class:`UsageError` when ``--out`` is the folder of some of the photos, or
+    holds them where a run writes (``colmap/``, ``model-N/``): the figures and files
+    written there would be read as photos by the next run, or replace them."""
+    inside = out.resolve()  # also where 'new/../photos' leads, before 'new' exists
+    for photo in paths:
+        folder = photo.parent.resolve()
+        if folder == inside:
+            raise UsageError(f"--out '{out}' is the folder of the photos; choose another "
+                             "folder for the outputs")
+        if inside in folder.parents:
+            first = folder.relative_to(inside).parts[0]
+            if first == "colmap" or re.fullmatch(r"model-\d+", first):
+                raise UsageError(f"--out '{out}' holds the photos in '{photo.parent}', "
+                                 "where a run writes; choose another folder for the outputs")
 
 
 def read_ground_truth(folder: Path, names: list[str]) -> list[StrechaCamera]:
@@ -269,6 +322,7 @@ def focal_summary(recon: MultiViewReconstruction, model: SfMModel, camera: str |
 def run(args: argparse.Namespace) -> int:
     t_start = time.perf_counter()
     paths = image_paths(args.images)
+    check_out_folder(args.out, paths)
     prior = None
     if args.calib is None:
         from ..exif import read_camera_prior
@@ -362,6 +416,14 @@ def run(args: argparse.Namespace) -> int:
             written.append(_write_report(out, names, recon, summary, not args.no_plots))
     removed = out_folder.remove_stale(written)
 
+    in_colmap = {names[v] for model in recon.models for v in model.views}
+    renamed = [n for n in names if n in in_colmap and colmap_image_name(n) != n]
+    if renamed:
+        more = f" (and {len(renamed) - 1} more)" if len(renamed) > 1 else ""
+        logger.warning("COLMAP's text format cannot hold names with spaces: "
+                       "colmap/images.txt has '%s' for '%s'%s, '_' for each space, so those "
+                       "names do not match the files; rename the photos for tools that open "
+                       "them", colmap_image_name(renamed[0]), renamed[0], more)
     for name in recon.unregistered:
         logger.warning("view '%s' could not be registered: %s", name,
                        recon.unregistered_reasons.get(name, "unknown"))

@@ -45,6 +45,9 @@ from .state import GrowingModel
 
 logger = logging.getLogger(__name__)
 
+#: Why a view the consistency check took out of a model is in none.
+_CONTRADICTED = "its pose contradicted its pair geometry"
+
 #: ``more_pairs(view, model_views)``: verified pairs of ``view`` with further candidates
 #: among ``model_views`` (the pipeline matches them through its engine).
 MorePairs = Callable[[int, Sequence[int]], list[PairMatches]]
@@ -60,6 +63,24 @@ def _no_pair_left(s: SfMSettings) -> str:
     return (f"no two views share {s.min_pair_inliers} or more matches that one essential "
             "matrix explains: do the photos overlap, and were they taken from different "
             "places? (a camera turned on one spot, or one photo twice, gives no depth)")
+
+
+def _first_model_lost(model: SfMModel, start: PairMatches, left_out: dict[int, str],
+                      names: Sequence[str], s: SfMSettings, calibrated: bool) -> str:
+    """Why the first model, grown from ``start``, cannot be kept: fewer than
+    ``s.min_model_views`` views were left in it (the check took the others out)."""
+    kept = int(model.registered.sum())
+    out = sorted(v for v, why in left_out.items() if why == _CONTRADICTED)
+    taken = ""
+    if out:
+        whose = "its pose" if len(out) == 1 else "their poses"
+        taken = (f"; {_views(len(out))} taken out because {whose} contradicted the pair "
+                 f"geometry ({', '.join(names[v] for v in out)})")
+    hint = ("does the calibration fit these photos?" if calibrated else
+            "are the photos of one still scene, from one camera at one zoom setting?")
+    return (f"no model could be kept: the one started from views {names[start.i]} and "
+            f"{names[start.j]} ended with {_views(kept)}, fewer than the "
+            f"{s.min_model_views} a model needs{taken}; {hint}")
 
 
 def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches], K: FloatArray,
@@ -168,9 +189,15 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
             for v in check.suspect_views:
                 model.deregister(v)
                 model.blocked[v] = True
-                reasons[v] = "its pose contradicted its pair geometry"
+                reasons[v] = _CONTRADICTED
                 say(f"view {names[v]}: taken out, its pose contradicts its pair geometry")
             last_views = int(model.registered.sum())
+            if last_views < 2:  # no pair left, so no point: nothing more can register
+                say(f"model given up: the check left {_views(last_views)} in it")
+                for v in np.flatnonzero(allowed & ~model.registered & ~model.blocked):
+                    reasons[int(v)] = ("the model it could join was given up: the check "
+                                       "took the other views out")
+                return model.result(check), reasons
         say(f"registered view {names[view]} ({int(model.registered.sum())}/"
             f"{int(allowed.sum())}), "
             f"+{added} points, {model.num_points} in all")
@@ -233,7 +260,9 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
     Raises
     ------
     ReconstructionError
-        When not even the first model can start (no trusted pair).
+        When not even the first model can start (no trusted pair: reason
+        ``"no_initial_pair"``), or the consistency check leaves it fewer than
+        ``min_model_views`` views (``"no_model"``: usually a calibration that does not fit).
     """
     s = settings or SfMSettings()
     say = progress or (lambda message: logger.info("%s", message))
@@ -270,6 +299,11 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
                                      more_pairs if not models else None, say, timings, names,
                                      focal, focal_start)
         if model.registered.sum() < s.min_model_views:
+            if not models:
+                raise ReconstructionError("no_model", _first_model_lost(
+                    model, start[0], left_out, names, s, calibrated=focal is None),
+                    verified_pairs=len(pairs))
+            reasons.update((v, why) for v, why in left_out.items() if remaining[v])
             break
         models.append(model)
         remaining &= ~model.registered

@@ -122,6 +122,19 @@ def _check_distinct_photos(keys: Sequence[bytes], keypoints: Sequence[int],
                              "same keypoints): a view cannot pair with itself")
 
 
+def _check_distinct_names(images: Sequence[ImageSource], names: Sequence[str]) -> None:
+    """Raise ``ValueError`` when two views share a name (files of one name in two
+    folders): the result (``unregistered_reasons``) and its files name views by it."""
+    first: dict[str, int] = {}
+    for v, name in enumerate(names):
+        u = first.setdefault(name, v)
+        if u != v:
+            where = (f" ('{images[u]}', '{images[v]}')" if all(
+                isinstance(images[w], (str, os.PathLike)) for w in (u, v)) else "")
+            raise ValueError(f"two images are named '{name}'{where}: views are named by "
+                             "file name; rename one or pass distinct `names`")
+
+
 def reconstruct_views(
     images: Sequence[ImageSource],
     K: ArrayLike | None,
@@ -158,7 +171,8 @@ def reconstruct_views(
         Halve while wider than this (default 2400: 3072 -> 1536);
         None keeps the native size. The result's ``K`` is for the working size.
     names : sequence of str, optional
-        Names for the report (default: file names, or view0, view1, ...).
+        Names for the result and the report, distinct (default: file names, or view0,
+        view1, ...).
     feature : str
         Detector (:data:`scene3D.features.FEATURE_MODES`, not ``"flow"``).
     pairs : str
@@ -184,12 +198,15 @@ def reconstruct_views(
     Raises
     ------
     ReconstructionError
-        Fewer than two views, or no pair gives a trustworthy start (the message says so
-        when the images have too few keypoints for any pair).
+        Fewer than two views, no pair gives a trustworthy start (the message says so
+        when the images have too few keypoints for any pair), or the consistency check
+        took so many views out of the first model that none could be kept (reason
+        ``"no_model"``; usually a calibration that does not fit).
     TypeError
         ``images`` is one path (a str or Path) rather than a list of them.
     FileNotFoundError, ValueError
         Unreadable images or images of different sizes, one photo given twice (a copy),
+        two views of one name (``names``, by default the file names),
         a ``K`` (or ``focal_prior``) for another image size than the images' native one;
         without ``K``, photos from different cameras (EXIF make and model, or focal
         length).
@@ -202,6 +219,7 @@ def reconstruct_views(
         names = [Path(src).name if isinstance(src, (str, os.PathLike)) else f"view{i}"
                  for i, src in enumerate(images)]
     names = tuple(names)
+    _check_distinct_names(images, names)
     if len(images) < 2:
         raise ReconstructionError("too_few_views", "need at least two images",
                                   views=len(images))

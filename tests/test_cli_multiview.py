@@ -1,0 +1,175 @@
+"""``scene3d reconstruct-views`` at its edges: a calibration that leaves no model, photos
+of one name in two folders, ``--out`` among the photos, hidden files in a folder, and
+names COLMAP's text format cannot hold."""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from scene3D.calibration_io import CameraCalibration, save_calibration
+from scene3D.cli import multiview
+from scene3D.datasets import read_strecha_camera
+from scene3D.errors import ReconstructionError
+from scene3D.export import colmap_text_files
+
+from .conftest import REPO
+
+CALIB = str(REPO / "data" / "fountain_P11_intrinsics.yaml")
+
+
+def _photos(folder, names, seed=0):
+    """Small textured images (never reconstructed: the checks come first)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    for name in names:
+        cv2.imwrite(str(folder / name), rng.integers(0, 256, (60, 80, 3)).astype(np.uint8))
+    return [folder / name for name in names]
+
+
+@pytest.fixture
+def no_reconstruction(monkeypatch):
+    """The reconstruction replaced by a failure naming itself: a run that gets past the
+    checks ends with 'error: reached the reconstruction' (exit code 1)."""
+    def reached(*args, **kwargs):
+        raise ReconstructionError("test", "reached the reconstruction")
+
+    monkeypatch.setattr(multiview, "reconstruct_views", reached)
+
+
+def _earlier_run(out):
+    """An earlier run's files in ``out``: they must stay as they are."""
+    out.mkdir(parents=True)
+    files = {"points.ply": "earlier", "cameras.json": "{}",
+             "reconstruction.json": json.dumps({"conventions": "x",
+                                                "files": ["points.ply", "cameras.json",
+                                                          "reconstruction.json"]})}
+    for name, text in files.items():
+        (out / name).write_text(text)
+    return files
+
+
+def test_a_calibration_that_leaves_no_model_stops_in_one_line(fountain, tmp_path, capsys):
+    """A focal length of 600 px for fountain-P11's 2759 px (0004-0008): the check takes
+    the first model's views out until one is left (before: on until none was, and an
+    IndexError; all 11 views: one left, and an IndexError in the command). Exit 1, one
+    line that says why, and nothing written: an earlier run's files stay as they were."""
+    K = read_strecha_camera(fountain / "gt_dense_cameras" / "0004.jpg.camera").K.copy()
+    K[0, 0] = K[1, 1] = 600.0
+    calib = save_calibration(tmp_path / "wrong.yaml",
+                             CameraCalibration(K, np.zeros(5), (3072, 2048)))
+    images = [str(fountain / "images" / f"{i:04d}.jpg") for i in range(4, 9)]
+    out = tmp_path / "out"
+    earlier = _earlier_run(out)
+    assert multiview.main([*images, "--calib", str(calib), "--max-width", "768", "--no-plots",
+                           "-q", "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: no model could be kept: the one started from views ")
+    assert "taken out because their poses contradicted the pair geometry" in err
+    assert "does the calibration fit these photos?" in err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert {p.name: p.read_text() for p in out.iterdir()} == earlier
+
+
+def test_photos_of_one_name_in_two_folders_are_refused(tmp_path, capsys, no_reconstruction):
+    """day1/IMG_0000.jpg and day2/IMG_0000.jpg would be one key in cameras.json and one
+    name twice in images.txt: refused before any work (exit 2), both paths named."""
+    day1 = _photos(tmp_path / "day1", ["IMG_0000.jpg", "IMG_0001.jpg"])
+    day2 = _photos(tmp_path / "day2", ["IMG_0000.jpg", "IMG_0002.jpg"])
+    out = tmp_path / "out"
+    assert multiview.main([str(tmp_path / "day1"), str(tmp_path / "day2"),
+                           "--out", str(out)]) == 2
+    assert capsys.readouterr().err == (
+        f"error: two photos are named 'IMG_0000.jpg' ('{day1[0]}', '{day2[0]}'): the outputs "
+        "name views by file name; rename one\n")
+    assert not out.exists()
+    # Two names that images.txt would write alike.
+    _photos(tmp_path / "mixed", ["a b.jpg", "a_b.jpg"])
+    assert multiview.main([str(tmp_path / "mixed"), "--out", str(out)]) == 2
+    assert capsys.readouterr().err == (
+        "error: 'a_b.jpg' and 'a b.jpg' would both be 'a_b.jpg' in colmap/images.txt, which "
+        "cannot hold spaces in names; rename one\n")
+    # The library refuses them too: its result names views the same way.
+    from scene3D.multiview import reconstruct_views
+
+    with pytest.raises(ValueError, match="two images are named 'IMG_0000.jpg'"):
+        reconstruct_views([day1[0], day1[1], day2[0]], K=np.diag([100.0, 100.0, 1.0]))
+
+
+def test_out_among_the_photos_is_refused(tmp_path, capsys, no_reconstruction):
+    """--out as the photos' folder (the next run would read cameras.png as a photo), or
+    holding them where a run writes (model-1/): exit 2 before any work, nothing written.
+    A folder beside the photos' is fine."""
+    photos = tmp_path / "photos"
+    _photos(photos, ["a.jpg", "b.jpg"])
+    before = sorted(photos.iterdir())
+    for out in (photos, tmp_path / "x" / ".." / "photos"):
+        assert multiview.main([str(photos), "--out", str(out)]) == 2
+        assert capsys.readouterr().err == (f"error: --out '{out}' is the folder of the "
+                                           "photos; choose another folder for the outputs\n")
+    assert sorted(photos.iterdir()) == before
+    nested = _photos(tmp_path / "project" / "model-1", ["c.jpg"])
+    assert multiview.main([str(photos / "a.jpg"), str(nested[0]),
+                           "--out", str(tmp_path / "project")]) == 2
+    assert capsys.readouterr().err == (
+        f"error: --out '{tmp_path / 'project'}' holds the photos in '{nested[0].parent}', "
+        "where a run writes; choose another folder for the outputs\n")
+    assert multiview.main([str(photos), "--out", str(tmp_path), "--no-report"]) == 1
+    assert capsys.readouterr().err == "error: reached the reconstruction\n"
+
+
+def test_hidden_files_of_a_folder_are_left_out(tmp_path):
+    """macOS's AppleDouble files (._NAME.jpg, not images) and other names starting with
+    '.' are not photos of the folder; a hidden file named on its own is still read."""
+    folder = tmp_path / "photos"
+    photos = _photos(folder, ["0003.jpg", "0004.jpg"])
+    (folder / "._0003.jpg").write_bytes(b"\x00\x05\x16\x07" + bytes(100))
+    (folder / ".thumb.png").write_bytes(b"")
+    assert multiview.image_paths([str(folder)]) == photos
+    assert multiview.image_paths([str(folder), str(folder / "._0003.jpg")]) == [
+        *photos, folder / "._0003.jpg"]
+
+
+def _image_lines(images_txt):
+    """The first line of each image in a COLMAP images.txt, split as COLMAP splits it."""
+    lines = [line for line in images_txt.splitlines() if not line.startswith("#")]
+    return [line.split(" ") for line in lines[::2]]
+
+
+def test_colmap_names_hold_no_spaces():
+    """images.txt separates fields by spaces and cannot quote: each image line has its
+    10 fields, the name with '_' for every space."""
+    names = ["IMG é 0 (copy).JPG", "plain.jpg", "tab\there.jpg"]
+    R = np.stack([np.eye(3)] * 3)
+    t = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    files = colmap_text_files(names, np.diag([500.0, 510.0, 1.0]), (64, 48),
+                              np.ones(3, bool), R, t, np.zeros((0, 3)),
+                              np.zeros((0, 3), np.uint8), np.zeros(0, int), np.zeros(0, int),
+                              np.zeros((0, 2)), np.zeros(0))
+    fields = _image_lines(files["images.txt"])
+    assert [len(f) for f in fields] == [10, 10, 10]
+    assert [f[9] for f in fields] == ["IMG_é_0_(copy).JPG", "plain.jpg", "tab_here.jpg"]
+
+
+def test_photos_with_spaces_in_their_names(fountain, tmp_path, capsys):
+    """Three fountain photos named with spaces: the model is written, cameras.json under the
+    real names, images.txt with '_' for each space, and one warning line says so."""
+    folder = tmp_path / "my photos"
+    folder.mkdir()
+    names = [f"IMG {i} (copy).jpg" for i in (4, 5, 6)]
+    for i, name in zip((4, 5, 6), names):
+        (folder / name).symlink_to(fountain / "images" / f"{i:04d}.jpg")
+    out = tmp_path / "out"
+    assert multiview.main([str(folder), "--calib", CALIB, "--max-width", "400",
+                           "--no-plots", "--no-report", "--out", str(out)]) == 0
+    warnings = [line for line in capsys.readouterr().err.splitlines()
+                if line.startswith("WARNING: COLMAP")]
+    assert warnings == ["WARNING: COLMAP's text format cannot hold names with spaces: "
+                        "colmap/images.txt has 'IMG_4_(copy).jpg' for 'IMG 4 (copy).jpg' "
+                        "(and 2 more), '_' for each space, so those names do not match the "
+                        "files; rename the photos for tools that open them"]
+    assert sorted(json.loads((out / "cameras.json").read_text())) == names
+    fields = _image_lines((out / "colmap" / "images.txt").read_text())
+    assert all(len(f) == 10 for f in fields)
+    assert sorted(f[9] for f in fields) == [n.replace(" ", "_") for n in names]
