@@ -249,6 +249,9 @@ def check_summary(model: SfMModel, names: list[str]) -> dict:
         "inconsistent_pairs": [{"views": [names[i], names[j]], "median_epipolar_px": r}
                                for i, j, r in check.inconsistent_pairs],
         "suspect_views": [names[v] for v in check.suspect_views],
+        **({"focal_scale": check.focal_scale,
+            "focal_scale_sigma": check.focal_scale * check.focal_scale_sigma_log}
+           if np.isfinite(check.focal_scale_sigma_log) else {}),
     }
 
 
@@ -465,9 +468,14 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
     if not recon.ok:
         bad = [f"{names[v]}" for model in recon.models for v in model.check.suspect_views]
-        print(f"error: the reconstruction failed its consistency check: the poses of "
-              f"{', '.join(bad)} contradict their pair geometry (see reconstruction.json; "
-              "the files are written for inspection only)", file=sys.stderr)
+        focal = [model.check for model in recon.models if model.check.focal_mismatch]
+        why = [f"the poses of {', '.join(bad)} contradict their pair geometry"] if bad else []
+        why += [f"the views fit a focal length {c.focal_scale:.2f} times the calibration's "
+                f"(+-{c.focal_scale * c.focal_scale_sigma_log:.2f}): is the calibration for "
+                "this camera, lens and zoom?" for c in focal[:1]]
+        print(f"error: the reconstruction failed its consistency check: {'; '.join(why)} "
+              "(see reconstruction.json; the files are written for inspection only)",
+              file=sys.stderr)
     return EXIT_FAILED if thin or not recon.ok else EXIT_OK
 
 

@@ -15,6 +15,13 @@ import numpy as np
 from ..bundle import Observations, reprojection_residuals
 from ..geometry import FloatArray, camera_centers
 
+#: A model whose observations call for a focal length more than this share away from the
+#: calibration's, and by more than :data:`FOCAL_MISMATCH_SIGMAS` standard deviations,
+#: fails its check: the two-view check's limits (``TwoViewSettings.max_focal_mismatch``,
+#: ``focal_mismatch_sigmas``).
+MAX_FOCAL_MISMATCH = 0.15
+FOCAL_MISMATCH_SIGMAS = 3.0
+
 
 @dataclass(frozen=True)
 class ViewFeatures:
@@ -167,15 +174,32 @@ class ModelCheck:
     suspect_views : tuple[int, ...]
         Views whose pose contradicts most of their pair geometry (weighted by inliers),
         or that only inconsistent pairs tie to the rest of the model (a fold).
+    focal_scale, focal_scale_sigma_log : float
+        With a calibration file, models of three views or more: the focal length the
+        model's observations call for (one shared by every view, adjusted with the
+        cameras and points; :func:`scene3D.bundle.bundle_adjust_focal`), as a factor of
+        the calibration's, and the standard deviation of its log. 1 and inf when not
+        tested.
     """
 
     pairs_checked: int
     inconsistent_pairs: tuple[tuple[int, int, float], ...] = ()
     suspect_views: tuple[int, ...] = ()
+    focal_scale: float = 1.0
+    focal_scale_sigma_log: float = float("inf")
+
+    @property
+    def focal_mismatch(self) -> bool:
+        """The observations call for another focal length than the calibration's: by more
+        than :data:`MAX_FOCAL_MISMATCH` and :data:`FOCAL_MISMATCH_SIGMAS` standard
+        deviations (the two-view check's limits, ``TwoViewSettings``)."""
+        log_scale = abs(float(np.log(self.focal_scale)))
+        return (log_scale > np.log1p(MAX_FOCAL_MISMATCH)
+                and log_scale > FOCAL_MISMATCH_SIGMAS * self.focal_scale_sigma_log)
 
     @property
     def ok(self) -> bool:
-        return not self.suspect_views
+        return not self.suspect_views and not self.focal_mismatch
 
 
 @dataclass(frozen=True)

@@ -39,7 +39,6 @@ from .focal import FocalSettings
 from .mapper import reconstruct_models
 from .matching import verify_pair
 from .models import (
-    ModelCheck,
     MultiViewReconstruction,
     PairMatches,
     SfMModel,
@@ -69,10 +68,10 @@ def _to_input_order(model: SfMModel, order: np.ndarray) -> SfMModel:
     return dataclasses.replace(
         model, registered=per_view(model.registered), R=per_view(model.R), t=per_view(model.t),
         observations=Observations(order[obs.view], obs.point, obs.xy),
-        check=ModelCheck(check.pairs_checked,
-                         tuple((int(order[i]), int(order[j]), r)
-                               for i, j, r in check.inconsistent_pairs),
-                         tuple(sorted(int(order[v]) for v in check.suspect_views))),
+        check=dataclasses.replace(
+            check, inconsistent_pairs=tuple((int(order[i]), int(order[j]), r)
+                                            for i, j, r in check.inconsistent_pairs),
+            suspect_views=tuple(sorted(int(order[v]) for v in check.suspect_views))),
         focal=focal)
 
 

@@ -9,6 +9,7 @@ exactly the nodes with a point, and ``track_point[k]`` is the point of track ``k
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Sequence
 
@@ -354,7 +355,27 @@ class GrowingModel:
         return check_model(self.registered, self.R, self.t, self.pairs, self.features, self.K,
                            self.s.consistency_px, self._fixed_view())
 
+    def focal_test(self, check: ModelCheck) -> ModelCheck:
+        """``check`` with the focal length the model's observations call for, for a model
+        with a calibration file (:attr:`ModelCheck.focal_scale`): one bundle adjustment
+        of copies with the focal length free (a prior of no weight to speak of, 1 in
+        log), the model itself unchanged."""
+        nodes = np.flatnonzero(self.node_point >= 0)
+        if self.focal is not None or self.registered.sum() < 3 or not len(nodes):
+            return check
+        point_ids, local = np.unique(self.node_point[nodes], return_inverse=True)
+        obs = Observations(self.node_view[nodes], local, self.xy[nodes],
+                           None if self.sigma is None else self.sigma[nodes])
+        try:
+            fa = bundle_adjust_focal(self.R, self.t, self.X[point_ids], obs, self.K,
+                                     np.array([self._fixed_view()]), float(self.K[0, 0]), 1.0)
+        except (ValueError, np.linalg.LinAlgError):
+            return check
+        return dataclasses.replace(check, focal_scale=float(fa.focal_px / self.K[0, 0]),
+                                   focal_scale_sigma_log=float(fa.sigma_log))
+
     def result(self, check: ModelCheck) -> SfMModel:
+        check = self.focal_test(check)
         self.compact()
         nodes, obs = self.observations()
         colors = np.zeros((len(self.X), 3), np.uint8)
