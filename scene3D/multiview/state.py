@@ -25,6 +25,9 @@ from .points import max_parallax_deg, observation_errors, refine_points, triangu
 from .tracks import Tracks, build_tracks, connected_components
 from .weights import keypoint_sigma
 
+#: Points (at most, about) in the adjustment that tests a calibrated model's focal length.
+FOCAL_TEST_POINTS = 1000
+
 
 class GrowingModel:
     """Mutable state of one growing model (see the module docstring)."""
@@ -363,12 +366,17 @@ class GrowingModel:
         nodes = np.flatnonzero(self.node_point >= 0)
         if self.focal is not None or self.registered.sum() < 3 or not len(nodes):
             return check
+        # Every k-th point is plenty for one number to within 15 %: its sigma stays well
+        # under a percent, in 0.12 s instead of 1.8 s on castle-P19 at 1536 px.
+        step = max(1, len(self.X) // FOCAL_TEST_POINTS)
+        nodes = nodes[self.node_point[nodes] % step == 0]
         point_ids, local = np.unique(self.node_point[nodes], return_inverse=True)
         obs = Observations(self.node_view[nodes], local, self.xy[nodes],
                            None if self.sigma is None else self.sigma[nodes])
         try:
             fa = bundle_adjust_focal(self.R, self.t, self.X[point_ids], obs, self.K,
-                                     np.array([self._fixed_view()]), float(self.K[0, 0]), 1.0)
+                                     np.array([self._fixed_view()]), float(self.K[0, 0]), 1.0,
+                                     max_iterations=20)
         except (ValueError, np.linalg.LinAlgError):
             return check
         return dataclasses.replace(check, focal_scale=float(fa.focal_px / self.K[0, 0]),
