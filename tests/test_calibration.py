@@ -471,29 +471,31 @@ def test_cli_bad_inputs(tmp_path, chessboards, capsys, case, message):
     assert not (tmp_path / "c.yaml").exists()
 
 
-def test_cli_skips_hidden_files_in_a_folder(tmp_path, chessboards, capsys):
-    """macOS leaves ._NAME files beside photos copied from its disks: not photos."""
-    for name in ("left01.jpg", "left02.jpg", "left03.jpg", "left04.jpg"):
-        shutil.copy(chessboards / "opencv-left" / name, tmp_path / name)
-    (tmp_path / "._left01.jpg").write_bytes(b"\x00\x05\x16\x07 AppleDouble")
-    out = tmp_path / "out" / "c.yaml"
-    out.parent.mkdir()
-    code = main(["--images", str(tmp_path), "--out", str(out)])
+def _calibrate_left(tmp_path, chessboards, capsys, count, extra=None):
+    """Calibrate from copies of left01..left{count}.jpg in ``tmp_path`` (and a file
+    ``extra`` = (name, bytes) beside them), into ``tmp_path/out/c.yaml``: the output."""
+    for i in range(1, count + 1):
+        shutil.copy(chessboards / "opencv-left" / f"left{i:02d}.jpg", tmp_path)
+    if extra is not None:
+        (tmp_path / extra[0]).write_bytes(extra[1])
+    (tmp_path / "out").mkdir()
+    code = main(["--images", str(tmp_path), "--out", str(tmp_path / "out" / "c.yaml")])
     captured = capsys.readouterr()
     assert code == 0, captured.err
+    return captured
+
+
+def test_cli_skips_hidden_files_in_a_folder(tmp_path, chessboards, capsys):
+    """macOS leaves ._NAME files beside photos copied from its disks: not photos."""
+    captured = _calibrate_left(tmp_path, chessboards, capsys, 4,
+                               ("._left01.jpg", b"\x00\x05\x16\x07 AppleDouble"))
     assert "px over 4 views (640x480" in captured.out
 
 
 def test_cli_says_where_a_folding_distortion_leaves_no_ray(tmp_path, chessboards, capsys):
     """left01-03 alone: the fitted distortion folds back before the image corners. The
     corners read "no ray", the map leaves them blank, and the report says the share."""
-    for name in ("left01.jpg", "left02.jpg", "left03.jpg"):
-        shutil.copy(chessboards / "opencv-left" / name, tmp_path / name)
-    out = tmp_path / "out" / "c.yaml"
-    out.parent.mkdir()
-    code = main(["--images", str(tmp_path), "--out", str(out)])
-    captured = capsys.readouterr()
-    assert code == 0, captured.err
+    captured = _calibrate_left(tmp_path, chessboards, capsys, 3)
     assert "the fitted distortion folds back inside the image: no ray reaches" in captured.err
     assert "corners no ray, no ray, no ray, no ray; no ray reaches" in captured.out
     assert (tmp_path / "out" / "c_uncertainty.png").read_bytes().startswith(b"\x89PNG")
