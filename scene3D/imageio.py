@@ -31,6 +31,18 @@ ImageSource = str | os.PathLike | np.ndarray
 IMAGE_SUFFIXES = frozenset({".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm",
                             ".ppm", ".heic", ".heif"})
 
+def is_folder_image(path: Path) -> bool:
+    """Whether a file found in a folder is taken as an image: its ending is one of
+    :data:`IMAGE_SUFFIXES` and it is not hidden (a name starting with '.', such as the
+    ``._IMG_0001.jpg`` files macOS leaves on other disks)."""
+    return path.suffix.lower() in IMAGE_SUFFIXES and not path.name.startswith(".")
+
+
+def folder_images(folder: Path) -> list[Path]:
+    """The images of ``folder`` (:func:`is_folder_image`), sorted."""
+    return sorted(p for p in Path(folder).iterdir() if is_folder_image(p))
+
+
 #: The book halves images while they are wider than this.
 BOOK_MAX_WIDTH_PX = 1200
 

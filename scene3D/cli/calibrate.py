@@ -45,7 +45,7 @@ from ..calibration_uncertainty import (
 from ..camera import undistort_image
 from ..errors import CalibrationError
 from ..export import all_or_nothing, atomic_write_bytes, atomic_write_pieces
-from ..imageio import IMAGE_SUFFIXES, image_size, load_bgr, read_image_size
+from ..imageio import folder_images, image_size, is_folder_image, load_bgr, read_image_size
 from .common import (
     EXIT_OK,
     ArgumentParser,
@@ -175,9 +175,8 @@ def _board_from_args(args: argparse.Namespace) -> BoardSpec:
 
 def _image_files(spec: str) -> list[Path]:
     path = Path(spec)
-    if path.is_dir():  # hidden files (macOS's ._IMG_0001.jpg) are no photos
-        files = sorted(p for p in path.iterdir()
-                       if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith("."))
+    if path.is_dir():
+        files = folder_images(path)
     else:
         files = sorted(Path(p) for p in glob.glob(spec) if Path(p).is_file())
     if not files:
@@ -402,8 +401,7 @@ def _outputs(args: argparse.Namespace) -> list[Path]:
 def _read_as_photo(path: Path, spec: str) -> bool:
     """Would ``--images spec`` (a folder or a glob) list the file ``path``?"""
     if Path(spec).is_dir():
-        return (path.parent.resolve() == Path(spec).resolve()
-                and path.suffix.lower() in IMAGE_SUFFIXES and not path.name.startswith("."))
+        return path.parent.resolve() == Path(spec).resolve() and is_folder_image(path)
     return any(fnmatch.fnmatch(name, pattern) for name, pattern in (
         (os.path.normpath(path), os.path.normpath(spec)),
         (os.path.abspath(path), os.path.abspath(spec))))

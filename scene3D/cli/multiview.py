@@ -27,7 +27,7 @@ from ..export import (
     written_bytes,
 )
 from ..features import FEATURE_MODES, resolve_feature_mode
-from ..imageio import BOOK_MAX_WIDTH_PX, IMAGE_SUFFIXES, read_image_size
+from ..imageio import BOOK_MAX_WIDTH_PX, folder_images, read_image_size
 from ..multiview import (
     PAIR_MODES,
     MultiViewReconstruction,
@@ -147,8 +147,7 @@ def image_paths(specs: list[str]) -> list[Path]:
     for spec in specs:
         p = Path(spec)
         if p.is_dir():
-            paths += sorted(q for q in p.iterdir()
-                            if q.suffix.lower() in IMAGE_SUFFIXES and not q.name.startswith("."))
+            paths += folder_images(p)
         elif p.is_file():
             paths.append(p)
         else:
