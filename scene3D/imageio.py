@@ -10,6 +10,7 @@ Pixel centres map as ``x' = (x + 0.5) / 2^L - 0.5`` (see
 
 from __future__ import annotations
 
+import glob
 import io
 import logging
 import os
@@ -41,6 +42,26 @@ def is_folder_image(path: Path) -> bool:
 def folder_images(folder: Path) -> list[Path]:
     """The images of ``folder`` (:func:`is_folder_image`), sorted."""
     return sorted(p for p in Path(folder).iterdir() if is_folder_image(p))
+
+
+def glob_patterns(spec: str) -> list[str]:
+    """The patterns a glob ``spec`` is read as: itself, then, when its folder part exists
+    as written (``'photos [2024]/*.jpg'``, whose brackets a glob reads as a set of
+    characters), the same with that folder taken literally (:func:`glob.escape`)."""
+    head, tail = os.path.split(spec)
+    if head and glob.has_magic(head) and os.path.isdir(head):
+        return [spec, os.path.join(glob.escape(head), tail)]
+    return [spec]
+
+
+def glob_files(spec: str) -> list[Path]:
+    """The files a glob ``spec`` matches, sorted, by the first of :func:`glob_patterns`
+    that matches any."""
+    for pattern in glob_patterns(spec):
+        files = sorted(Path(p) for p in glob.glob(pattern) if Path(p).is_file())
+        if files:
+            return files
+    return []
 
 
 #: The book halves images while they are wider than this.

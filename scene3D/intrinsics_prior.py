@@ -348,6 +348,7 @@ def camera_prior(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, int]]
     warnings: list[str] = []
     found: tuple[float, str] | None = None
     without: list[str] = []
+    why_none = "no EXIF focal length"  # or the first photo's reason, when more specific
     for name, exif, _ in photos:
         result = focal_from_exif(exif, size) if exif is not None else None
         if result is None or result.focal_px is None:
@@ -355,6 +356,8 @@ def camera_prior(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, int]]
                 warnings.append(f"'{name}': {result.description}; its EXIF focal length is "
                                 "not used")
             else:
+                if result is not None and not without:
+                    why_none = result.description
                 without.append(name)
         elif found is None:
             found = (result.focal_px, result.description)
@@ -366,5 +369,5 @@ def camera_prior(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, int]]
         return FocalPrior(found[0], size, EXIF_SIGMA_LOG, "exif", found[1], tuple(warnings),
                           camera)
     return FocalPrior(default_focal_px(size), size, DEFAULT_PRIOR_SIGMA_LOG, "prior",
-                      f"no EXIF focal length: {DEFAULT_FOCAL_FACTOR:g} x the longer side "
+                      f"{why_none}: {DEFAULT_FOCAL_FACTOR:g} x the longer side "
                       "(COLMAP's default)", tuple(warnings), camera)

@@ -423,6 +423,7 @@ def test_cli_video_collects_distinct_views(tmp_path, board_views, capsys):
     ("circles_too_few", "--board 2x2: the board has 4 points; a view needs at least 6"),
     ("out_among_the_photos", "where --images finds the photos: the next run would take "
                              "them for photos"),
+    ("out_among_bracketed_photos", "where --images finds the photos"),
     ("turned_photos", "some are stored turned by 90 degrees"),
     ("found_by_chance", "found in only 1 of 13 views; calibration needs at least 3; if it "
                         "is in more of them, check --board"),
@@ -444,6 +445,8 @@ def test_cli_bad_inputs(tmp_path, chessboards, capsys, case, message):
         shutil.copy(left / name, turned / name)
     cv2.imwrite(str(turned / "left03.jpg"),
                 cv2.rotate(cv2.imread(str(left / "left03.jpg")), cv2.ROTATE_90_CLOCKWISE))
+    bracketed = tmp_path / "set [1]"
+    shutil.copytree(two, bracketed)
     out = ["--out", str(tmp_path / "c.yaml")]
     argv = {
         "no_images": ["--images", str(tmp_path / "empty")],
@@ -459,6 +462,8 @@ def test_cli_bad_inputs(tmp_path, chessboards, capsys, case, message):
         "board_side_of_two": ["--images", str(left), "--board", "4x2"],
         "circles_too_few": ["--images", str(left), "--pattern", "circles", "--board", "2x2"],
         "out_among_the_photos": ["--images", str(two), "--out", str(two / "c.yaml")],
+        "out_among_bracketed_photos": ["--images", f"{bracketed}/*", "--out",
+                                       str(bracketed / "c.yaml")],
         "turned_photos": ["--images", str(turned)],
         "found_by_chance": ["--images", str(left), "--board", "10x6"],  # a false 10x6 once
     }[case]

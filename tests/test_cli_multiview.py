@@ -131,6 +131,12 @@ def test_hidden_files_of_a_folder_are_left_out(tmp_path):
         *photos, folder / "._0003.jpg"]
 
 
+def test_a_glob_in_a_folder_whose_name_holds_brackets(tmp_path):
+    folder = tmp_path / "photos [2024]"
+    photos = _photos(folder, ["0003.jpg", "0004.jpg"])
+    assert multiview.image_paths([f"{folder}/*.jpg"]) == photos
+
+
 def _image_lines(images_txt):
     """The first line of each image in a COLMAP images.txt, split as COLMAP splits it."""
     lines = [line for line in images_txt.splitlines() if not line.startswith("#")]

@@ -4,6 +4,7 @@ import pytest
 
 from scene3D.camera import scale_intrinsics_halved
 from scene3D.imageio import (
+    glob_files,
     halve,
     halving_levels,
     header_size,
@@ -261,3 +262,18 @@ def test_a_jpeg_header_claiming_more_pixels_than_the_file_holds_is_damaged(tmp_p
                      cv2.IMWRITE_JPEG_QUALITY, 10])
         assert read_image_size(flat) == (4000, 4000)
         assert load_working_image(flat, np.eye(3), np.zeros(5), 1000)[0].shape == (1000, 1000, 3)
+
+
+def test_a_glob_finds_photos_in_a_folder_whose_name_holds_brackets(tmp_path):
+    """'photos [2024]/*.jpg': a glob reads the brackets as a set of characters and finds
+    nothing; the folder as written exists, so it is taken literally. A set of characters
+    in a folder that does not exist as written still works as one."""
+    folder = tmp_path / "photos [2024]"
+    folder.mkdir()
+    for name in ("b.jpg", "a.jpg", "notes.txt"):
+        (folder / name).write_bytes(b"")
+    assert glob_files(f"{folder}/*.jpg") == [folder / "a.jpg", folder / "b.jpg"]
+    (tmp_path / "set1").mkdir()
+    (tmp_path / "set1" / "c.jpg").write_bytes(b"")
+    assert glob_files(f"{tmp_path}/set[0-9]/*.jpg") == [tmp_path / "set1" / "c.jpg"]
+    assert glob_files(f"{folder}/*.png") == []

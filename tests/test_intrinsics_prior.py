@@ -132,6 +132,16 @@ def test_one_photo_without_exif_shares_the_others_focal_length_with_a_warning():
     assert prior.warnings == ("'b.jpg' has no EXIF focal length: taken to share the others'",)
 
 
+def test_the_default_says_why_exif_gave_no_focal_length():
+    lens_only = ExifCamera(make="Acme", model="X1", focal_length_mm=4.2)
+    prior = camera_prior([("a.jpg", lens_only, STRECHA), ("b.jpg", lens_only, STRECHA)])
+    assert prior.source == "prior"
+    assert prior.description.startswith("EXIF FocalLength 4.2 mm comes without the sensor size")
+    assert "1.2 x the longer side" in prior.description
+    bare = camera_prior([("a.jpg", None, STRECHA), ("b.jpg", ExifCamera(), STRECHA)])
+    assert bare.description.startswith("no EXIF focal length: 1.2 x")
+
+
 @pytest.mark.parametrize("second, message", [
     (("b.jpg", ExifCamera(make="Canon", model="EOS 5D", focal_length_35mm=32), (3072, 1728)),
      "'b.jpg' is 3072x1728 but 'a.jpg' is 3072x2048"),

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import fnmatch
-import glob
 import hashlib
 import io
 import logging
@@ -45,7 +44,15 @@ from ..calibration_uncertainty import (
 from ..camera import undistort_image
 from ..errors import CalibrationError
 from ..export import all_or_nothing, atomic_write_bytes, atomic_write_pieces
-from ..imageio import folder_images, image_size, is_folder_image, load_bgr, read_image_size
+from ..imageio import (
+    folder_images,
+    glob_files,
+    glob_patterns,
+    image_size,
+    is_folder_image,
+    load_bgr,
+    read_image_size,
+)
 from .common import (
     EXIT_OK,
     ArgumentParser,
@@ -178,7 +185,7 @@ def _image_files(spec: str) -> list[Path]:
     if path.is_dir():
         files = folder_images(path)
     else:
-        files = sorted(Path(p) for p in glob.glob(spec) if Path(p).is_file())
+        files = glob_files(spec)
     if not files:
         raise UsageError(f"no images found in '{spec}'")
     for path in files:
@@ -402,9 +409,11 @@ def _read_as_photo(path: Path, spec: str) -> bool:
     """Would ``--images spec`` (a folder or a glob) list the file ``path``?"""
     if Path(spec).is_dir():
         return path.parent.resolve() == Path(spec).resolve() and is_folder_image(path)
-    return any(fnmatch.fnmatch(name, pattern) for name, pattern in (
-        (os.path.normpath(path), os.path.normpath(spec)),
-        (os.path.abspath(path), os.path.abspath(spec))))
+    return any(fnmatch.fnmatch(name, pattern)
+               for glob_pattern in glob_patterns(spec)
+               for name, pattern in (
+                   (os.path.normpath(path), os.path.normpath(glob_pattern)),
+                   (os.path.abspath(path), os.path.abspath(glob_pattern))))
 
 
 def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import glob
 import logging
 import re
 import sys
@@ -27,7 +26,7 @@ from ..export import (
     written_bytes,
 )
 from ..features import FEATURE_MODES, resolve_feature_mode
-from ..imageio import BOOK_MAX_WIDTH_PX, folder_images, read_image_size
+from ..imageio import BOOK_MAX_WIDTH_PX, folder_images, glob_files, read_image_size
 from ..multiview import (
     PAIR_MODES,
     MultiViewReconstruction,
@@ -151,7 +150,7 @@ def image_paths(specs: list[str]) -> list[Path]:
         elif p.is_file():
             paths.append(p)
         else:
-            matched = sorted(Path(q) for q in glob.glob(spec) if Path(q).is_file())
+            matched = glob_files(spec)
             if not matched:
                 raise FileNotFoundError(f"no image matches '{spec}'")
             paths += matched
