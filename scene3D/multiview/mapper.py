@@ -48,6 +48,12 @@ logger = logging.getLogger(__name__)
 #: Why a view the consistency check took out of a model is in none.
 _CONTRADICTED = "its pose contradicted its pair geometry"
 
+#: The start pair's focal length, by its source (:attr:`FocalEstimate.source`), in words.
+_START_SOURCE = {"exif": "the EXIF value (the pair could not refine it)",
+                 "prior": "the default (the pair could not refine it)",
+                 "exif+refined": "the EXIF value refined by the pair",
+                 "prior+refined": "self-calibrated by the pair"}
+
 #: ``more_pairs(view, model_views)``: verified pairs of ``view`` with further candidates
 #: among ``model_views`` (the pipeline matches them through its engine).
 MorePairs = Callable[[int, Sequence[int]], list[PairMatches]]
@@ -281,8 +287,9 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
             start, K, focal_start = self_calibrated_start(features, inside, K, focal,
                                                           initial_pair)
             if not isinstance(start, str):
-                say(f"focal length {K[0, 0]:.1f} px to start with, from views "
-                    f"{names[start[0].i]} and {names[start[0].j]} ({focal_start.source})")
+                say(f"focal length {K[0, 0]:.1f} px to start with: "
+                    f"{_START_SOURCE.get(focal_start.source, focal_start.source)}, views "
+                    f"{names[start[0].i]} and {names[start[0].j]}")
         elif focal is not None and inside:
             K = models[-1].K if models[-1].K is not None else K
             focal_start = dataclasses.replace(models[-1].focal, start_focal_px=float(K[0, 0]),
@@ -309,7 +316,7 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
         remaining &= ~model.registered
         reasons = {v: why for v, why in {**reasons, **left_out}.items() if remaining[v]}
         if remaining.any():
-            say(f"model {len(models) - 1}: {_views(int(model.registered.sum()))}; "
+            say(f"a model of {_views(int(model.registered.sum()))} is done; "
                 f"{_views(int(remaining.sum()))} left for another model")
     for v in np.flatnonzero(remaining):
         reasons.setdefault(int(v), "no verified pair with the views left")
