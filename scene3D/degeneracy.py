@@ -173,6 +173,59 @@ def fit_rotation(pts1: FloatArray, pts2: FloatArray, K: FloatArray, scale_px: fl
     return R
 
 
+def _with_focal_scale(K: FloatArray, scale: float) -> FloatArray:
+    """``K`` with its focal length (and skew) times ``scale``, the principal point kept."""
+    Ks = K.copy()
+    Ks[:2, :2] *= scale
+    return Ks
+
+
+def fit_rotation_and_focal(pts1: FloatArray, pts2: FloatArray, K: FloatArray,
+                           scale_px: float, H: FloatArray | None = None,
+                           max_log_scale: float = float(np.log(2.0)),
+                           iterations: int = 6) -> tuple[FloatArray, float]:
+    """The rotation ``R`` ``(3, 3)`` and focal-length factor ``s`` of a camera that only
+    turned, ``x2 ~ K_s R K_s^-1 x1`` with ``K_s`` = ``K`` whose focal length is ``s``
+    times ``K``'s (principal point kept): a pure rotation seen through a calibration
+    for another zoom or lens, which an essential matrix explains with an invented
+    translation.
+
+    Robust as :func:`fit_rotation` (Cauchy loss of scale ``scale_px`` on the transfer
+    errors); ``log s`` is kept within ``+-max_log_scale`` (beyond it the family tends to
+    an image shift, which a translation past a distant plane explains too). It starts
+    from the best of three factors (1, 0.7 and 1.4), each with its :func:`fit_rotation`,
+    then Gauss-Newton on the rotation vector and ``log s`` (the ``log s`` column of the
+    Jacobian by central differences).
+    """
+    def residuals(R: FloatArray, log_s: float) -> tuple[FloatArray, FloatArray]:
+        Ks = _with_focal_scale(K, float(np.exp(log_s)))
+        rays1 = to_homogeneous(pts1) @ np.linalg.inv(Ks).T
+        return _transfer(R, rays1, pts2, Ks)
+
+    starts = []
+    for log_s in (0.0, np.log(0.7), np.log(1.4)):
+        R = fit_rotation(pts1, pts2, _with_focal_scale(K, float(np.exp(log_s))), scale_px, H,
+                         iterations=2)
+        starts.append((_robust_rotation_cost(residuals(R, log_s)[0], scale_px), R, log_s))
+    _, R, log_s = min(starts, key=lambda start: start[0])
+    step_log_s = 1e-6
+    for _ in range(iterations):
+        r, J_rot = residuals(R, log_s)
+        J_log_s = (residuals(R, log_s + step_log_s)[0]
+                   - residuals(R, log_s - step_log_s)[0]) / (2 * step_log_s)
+        J = np.column_stack([J_rot, J_log_s])
+        squared = r[0::2] ** 2 + r[1::2] ** 2
+        weights = np.repeat(1.0 / (1.0 + squared / scale_px**2), 2)
+        Jw = J * weights[:, None]
+        try:
+            step = -np.linalg.solve(Jw.T @ J, Jw.T @ r)
+        except np.linalg.LinAlgError:
+            break
+        R = rotations_from_vectors(step[None, :3])[0] @ R
+        log_s = float(np.clip(log_s + step[3], -max_log_scale, max_log_scale))
+    return R, float(np.exp(log_s))
+
+
 def _unit_rows(v: FloatArray) -> FloatArray:
     return v / np.linalg.norm(v, axis=1, keepdims=True)
 
@@ -234,6 +287,12 @@ class MotionModelChoice(NamedTuple):
         that moved.
     R : (3, 3) float64
         The fitted rotation.
+    focal_rotation_share, focal_scale : float
+        With ``free_focal``, the share of the matches that a rotation under a focal
+        length ``focal_scale`` times ``K``'s explains within three noise standard
+        deviations (:func:`fit_rotation_and_focal`), when its GRIC is lower than the
+        rotation's under ``K``; else 0 and 1. It does not decide ``pure_rotation``: a
+        free focal length also absorbs some of a small real baseline's parallax.
     """
 
     essential_gric: float
@@ -243,11 +302,13 @@ class MotionModelChoice(NamedTuple):
     planar: bool
     rotation_share: float
     R: FloatArray
+    focal_rotation_share: float = 0.0
+    focal_scale: float = 1.0
 
 
 def motion_model_choice(pts1: FloatArray, pts2: FloatArray, K: FloatArray,
                         sampson_px: FloatArray, noise_px: float,
-                        H: FloatArray) -> MotionModelChoice:
+                        H: FloatArray, free_focal: bool = False) -> MotionModelChoice:
     """Do a pure rotation or a homography explain the matches as well as an essential matrix?
 
     An essential matrix fits the matches of a camera that only turned for any
@@ -259,14 +320,28 @@ def motion_model_choice(pts1: FloatArray, pts2: FloatArray, K: FloatArray,
     ``pts1, pts2`` ``(N, 2)`` of the essential matrix, with their Sampson distances
     ``sampson_px`` ``(N,)`` and the noise ``noise_px`` (pixels, per coordinate)
     measured on them.
+
+    With ``free_focal``, the rotation is also fitted with a free focal length
+    (:func:`fit_rotation_and_focal`, 4 parameters): a camera that only turned, given a
+    calibration for another zoom, fits it, while the essential matrix explains its
+    matches with an invented translation (the caller asks for it where a homography
+    explains the matches, as the rotation's does).
     """
     sigma = noise_px
     R = fit_rotation(pts1, pts2, K, 3.0 * sigma, H)
     essential = gric(sampson_px, sigma, 3, 5)
     rotation_errors = homography_errors(K @ R @ np.linalg.inv(K), pts1, pts2)
     rotation = gric(rotation_errors, sigma, 2, 3)
+    focal_share, focal_scale = 0.0, 1.0
+    if free_focal:
+        R_s, scale = fit_rotation_and_focal(pts1, pts2, K, 3.0 * sigma, H)
+        Ks = _with_focal_scale(K, scale)
+        errors_s = homography_errors(Ks @ R_s @ np.linalg.inv(Ks), pts1, pts2)
+        if gric(errors_s, sigma, 2, 4) < rotation:
+            focal_share, focal_scale = float(np.mean(errors_s <= 3.0 * sigma)), scale
     homography = (gric(homography_errors(H, pts1, pts2), sigma, 2, 8)
                   if np.all(np.isfinite(H)) else np.inf)
     return MotionModelChoice(essential, rotation, homography, rotation <= essential,
                              homography <= essential,
-                             float(np.mean(rotation_errors <= 3.0 * sigma)), R)
+                             float(np.mean(rotation_errors <= 3.0 * sigma)), R, focal_share,
+                             focal_scale)

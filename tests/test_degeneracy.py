@@ -1,7 +1,13 @@
 import numpy as np
 import pytest
 
-from scene3D.degeneracy import fit_rotation, gric, homography_errors, motion_model_choice
+from scene3D.degeneracy import (
+    fit_rotation,
+    fit_rotation_and_focal,
+    gric,
+    homography_errors,
+    motion_model_choice,
+)
 from scene3D.epipolar import essential_distances, essential_from_pose, estimate_homography
 from scene3D.essential_fit import noise_sigma_px
 from scene3D.geometry import project, rotation_error_deg
@@ -17,6 +23,43 @@ def test_fit_rotation_is_exact_for_a_camera_that_only_turned(camera, true_pose):
     assert rotation_error_deg(R_fit, R) < 1e-8
     H = camera @ R_fit @ np.linalg.inv(camera)
     assert homography_errors(H, pts1, pts2).max() < 1e-6
+
+
+@pytest.mark.parametrize("factor", [0.6, 0.8, 1.3, 1.8])
+def test_fit_rotation_and_focal_finds_the_zoom_a_rotation_was_seen_through(camera, true_pose,
+                                                                           factor):
+    R, _ = true_pose
+    _, pts1, pts2 = correspondences(camera, R, np.zeros(3), n=100)
+    K = camera.copy()
+    K[:2, :2] *= factor
+    R_fit, scale = fit_rotation_and_focal(pts1, pts2, K, 1.0)
+    assert scale == pytest.approx(1.0 / factor, rel=1e-6)
+    assert rotation_error_deg(R_fit, R) < 1e-6
+
+
+def _motion_choice(K, pts1, pts2, R, t, free_focal, noise_px=0.3):
+    """The choice with the noise known (a translation's Sampson distances under a wrong
+    focal length would measure more)."""
+    distances = essential_distances(essential_from_pose(R, t), pts1, pts2, K)
+    H, _ = estimate_homography(pts1, pts2)
+    return motion_model_choice(pts1, pts2, K, distances, noise_px, H, free_focal)
+
+
+def test_a_rotation_under_another_focal_length_is_told_from_a_baseline(camera, true_pose):
+    """With ``free_focal``, a camera that only turned, seen through a calibration 1.3
+    times too long, is a rotation under a focal length 1 / 1.3 times K's; a real
+    baseline is not, and without ``free_focal`` nothing is fitted."""
+    R, t = true_pose
+    K = camera.copy()
+    K[:2, :2] *= 1.3
+    _, pts1, pts2 = correspondences(camera, R, np.zeros(3), n=300, noise_px=0.3)
+    turned = _motion_choice(K, pts1, pts2, R, t, free_focal=True)
+    assert turned.focal_scale == pytest.approx(1 / 1.3, rel=0.01)
+    assert turned.focal_rotation_share > 0.95 > turned.rotation_share
+    assert _motion_choice(K, pts1, pts2, R, t, free_focal=False).focal_rotation_share == 0.0
+    _, pts1, pts2 = correspondences(camera, R, t, n=300, noise_px=0.3)
+    moved = _motion_choice(camera, pts1, pts2, R, t, free_focal=True)
+    assert moved.focal_rotation_share < 0.2 and not moved.pure_rotation
 
 
 def test_gric_counts_the_dimension_and_the_parameters():

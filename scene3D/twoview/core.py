@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..bundle_two_view import bundle_adjust_two_view
-from ..camera import validate_intrinsics
+from ..camera import check_intrinsics_for_native_size, validate_intrinsics
 from ..degeneracy import (
     MotionModelChoice,
     lower_cost_plane_pose,
@@ -44,7 +44,7 @@ from ..uncertainty import (
     truncated_noise,
 )
 from .results import TwoViewGeometry, TwoViewReconstruction, TwoViewSettings
-from .trust import check_focal_length, rival_chi2, trust_warnings
+from .trust import check_focal_length, principal_point_warning, rival_chi2, trust_warnings
 
 logger = logging.getLogger(__name__)
 
@@ -62,7 +62,7 @@ def sample_colors(img_bgr: np.ndarray, points: FloatArray) -> np.ndarray:
 
 
 def _motion(E: FloatArray, in1: FloatArray, in2: FloatArray, K: FloatArray, H: FloatArray,
-            threshold_px: float) -> MotionModelChoice:
+            threshold_px: float, free_focal: bool) -> MotionModelChoice:
     """:func:`scene3D.degeneracy.motion_model_choice` on the inliers of ``E``.
 
     The noise is floored at a thousandth of the threshold (as the loss scale is,
@@ -71,7 +71,7 @@ def _motion(E: FloatArray, in1: FloatArray, in2: FloatArray, K: FloatArray, H: F
     """
     distances = essential_distances(E, in1, in2, K)
     noise = max(noise_sigma_px(distances), 1e-3 * threshold_px)
-    return motion_model_choice(in1, in2, K, distances, noise, H)
+    return motion_model_choice(in1, in2, K, distances, noise, H, free_focal)
 
 
 def pose_covariance(R: FloatArray, t: FloatArray, in1: FloatArray, in2: FloatArray,
@@ -122,6 +122,7 @@ def reconstruct_from_matches(
     pts2: ArrayLike,
     K: ArrayLike,
     settings: TwoViewSettings | None = None,
+    image_size: tuple[int, int] | None = None,
 ) -> TwoViewGeometry:
     """Estimate pose and structure from correspondences (the geometric core).
 
@@ -134,7 +135,14 @@ def reconstruct_from_matches(
         and counts once in everything after it: the match and inlier counts, the
         checks, the points and the pose's uncertainty.
     K : (3, 3) array_like
-        Intrinsics shared by both images.
+        Intrinsics shared by both images, for images of the size the points were found
+        in.
+    settings : TwoViewSettings, optional
+    image_size : (width, height), optional
+        The images' size: ``K`` is then checked against it
+        (:func:`scene3D.camera.check_intrinsics_for_native_size`). Without it, a
+        principal point far outside the matches marks the pose untrusted
+        (:func:`scene3D.twoview.trust.principal_point_warning`).
 
     Returns
     -------
@@ -142,15 +150,23 @@ def reconstruct_from_matches(
 
     Raises
     ------
+    ValueError
+        Bad points, or a ``K`` that cannot be for images of ``image_size``.
     ReconstructionError
         Too few matches / inliers / points, a pure rotation (``"no_parallax"``), a
         planar scene, or no cheirality winner.
     """
-    s = settings or TwoViewSettings()
+    s = TwoViewSettings() if settings is None else settings
+    if not isinstance(s, TwoViewSettings):
+        raise TypeError(f"`settings` must be a scene3D.TwoViewSettings "
+                        f"(TwoViewSettings(**values) makes one from a dict), got "
+                        f"{type(s).__name__}")
     p1 = as_points2d(pts1, "pts1")
     p2 = as_points2d(pts2, "pts2")
     check_same_length(p1, p2)
     K = validate_intrinsics(K)
+    if image_size is not None:
+        check_intrinsics_for_native_size(K, image_size)
     distinct = distinct_correspondences(p1, p2)
     n = len(distinct)
     if n < s.min_matches:
@@ -176,7 +192,7 @@ def reconstruct_from_matches(
     in1, in2 = p1[inliers], p2[inliers]
     H, h_inliers = estimate_homography(in1, in2, s.threshold_px)
     h_ratio = float(h_inliers.sum()) / num_inliers
-    motion = _motion(E, in1, in2, K, H, s.threshold_px)
+    motion = _motion(E, in1, in2, K, H, s.threshold_px, h_ratio > s.planar_ratio)
     if motion.pure_rotation:
         # Matches that do not move at all: most likely one photo given twice.
         still = median(np.linalg.norm(in2 - in1, axis=1)) <= s.threshold_px
@@ -198,7 +214,7 @@ def reconstruct_from_matches(
             in1, in2 = p1[inliers], p2[inliers]
             H, h_inliers = estimate_homography(in1, in2, s.threshold_px)
             h_ratio = float(h_inliers.sum()) / num_inliers
-            motion = _motion(E, in1, in2, K, H, s.threshold_px)
+            motion = _motion(E, in1, in2, K, H, s.threshold_px, h_ratio > s.planar_ratio)
     # A plane allows two poses, unless the depth off it is measurable (the essential
     # matrix explains the matches better than the homography: a short baseline).
     planar = h_ratio > s.planar_ratio and motion.planar
@@ -211,10 +227,14 @@ def reconstruct_from_matches(
     if planar:
         evidence = off_plane_evidence(H, K, R, t, in1, in2, h_inliers, s.threshold_px)
         if evidence < s.min_off_plane_matches:
+            turned = (f"; or a camera that only turned, with a calibration for another zoom "
+                      f"(a rotation under a focal length {motion.focal_scale:.2f} times K's "
+                      f"explains {motion.focal_rotation_share:.0%} of them)"
+                      if motion.focal_rotation_share > s.max_rotation_share else "")
             raise ReconstructionError(
                 "planar_scene",
                 "one homography explains the matches (a planar scene): the relative pose is "
-                "ambiguous; add depth to the view", inliers=num_inliers,
+                "ambiguous; add depth to the view" + turned, inliers=num_inliers,
                 homography_inlier_ratio=h_ratio, off_plane_evidence=evidence,
                 required=s.min_off_plane_matches,
             )
@@ -263,9 +283,15 @@ def reconstruct_from_matches(
                                   tangent_basis(t), noise, cut.cut_share)
     point_sigmas = depth_sigmas(points, K, R, t, uncertainty.covariance,
                                 uncertainty.noise_sigma_px)
+    # A rotation under another focal length counts where it explains more of the matches.
+    rotation_share, rotation_focal_scale = max(
+        (motion.rotation_share, 1.0), (motion.focal_rotation_share, motion.focal_scale))
     warnings = trust_warnings(uncertainty, n, num_inliers, median_kept_parallax, h_ratio, s,
-                              fit, focal, motion.rotation_share,
-                              rival_chi2(fit, R, t, uncertainty.covariance))
+                              fit, focal, rotation_share,
+                              rival_chi2(fit, R, t, uncertainty.covariance),
+                              rotation_focal_scale)
+    if image_size is None:
+        warnings += filter(None, [principal_point_warning(K, p1, p2)])
     F = fundamental_from_essential(E, K)  # the epipolar geometry the final pose obeys
     return TwoViewGeometry(
         R=R, t=t, points3d=points, pts1=pts1_kept, pts2=pts2_kept, K=K, F=F, E=E,
@@ -354,7 +380,8 @@ def reconstruct_two_view(
                         f"one), got {type(matches).__name__}")
     require_enough_matches(matches, settings)
     t0 = time.perf_counter()
-    geometry = reconstruct_from_matches(matches.pts1, matches.pts2, K, settings)
+    geometry = reconstruct_from_matches(matches.pts1, matches.pts2, K, settings,
+                                        image_size=img1.shape[1::-1])
     t1 = time.perf_counter()
     refinement_s = geometry.refinement_s
     colors = sample_colors(img1, geometry.pts1)

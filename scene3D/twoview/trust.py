@@ -53,8 +53,8 @@ def rival_chi2(fit: EssentialFit, R: FloatArray, t: FloatArray, covariance: Floa
 def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: int,
                    median_parallax_deg: float, homography_ratio: float, s: TwoViewSettings,
                    fit: EssentialFit | None = None, focal: FocalFit | None = None,
-                   rotation_share: float = 0.0, rivals_chi2: float = float("inf")
-                   ) -> list[str]:
+                   rotation_share: float = 0.0, rivals_chi2: float = float("inf"),
+                   rotation_focal_scale: float = 1.0) -> list[str]:
     """Reasons to doubt a pose that passed every hard check (empty: trusted).
 
     The verdicts:
@@ -80,9 +80,10 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
       ``s.trusted_inliers`` inliers, too few to estimate a covariance from and few
       enough for wrong matches to agree by chance; a rotation alone explains more than
       ``s.max_rotation_share`` of the inliers (``rotation_share``,
-      :func:`scene3D.degeneracy.motion_model_choice`), so the translation rests on
-      the few that show parallax; the inlier threshold cuts off more than
-      ``s.max_noise_cut_share`` of the matches that fit the pose
+      :func:`scene3D.degeneracy.motion_model_choice`; under a focal length
+      ``rotation_focal_scale`` times the calibration's when that rotation fitted better),
+      so the translation rests on the few that show parallax; the inlier threshold cuts
+      off more than ``s.max_noise_cut_share`` of the matches that fit the pose
       (``uncertainty.noise_cut_share``): noisier matches than it can hold.
 
     Every warning quotes the uncertainty.
@@ -116,8 +117,11 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
                         f"{sigmas} understate how far off it may be (a larger "
                         "TwoViewSettings.threshold_px would hold them)")
     if rotation_share > s.max_rotation_share:
-        warnings.append(f"a rotation alone explains {rotation_share:.0%} of the inliers: the "
-                        f"translation rests on the other {1 - rotation_share:.0%}, which a "
+        under = ("" if rotation_focal_scale == 1.0 else
+                 f" (under a focal length {rotation_focal_scale:.2f} times the calibration's: "
+                 "a camera that only turned, with a calibration for another zoom?)")
+        warnings.append(f"a rotation alone explains {rotation_share:.0%} of the inliers{under}: "
+                        f"the translation rests on the other {1 - rotation_share:.0%}, which a "
                         "moving object would explain as well as a camera that moved (the "
                         f"{sigmas} assume a rigid scene)")
     if fit is not None and s.max_starts > 1 and rivals_chi2 > CHI2_99_POSE:
@@ -138,6 +142,28 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
                 f"(+-{focal.scale * focal.sigma_log:.2f}): is the calibration for this camera, "
                 f"lens and zoom? The pose may be off by degrees, beyond its {sigmas}")
     return warnings
+
+
+def principal_point_warning(K: FloatArray, pts1: FloatArray, pts2: FloatArray) -> str | None:
+    """Why ``K`` may be for images of another size, judged from the matches alone (no
+    image size given), or None.
+
+    A real camera's principal point lies near the image centre, inside the spread of
+    the matched pixels ``pts1, pts2`` ``(N, 2)`` or near it. When it lies beyond their
+    extent by more than half that extent on both axes, every match sits in one quadrant
+    of it, far off: the mark of a ``K`` for larger photos (a ``K`` for 3072 px photos
+    with matches of a 768 px copy gives a trusted pose 40 deg off). A crop of a corner
+    keeps the principal point within half its extent of it.
+    """
+    points = np.vstack([pts1, pts2])
+    low, high = points.min(axis=0), points.max(axis=0)
+    centre = K[:2, 2]
+    beyond = np.maximum(low - centre, centre - high)  # > 0 outside, per axis
+    if not np.all(beyond > 0.5 * (high - low)):
+        return None
+    return (f"the principal point ({centre[0]:.0f}, {centre[1]:.0f}) of K lies far outside "
+            f"the matches (x {low[0]:.0f}-{high[0]:.0f}, y {low[1]:.0f}-{high[1]:.0f} px): is K "
+            "for images of another size? (give image_size to check it)")
 
 
 def check_focal_length(R: FloatArray, t: FloatArray, p1: FloatArray, p2: FloatArray,
