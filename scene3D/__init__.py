@@ -4,11 +4,16 @@ After Chapter 4 of *OpenCV with Python Blueprints*, on OpenCV 5. The frames and
 array conventions are stated once in :mod:`scene3D.geometry`.
 """
 
+import logging
 from typing import TYPE_CHECKING, Any
 
 from .errors import CalibrationError, DatasetError, ReconstructionError
 
 __version__ = "0.1.0"
+
+# A library leaves the output of its log to the program (the logging HOWTO): without a
+# handler configured, Python would print warnings to stderr through its last resort.
+logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 # The public names below are imported on first use: ``import scene3D`` stays cheap, and
 # the command-line entry points can set up the process before numpy and OpenCV load.

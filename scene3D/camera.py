@@ -6,6 +6,8 @@ pixel centres).
 
 from __future__ import annotations
 
+import os
+
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike
@@ -33,10 +35,15 @@ def validate_intrinsics(K: ArrayLike) -> FloatArray:
 
     Raises
     ------
+    TypeError
+        If ``K`` is None or a path.
     ValueError
         If ``K`` is not 3x3 and finite, its focal lengths are not positive or its
         last row is not ``[0, 0, 1]``.
     """
+    if K is None or isinstance(K, (str, bytes, os.PathLike)):
+        raise TypeError(f"`K` must be a 3x3 camera matrix, got {K!r} (a calibration file "
+                        "is read by scene3D.calibration_io.load_calibration)")
     arr = np.asarray(K, dtype=np.float64)
     if arr.shape != (3, 3):
         raise ValueError(f"`K` must have shape (3, 3), got {arr.shape}")

@@ -26,7 +26,7 @@ import numpy as np
 
 from .camera import validate_intrinsics
 from .errors import ReconstructionError
-from .geometry import FloatArray
+from .geometry import FloatArray, require_whole_number
 from .imageio import image_size
 from .rectification import (
     RectifiedPair,
@@ -268,6 +268,9 @@ def dense_point_cloud(
     -------
     DenseReconstruction
 
+    block_size : int
+        The matched block's side in pixels, odd (OpenCV's ``StereoSGBM``).
+
     Raises
     ------
     ReconstructionError
@@ -275,9 +278,13 @@ def dense_point_cloud(
         the images (:func:`require_searchable_range`);
         ``"no_dense_points"`` when no pixel passes the left-right check.
     ValueError
-        The images are not colour images of one size, or ``K``, ``R``, ``t`` are not a
-        camera matrix, a rotation and a translation.
+        The images are not colour images of one size, ``K``, ``R``, ``t`` are not a
+        camera matrix, a rotation and a translation, or ``block_size`` is not an odd
+        whole number.
     """
+    if require_whole_number(block_size, "block_size") % 2 == 0:
+        raise ValueError(f"`block_size` must be odd (a block centred on its pixel), got "
+                         f"{block_size}")
     for name, img in (("img1", img1), ("img2", img2)):
         if not (isinstance(img, np.ndarray) and img.dtype == np.uint8 and img.ndim == 3
                 and img.shape[2] == 3):

@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 
 from .epipolar import epipolar_lines
-from .geometry import FloatArray, camera_centers
+from .geometry import FloatArray, camera_centers, require_whole_number
 from .rectification import RectifiedPair
 
 __all__ = [
@@ -98,7 +98,7 @@ def draw_epipolar_lines(img1: np.ndarray, img2: np.ndarray, F: FloatArray, pts1:
     Left: image 1 with the lines ``F^T x2`` and the points ``x1``; right: image 2 with
     the lines ``F x1`` and the points ``x2``.
     """
-    idx = subsample_indices(len(pts1), num_lines)
+    idx = subsample_indices(len(pts1), require_whole_number(num_lines, "num_lines"))
     colors = [tuple(int(255 * v) for v in c[::-1]) for c in epipolar_colors(len(idx))]
     panels = []
     for img, pts, lines in ((img1, np.asarray(pts1)[idx], epipolar_lines(F, pts2[idx], 2)),

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from .geometry import FloatArray
+from .geometry import FloatArray, require_real_number, require_whole_number
 
 logger = logging.getLogger(__name__)
 
@@ -390,9 +390,12 @@ def find_matches(
     ------
     TypeError, ValueError
         If an image is not a ``uint8`` array of one of those shapes (a path, None, a
-        float image; :func:`check_image`), or ``mode`` is unknown.
+        float image; :func:`check_image`), ``mode`` is unknown, ``ratio`` is not in
+        (0, 1] or ``max_features`` is not a whole number of at least 1.
     """
     mode = normalize_feature_mode(mode)
+    require_real_number(ratio, "ratio", 0.0, 1.0)
+    require_whole_number(max_features, "max_features")
     gray1 = to_gray(check_image(img1, "img1"))
     gray2 = to_gray(check_image(img2, "img2"))
     t0 = time.perf_counter()

@@ -54,6 +54,23 @@ def is_whole_number(value: object) -> bool:
     return isinstance(value, Integral) and not isinstance(value, bool)
 
 
+def require_whole_number(value: object, name: str, minimum: int = 1) -> int:
+    """``value`` as an ``int``, or ``ValueError`` naming ``name`` unless it is a whole
+    number of at least ``minimum``."""
+    if not is_whole_number(value) or value < minimum:
+        raise ValueError(f"`{name}` must be a whole number of at least {minimum}, got {value!r}")
+    return int(value)
+
+
+def require_real_number(value: object, name: str, low: float, high: float) -> float:
+    """``value`` as a ``float``, or ``ValueError`` naming ``name`` unless it is a real
+    number with ``low < value <= high``."""
+    if not is_real_number(value) or not low < value <= high:
+        raise ValueError(f"`{name}` must be a number above {low:g} and at most {high:g}, "
+                         f"got {value!r}")
+    return float(value)
+
+
 def as_matrix(value: ArrayLike, shape: tuple[int, ...], name: str) -> FloatArray:
     """Return ``value`` as a finite float64 array of exactly ``shape``."""
     arr = np.asarray(value, dtype=np.float64)

@@ -359,11 +359,13 @@ def to_bgr8(img: np.ndarray, name: str = "image") -> np.ndarray:
 
     Raises
     ------
+    TypeError
+        When ``img`` is no numpy array (None, a list, bytes).
     ValueError
         For other dtypes or channel counts, or an empty image.
     """
     if not isinstance(img, np.ndarray):
-        raise ValueError(f"`{name}` must be a path or a numpy array, got {type(img).__name__}")
+        raise TypeError(f"`{name}` must be a path or a numpy array, got {type(img).__name__}")
     if img.size == 0 or img.ndim not in (2, 3):
         raise ValueError(f"`{name}` must be an (H, W) or (H, W, C) image, got shape {img.shape}")
     if img.dtype == np.uint16:

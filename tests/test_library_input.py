@@ -8,12 +8,16 @@ import cv2
 import numpy as np
 import pytest
 
+from scene3D import SceneReconstruction3D
 from scene3D.calibration import BoardSpec, detect_board
 from scene3D.calibration_io import CameraCalibration, load_calibration, save_calibration
+from scene3D.dense import dense_point_cloud
+from scene3D.drawing import draw_epipolar_lines
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import Matches, find_matches, image_features
 from scene3D.plotting import plot_cameras_and_points, plot_point_cloud
-from scene3D.twoview import TwoViewSettings, reconstruct_two_view
+from scene3D.selfcalibration import self_calibrate_pair
+from scene3D.twoview import TwoViewSettings, reconstruct_from_matches, reconstruct_two_view
 
 from .helpers import correspondences
 
@@ -49,6 +53,56 @@ def test_find_matches_refuses_arrays_that_are_not_uint8_images(image, bad, expec
     with pytest.raises(ValueError, match=expected) as info:
         find_matches(bad(image), image)
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("kwargs, expected", [
+    ({"ratio": -1}, r"`ratio` must be a number above 0 and at most 1, got -1"),
+    ({"ratio": 2.0}, r"`ratio` .*got 2.0"),
+    ({"max_features": 0}, r"`max_features` must be a whole number of at least 1, got 0"),
+    ({"max_features": 100.0}, r"`max_features` .*got 100.0"),
+])
+def test_find_matches_refuses_nonsense_settings(image, kwargs, expected):
+    with pytest.raises(ValueError, match=expected):
+        find_matches(image, image, **kwargs)
+
+
+def test_the_book_class_refuses_none_for_an_image_as_the_wrong_kind(camera, image):
+    scene = SceneReconstruction3D(camera)
+    with pytest.raises(TypeError, match=r"`img1` must be a path or a numpy array, got NoneType"):
+        scene.load_image_pair(None, image)
+
+
+@pytest.mark.parametrize("K, expected", [
+    (None, r"`K` must be a 3x3 camera matrix, got None"),
+    ("K.txt", r"got 'K.txt' \(a calibration file is read by .*load_calibration\)"),
+])
+def test_a_path_or_none_for_K_is_the_wrong_kind(K, expected):
+    with pytest.raises(TypeError, match=expected):
+        SceneReconstruction3D(K)
+
+
+def test_reconstruct_from_matches_refuses_settings_as_a_dict(camera, synthetic_matches):
+    with pytest.raises(TypeError, match=r"`settings` must be a scene3D.TwoViewSettings "
+                                        r"\(TwoViewSettings\(\*\*values\).*got dict"):
+        reconstruct_from_matches(synthetic_matches.pts1, synthetic_matches.pts2, camera,
+                                 {"min_matches": 10})
+
+
+def test_self_calibration_refuses_a_prior_sigma_that_is_no_positive_number(
+        camera, synthetic_matches):
+    for bad in (-1.0, 0.0, float("nan")):
+        with pytest.raises(ValueError, match=r"`prior_sigma_log` must be a number above 0"):
+            self_calibrate_pair(synthetic_matches.pts1, synthetic_matches.pts2, camera, bad)
+
+
+def test_drawing_and_dense_refuse_nonsense_counts_and_sizes(image):
+    with pytest.raises(ValueError, match=r"`num_lines` must be a whole number of at least 1"):
+        draw_epipolar_lines(image, image, np.eye(3), np.zeros((5, 2)), np.zeros((5, 2)), -3)
+    K = np.array([[100.0, 0, 80], [0, 100.0, 60], [0, 0, 1]])
+    for bad, expected in ((4, r"`block_size` must be odd"), (-1, r"at least 1, got -1")):
+        with pytest.raises(ValueError, match=expected):
+            dense_point_cloud(image, image, K, np.eye(3), np.array([1.0, 0, 0]),
+                              np.zeros((5, 2)), np.zeros((5, 2)), block_size=bad)
 
 
 def test_image_features_checks_its_image_too():
@@ -93,6 +147,25 @@ def test_reconstruct_two_view_gives_grey_points_for_a_grey_image(camera, synthet
     assert result.colors.shape == (result.num_points, 3) and result.colors.dtype == np.uint8
     x = np.clip(np.rint(result.pts1[:, 0]).astype(int), 0, 639)
     np.testing.assert_array_equal(result.colors, np.repeat((x // 3)[:, None], 3, axis=1))
+
+
+def test_a_K_for_larger_photos_is_caught_with_or_without_the_image_size(camera, true_pose):
+    """Matches of 640x480 images with the K of 2560x1920 photos of the same camera: given
+    the image size, refused with the factor; without it, the principal point far beyond
+    the matches flags the pose (a K 4 times too large gave a pose 40 deg off, trusted,
+    on fountain-P11)."""
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, t, n=200, noise_px=0.3)
+    large = np.diag([4.0, 4.0, 1.0]) @ camera
+    with pytest.raises(ValueError, match=r"does not fit images of 640x480.*about 4 times"):
+        reconstruct_from_matches(pts1, pts2, large, image_size=(640, 480))
+    result = reconstruct_from_matches(pts1, pts2, large)
+    assert not result.trusted
+    assert any(w.startswith("the principal point (1331, 902) of K lies far outside the "
+                            "matches") and "another size" in w for w in result.warnings)
+    right = reconstruct_from_matches(pts1, pts2, camera)
+    assert right.trusted and right.warnings == ()
+    assert reconstruct_from_matches(pts1, pts2, camera, image_size=(640, 480)).trusted
 
 
 # -- TwoViewSettings -------------------------------------------------------------------

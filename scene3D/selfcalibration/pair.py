@@ -19,6 +19,7 @@ from ..geometry import (
     as_points2d,
     check_same_length,
     distinct_correspondences,
+    require_real_number,
 )
 from ..twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
 from ..twoview.trust import beyond_uncertainty_limit, sigmas_text
@@ -235,13 +236,15 @@ def self_calibrate_pair(
         The pair is refused under every focal length tried (too few matches, no
         parallax, ...), with the reason found at the prior's focal length.
     ValueError
-        Bad input shapes, or a ``prior_source`` other than ``"exif"`` / ``"prior"``.
+        Bad input shapes, a ``prior_source`` other than ``"exif"`` / ``"prior"``, or a
+        ``prior_sigma_log`` not in (0, 10].
     """
     t0 = time.perf_counter()
     s = search or SelfCalibrationSettings()
     tv = settings or TwoViewSettings()
     if prior_source not in ("exif", "prior"):
         raise ValueError(f"`prior_source` must be 'exif' or 'prior', got {prior_source!r}")
+    require_real_number(prior_sigma_log, "prior_sigma_log", 0.0, 10.0)
     p1, p2 = as_points2d(pts1, "pts1"), as_points2d(pts2, "pts2")
     check_same_length(p1, p2)
     K0 = as_matrix(K_start, (3, 3), "K_start")
