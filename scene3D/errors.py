@@ -32,6 +32,8 @@ class ReconstructionError(RuntimeError):
         ``"too_few_points"``; from dense matching ``"no_dense_range"``, ``"no_dense_points"``.
     counts : dict[str, int | float]
         The numbers behind the decision (matches, inliers, parallax, ...).
+    message : str
+        The sentence that says why, without the counts.
     """
 
     def __init__(self, reason: str, message: str, **counts: int | float) -> None:
@@ -39,10 +41,10 @@ class ReconstructionError(RuntimeError):
         self.counts = dict(counts)
         details = ", ".join(f"{k}={_fmt(v)}" for k, v in self.counts.items())
         super().__init__(f"{message} ({details})" if details else message)
-        self._message = message
+        self.message = message
 
     def __reduce__(self) -> tuple:  # picklable, for tasks run in other processes
-        return _rebuild_reconstruction_error, (self.reason, self._message, self.counts)
+        return _rebuild_reconstruction_error, (self.reason, self.message, self.counts)
 
 
 class CalibrationError(RuntimeError):

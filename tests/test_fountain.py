@@ -118,6 +118,25 @@ def test_a_camera_that_only_turned_under_another_zoom_is_not_trusted(fountain, f
                for w in result.warnings)
 
 
+def test_a_camera_that_only_turned_and_is_refused_for_its_cheirality_says_so(fountain):
+    """Under the right K, SIFT's matches of an exact 5 deg rotation leave the model
+    selection undecided and the cheirality test without a winner (points at infinity);
+    the refusal then names the rotation that explains most inliers."""
+    cams = _cameras(fountain)
+    img = cv2.imread(str(fountain / "images" / "0004.jpg"))
+    R = rotations_from_vectors(np.radians([[0, 5, 0]]))[0]
+    K = cams[4].K
+    scene = SceneReconstruction3D(K)
+    scene.load_image_pair(img, cv2.warpPerspective(img, K @ R @ np.linalg.inv(K),
+                                                   img.shape[1::-1]))
+    with pytest.raises(ReconstructionError) as info:
+        scene.reconstruct("SIFT")
+    assert info.value.reason in ("no_parallax", "no_cheirality_winner")
+    if info.value.reason == "no_cheirality_winner":
+        assert "a rotation alone explains" in info.value.message
+        assert info.value.message.endswith("of the inliers (did the camera only turn?)")
+
+
 def test_flow_mode_on_the_book_pair(fountain):
     cams = _cameras(fountain)
     scene = SceneReconstruction3D(cams[4].K)

@@ -218,7 +218,19 @@ def reconstruct_from_matches(
     # A plane allows two poses, unless the depth off it is measurable (the essential
     # matrix explains the matches better than the homography: a short baseline).
     planar = h_ratio > s.planar_ratio and motion.planar
-    R, t, points, front = choose_pose(E, in1, in2, K)
+    try:
+        R, t, points, front = choose_pose(E, in1, in2, K)
+    except ReconstructionError as exc:
+        # Points at infinity lie in front of no camera and behind none: a camera that only
+        # turned, which the model selection could not tell from a short baseline, ends here.
+        share, scale = max((motion.rotation_share, 1.0),
+                           (motion.focal_rotation_share, motion.focal_scale))
+        if share <= s.max_rotation_share:
+            raise
+        under = "" if scale == 1.0 else f" under a focal length {scale:.2f} times K's"
+        raise ReconstructionError(
+            exc.reason, f"{exc.message}; a rotation alone{under} explains {share:.0%} of the inliers "
+            "(did the camera only turn?)", **exc.counts) from None
     # The noise of these inliers sets the losses of the focal check and the adjustment,
     # as it does the local optimisation's (scene3D.essential_fit.refine_essential).
     distances = essential_distances(E, in1, in2, K)
