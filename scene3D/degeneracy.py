@@ -161,16 +161,25 @@ def fit_rotation(pts1: FloatArray, pts2: FloatArray, K: FloatArray, scale_px: fl
     fits = [(R, *_transfer(R, rays1, pts2, K)) for R in starts]
     R, residuals, J = min(fits, key=lambda fit: _robust_rotation_cost(fit[1], scale_px))
     for _ in range(iterations):
-        squared = residuals[0::2] ** 2 + residuals[1::2] ** 2
-        weights = np.repeat(1.0 / (1.0 + squared / scale_px**2), 2)
-        Jw = J * weights[:, None]
-        try:
-            step = -np.linalg.solve(Jw.T @ J, Jw.T @ residuals)
-        except np.linalg.LinAlgError:
+        step = _cauchy_step(J, residuals, scale_px)
+        if step is None:
             break
         R = rotations_from_vectors(step[None])[0] @ R
         residuals, J = _transfer(R, rays1, pts2, K)
     return R
+
+
+def _cauchy_step(J: FloatArray, residuals: FloatArray, scale_px: float) -> FloatArray | None:
+    """One reweighted Gauss-Newton step ``(k,)`` for transfer residuals ``(2N,)`` with
+    Jacobian ``(2N, k)``, each match weighted by the Cauchy loss of scale ``scale_px``
+    on its transfer error; None when the normal equations are singular."""
+    squared = residuals[0::2] ** 2 + residuals[1::2] ** 2
+    weights = np.repeat(1.0 / (1.0 + squared / scale_px**2), 2)
+    Jw = J * weights[:, None]
+    try:
+        return -np.linalg.solve(Jw.T @ J, Jw.T @ residuals)
+    except np.linalg.LinAlgError:
+        return None
 
 
 def _with_focal_scale(K: FloatArray, scale: float) -> FloatArray:
@@ -213,13 +222,8 @@ def fit_rotation_and_focal(pts1: FloatArray, pts2: FloatArray, K: FloatArray,
         r, J_rot = residuals(R, log_s)
         J_log_s = (residuals(R, log_s + step_log_s)[0]
                    - residuals(R, log_s - step_log_s)[0]) / (2 * step_log_s)
-        J = np.column_stack([J_rot, J_log_s])
-        squared = r[0::2] ** 2 + r[1::2] ** 2
-        weights = np.repeat(1.0 / (1.0 + squared / scale_px**2), 2)
-        Jw = J * weights[:, None]
-        try:
-            step = -np.linalg.solve(Jw.T @ J, Jw.T @ r)
-        except np.linalg.LinAlgError:
+        step = _cauchy_step(np.column_stack([J_rot, J_log_s]), r, scale_px)
+        if step is None:
             break
         R = rotations_from_vectors(step[None, :3])[0] @ R
         log_s = float(np.clip(log_s + step[3], -max_log_scale, max_log_scale))
