@@ -44,6 +44,8 @@ def validate_intrinsics(K: ArrayLike) -> FloatArray:
     if K is None or isinstance(K, (str, bytes, os.PathLike)):
         raise TypeError(f"`K` must be a 3x3 camera matrix, got {K!r} (a calibration file "
                         "is read by scene3D.calibration_io.load_calibration)")
+    if np.iscomplexobj(K):
+        raise ValueError("`K` must be real, got complex values")
     arr = np.asarray(K, dtype=np.float64)
     if arr.shape != (3, 3):
         raise ValueError(f"`K` must have shape (3, 3), got {arr.shape}")

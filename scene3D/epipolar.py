@@ -17,6 +17,7 @@ from numpy.typing import ArrayLike
 
 from .geometry import (
     FloatArray,
+    as_matrix,
     as_points2d,
     check_same_length,
     skew,
@@ -210,10 +211,14 @@ def epipolar_lines(F: ArrayLike, points: ArrayLike, which_image: int) -> FloatAr
 
     ``which_image=1``: ``points`` are in image 1 and the lines ``F x1`` in image 2;
     ``which_image=2``: ``points`` are in image 2 and the lines ``F^T x2`` in image 1.
+
+    Raises ``ValueError`` for an ``F`` that is not a finite 3x3 matrix, or is zero.
     """
     if which_image not in (1, 2):
         raise ValueError(f"`which_image` must be 1 or 2, got {which_image}")
-    F = np.asarray(F, dtype=np.float64)
+    F = as_matrix(F, (3, 3), "F")
+    if not F.any():
+        raise ValueError("`F` is zero: it defines no epipolar lines")
     h = to_homogeneous(as_points2d(points))
     lines = h @ F.T if which_image == 1 else h @ F
     return lines / np.hypot(lines[:, 0], lines[:, 1])[:, None]

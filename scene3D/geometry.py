@@ -73,6 +73,8 @@ def require_real_number(value: object, name: str, low: float, high: float) -> fl
 
 def as_matrix(value: ArrayLike, shape: tuple[int, ...], name: str) -> FloatArray:
     """Return ``value`` as a finite float64 array of exactly ``shape``."""
+    if np.iscomplexobj(value):
+        raise ValueError(f"`{name}` must be real, got complex values")
     arr = np.asarray(value, dtype=np.float64)
     if arr.shape != shape:
         raise ValueError(f"`{name}` must have shape {shape}, got {arr.shape}")

@@ -13,6 +13,7 @@ from scene3D.calibration import BoardSpec, detect_board
 from scene3D.calibration_io import CameraCalibration, load_calibration, save_calibration
 from scene3D.dense import dense_point_cloud
 from scene3D.drawing import draw_epipolar_lines
+from scene3D.epipolar import epipolar_lines
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import Matches, find_matches, image_features
 from scene3D.plotting import plot_cameras_and_points, plot_point_cloud
@@ -103,6 +104,17 @@ def test_drawing_and_dense_refuse_nonsense_counts_and_sizes(image):
         with pytest.raises(ValueError, match=expected):
             dense_point_cloud(image, image, K, np.eye(3), np.array([1.0, 0, 0]),
                               np.zeros((5, 2)), np.zeros((5, 2)), block_size=bad)
+
+
+def test_epipolar_lines_and_K_refuse_what_is_no_real_matrix(camera):
+    points = np.zeros((4, 2))
+    for F, expected in ((np.eye(2), r"`F` must have shape \(3, 3\), got \(2, 2\)"),
+                        (np.zeros((3, 3)), r"`F` is zero"),
+                        (np.eye(3) * 1j, r"`F` must be real")):
+        with pytest.raises(ValueError, match=expected):
+            epipolar_lines(F, points, 1)
+    with pytest.raises(ValueError, match=r"`K` must be real, got complex values"):
+        SceneReconstruction3D(camera + 0j)
 
 
 def test_image_features_checks_its_image_too():
