@@ -229,8 +229,8 @@ def reconstruct_from_matches(
             raise
         under = "" if scale == 1.0 else f" under a focal length {scale:.2f} times K's"
         raise ReconstructionError(
-            exc.reason, f"{exc.message}; a rotation alone{under} explains {share:.0%} of the inliers "
-            "(did the camera only turn?)", **exc.counts) from None
+            exc.reason, f"{exc.message}; a rotation alone{under} explains {share:.0%} of the "
+            "inliers (did the camera only turn?)", **exc.counts) from None
     # The noise of these inliers sets the losses of the focal check and the adjustment,
     # as it does the local optimisation's (scene3D.essential_fit.refine_essential).
     distances = essential_distances(E, in1, in2, K)
