@@ -15,6 +15,7 @@ import signal
 import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -87,6 +88,11 @@ def _refuse(count: int) -> None:
 
 def _die() -> None:
     os._exit(3)  # the worker process ends, as when it is killed
+
+
+def _pause(seconds: float) -> float:
+    time.sleep(seconds)
+    return seconds
 
 
 def _squares(n: int) -> np.ndarray:
@@ -220,6 +226,36 @@ def test_a_task_whose_workers_keep_dying_is_given_up_with_an_engine_error():
         with pytest.raises(EngineError, match="tasks task 0 was given up: the worker running "
                                               "it died 1 time "):
             list(DaskEngine(client).map(_die, [()]))
+
+
+def test_a_run_whose_workers_all_left_stops_with_an_engine_error():
+    """Dask reschedules the tasks of workers that leave and waits for another, without
+    limit: the engine stops the wait once the cluster has had no worker for its limit."""
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=":0") as cluster, \
+            distributed.Client(cluster, set_as_default=False) as client:
+        engine = DaskEngine(client, no_worker_timeout_s=2.0)
+
+        def remove_the_workers(label: str, done: int, total: int) -> None:
+            if done == 1:
+                cluster.scale(0)
+
+        started = time.monotonic()
+        with pytest.raises(EngineError, match=r"^the Dask cluster has had no worker for 2 s "
+                                              r"while pauses tasks waited"):
+            list(engine.map(_pause, [(0.0,)] + [(1.0,)] * 4, label="pauses",
+                            progress=remove_the_workers))
+        assert time.monotonic() - started < 30
+
+
+def test_a_worker_or_a_tls_address_is_refused_in_one_line(client):
+    worker = next(iter(client.scheduler_info()["workers"]))
+    with pytest.raises(OSError, match=r"is a Dask worker, not the scheduler: give the address "
+                                      r"'dask scheduler' prints"):
+        DaskEngine.connect(worker)
+    with pytest.raises(ValueError, match=r"needs TLS, and Dask's configuration holds no "
+                                         r"certificates"):
+        DaskEngine.connect(client.scheduler.address.replace("tcp://", "tls://"))
 
 
 # -- reconstruct-views on the cluster -------------------------------------------------

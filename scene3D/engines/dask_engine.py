@@ -48,11 +48,12 @@ import logging
 import os
 import socket
 import tempfile
+import time
 import uuid
 import weakref
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import CancelledError
+from concurrent.futures import CancelledError, ThreadPoolExecutor
 from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path, PurePath
@@ -66,6 +67,11 @@ logger = logging.getLogger(__name__)
 R = TypeVar("R")
 
 FileMode = Literal["auto", "shared", "send"]
+
+#: How long tasks may wait on a cluster left without any worker (all died or left) before
+#: the run stops with an :class:`~scene3D.errors.EngineError`, in seconds: as long as
+#: :meth:`DaskEngine.connect` waits for a first one.
+NO_WORKER_TIMEOUT_S = 30.0
 
 #: How to get the extra, quoted by every error about a missing Dask.
 INSTALL_HINT = "pip install 'scene3D[distributed]' (dask.distributed)"
@@ -180,6 +186,11 @@ def _task_counts(engine_id: str) -> dict[str, int]:
 
 # -- on the client ----------------------------------------------------------------------
 
+def _first_line(exc: BaseException) -> str:
+    """The first line of an exception's message, or its type's name when it has none."""
+    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+
+
 def _probe_scheduler(address: str, host: str, port: int, timeout_s: float) -> None:
     """Raise ``OSError`` unless a Dask scheduler listens at ``host:port``: one sends its
     handshake (a frame whose 8-byte length header comes first) as soon as a connection
@@ -196,6 +207,22 @@ def _probe_scheduler(address: str, host: str, port: int, timeout_s: float) -> No
     if len(header) < 8 or int.from_bytes(header, "little") > 1 << 20:
         raise OSError(f"what listens at {address!r} does not answer as a Dask scheduler (the "
                       "scheduler's port is 8786 by default, its dashboard's 8787)")
+
+
+def _server_type(address: str, timeout_s: float) -> str:
+    """What kind of Dask server answers at ``address``: 'Scheduler', 'Worker', 'Nanny'
+    (its ``identity``). Asked on a thread of its own, so that a caller inside an event
+    loop (a notebook) can ask too."""
+    import asyncio
+
+    from distributed.core import rpc
+
+    async def identity() -> dict:
+        async with rpc(address, timeout=timeout_s) as server:
+            return await server.identity()
+
+    with ThreadPoolExecutor(1) as thread:
+        return str(thread.submit(asyncio.run, identity()).result().get("type", "unknown"))
 
 
 class DaskEngine:
@@ -225,7 +252,8 @@ class DaskEngine:
     """
 
     def __init__(self, client: Any, *, files: FileMode = "auto", opencv_threads: int | None = 1,
-                 owns: bool = False, name: str | None = None) -> None:
+                 owns: bool = False, name: str | None = None,
+                 no_worker_timeout_s: float = NO_WORKER_TIMEOUT_S) -> None:
         if files not in ("auto", "shared", "send"):
             raise ValueError(f"`files` must be 'auto', 'shared' or 'send', got {files!r}")
         self._client = client
@@ -236,6 +264,7 @@ class DaskEngine:
         self._sent: dict[str, bool] = {}  # absolute path -> send bytes (True) or the path
         self._origins: dict[int, tuple[weakref.ref, Any]] = {}  # id(result) -> its future
         self._id = uuid.uuid4().hex
+        self._no_worker_timeout_s = no_worker_timeout_s
 
     # -- building and closing -----------------------------------------------------------
 
@@ -265,13 +294,21 @@ class DaskEngine:
                              "such as tcp://10.0.0.5:8786") from None
         if scheme == "tcp":  # a quick look first: nothing listening is said at once
             _probe_scheduler(address, host, port, timeout_s)
+            kind = _server_type(address, timeout_s)
+            if kind != "Scheduler":  # Dask's client would fail with a traceback
+                raise OSError(f"{address!r} is a Dask {kind.lower()}, not the scheduler: give "
+                              "the address 'dask scheduler' prints (port 8786 by default)")
+        if scheme == "tls" and distributed.Security().get_connection_args(
+                "client").get("ssl_context") is None:
+            raise ValueError(f"{address!r} needs TLS, and Dask's configuration holds no "
+                             "certificates for it (distributed.comm.tls: ca-file, and client "
+                             "cert and key)")
         try:
             client = distributed.Client(address, timeout=f"{timeout_s}s",
                                         set_as_default=False)
         except (OSError, TimeoutError) as exc:
             raise OSError(f"cannot connect to the Dask scheduler at {address!r}: "
-                          f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
-                          ) from None
+                          f"{_first_line(exc)}") from None
         try:
             client.wait_for_workers(1, timeout=wait_for_workers_s)
         except (OSError, TimeoutError):
@@ -395,7 +432,9 @@ class DaskEngine:
         finished = [False] * total
         done = upcoming = 0
         try:
-            for future in distributed.as_completed(futures, loop=self._client.loop):
+            for future in self._completed(distributed.as_completed(futures,
+                                                                   loop=self._client.loop),
+                                          label):
                 finished[position[future.key]] = True
                 done += 1
                 if progress is not None:
@@ -410,6 +449,42 @@ class DaskEngine:
             left = [f for f in futures if f is not None and not f.done()]
             if left and self._client.status == "running":
                 self._client.cancel(left)
+
+    def _completed(self, pending: Any, label: str) -> Iterator[Any]:
+        """The futures of ``pending`` (a ``distributed.as_completed``) as they finish.
+
+        Dask reschedules the tasks of a worker that dies and waits for another one,
+        without limit; a run whose workers have all gone would wait in silence. So
+        while nothing finishes, the workers are counted once a second, and an
+        :class:`EngineError` ends the wait when there has been none for
+        ``no_worker_timeout_s``, or when the scheduler stops answering.
+        """
+        without_workers_since: float | None = None
+        next_look = time.monotonic()
+        while not pending.is_empty():
+            finished = pending.next_batch(block=False)
+            if finished:
+                yield from finished
+                continue
+            now = time.monotonic()
+            if now >= next_look:
+                next_look = now + 1.0
+                try:
+                    has_workers = bool(self._client.nthreads())
+                except Exception as exc:  # the scheduler is gone: any comm error
+                    raise EngineError(f"lost the Dask scheduler while {label} tasks ran: "
+                                      f"{_first_line(exc)}") from None
+                if has_workers:
+                    without_workers_since = None
+                elif without_workers_since is None:
+                    without_workers_since = now
+                elif now - without_workers_since >= self._no_worker_timeout_s:
+                    raise EngineError(
+                        f"the Dask cluster has had no worker for "
+                        f"{self._no_worker_timeout_s:g} s while {label} tasks waited (its "
+                        "workers died or left); start one with 'dask worker ADDRESS', or run "
+                        "without --scheduler")
+            time.sleep(0.02)
 
     def _result(self, future: Any, label: str, index: int) -> Any:
         distributed = require_distributed()
