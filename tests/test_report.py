@@ -124,6 +124,23 @@ def test_multi_view_layers_skip_unregistered_views():
     assert "view &#x27;c&#x27; could not be registered" in page
 
 
+def test_multi_view_models_are_a_table_of_their_own():
+    """The summary's ``models`` (a list of dicts, ground-truth arrays among their fields)
+    is a table of its scalar fields, not a Python repr in one cell."""
+    layers, cameras = multi_view_layers(("a", "b"), np.diag([500.0, 500, 1]), (640, 480),
+                                        [True, True], np.stack([np.eye(3)] * 2),
+                                        np.array([[0.0, 0, 0], [-1, 0, 0]]),
+                                        np.array([[0.0, 0, 5], [1, 0, 6]]), None)
+    models = [{"folder": ".", "status": "ok", "registered": 2, "points": 2,
+               "focal_scale": 1.0004, "center_error_fraction_of_extent": np.array([1e-3, 2e-3])}]
+    page = multi_view_report(("a", "b"), [True, True], {"points": 2, "models": models},
+                             ["2 of 2"], {}, prepare_view(layers, cameras)).text()
+    assert ("<table id=\"models\"><tr><th>folder</th><th>status</th><th>registered</th>"
+            "<th>points</th><th>focal_scale</th></tr><tr><td>.</td><td>ok</td>"
+            "<td class=num>2</td><td class=num>2</td><td class=num>1</td></tr></table>") in page
+    assert "{&#x27;" not in page and "array(" not in page.split("<details>")[0]
+
+
 # -- in the browser -----------------------------------------------------------------------
 
 def _run(args, cwd, timeout=600):

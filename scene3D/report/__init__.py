@@ -66,7 +66,7 @@ def _scalars(summary: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]
     """The summary's scalar and short-list fields, split into (result, trust)."""
     result, trust = {}, {}
     for key, value in summary.items():
-        if key in _SKIPPED or isinstance(value, dict):
+        if key in _SKIPPED or isinstance(value, dict) or _is_records(value):
             continue
         if isinstance(value, (list, tuple, np.ndarray)) and np.size(value) > 4:
             continue
@@ -75,14 +75,29 @@ def _scalars(summary: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]
     return result, trust
 
 
+def _is_records(value: Any) -> bool:
+    """A list of dicts (such as a multi-view summary's ``models``): a table of its own."""
+    return isinstance(value, (list, tuple)) and any(isinstance(v, dict) for v in value)
+
+
+def _records_table(page: Page, records: Sequence[Mapping[str, Any]], table_id: str) -> None:
+    """One row per record, one column per field that holds a scalar in some record."""
+    columns = list(dict.fromkeys(
+        k for r in records for k, v in r.items()
+        if v is None or isinstance(v, (str, int, float, bool, np.integer, np.floating))))
+    page.table(([r.get(k) for k in columns] for r in records), header=columns,
+               table_id=table_id)
+
+
 def _timings(page: Page, timings: Mapping[str, float] | None) -> None:
     if not timings:
         return
     page.heading("Timings")
     total = timings.get("total")
-    rows = [(k, float(v), f"{v / total:.0%}" if total else "") for k, v in timings.items()
-            if v is not None]
-    page.table(rows, header=("stage", "seconds", "share of total"), table_id="timings")
+    rows = [(k, float(v)) + ((f"{v / total:.0%}",) if total else ())
+            for k, v in timings.items() if v is not None]
+    page.table(rows, header=("stage", "seconds") + (("share of total",) if total else ()),
+               table_id="timings")
     page.paragraph("Seconds of this run, measured by the command (the report itself and the "
                    "writing of the files come after; reconstruction.json has them).", "note")
 
@@ -266,6 +281,9 @@ def multi_view_report(
     result, trust = _scalars(summary)
     page.heading("Result")
     page.key_values({**result, **trust}, "numbers")
+    if _is_records(summary.get("models")):
+        page.heading("Models")
+        _records_table(page, summary["models"], "models")
     if isinstance(summary.get("ground_truth"), dict):
         page.heading("Against the ground truth")
         page.key_values({k: v for k, v in summary["ground_truth"].items()
