@@ -115,7 +115,7 @@ def test_map_runs_on_the_workers_in_order_with_progress(client):
     assert seen == [("powers", done, 12) for done in range(1, 13)]
     counts = engine.task_counts()
     assert set(counts) == set(engine.workers()) and len(counts) == 2
-    assert sum(c.get("powers", 0) for c in counts.values()) == 12
+    assert sum(c.get("powers", 0) for c in counts.values()) == 12 == engine.submitted["powers"]
 
 
 def test_share_hands_on_the_task_that_made_a_result(client):
@@ -216,6 +216,9 @@ def test_a_worker_killed_mid_run_does_not_lose_the_run(fountain_views, local_row
         # (its nanny starts a new worker process, under a new address).
         assert killed and killed[0] not in engine.workers()
         assert cluster.scheduler.task_prefixes["pairs"].suspicious >= 1
+        # What -v reports: the tasks the dead worker finished went with its counts.
+        counted = sum(sum(c.values()) for c in engine.task_counts().values())
+        assert counted <= engine.submitted.total() == 6 + len(pairs)
 
 
 def test_a_task_whose_workers_keep_dying_is_given_up_with_an_engine_error():

@@ -275,10 +275,15 @@ def open_engine(args: argparse.Namespace) -> Iterator[Engine]:
         if not args.quiet:
             print(f"tasks on {engine.describe()}", file=sys.stderr)
         yield _Reporting(engine, progress)
-        for worker, counts in sorted(engine.task_counts().items()):
+        task_counts = engine.task_counts()
+        for worker, counts in sorted(task_counts.items()):
             log.info("worker %s ran %s", worker,
                      ", ".join(f"{n} {label} tasks" for label, n in sorted(counts.items()))
                      or "no tasks")
+        gone = engine.submitted.total() - sum(sum(c.values()) for c in task_counts.values())
+        if gone > 0:
+            log.info("%d task%s finished on workers that have since left (their counts went "
+                     "with them)", gone, "s" * (gone != 1))
     finally:
         engine.close()
 

@@ -265,6 +265,7 @@ class DaskEngine:
         self._origins: dict[int, tuple[weakref.ref, Any]] = {}  # id(result) -> its future
         self._id = uuid.uuid4().hex
         self._no_worker_timeout_s = no_worker_timeout_s
+        self.submitted: Counter[str] = Counter()  # tasks submitted, by label
 
     # -- building and closing -----------------------------------------------------------
 
@@ -402,6 +403,7 @@ class DaskEngine:
                                        key=f"{label}-{token}-{i}", pure=False)
                    for i, args in enumerate(calls)]
         del calls
+        self.submitted[label] += len(futures)
         return self._results(futures, label, progress)
 
     def share(self, value: Any) -> Any:
