@@ -87,27 +87,46 @@ def check_intrinsics_for_size(K: FloatArray, image_size: tuple[int, int]) -> Non
                          "do (they are equal for square pixels)")
 
 
+def larger_photos_factor(K: FloatArray, image_size: tuple[int, int]) -> float | None:
+    """How many times larger the photos ``K`` seems made for are than ``image_size``
+    (width, height), or None: its principal point lies where a ``K`` for larger photos
+    puts it, as far beyond the centre in x as in y (at least 1.5 times the centre's
+    coordinates, the two within 15 % of each other), rounded to a half when near one."""
+    w, h = image_size
+    ratios = np.array([K[0, 2] / (w / 2), K[1, 2] / (h / 2)])
+    if not (ratios.min() > 1.5 and ratios.max() < 1.15 * ratios.min()):
+        return None
+    s = float(ratios.mean())
+    nice = round(2 * s) / 2  # photos are mostly scaled by whole or half factors
+    return nice if abs(nice - s) < 0.05 * s else round(s, 1)
+
+
+def larger_photos_hint(K: FloatArray, image_size: tuple[int, int]) -> str:
+    """A question naming the factor of :func:`larger_photos_factor` and how to rescale
+    ``K``, or '' when its principal point does not suggest larger photos."""
+    s = larger_photos_factor(K, image_size)
+    if s is None:
+        return ""
+    w, h = image_size
+    return (f"a K for photos about {s:g} times larger (about {w * s:.0f}x{h * s:.0f})? "
+            f"scene3D.camera.scale_intrinsics(K, {w} / W, {h} / H), W x H the size it was "
+            "calibrated at, fits it to these")
+
+
 def check_intrinsics_for_native_size(K: FloatArray, image_size: tuple[int, int],
                                      what: str = "`K`") -> None:
     """:func:`check_intrinsics_for_size` for a ``K`` given with images (the library's
     ``K`` is for their native, stored size): the ``ValueError`` says so, and when the
-    principal point sits where a ``K`` for larger photos puts it (as far beyond the
-    centre in x as in y), by how much to scale it."""
+    principal point sits where a ``K`` for larger photos puts it, by how much to scale
+    it (:func:`larger_photos_hint`)."""
     try:
         check_intrinsics_for_size(K, image_size)
     except ValueError as exc:
         w, h = image_size
         message = (f"{what} does not fit images of {w}x{h} px, their native size, which it "
                    f"must be for: {exc}")
-        ratios = np.array([K[0, 2] / (w / 2), K[1, 2] / (h / 2)])
-        if ratios.min() > 1.5 and ratios.max() < 1.15 * ratios.min():
-            s = float(ratios.mean())
-            nice = round(2 * s) / 2  # photos are mostly scaled by whole or half factors
-            s = nice if abs(nice - s) < 0.05 * s else round(s, 1)
-            message += (f"; a K for photos about {s:g} times larger (about {w * s:.0f}x"
-                        f"{h * s:.0f})? scene3D.camera.scale_intrinsics(K, {w} / W, {h} / H), "
-                        "W x H the size it was calibrated at, fits it to these")
-        raise ValueError(message) from None
+        hint = larger_photos_hint(K, image_size)
+        raise ValueError(message + (f"; {hint}" if hint else "")) from None
 
 
 def validate_distortion(dist: ArrayLike | None) -> FloatArray:

@@ -178,6 +178,14 @@ def test_a_K_for_larger_photos_is_caught_with_or_without_the_image_size(camera, 
     right = reconstruct_from_matches(pts1, pts2, camera)
     assert right.trusted and right.warnings == ()
     assert reconstruct_from_matches(pts1, pts2, camera, image_size=(640, 480)).trusted
+    # A K for photos twice the size passes the size check (its principal point lies at
+    # the image's corner, within it); the corner is what flags it.
+    double = reconstruct_from_matches(pts1, pts2, np.diag([2.0, 2.0, 1.0]) @ camera,
+                                      image_size=(640, 480))
+    assert not double.trusted
+    assert any(w.startswith("K's principal point (666, 451) lies far from the centre of the "
+                            "640x480 images: a K for photos about 2 times larger")
+               for w in double.warnings)
 
 
 # -- TwoViewSettings -------------------------------------------------------------------

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..bundle_two_view import bundle_adjust_two_view
-from ..camera import check_intrinsics_for_native_size, validate_intrinsics
+from ..camera import check_intrinsics_for_native_size, larger_photos_hint, validate_intrinsics
 from ..degeneracy import (
     MotionModelChoice,
     lower_cost_plane_pose,
@@ -304,6 +304,11 @@ def reconstruct_from_matches(
                               rotation_focal_scale)
     if image_size is None:
         warnings += filter(None, [principal_point_warning(K, p1, p2)])
+    elif hint := larger_photos_hint(K, image_size):
+        # Within the image but at its far corner: the mark of a K for larger photos (a K
+        # for twice the size gave a trusted pose 13 deg off on fountain-P11).
+        warnings.append(f"K's principal point ({K[0, 2]:.0f}, {K[1, 2]:.0f}) lies far from "
+                        f"the centre of the {image_size[0]}x{image_size[1]} images: {hint}")
     F = fundamental_from_essential(E, K)  # the epipolar geometry the final pose obeys
     return TwoViewGeometry(
         R=R, t=t, points3d=points, pts1=pts1_kept, pts2=pts2_kept, K=K, F=F, E=E,
