@@ -309,6 +309,12 @@ class MotionModelChoice(NamedTuple):
     focal_rotation_share: float = 0.0
     focal_scale: float = 1.0
 
+    @property
+    def widest_rotation(self) -> tuple[float, float]:
+        """``(share, focal factor)`` of the rotation that explains more of the matches:
+        under ``K`` (factor 1) or under another focal length."""
+        return max((self.rotation_share, 1.0), (self.focal_rotation_share, self.focal_scale))
+
 
 def motion_model_choice(pts1: FloatArray, pts2: FloatArray, K: FloatArray,
                         sampson_px: FloatArray, noise_px: float,

@@ -223,8 +223,7 @@ def reconstruct_from_matches(
     except ReconstructionError as exc:
         # Points at infinity lie in front of no camera and behind none: a camera that only
         # turned, which the model selection could not tell from a short baseline, ends here.
-        share, scale = max((motion.rotation_share, 1.0),
-                           (motion.focal_rotation_share, motion.focal_scale))
+        share, scale = motion.widest_rotation
         if share <= s.max_rotation_share:
             raise
         under = "" if scale == 1.0 else f" under a focal length {scale:.2f} times K's"
@@ -296,8 +295,7 @@ def reconstruct_from_matches(
     point_sigmas = depth_sigmas(points, K, R, t, uncertainty.covariance,
                                 uncertainty.noise_sigma_px)
     # A rotation under another focal length counts where it explains more of the matches.
-    rotation_share, rotation_focal_scale = max(
-        (motion.rotation_share, 1.0), (motion.focal_rotation_share, motion.focal_scale))
+    rotation_share, rotation_focal_scale = motion.widest_rotation
     warnings = trust_warnings(uncertainty, n, num_inliers, median_kept_parallax, h_ratio, s,
                               fit, focal, rotation_share,
                               rival_chi2(fit, R, t, uncertainty.covariance),
