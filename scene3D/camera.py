@@ -113,6 +113,36 @@ def larger_photos_hint(K: FloatArray, image_size: tuple[int, int]) -> str:
             "calibrated at, fits it to these")
 
 
+#: How far from the image centre a principal point may lie, as a share of the image's
+#: width (in x) and height (in y), before a pose found with it is flagged: calibrated
+#: cameras put it within a few per cent of the centre; a crop moves it.
+MAX_PRINCIPAL_OFFSET_OF_SIDE = 0.2
+
+
+def principal_point_hint(K: FloatArray, image_size: tuple[int, int]) -> str:
+    """Why ``K``'s principal point is implausible for images of ``image_size`` (width,
+    height), as a question with a hint, or '': when it lies where a ``K`` for larger
+    photos puts it (:func:`larger_photos_hint`), where one for the photos turned by 90
+    degrees does, or otherwise more than :data:`MAX_PRINCIPAL_OFFSET_OF_SIDE` of a side
+    from the centre."""
+    w, h = image_size
+    cx, cy = float(K[0, 2]), float(K[1, 2])
+    offsets = np.abs([cx - (w - 1) / 2, cy - (h - 1) / 2]) / np.array([w, h])
+    if np.all(offsets <= MAX_PRINCIPAL_OFFSET_OF_SIDE):
+        return ""
+    where = (f"K's principal point ({round(cx):d}, {round(cy):d}) lies far from the centre "
+             f"of the {w}x{h} images")
+    if hint := larger_photos_hint(K, image_size):
+        return f"{where}: {hint}"
+    turned = np.abs([cx - (h - 1) / 2, cy - (w - 1) / 2]) / np.array([h, w])
+    if w != h and np.all(turned <= MAX_PRINCIPAL_OFFSET_OF_SIDE):
+        return (f"{where}, and near that of {h}x{w} ones: a K for the photos turned by 90 "
+                "degrees? (photos stored upright, or read with their EXIF orientation "
+                "applied, need K with x and y swapped)")
+    return (f"{where} (a calibrated camera's lies within a few per cent of it; a crop moves "
+            "it): is K for these photos?")
+
+
 def check_intrinsics_for_native_size(K: FloatArray, image_size: tuple[int, int],
                                      what: str = "`K`") -> None:
     """:func:`check_intrinsics_for_size` for a ``K`` given with images (the library's

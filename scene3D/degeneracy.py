@@ -69,6 +69,33 @@ def plane_poses(H: FloatArray, K: FloatArray, pts1: FloatArray,
     return poses
 
 
+#: A homography that fits the matches better than this (median, pixels) fits them better
+#: than any camera's keypoints are located (0.05-0.5 px on real photos): one image is the
+#: other warped (shifted, scaled, rendered), not a second view.
+COPY_RESIDUAL_PX = 0.01
+
+
+def warped_copy_residual(H: FloatArray, E: FloatArray, K: FloatArray, pts1: FloatArray,
+                         pts2: FloatArray, on_plane: np.ndarray) -> float | None:
+    """How well matches that a homography mostly explains fit, when it is better than
+    :data:`COPY_RESIDUAL_PX`: image 2 is then a warped copy of image 1, and a pose
+    found on them, with sigmas near zero, describes no camera. Else None.
+
+    The fit is the smaller of the median error under ``H`` of the matches it explains
+    (``on_plane``) and the median Sampson distance under ``E`` of all of ``pts1,
+    pts2`` ``(N, 2)``, in pixels: ORB's whole-pixel keypoints of an image shifted
+    along its rows miss the homography by their rounding, yet fit a sideways
+    translation to 1e-8 px. Exact synthetic matches of a scene with depth fit ``E`` as
+    well, but no homography explains most of them.
+    """
+    errors = []
+    if np.all(np.isfinite(H)) and on_plane.any():
+        errors.append(float(np.median(homography_errors(H, pts1[on_plane], pts2[on_plane]))))
+    errors.append(float(np.median(np.abs(essential_distances(E, pts1, pts2, K)))))
+    fit = min(errors)
+    return fit if fit < COPY_RESIDUAL_PX else None
+
+
 def off_plane_evidence(H: FloatArray, K: FloatArray, R: FloatArray, t: FloatArray,
                        pts1: FloatArray, pts2: FloatArray, on_plane: np.ndarray,
                        threshold_px: float) -> int:

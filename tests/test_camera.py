@@ -7,6 +7,7 @@ import pytest
 from scene3D.camera import (
     adapt_intrinsics_to_size,
     check_intrinsics_for_size,
+    principal_point_hint,
     scale_intrinsics_resize,
     validate_distortion,
     validate_intrinsics,
@@ -86,3 +87,23 @@ def test_intrinsics_that_no_camera_has_for_the_image_size():
     long[0, 0] = long[1, 1] = 50 * 640  # a 1800 mm lens on a full-frame sensor
     check_intrinsics_for_size(wide, (640, 480))
     check_intrinsics_for_size(long, (640, 480))
+
+
+def test_principal_point_hint_names_larger_turned_or_misplaced_calibrations():
+    K = np.array([[800.0, 0, 319.5], [0, 800.0, 239.5], [0, 0, 1]])  # for 640x480
+    assert principal_point_hint(K, (640, 480)) == ""
+    off = K.copy()
+    off[0, 2] += 0.15 * 640  # within the limit of 20 % of the width
+    assert principal_point_hint(off, (640, 480)) == ""
+    assert principal_point_hint(np.diag([2.0, 2.0, 1.0]) @ K, (640, 480)).endswith(
+        "a K for photos about 2 times larger (about 1280x960)? scene3D.camera.scale_intrinsics"
+        "(K, 640 / W, 480 / H), W x H the size it was calibrated at, fits it to these")
+    wide = np.array([[900.0, 0, 479.5], [0, 900.0, 319.5], [0, 0, 1]])  # for 960x640
+    assert "a K for the photos turned by 90 degrees?" in principal_point_hint(wide, (640, 960))
+    corner = K.copy()
+    corner[:2, 2] = 0.0
+    assert principal_point_hint(corner, (640, 480)) == (
+        "K's principal point (0, 0) lies far from the centre of the 640x480 images (a "
+        "calibrated camera's lies within a few per cent of it; a crop moves it): is K for "
+        "these photos?")
+

@@ -137,6 +137,23 @@ def test_a_camera_that_only_turned_and_is_refused_for_its_cheirality_says_so(fou
         assert info.value.message.endswith("of the inliers (did the camera only turn?)")
 
 
+@pytest.mark.parametrize("feature", ["SIFT", "ORB"])
+def test_a_photo_and_its_shifted_copy_are_refused_as_a_copy(fountain, feature):
+    """Image 2 is image 1 shifted by 8 px: no second view. The matches fit a sideways
+    translation to 1e-8 px, so its sigmas were 0 and the pose trusted; a homography
+    explains them as well, and better than any camera locates its keypoints (real planes
+    fit to 0.03 px and more)."""
+    img = cv2.imread(str(fountain / "images" / "0004.jpg"))
+    shifted = cv2.warpAffine(img, np.float32([[1, 0, 8], [0, 1, 0]]), img.shape[1::-1])
+    scene = SceneReconstruction3D(_cameras(fountain)[4].K)
+    scene.load_image_pair(img, shifted)
+    with pytest.raises(ReconstructionError) as info:
+        scene.reconstruct(feature)
+    assert info.value.reason == "planar_scene"
+    assert "better than a camera locates its keypoints: one image is a warped copy of the " \
+           "other" in info.value.message
+
+
 def test_flow_mode_on_the_book_pair(fountain):
     cams = _cameras(fountain)
     scene = SceneReconstruction3D(cams[4].K)

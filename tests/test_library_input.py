@@ -186,6 +186,11 @@ def test_a_K_for_larger_photos_is_caught_with_or_without_the_image_size(camera, 
     assert any(w.startswith("K's principal point (666, 451) lies far from the centre of the "
                             "640x480 images: a K for photos about 2 times larger")
                for w in double.warnings)
+    corner = camera.copy()
+    corner[:2, 2] = 0.0  # a principal point at the image's corner: 13 deg off on Herz-Jesus
+    at_corner = reconstruct_from_matches(pts1, pts2, corner, image_size=(640, 480))
+    assert not at_corner.trusted
+    assert any("is K for these photos?" in w for w in at_corner.warnings)
 
 
 # -- TwoViewSettings -------------------------------------------------------------------

@@ -10,12 +10,13 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..bundle_two_view import bundle_adjust_two_view
-from ..camera import check_intrinsics_for_native_size, larger_photos_hint, validate_intrinsics
+from ..camera import check_intrinsics_for_native_size, principal_point_hint, validate_intrinsics
 from ..degeneracy import (
     MotionModelChoice,
     lower_cost_plane_pose,
     motion_model_choice,
     off_plane_evidence,
+    warped_copy_residual,
 )
 from ..epipolar import (
     essential_distances,
@@ -249,6 +250,16 @@ def reconstruct_from_matches(
                 homography_inlier_ratio=h_ratio, off_plane_evidence=evidence,
                 required=s.min_off_plane_matches,
             )
+    copy_px = (warped_copy_residual(H, E, K, in1, in2, h_inliers)
+               if h_ratio > s.planar_ratio else None)
+    if copy_px is not None:
+        raise ReconstructionError(
+            "planar_scene",
+            f"one homography explains {h_ratio:.0%} of the matches, and they fit to "
+            f"{copy_px:.1g} px, better than a camera locates its keypoints: one image is a "
+            "warped copy of the other (shifted, scaled, turned), not a second view of the "
+            "scene, or the matches are noise-free ones of a planar scene; no pose follows "
+            "from either", inliers=num_inliers, homography_inlier_ratio=h_ratio)
     parallax = np.where(front, parallax_angles_deg(np.nan_to_num(points), R, t), 0.0)
     errors = np.full((len(in1), 2), np.inf)
     errors[front] = reprojection_errors(points[front], in1[front], in2[front], K, R, t)
@@ -302,11 +313,10 @@ def reconstruct_from_matches(
                               rotation_focal_scale)
     if image_size is None:
         warnings += filter(None, [principal_point_warning(K, p1, p2)])
-    elif hint := larger_photos_hint(K, image_size):
-        # Within the image but at its far corner: the mark of a K for larger photos (a K
-        # for twice the size gave a trusted pose 13 deg off on fountain-P11).
-        warnings.append(f"K's principal point ({K[0, 2]:.0f}, {K[1, 2]:.0f}) lies far from "
-                        f"the centre of the {image_size[0]}x{image_size[1]} images: {hint}")
+    elif hint := principal_point_hint(K, image_size):
+        # Within the image but far from its centre: a K for larger photos or turned ones
+        # (13 and 11 deg off, trusted, on fountain-P11 and Herz-Jesus-P8), or a wrong one.
+        warnings.append(hint)
     F = fundamental_from_essential(E, K)  # the epipolar geometry the final pose obeys
     return TwoViewGeometry(
         R=R, t=t, points3d=points, pts1=pts1_kept, pts2=pts2_kept, K=K, F=F, E=E,
