@@ -32,3 +32,22 @@ def data_folder(parser: argparse.ArgumentParser, args: argparse.Namespace) -> Pa
     if data is None:
         parser.error("no data folder: pass --data or set SCENE3D_DATA")
     return data
+
+
+def reconstruct_or_refusal(scene, feature: str):
+    """``scene.reconstruct(feature)`` (a :class:`scene3D.SceneReconstruction3D` with its
+    pair loaded), or the :class:`scene3D.errors.ReconstructionError` that refused it."""
+    from scene3D.errors import ReconstructionError
+
+    try:
+        return scene.reconstruct(feature)
+    except ReconstructionError as exc:
+        return exc
+
+
+def verdict(outcome) -> str:
+    """'trusted', 'flagged' or 'refused: REASON' for :func:`reconstruct_or_refusal`'s."""
+    if isinstance(outcome, Exception):
+        return f"refused: {outcome.reason}"
+    return "trusted" if outcome.trusted else "flagged"
+

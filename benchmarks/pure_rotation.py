@@ -18,7 +18,7 @@ import argparse
 
 import cv2
 import numpy as np
-from bench_cli import add_data_arguments, data_folder
+from bench_cli import add_data_arguments, data_folder, reconstruct_or_refusal, verdict
 
 from scene3D import SceneReconstruction3D
 from scene3D.datasets import read_strecha_camera
@@ -54,13 +54,12 @@ def main(argv: list[str] | None = None) -> int:
             K[:2, :2] *= factor
             scene = SceneReconstruction3D(K)
             scene.load_image_pair(img, turned)
-            head = f"| {feature} | {_angle_deg(R):.2f} | {factor:g} |"
-            try:
-                r = scene.reconstruct(feature)
-            except ReconstructionError as exc:
-                print(f"{head} refused: {exc.reason} | | | | {str(exc)[:90]} |")
+            r = reconstruct_or_refusal(scene, feature)
+            head = f"| {feature} | {_angle_deg(R):.2f} | {factor:g} | {verdict(r)} |"
+            if isinstance(r, ReconstructionError):
+                print(f"{head} | | | {r.message[:90]} |")
                 continue
-            print(f"{head} {'trusted' if r.trusted else 'flagged'} | {_angle_deg(r.R):.2f} | "
+            print(f"{head} {_angle_deg(r.R):.2f} | "
                   f"{r.rotation_sigma_deg:.2g} / {r.translation_sigma_deg:.2g} | "
                   f"{r.focal_scale:.3f} | {'; '.join(w[:90] for w in r.warnings)} |")
     return 0

@@ -19,7 +19,7 @@ import argparse
 
 import cv2
 import numpy as np
-from bench_cli import add_data_arguments, data_folder
+from bench_cli import add_data_arguments, data_folder, reconstruct_or_refusal, verdict
 
 from scene3D import SceneReconstruction3D
 from scene3D.datasets import read_strecha_camera, relative_pose
@@ -91,16 +91,15 @@ def main(argv: list[str] | None = None) -> int:
     for name, K, img1, img2, truth, feature in rows:
         scene = SceneReconstruction3D(K, np.zeros(5))
         scene.load_image_pair(img1, img2)
-        try:
-            r = scene.reconstruct(feature)
-        except ReconstructionError as exc:
-            print(f"| {name} | refused: {exc.reason} | | | {exc.message[:110]} |")
+        r = reconstruct_or_refusal(scene, feature)
+        if isinstance(r, ReconstructionError):
+            print(f"| {name} | {verdict(r)} | | | {r.message[:110]} |")
             continue
         error = "-"
         if truth is not None:
             e = relative_pose_error(r.R, r.t, *truth)
             error = f"{e.rotation_deg:.2f} / {e.translation_deg:.2f}"
-        print(f"| {name} | {'trusted' if r.trusted else 'flagged'} | {error} | "
+        print(f"| {name} | {verdict(r)} | {error} | "
               f"{r.rotation_sigma_deg:.3f} / {r.translation_sigma_deg:.3f} | "
               f"{(r.warnings or ('',))[0][:110]} |")
     return 0
