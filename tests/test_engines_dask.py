@@ -261,6 +261,18 @@ def test_a_worker_or_a_tls_address_is_refused_in_one_line(client):
         DaskEngine.connect(client.scheduler.address.replace("tcp://", "tls://"))
 
 
+def test_workers_of_another_scene3d_version_are_refused_at_connect(client, monkeypatch):
+    import scene3D
+
+    with DaskEngine.connect(client.scheduler.address) as engine:  # the same version
+        assert len(engine.workers()) == 2
+    monkeypatch.setattr(scene3D, "__version__", "9.9.9")
+    with pytest.raises(OSError, match=r"^worker tcp://127.0.0.1:\d+ runs scene3D 0.1.0 and "
+                                      r"this client 9.9.9 \(1 more alike\): install one "
+                                      r"version everywhere"):
+        DaskEngine.connect(client.scheduler.address)
+
+
 # -- reconstruct-views on the cluster -------------------------------------------------
 
 VIEWS = 6  # the first fountain-P11 images, all 15 pairs, at 768 px

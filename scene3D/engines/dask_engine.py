@@ -184,7 +184,33 @@ def _task_counts(engine_id: str) -> dict[str, int]:
             if tag.startswith(engine_id + "/")}
 
 
+def _scene3d_version() -> str:
+    from .. import __version__
+
+    return __version__
+
+
 # -- on the client ----------------------------------------------------------------------
+
+def _check_worker_versions(client: Any, address: str) -> None:
+    """Raise ``OSError`` unless every worker runs the client's scene3D: the tasks are its
+    functions, which a worker without it cannot even unpickle, and another version may
+    compute something else."""
+    from .. import __version__
+
+    try:
+        versions = client.run(_scene3d_version)
+    except Exception as exc:  # the worker's ModuleNotFoundError, or what unpickling raised
+        raise OSError(f"the workers of {address!r} cannot run scene3D ({_first_line(exc)}): "
+                      f"install scene3D {__version__}, the client's, where they run"
+                      ) from None
+    other = {w: v for w, v in versions.items() if v != __version__}
+    if other:
+        worker, version = next(iter(other.items()))
+        raise OSError(f"worker {worker} runs scene3D {version} and this client {__version__}"
+                      f"{f' ({len(other) - 1} more alike)' if len(other) > 1 else ''}: "
+                      "install one version everywhere")
+
 
 def _first_line(exc: BaseException) -> str:
     """The first line of an exception's message, or its type's name when it has none."""
@@ -274,7 +300,8 @@ class DaskEngine:
                 **options: Any) -> DaskEngine:
         """Connect to a running scheduler (``dask scheduler``) at ``address``.
 
-        Waits up to ``wait_for_workers_s`` for a first worker.
+        Waits up to ``wait_for_workers_s`` for a first worker, then checks that the
+        workers run the client's scene3D.
 
         Raises
         ------
@@ -283,8 +310,8 @@ class DaskEngine:
         ValueError
             ``address`` is not an address.
         OSError
-            Nothing answers at ``address`` within ``timeout_s``, or no worker
-            joined in time.
+            Nothing answers at ``address`` within ``timeout_s``, no worker joined in
+            time, or a worker runs another scene3D (or none).
         """
         distributed = require_distributed()
         try:
@@ -317,6 +344,11 @@ class DaskEngine:
             raise OSError(f"no worker joined the Dask scheduler at {address!r} within "
                           f"{wait_for_workers_s:g} s (start one with 'dask worker {address}')"
                           ) from None
+        try:
+            _check_worker_versions(client, address)
+        except OSError:
+            client.close()
+            raise
         engine = cls(client, owns=True, **options)
         logger.debug("connected to %s", engine.describe())
         return engine
