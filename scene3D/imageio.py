@@ -355,7 +355,10 @@ def read_image_size(path: str | os.PathLike) -> tuple[int, int]:
 def to_bgr8(img: np.ndarray, name: str = "image") -> np.ndarray:
     """Convert grey, BGR or BGRA images of ``uint8``/``uint16`` depth to BGR ``uint8``.
 
-    16-bit images are scaled by 1/257 (full range to full range).
+    16-bit images are scaled by the bit depth their values use: the fewest of 8 to 16
+    bits that hold the largest value, so that full-range 16-bit data are divided by 257
+    and the 12-bit data of many machine-vision cameras (stored in ``uint16``, at most
+    4095) by 16.06, instead of coming out nearly black.
 
     Raises
     ------
@@ -369,7 +372,8 @@ def to_bgr8(img: np.ndarray, name: str = "image") -> np.ndarray:
     if img.size == 0 or img.ndim not in (2, 3):
         raise ValueError(f"`{name}` must be an (H, W) or (H, W, C) image, got shape {img.shape}")
     if img.dtype == np.uint16:
-        img = (img.astype(np.float32) / 257.0 + 0.5).astype(np.uint8)
+        bits = max(8, int(img.max()).bit_length())
+        img = (img.astype(np.float32) * (255.0 / (2**bits - 1)) + 0.5).astype(np.uint8)
     elif img.dtype != np.uint8:
         raise ValueError(f"`{name}` must be uint8 or uint16, got {img.dtype}")
     if img.ndim == 2 or img.shape[2] == 1:

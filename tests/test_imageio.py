@@ -46,6 +46,18 @@ def test_read_files(tmp_path):
     assert out.shape == (8, 9, 3) and out.dtype == np.uint8 and out[0, 0, 0] == round(40000 / 257)
 
 
+def test_16_bit_images_are_scaled_by_the_bits_their_values_use():
+    """Full-range 16-bit data by 1/257; 12-bit data in uint16 (at most 4095) by 255/4095,
+    not into the bottom 16 levels; 8-bit values in uint16 as they are."""
+    ramp = np.arange(0, 4096, 16, dtype=np.uint16).reshape(16, 16)
+    twelve = to_bgr8(ramp)[..., 0]
+    assert twelve.max() == round(4080 * 255 / 4095) and twelve[0, 1] == round(16 * 255 / 4095)
+    full = to_bgr8(np.array([[0, 65535, 40000]], np.uint16))[0, :, 0]
+    assert full.tolist() == [0, 255, round(40000 / 257)]
+    eight = np.array([[0, 17, 255]], np.uint16)
+    assert to_bgr8(eight)[0, :, 0].tolist() == [0, 17, 255]
+
+
 def test_bad_files(tmp_path):
     with pytest.raises(FileNotFoundError, match="missing.jpg"):
         read_image(tmp_path / "missing.jpg")
