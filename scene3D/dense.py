@@ -84,6 +84,11 @@ class DenseReconstruction:
     def num_points(self) -> int:
         return len(self.points3d)
 
+    def __repr__(self) -> str:  # the arrays by their shapes: a cloud is 10^5 points
+        h, w = self.disparity.shape[:2]
+        return (f"DenseReconstruction({self.num_points} points, disparity {w}x{h}, "
+                f"disparity_range={self.disparity_range})")
+
     @property
     def Q(self) -> FloatArray:
         """(4, 4) disparity-to-depth matrix for :attr:`disparity` (zero at infinity), for

@@ -97,6 +97,8 @@ def test_dense_points_lie_on_the_rendered_surfaces(synthetic_dense):
     assert np.percentile(rel, 90) < 0.03
     assert dense.num_points > 0.3 * 640 * 480  # most of the image is textured surface
     assert dense.colors.shape == (dense.num_points, 3)
+    assert repr(dense) == (f"DenseReconstruction({dense.num_points} points, disparity "
+                           f"640x480, disparity_range={dense.disparity_range})")
 
 
 def test_the_disparities_and_their_Q_give_the_points(synthetic_dense):
