@@ -409,6 +409,7 @@ def _free_port() -> int:
 @pytest.mark.parametrize("argv, message", [
     (["--scheduler", "tcp://127.0.0.1:{port}"], "cannot connect to the Dask scheduler at"),
     (["--scheduler", "nonsense"], "bad Dask scheduler address 'nonsense'"),
+    (["--scheduler", "tcp://127.0.0.1:99999"], "port 99999 is not between 1 and 65535"),
     (["--workers", "0"], "must be at least 1"),
     (["--workers", "100000"], "local workers beyond"),
     (["--workers", "2", "--scheduler", "tcp://127.0.0.1:{port}"], "not allowed with"),

@@ -320,6 +320,9 @@ class DaskEngine:
         except ValueError as exc:
             raise ValueError(f"bad Dask scheduler address {address!r} ({exc}); expected "
                              "such as tcp://10.0.0.5:8786") from None
+        if not 0 < int(port or 0) < 65536:
+            raise ValueError(f"bad Dask scheduler address {address!r} (port {port} is not "
+                             "between 1 and 65535); expected such as tcp://10.0.0.5:8786")
         if scheme == "tcp":  # a quick look first: nothing listening is said at once
             _probe_scheduler(address, host, port, timeout_s)
             kind = _server_type(address, timeout_s)
