@@ -15,6 +15,11 @@ import logging
 RESULT_WARNING = "scene3d_result_warning"
 
 
+def first_line(exc: BaseException) -> str:
+    """The first line of an exception's message, or its type's name when it has none."""
+    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+
+
 def log_result_warnings(logger: logging.Logger, warnings: tuple[str, ...]) -> None:
     """Log each of a result's ``warnings`` at WARNING level, marked :data:`RESULT_WARNING`."""
     for warning in warnings:

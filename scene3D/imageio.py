@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 
 from .camera import has_distortion, undistort_image
+from .errors import first_line
 
 logger = logging.getLogger(__name__)
 
@@ -150,8 +151,8 @@ def _require_heif_opener(path: str | os.PathLike) -> None:
 
 def _damaged_heif(path: str | os.PathLike, exc: Exception) -> ValueError:
     """The error for a HEIC/HEIF file libheif cannot read, with its reason."""
-    reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-    return ValueError(f"cannot read image '{path}': a damaged HEIC/HEIF file ({reason})")
+    return ValueError(f"cannot read image '{path}': a damaged HEIC/HEIF file "
+                      f"({first_line(exc)})")
 
 
 #: How to undo each EXIF orientation (1-8) on an (H, W, ...) array: what libheif applied

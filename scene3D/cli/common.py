@@ -22,6 +22,7 @@ from ..errors import (
     DatasetError,
     EngineError,
     ReconstructionError,
+    first_line,
 )
 
 EXIT_OK = 0
@@ -404,7 +405,7 @@ def _exit_code(args: argparse.Namespace, body: Callable[[argparse.Namespace], in
 def _message(exc: BaseException) -> str:
     if isinstance(exc, OSError) and exc.filename and exc.strerror:
         return f"{exc.strerror}: '{exc.filename}'"
-    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return first_line(exc)
 
 
 def display_available() -> bool:

@@ -59,7 +59,7 @@ from dataclasses import dataclass
 from pathlib import Path, PurePath
 from typing import Any, Literal, TypeVar
 
-from ..errors import EngineError
+from ..errors import EngineError, first_line
 from . import Progress
 
 logger = logging.getLogger(__name__)
@@ -201,7 +201,7 @@ def _check_worker_versions(client: Any, address: str) -> None:
     try:
         versions = client.run(_scene3d_version)
     except Exception as exc:  # the worker's ModuleNotFoundError, or what unpickling raised
-        raise OSError(f"the workers of {address!r} cannot run scene3D ({_first_line(exc)}): "
+        raise OSError(f"the workers of {address!r} cannot run scene3D ({first_line(exc)}): "
                       f"install scene3D {__version__}, the client's, where they run"
                       ) from None
     other = {w: v for w, v in versions.items() if v != __version__}
@@ -210,11 +210,6 @@ def _check_worker_versions(client: Any, address: str) -> None:
         raise OSError(f"worker {worker} runs scene3D {version} and this client {__version__}"
                       f"{f' ({len(other) - 1} more alike)' if len(other) > 1 else ''}: "
                       "install one version everywhere")
-
-
-def _first_line(exc: BaseException) -> str:
-    """The first line of an exception's message, or its type's name when it has none."""
-    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
 
 
 def _probe_scheduler(address: str, host: str, port: int, timeout_s: float) -> None:
@@ -339,7 +334,7 @@ class DaskEngine:
                                         set_as_default=False)
         except (OSError, TimeoutError) as exc:
             raise OSError(f"cannot connect to the Dask scheduler at {address!r}: "
-                          f"{_first_line(exc)}") from None
+                          f"{first_line(exc)}") from None
         try:
             client.wait_for_workers(1, timeout=wait_for_workers_s)
         except (OSError, TimeoutError):
@@ -510,7 +505,7 @@ class DaskEngine:
                     has_workers = bool(self._client.nthreads())
                 except Exception as exc:  # the scheduler is gone: any comm error
                     raise EngineError(f"lost the Dask scheduler while {label} tasks ran: "
-                                      f"{_first_line(exc)}") from None
+                                      f"{first_line(exc)}") from None
                 if has_workers:
                     without_workers_since = None
                 elif without_workers_since is None:
