@@ -76,23 +76,22 @@ def plane_poses(H: FloatArray, K: FloatArray, pts1: FloatArray,
 COPY_RESIDUAL_PX = 0.01
 
 
-def warped_copy_residual(H: FloatArray, E: FloatArray, K: FloatArray, pts1: FloatArray,
-                         pts2: FloatArray, on_plane: np.ndarray) -> float | None:
+def warped_copy_residual(H: FloatArray, pts1: FloatArray, pts2: FloatArray,
+                         on_plane: np.ndarray, sampson_px: FloatArray) -> float | None:
     """How well matches that a homography mostly explains fit, when it is better than
     :data:`COPY_RESIDUAL_PX`: image 2 is then a warped copy of image 1, and a pose
     found on them, with sigmas near zero, describes no camera. Else None.
 
-    The fit is the smaller of the median error under ``H`` of the matches it explains
-    (``on_plane``) and the median Sampson distance under ``E`` of all of ``pts1,
-    pts2`` ``(N, 2)``, in pixels: ORB's whole-pixel keypoints of an image shifted
-    along its rows miss the homography by their rounding, yet fit a sideways
-    translation to 1e-8 px. Exact synthetic matches of a scene with depth fit ``E`` as
-    well, but no homography explains most of them.
+    The fit is the smaller of the median error under ``H`` of the matches ``pts1, pts2``
+    ``(N, 2)`` it explains (``on_plane``) and the median of their Sampson distances
+    ``sampson_px`` ``(N,)`` to the essential matrix, in pixels: ORB's whole-pixel
+    keypoints of an image shifted along its rows miss the homography by their rounding,
+    yet fit a sideways translation to 1e-8 px. Exact synthetic matches of a scene with
+    depth fit an essential matrix as well, but no homography explains most of them.
     """
-    errors = []
+    errors = [float(np.median(np.abs(sampson_px)))]
     if np.all(np.isfinite(H)) and on_plane.any():
         errors.append(float(np.median(homography_errors(H, pts1[on_plane], pts2[on_plane]))))
-    errors.append(float(np.median(np.abs(essential_distances(E, pts1, pts2, K)))))
     fit = min(errors)
     return fit if fit < COPY_RESIDUAL_PX else None
 

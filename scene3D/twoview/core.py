@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..bundle_two_view import bundle_adjust_two_view
-from ..camera import check_intrinsics_for_native_size, principal_point_hint, validate_intrinsics
+from ..camera import check_intrinsics_for_native_size, validate_intrinsics
 from ..degeneracy import (
     MotionModelChoice,
     lower_cost_plane_pose,
@@ -141,9 +141,9 @@ def reconstruct_from_matches(
     settings : TwoViewSettings, optional
     image_size : (width, height), optional
         The images' size: ``K`` is then checked against it
-        (:func:`scene3D.camera.check_intrinsics_for_native_size`). Without it, a
-        principal point far outside the matches marks the pose untrusted
-        (:func:`scene3D.twoview.trust.principal_point_warning`).
+        (:func:`scene3D.camera.check_intrinsics_for_native_size`), and a principal
+        point far from its centre marks the pose untrusted; without it, one far outside
+        the matches does (:func:`scene3D.twoview.trust.principal_point_warning`).
 
     Returns
     -------
@@ -250,7 +250,7 @@ def reconstruct_from_matches(
                 homography_inlier_ratio=h_ratio, off_plane_evidence=evidence,
                 required=s.min_off_plane_matches,
             )
-    copy_px = (warped_copy_residual(H, E, K, in1, in2, h_inliers)
+    copy_px = (warped_copy_residual(H, in1, in2, h_inliers, distances)
                if h_ratio > s.planar_ratio else None)
     if copy_px is not None:
         raise ReconstructionError(
@@ -311,12 +311,9 @@ def reconstruct_from_matches(
                               fit, focal, rotation_share,
                               rival_chi2(fit, R, t, uncertainty.covariance),
                               rotation_focal_scale)
-    if image_size is None:
-        warnings += filter(None, [principal_point_warning(K, p1, p2)])
-    elif hint := principal_point_hint(K, image_size):
-        # Within the image but far from its centre: a K for larger photos or turned ones
-        # (13 and 11 deg off, trusted, on fountain-P11 and Herz-Jesus-P8), or a wrong one.
-        warnings.append(hint)
+    # A K for larger photos or turned ones gave trusted poses 11-40 deg off.
+    if (misplaced := principal_point_warning(K, p1, p2, image_size)) is not None:
+        warnings.append(misplaced)
     F = fundamental_from_essential(E, K)  # the epipolar geometry the final pose obeys
     return TwoViewGeometry(
         R=R, t=t, points3d=points, pts1=pts1_kept, pts2=pts2_kept, K=K, F=F, E=E,

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..camera import principal_point_hint
 from ..epipolar import essential_distances, essential_from_pose
 from ..essential_fit import EssentialFit
 from ..focal_fit import FocalFit, fit_focal_scale
@@ -144,17 +145,22 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
     return warnings
 
 
-def principal_point_warning(K: FloatArray, pts1: FloatArray, pts2: FloatArray) -> str | None:
-    """Why ``K`` may be for images of another size, judged from the matches alone (no
-    image size given), or None.
+def principal_point_warning(K: FloatArray, pts1: FloatArray, pts2: FloatArray,
+                            image_size: tuple[int, int] | None = None) -> str | None:
+    """Why ``K``'s principal point may not be these images', or None.
 
-    A real camera's principal point lies near the image centre, inside the spread of
-    the matched pixels ``pts1, pts2`` ``(N, 2)`` or near it. When it lies beyond their
+    With their ``image_size`` (width, height): :func:`scene3D.camera.principal_point_hint`
+    (more than 20 % of a side from the centre: a ``K`` for larger photos, for turned
+    ones, or another camera's). Without it, judged from the matches alone: a real
+    camera's principal point lies near the image centre, inside the spread of the
+    matched pixels ``pts1, pts2`` ``(N, 2)`` or near it. When it lies beyond their
     extent by more than half that extent on both axes, every match sits in one quadrant
     of it, far off: the mark of a ``K`` for larger photos (a ``K`` for 3072 px photos
     with matches of a 768 px copy gives a trusted pose 40 deg off). A crop of a corner
     keeps the principal point within half its extent of it.
     """
+    if image_size is not None:
+        return principal_point_hint(K, image_size) or None
     points = np.vstack([pts1, pts2])
     low, high = points.min(axis=0), points.max(axis=0)
     centre = K[:2, 2]
