@@ -68,9 +68,9 @@ R = TypeVar("R")
 
 FileMode = Literal["auto", "shared", "send"]
 
-#: How long tasks may wait on a cluster left without any worker (all died or left) before
-#: the run stops with an :class:`~scene3D.errors.EngineError`, in seconds: as long as
-#: :meth:`DaskEngine.connect` waits for a first one.
+#: How long a run waits for a worker, in seconds: :meth:`DaskEngine.connect` for a first
+#: one, and tasks on a cluster left without any (all died or left) before the run stops
+#: with an :class:`~scene3D.errors.EngineError`.
 NO_WORKER_TIMEOUT_S = 30.0
 
 #: How to get the extra, quoted by every error about a missing Dask.
@@ -291,7 +291,8 @@ class DaskEngine:
     # -- building and closing -----------------------------------------------------------
 
     @classmethod
-    def connect(cls, address: str, *, timeout_s: float = 10.0, wait_for_workers_s: float = 30.0,
+    def connect(cls, address: str, *, timeout_s: float = 10.0,
+                wait_for_workers_s: float = NO_WORKER_TIMEOUT_S,
                 **options: Any) -> DaskEngine:
         """Connect to a running scheduler (``dask scheduler``) at ``address``.
 
