@@ -180,7 +180,7 @@ def evaluate_pair(views, a, b, width, methods) -> list[Outcome]:
         try:
             if method == "scene3D":
                 matches = find_matches(img1, img2, "SIFT")
-                result = reconstruct_two_view(img1, matches, K)
+                result = reconstruct_two_view(img1, matches, K, img2=img2)
                 R, t, out.inliers = result.R, result.t, result.num_inliers
                 out.flagged = not result.trusted
                 out.rotation_sigma_deg = result.rotation_sigma_deg

@@ -1,8 +1,11 @@
-"""The focal-length check: the pose refined with a common factor on the focal lengths.
+"""The focal-length checks: the pose refined with a factor on the focal lengths.
 
 :func:`fit_focal_scale` refines the pose with a common factor on the focal lengths, to
 tell whether the calibration fits the matches: the robust Sampson refinement of
-:func:`scene3D.refinement.refine_relative_pose` with one more unknown. Its standard
+:func:`scene3D.refinement.refine_relative_pose` with one more unknown.
+:func:`fit_focal_ratio` does the same with image 2's focal length against image 1's,
+to tell whether one calibration fits both photos (not two zoom settings, nor one photo
+cropped and enlarged). Its standard
 deviation and the pose's covariance
 (:func:`scene3D.refinement.relative_pose_covariance`) share one sandwich estimate
 (:func:`scene3D.uncertainty.sandwich_covariance`).
@@ -32,47 +35,112 @@ from .refinement import (
 )
 from .uncertainty import tangent_basis
 
+#: How each check scales the two focal lengths: ``log s1 = w1 x``, ``log s2 = w2 x`` for
+#: the fitted unknown ``x``. A common factor; image 2's against image 1's, half each way
+#: (``s2 / s1 = exp(x)``, the same for the pair taken in either order).
+COMMON = (1.0, 1.0)
+RATIO = (-0.5, 0.5)
 
-def _scaled_fundamental(R: FloatArray, t: FloatArray, log_s: float,
+
+def _scaled_inverses(x: float, weights: tuple[float, float],
+                     K_inv: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``K_i^-1`` of ``K_i = K diag(s_i, s_i, 1)``, ``log s_i = w_i x``, for both images."""
+    return tuple(np.diag([np.exp(-w * x), np.exp(-w * x), 1.0]) @ K_inv for w in weights)
+
+
+def _scaled_fundamental(R: FloatArray, t: FloatArray, x: float, weights: tuple[float, float],
                         K_inv: FloatArray) -> FloatArray:
-    """``F = K_s^-T [t]x R K_s^-1`` for ``K_s = K diag(s, s, 1)``, ``s = exp(log_s)``."""
-    Ks_inv = np.diag([np.exp(-log_s), np.exp(-log_s), 1.0]) @ K_inv
-    return Ks_inv.T @ skew(t) @ R @ Ks_inv
+    """``F = K_2^-T [t]x R K_1^-1`` (:func:`_scaled_inverses`)."""
+    K1_inv, K2_inv = _scaled_inverses(x, weights, K_inv)
+    return K2_inv.T @ skew(t) @ R @ K1_inv
 
 
-def _focal_fundamental_derivatives(R: FloatArray, t: FloatArray, log_s: float,
-                                   basis: FloatArray, K_inv: FloatArray) -> FloatArray:
+def _focal_fundamental_derivatives(R: FloatArray, t: FloatArray, x: float,
+                                   weights: tuple[float, float], basis: FloatArray,
+                                   K_inv: FloatArray) -> FloatArray:
     """``dF / dx`` ``(6, 3, 3)`` of :func:`_scaled_fundamental`: the pose step of
-    :func:`scene3D.refinement._update_pose` (5), then ``log s``.
+    :func:`scene3D.refinement._update_pose` (5), then ``x``.
 
-    ``d(K_s^-1) / d(log s) = -P K_s^-1`` with ``P = diag(1, 1, 0)``.
+    ``d(K_i^-1) / dx = -w_i P K_i^-1`` with ``P = diag(1, 1, 0)``.
     """
-    Ks_inv = np.diag([np.exp(-log_s), np.exp(-log_s), 1.0]) @ K_inv
+    K1_inv, K2_inv = _scaled_inverses(x, weights, K_inv)
     E = skew(t) @ R
     P = np.diag([1.0, 1.0, 0.0])
-    d_log_s = -Ks_inv.T @ (P @ E + E @ P) @ Ks_inv
-    return np.concatenate([_fundamental_derivatives(R, t, basis, Ks_inv), d_log_s[None]])
+    d_x = -K2_inv.T @ (weights[1] * P @ E + weights[0] * E @ P) @ K1_inv
+    return np.concatenate([_fundamental_derivatives(R, t, basis, K1_inv, K2_inv), d_x[None]])
 
 
 class FocalFit(NamedTuple):
-    """What :func:`fit_focal_scale` found.
+    """What :func:`fit_focal_scale` or :func:`fit_focal_ratio` found.
 
     Attributes
     ----------
     scale : float
-        The focal length that best explains the matches, as a multiple of the
-        calibration's (1: the calibration fits).
+        The factor that best explains the matches: the focal length as a multiple of
+        the calibration's (:func:`fit_focal_scale`), or image 2's over image 1's
+        (:func:`fit_focal_ratio`); 1 when the calibration fits.
     sigma_log : float
         First-order standard deviation of ``log(scale)`` (inf when the matches do
-        not determine the focal length, e.g. without rotation).
+        not determine it, e.g. without rotation).
     R, t : (3, 3), (3,) float64
         The pose refined with it (``|t| = 1``).
+    weights : (float, float)
+        :data:`COMMON` or :data:`RATIO`: how ``scale`` applies to each image.
     """
 
     scale: float
     sigma_log: float
     R: FloatArray
     t: FloatArray
+    weights: tuple[float, float] = COMMON
+
+    def fundamental(self, K: ArrayLike) -> FloatArray:
+        """``(3, 3)`` the fundamental matrix of the fitted pose and focal lengths, for
+        the calibration ``K`` the fit started from."""
+        K_inv = np.linalg.inv(np.asarray(K, dtype=np.float64))
+        return _scaled_fundamental(self.R, self.t, float(np.log(self.scale)), self.weights,
+                                   K_inv)
+
+
+def _fit_focal(R: ArrayLike, t: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: ArrayLike,
+               weights: tuple[float, float], loss: str, scale_px: float,
+               max_iterations: int, initial_scale: float) -> FocalFit:
+    """The robust Sampson refinement of the pose with the factor of ``weights``."""
+    R = np.asarray(R, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64).reshape(3)
+    t = t / np.linalg.norm(t)
+    h1 = to_homogeneous(np.asarray(pts1, dtype=np.float64))
+    h2 = to_homogeneous(np.asarray(pts2, dtype=np.float64))
+    K_inv = np.linalg.inv(np.asarray(K, dtype=np.float64))
+
+    def evaluate(R_: FloatArray, t_: FloatArray, x: float) -> tuple[tuple, float]:
+        F_ = _scaled_fundamental(R_, t_, x, weights, K_inv)
+        r_ = _sampson(F_, h1, h2)
+        return (R_, t_, x, F_, r_), _robust_cost(r_, loss, scale_px)
+
+    def jacobian(state: tuple) -> tuple[FloatArray, FloatArray]:
+        R_, t_, x, F_, _ = state
+        basis = tangent_basis(t_)
+        dF = _focal_fundamental_derivatives(R_, t_, x, weights, basis, K_inv)
+        return _sampson_jacobian(F_, dF, h1, h2), basis
+
+    def linearize(state: tuple) -> Callable[[float], tuple]:
+        R_, t_, x, _, r_ = state
+        J, basis = jacobian(state)
+        step = _damped_steps(J, r_, loss, scale_px)
+
+        def try_step(damping: float) -> tuple[tuple, float]:
+            dx = step(damping)
+            return evaluate(*_update_pose(R_, t_, dx[:5], basis), x + dx[5])
+        return try_step
+
+    state, cost = evaluate(R, t, float(np.log(initial_scale)))
+    state = _levenberg_marquardt(state, cost, linearize, max_iterations, 1e-10)
+    x, r = state[2], state[4]
+    # The same first-order covariance as the pose's (refinement.relative_pose_covariance).
+    variance = _robust_covariance(jacobian(state)[0], r, loss, scale_px)[5, 5]
+    sigma_log = float(np.sqrt(variance)) if 0 < variance < np.inf else np.inf
+    return FocalFit(float(np.exp(x)), sigma_log, state[0], state[1], weights)
 
 
 def fit_focal_scale(
@@ -111,38 +179,34 @@ def fit_focal_scale(
     -------
     FocalFit
     """
-    R = np.asarray(R, dtype=np.float64)
-    t = np.asarray(t, dtype=np.float64).reshape(3)
-    t = t / np.linalg.norm(t)
-    h1 = to_homogeneous(np.asarray(pts1, dtype=np.float64))
-    h2 = to_homogeneous(np.asarray(pts2, dtype=np.float64))
-    K_inv = np.linalg.inv(np.asarray(K, dtype=np.float64))
+    return _fit_focal(R, t, pts1, pts2, K, COMMON, loss, scale_px, max_iterations,
+                      initial_scale)
 
-    def evaluate(R_: FloatArray, t_: FloatArray, log_s: float) -> tuple[tuple, float]:
-        F_ = _scaled_fundamental(R_, t_, log_s, K_inv)
-        r_ = _sampson(F_, h1, h2)
-        return (R_, t_, log_s, F_, r_), _robust_cost(r_, loss, scale_px)
 
-    def jacobian(state: tuple) -> tuple[FloatArray, FloatArray]:
-        R_, t_, log_s, F_, _ = state
-        basis = tangent_basis(t_)
-        dF = _focal_fundamental_derivatives(R_, t_, log_s, basis, K_inv)
-        return _sampson_jacobian(F_, dF, h1, h2), basis
+def fit_focal_ratio(
+    R: ArrayLike,
+    t: ArrayLike,
+    pts1: ArrayLike,
+    pts2: ArrayLike,
+    K: ArrayLike,
+    loss: str = "cauchy",
+    scale_px: float = 0.5,
+    max_iterations: int = 30,
+    initial_ratio: float = 1.0,
+) -> FocalFit:
+    """Check that one calibration fits both photos: image 2's focal length against image 1's.
 
-    def linearize(state: tuple) -> Callable[[float], tuple]:
-        R_, t_, log_s, _, r_ = state
-        J, basis = jacobian(state)
-        step = _damped_steps(J, r_, loss, scale_px)
+    As :func:`fit_focal_scale`, with image 1's focal length divided and image 2's
+    multiplied by ``sqrt(r)`` (``r = s2 / s1``, the geometric mean kept at the
+    calibration's), from ``r = initial_ratio``. A zoom turned between the shots, or one
+    photo cropped and enlarged, shows as ``r`` far from 1: with one ``K`` for both, such
+    a pair came back trusted 20-50 deg off in translation direction
+    (docs/benchmarks.md), the zoom taken for a move along the optical axis.
 
-        def try_step(damping: float) -> tuple[tuple, float]:
-            dx = step(damping)
-            return evaluate(*_update_pose(R_, t_, dx[:5], basis), log_s + dx[5])
-        return try_step
-
-    state, cost = evaluate(R, t, float(np.log(initial_scale)))
-    state = _levenberg_marquardt(state, cost, linearize, max_iterations, 1e-10)
-    log_s, r = state[2], state[4]
-    # The same first-order covariance as the pose's (refinement.relative_pose_covariance).
-    variance = _robust_covariance(jacobian(state)[0], r, loss, scale_px)[5, 5]
-    sigma_log = float(np.sqrt(variance)) if 0 < variance < np.inf else np.inf
-    return FocalFit(float(np.exp(log_s)), sigma_log, state[0], state[1])
+    Returns
+    -------
+    FocalFit
+        ``scale`` is ``r``, ``weights`` :data:`RATIO`.
+    """
+    return _fit_focal(R, t, pts1, pts2, K, RATIO, loss, scale_px, max_iterations,
+                      initial_ratio)

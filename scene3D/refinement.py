@@ -62,15 +62,17 @@ def _update_pose(
 
 
 def _fundamental_derivatives(R: FloatArray, t: FloatArray, basis: FloatArray,
-                             K_inv: FloatArray) -> FloatArray:
+                             K_inv: FloatArray, K2_inv: FloatArray | None = None) -> FloatArray:
     """``dF / dx`` ``(5, 3, 3)`` at the pose, for the step ``x`` of :func:`_update_pose`.
 
     ``R <- exp([w]x) R`` gives ``dE/dw_k = [t]x [e_k]x R``; ``t <- t + d @ basis``
     (then renormalised, which is second order since ``basis`` is orthogonal to
-    ``t``) gives ``dE/dd_k = [b_k]x R``; and ``F = K^-T E K^-1``.
+    ``t``) gives ``dE/dd_k = [b_k]x R``; and ``F = K2^-T E K^-1`` (``K2 = K`` unless
+    given: image 2's intrinsics).
     """
+    K2_inv = K_inv if K2_inv is None else K2_inv
     dE = [skew(t) @ skew(axis) @ R for axis in np.eye(3)] + [skew(b) @ R for b in basis]
-    return np.stack([K_inv.T @ d @ K_inv for d in dE])
+    return np.stack([K2_inv.T @ d @ K_inv for d in dE])
 
 
 def _sampson_jacobian(F: FloatArray, dF: FloatArray, h1: FloatArray,

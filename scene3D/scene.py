@@ -163,8 +163,9 @@ class SceneReconstruction3D:
         mode = normalize_feature_mode(feat_mode)
         matches = self.matches(mode)
         if mode not in self._results:
-            img1, _ = self._require_images()
-            self._results[mode] = reconstruct_two_view(img1, matches, self.K, self.settings)
+            img1, img2 = self._require_images()
+            self._results[mode] = reconstruct_two_view(img1, matches, self.K, self.settings,
+                                                       img2)
         result = self._results[mode]
         distinct = distinct_correspondences(matches.pts1, matches.pts2)
         self.match_pts1, self.match_pts2 = matches.pts1[distinct], matches.pts2[distinct]
@@ -206,7 +207,8 @@ class SceneReconstruction3D:
         self._results.clear()
         self._dense.clear()
         self.self_calibration = calibration
-        result = reconstruct_two_view(self._require_images()[0], matches, self.K, self.settings)
+        img1, img2 = self._require_images()
+        result = reconstruct_two_view(img1, matches, self.K, self.settings, img2)
         # The pose's uncertainty includes the focal length's (the calibration's geometry).
         marginal = calibration.geometry
         self._results[mode] = replace(result, trusted=result.trusted and calibration.trusted,

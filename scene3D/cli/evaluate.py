@@ -32,7 +32,7 @@ from ..features import (
     normalize_feature_mode,
 )
 from ..imageio import BOOK_MAX_WIDTH_PX, load_working_image, read_image_size
-from ..twoview import TwoViewSettings, reconstruct_from_matches
+from ..twoview import TwoViewSettings, check_against_flow, reconstruct_from_matches
 from ..uncertainty import pose_error_chi2
 from .common import (
     EXIT_OK,
@@ -146,9 +146,10 @@ class _View:
         Intrinsics of the working image, from the view's camera file.
     features : ImageFeatures or None
         Keypoints and descriptors; None with ``--feature flow``.
-    image : (h, w, 3) uint8 or None
-        The working image, kept only for ``--feature flow`` (the tracks belong to
-        the pair); otherwise dropped once its features are taken.
+    image : (h, w, 3) uint8
+        The working image: the flow check of each pair's pose
+        (:func:`scene3D.twoview.check_against_flow`) and ``--feature flow``'s tracks
+        need it.
     photo : (name, ExifCamera or None, (width, height)) or None
         With ``--no-calib``: what :func:`scene3D.intrinsics_prior.camera_prior`
         needs of the photo (its EXIF and stored size).
@@ -157,7 +158,7 @@ class _View:
     shape: tuple[int, ...]
     K: np.ndarray
     features: ImageFeatures | None
-    image: np.ndarray | None
+    image: np.ndarray
     photo: tuple | None = None
 
 
@@ -187,7 +188,7 @@ def _load_view(path: Path, camera: StrechaCamera, max_width: int | None,
     K_working = scale_intrinsics_halved(K, levels)
     if feature == "flow":
         return _View(img.shape, K_working, None, img, photo)
-    return _View(img.shape, K_working, image_features(img, feature), None, photo)
+    return _View(img.shape, K_working, image_features(img, feature), img, photo)
 
 
 def _matches(view_a: _View, view_b: _View) -> Matches:
@@ -219,6 +220,7 @@ def _evaluate_pair(name: str, view_a: _View, view_b: _View,
         except ReconstructionError as exc:
             row["note"] = f"refused: {exc.reason}"
             return row
+        result = check_against_flow(result, view_a.image, view_b.image, settings)
         err = relative_pose_error(result.R, result.t, *truth)
         rotation_chi2, translation_chi2 = pose_error_chi2(result.R, result.t, *truth,
                                                           result.pose_covariance)
@@ -269,7 +271,7 @@ def _evaluate_pair_no_calib(name: str, view_a: _View, view_b: _View,
         except ReconstructionError as exc:
             row["note"] = f"refused: {exc.reason}"
             return row
-        result = calibration.geometry
+        result = check_against_flow(calibration.geometry, view_a.image, view_b.image, settings)
         err = relative_pose_error(result.R, result.t, *truth)
         rotation_chi2, translation_chi2 = pose_error_chi2(result.R, result.t, *truth,
                                                           result.pose_covariance)
@@ -279,7 +281,8 @@ def _evaluate_pair_no_calib(name: str, view_a: _View, view_b: _View,
                    rotation_chi2=rotation_chi2, translation_chi2=translation_chi2)
         row.update(rotation_deg=err.rotation_deg, translation_deg=err.translation_deg,
                    inliers=result.num_inliers, points=len(result.points3d), focal_scale=scale,
-                   flagged=not calibration.trusted, focal_error=scale - 1.0,
+                   flagged=not (calibration.trusted and result.trusted),
+                   focal_error=scale - 1.0,
                    calibration_source=calibration.source,
                    note="; ".join(calibration.warnings + result.warnings))
         return row

@@ -21,7 +21,10 @@ The pipeline (book chapter 4, done right):
    deviations beyond ``uncertainty_limit_deg``), or when something the covariance
    cannot see is at work: restarts that end at distinct optima, a focal length
    that does not fit the calibration (:func:`check_focal_length`), too few inliers
-   for the covariance to be estimated or for wrong matches not to agree by chance.
+   for the covariance to be estimated or for wrong matches not to agree by chance,
+7. with both images at hand, the dense optical flow between them
+   (:func:`check_against_flow`): sparse matches on repeated texture can agree on a
+   wrong pose that the flow does not follow.
 
 Frames: points are in the camera-1 frame, ``x_cam2 = R x_cam1 + t``, ``|t| = 1``
 (the scale is unknown).
@@ -29,6 +32,7 @@ Frames: points are in the camera-1 frame, ``x_cam2 = R x_cam1 + t``, ``|t| = 1``
 
 from ..degeneracy import is_rotation_homography, off_plane_evidence, plane_poses
 from .core import (
+    check_against_flow,
     reconstruct_from_matches,
     reconstruct_two_view,
     require_enough_matches,
@@ -38,7 +42,8 @@ from .results import TwoViewGeometry, TwoViewReconstruction, TwoViewSettings
 from .trust import check_focal_length, rival_chi2, trust_warnings
 
 __all__ = [  # the plane checks lived here before scene3D.degeneracy
-    "TwoViewGeometry", "TwoViewReconstruction", "TwoViewSettings", "check_focal_length",
+    "TwoViewGeometry", "TwoViewReconstruction", "TwoViewSettings", "check_against_flow",
+    "check_focal_length",
     "is_rotation_homography", "off_plane_evidence", "plane_poses", "reconstruct_from_matches",
     "reconstruct_two_view", "require_enough_matches", "rival_chi2", "sample_colors",
     "trust_warnings",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import fields
+from dataclasses import fields, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -26,7 +26,9 @@ from ..epipolar import (
 )
 from ..errors import ReconstructionError, log_result_warnings
 from ..essential_fit import fit_essential, inlier_threshold_px, loss_scale_px, noise_sigma_px
-from ..features import Matches, check_image
+from ..features import Matches, check_image, to_gray
+from ..flow_check import check_pose_against_images
+from ..focal_fit import fit_focal_ratio
 from ..geometry import (
     FloatArray,
     as_points2d,
@@ -45,7 +47,16 @@ from ..uncertainty import (
     truncated_noise,
 )
 from .results import TwoViewGeometry, TwoViewReconstruction, TwoViewSettings
-from .trust import check_focal_length, principal_point_warning, rival_chi2, trust_warnings
+from .trust import (
+    check_focal_length,
+    flow_warning,
+    flow_within_purpose,
+    principal_point_warning,
+    restarts_warning,
+    rival_chi2,
+    sigmas_text,
+    trust_warnings,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -282,8 +293,10 @@ def reconstruct_from_matches(
     # The focal check re-selects its inliers at the given threshold even when the pose was
     # fitted within the noise: a wrong focal length leaves matches off by more than the
     # noise, which a tighter selection would drop and so hide (docs/benchmarks.md).
-    focal = check_focal_length(R, t, p1, p2, inliers, K,
-                               inlier_threshold_px(distances, s.threshold_px), loss_scale)
+    check_px = inlier_threshold_px(distances, s.threshold_px)
+    focal = check_focal_length(R, t, p1, p2, inliers, K, check_px, loss_scale)
+    focal_ratio = check_focal_length(R, t, p1, p2, inliers, K, check_px, loss_scale,
+                                     fit=fit_focal_ratio)
     refine_s += time.perf_counter() - t_focal
     points, pts1_kept, pts2_kept = points[keep], in1[keep], in2[keep]
     kept_errors = errors[keep]
@@ -307,10 +320,12 @@ def reconstruct_from_matches(
                                 uncertainty.noise_sigma_px)
     # A rotation under another focal length counts where it explains more of the matches.
     rotation_share, rotation_focal_scale = motion.widest_rotation
+    rivals = rival_chi2(fit, R, t, uncertainty.covariance)
     warnings = trust_warnings(uncertainty, n, num_inliers, median_kept_parallax, h_ratio, s,
-                              fit, focal, rotation_share,
-                              rival_chi2(fit, R, t, uncertainty.covariance),
-                              rotation_focal_scale)
+                              fit, focal, rotation_share, rivals, rotation_focal_scale,
+                              focal_ratio)
+    several_optima = restarts_warning(fit, rivals, sigmas_text(
+        uncertainty.rotation_sigma_deg, uncertainty.translation_sigma_deg), s) or ""
     # A K for larger photos or turned ones gave trusted poses 11-40 deg off.
     if (misplaced := principal_point_warning(K, p1, p2, image_size)) is not None:
         warnings.append(misplaced)
@@ -322,14 +337,59 @@ def reconstruct_from_matches(
         median_parallax_deg=median_kept_parallax,
         homography_inlier_ratio=h_ratio, trusted=not warnings, warnings=tuple(warnings),
         inlier_pts1=in1, inlier_pts2=in2, refinement_s=refine_s, robust_starts=fit.starts,
-        robust_spread_deg=fit.spread_deg, focal_scale=focal.scale,
-        focal_scale_sigma=focal.scale * focal.sigma_log,
+        robust_spread_deg=fit.spread_deg, restarts_warning=several_optima,
+        focal_scale=focal.scale,
+        focal_scale_sigma=focal.scale * focal.sigma_log, focal_ratio=focal_ratio.scale,
+        focal_ratio_sigma=focal_ratio.scale * focal_ratio.sigma_log,
         pose_covariance=uncertainty.covariance,
         rotation_sigma_deg=uncertainty.rotation_sigma_deg,
         translation_sigma_deg=uncertainty.translation_sigma_deg,
         noise_sigma_px=uncertainty.noise_sigma_px, noise_cut_share=cut.cut_share,
         depth_sigmas=point_sigmas,
     )
+
+
+def check_against_flow(geometry: TwoViewGeometry, img1: np.ndarray, img2: np.ndarray,
+                       settings: TwoViewSettings | None = None) -> TwoViewGeometry:
+    """A pose found from sparse matches, checked against the dense optical flow between
+    the images (:mod:`scene3D.flow_check`).
+
+    ``img1, img2`` are the working images ``(H, W, 3)`` BGR or ``(H, W)`` grey ``uint8``
+    that ``geometry``'s points were found in. A trusted pose is checked, and one whose
+    only doubt is the robust restarts' other optima (``restarts_warning``); none when
+    ``settings.max_flow_gain`` is 1. The result then carries ``flow_gain`` and, when
+    the flow doubts the pose (:func:`scene3D.twoview.trust.flow_warning`), a warning and
+    ``trusted=False``; when the flow's own pose lies within half
+    ``settings.uncertainty_limit_deg`` of it
+    (:func:`scene3D.twoview.trust.flow_within_purpose`), the restarts' doubt is lifted:
+    the flow, which does not share the sparse matches' ambiguities, puts the pose near
+    enough for the purpose. About
+    0.05 s (the flow is taken at 768 px at most; docs/benchmarks.md).
+
+    Raises
+    ------
+    TypeError, ValueError
+        If an image is not such an array, or the two differ in size.
+    """
+    s = TwoViewSettings() if settings is None else settings
+    gray1, gray2 = to_gray(check_image(img1, "img1")), to_gray(check_image(img2, "img2"))
+    if gray1.shape != gray2.shape:
+        raise ValueError(f"img1 and img2 must be of one size (one camera), got "
+                         f"{gray1.shape[1]}x{gray1.shape[0]} and {gray2.shape[1]}x{gray2.shape[0]}")
+    only_restarts = geometry.warnings == (geometry.restarts_warning,)
+    if not (geometry.trusted or only_restarts) or s.max_flow_gain >= 1.0:
+        return geometry
+    R, t = geometry.R, geometry.t
+    flow = check_pose_against_images(R, t, geometry.K, gray1, gray2, geometry.inlier_pts1,
+                                     geometry.inlier_pts2)
+    if flow is None:
+        return geometry
+    warnings = geometry.warnings
+    if only_restarts and flow_within_purpose(R, t, flow, s):
+        warnings = ()  # the flow settles which of the restarts' optima the pose is near
+    if (doubt := flow_warning(R, t, flow, s)) is not None:
+        warnings += (doubt,)
+    return replace(geometry, flow_gain=flow.gain, trusted=not warnings, warnings=warnings)
 
 
 def require_enough_matches(matches: Matches, settings: TwoViewSettings | None = None) -> None:
@@ -364,8 +424,13 @@ def reconstruct_two_view(
     matches: Matches,
     K: ArrayLike,
     settings: TwoViewSettings | None = None,
+    img2: np.ndarray | None = None,
 ) -> TwoViewReconstruction:
     """Reconstruct a pair from its matches; ``img1`` gives the point colours.
+
+    With ``img2``, a pose that passes every other check is also checked against the
+    dense optical flow between the images (:func:`check_against_flow`): sparse matches
+    on repeated texture can agree on a wrong pose that no statistic of their own shows.
 
     Parameters
     ----------
@@ -379,6 +444,8 @@ def reconstruct_two_view(
     K : (3, 3) array_like
         Intrinsics shared by both images.
     settings : TwoViewSettings, optional
+    img2 : (H, W, 3) or (H, W) uint8, optional
+        Image 2, the image ``matches.pts2`` were found in, of ``img1``'s size.
 
     Returns
     -------
@@ -389,9 +456,9 @@ def reconstruct_two_view(
     Raises
     ------
     TypeError, ValueError
-        If ``img1`` is not such an image (a path, None, a float array;
-        :func:`scene3D.features.check_image`), ``matches`` is not a :class:`Matches`,
-        or ``K`` is not a camera matrix.
+        If ``img1`` or ``img2`` is not such an image (a path, None, a float array;
+        :func:`scene3D.features.check_image`) or ``img2`` not of ``img1``'s size,
+        ``matches`` is not a :class:`Matches`, or ``K`` is not a camera matrix.
     ReconstructionError
         See :func:`reconstruct_from_matches` for the steps and the reasons
         (:func:`require_enough_matches` for too few matches).
@@ -405,11 +472,16 @@ def reconstruct_two_view(
     geometry = reconstruct_from_matches(matches.pts1, matches.pts2, K, settings,
                                         image_size=img1.shape[1::-1])
     t1 = time.perf_counter()
+    if img2 is not None:
+        geometry = check_against_flow(geometry, img1, img2, settings)
+    t2 = time.perf_counter()
     refinement_s = geometry.refinement_s
     colors = sample_colors(img1, geometry.pts1)
     timings = dict(matches.timings_s)
     timings["geometry"] = t1 - t0 - refinement_s
     timings["refinement"] = refinement_s
+    if img2 is not None:
+        timings["flow check"] = t2 - t1
     timings["total"] = sum(timings.values())
     log_result_warnings(logger, geometry.warnings)
     return TwoViewReconstruction(colors=colors, feature=matches.feature, timings_s=timings,

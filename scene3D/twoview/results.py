@@ -32,7 +32,10 @@ class TwoViewSettings:
         (:func:`scene3D.twoview.rival_chi2`: the sigmas already say it); beyond
         both the result is marked untrusted: a covariance describes one optimum
         and cannot see the others. When the best was found twice, a rival outside
-        that region counts from ``uncertainty_limit_deg`` on. 0 to 180.
+        that region counts from ``uncertainty_limit_deg`` on. With both images at hand
+        the dense flow check lifts this doubt when the flow's pose lies within half
+        ``uncertainty_limit_deg`` of the pose (:func:`scene3D.twoview.check_against_flow`).
+        0 to 180.
     min_matches, min_inliers, min_points : int
         Below these counts the pair is refused (at least 5, 5 and 1: five
         correspondences determine an essential matrix).
@@ -95,11 +98,28 @@ class TwoViewSettings:
         than ``1 + max_focal_mismatch`` times larger or smaller than the
         calibration's, by more than ``focal_mismatch_sigmas`` standard deviations
         (:func:`scene3D.focal_fit.fit_focal_scale`): the calibration is probably
-        for another camera, lens or zoom, and the pose is off by degrees. Three
+        for another camera, lens or zoom, and the pose is off by degrees. The same limits
+        hold for image 2's focal length against image 1's
+        (:func:`scene3D.focal_fit.fit_focal_ratio`): two zoom settings, or one photo
+        cropped or resized, with one calibration. Three
         standard deviations of the sandwich estimate (five of the optimistic IRLS
         estimate before it): with the true K no right pose of the three Strecha
         scenes is flagged for its focal length (gaps 1-5, 768 and 1536 px). Both
         >= 0 (``max_focal_mismatch`` may be ``inf``: never flagged).
+    max_flow_gain : float
+        A pose that passed every other check, reconstructed with both images at hand
+        (:func:`scene3D.twoview.check_against_flow`), is marked untrusted when the pose
+        refined on the dense optical flow between the images puts more than this share
+        of the flow's textured pixels more within
+        :data:`scene3D.flow_check.FLOW_BAND_PX` of its epipolar lines
+        (:func:`scene3D.flow_check.check_pose_against_flow`) and lies at least half
+        ``uncertainty_limit_deg`` away: sparse matches on repeated texture agreed on
+        a wrong pose that the flow does not follow. On the three Strecha scenes the
+        gain is at most 0.09 on right poses (within 1 deg) and 0.17-0.24 on four of
+        castle-P19's six poses more than 2 deg off at 768 px, whose flow poses lie
+        0.3-1.2 deg from the truth (docs/benchmarks.md). Half the limit: a pose nearer the flow's
+        than that is near enough for the purpose, whatever the flow prefers. 0 to 1
+        (1: not checked, which saves the flow's 0.05 s a pair).
     bundle_adjust : bool
         Finish with a two-view bundle adjustment of pose and points
         (:func:`scene3D.bundle_two_view.bundle_adjust_two_view`) with the same Cauchy
@@ -134,6 +154,7 @@ class TwoViewSettings:
     max_noise_cut_share: float = 0.1
     max_focal_mismatch: float = 0.15
     focal_mismatch_sigmas: float = 3.0
+    max_flow_gain: float = 0.1
     bundle_adjust: bool = False
 
     def __post_init__(self) -> None:
@@ -180,6 +201,7 @@ _REAL_RANGES: dict[str, tuple[float, float, bool, bool]] = {
     "max_noise_cut_share": (0.0, 1.0, False, False),
     "max_focal_mismatch": (0.0, math.inf, False, True),
     "focal_mismatch_sigmas": (0.0, math.inf, False, False),
+    "max_flow_gain": (0.0, 1.0, False, False),
 }
 
 #: Smallest values of the integer fields of :class:`TwoViewSettings`.
@@ -232,11 +254,19 @@ class TwoViewGeometry:
     robust_spread_deg : float
         How far the other starts' optima lie from the chosen one
         (:attr:`scene3D.essential_fit.EssentialFit.spread_deg`; 0 when they all agree).
+    restarts_warning : str
+        The one of ``warnings`` that says the robust restarts ended at optima the
+        covariance does not allow for ('' when none): the dense flow check can lift it
+        (:func:`scene3D.twoview.check_against_flow`).
     focal_scale, focal_scale_sigma : float
         The focal length the inliers call for, as a multiple of the calibration's,
         and its standard deviation (:func:`scene3D.focal_fit.fit_focal_scale`;
         near 1 when the calibration fits, the sigma infinite when the pair cannot
         tell).
+    focal_ratio, focal_ratio_sigma : float
+        Image 2's focal length over image 1's that the inliers call for, with the
+        calibration's geometric mean kept (:func:`scene3D.focal_fit.fit_focal_ratio`;
+        near 1 when one calibration fits both photos), and its standard deviation.
     pose_covariance : (5, 5) float64
         First-order covariance of the pose (radians^2) in the parametrisation of
         :mod:`scene3D.uncertainty`: rows 0-2 the rotation vector ``w`` of
@@ -253,6 +283,12 @@ class TwoViewGeometry:
     noise_cut_share : float
         Share of the matches that fit the pose which the inlier threshold cut off
         (:func:`scene3D.uncertainty.truncated_noise`; the covariance allows for it).
+    flow_gain : float
+        How much more of the dense optical flow between the images the pose refined on
+        the flow explains than this pose (:attr:`scene3D.flow_check.FlowCheck.gain`; near
+        0 when the flow agrees). NaN when the check did not run: no second image
+        (:func:`scene3D.twoview.check_against_flow`), a pose already untrusted, or too
+        little texture.
     depth_sigmas : (N,) float64
         1-sigma depth of each point in camera 1, in units of the baseline, from the
         pose covariance and the keypoint noise (:func:`scene3D.uncertainty.depth_sigmas`);
@@ -279,13 +315,17 @@ class TwoViewGeometry:
     refinement_s: float = 0.0
     robust_starts: int = 1
     robust_spread_deg: float = 0.0
+    restarts_warning: str = ""
     focal_scale: float = 1.0
     focal_scale_sigma: float = float("inf")
+    focal_ratio: float = 1.0
+    focal_ratio_sigma: float = float("inf")
     pose_covariance: FloatArray = field(default_factory=lambda: np.full((5, 5), np.inf))
     rotation_sigma_deg: float = float("inf")
     translation_sigma_deg: float = float("inf")
     noise_sigma_px: float = float("nan")
     noise_cut_share: float = 0.0
+    flow_gain: float = float("nan")
     depth_sigmas: FloatArray = field(default_factory=lambda: np.zeros(0))
 
     @property

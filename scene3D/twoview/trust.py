@@ -3,14 +3,17 @@ what the uncertainty cannot see (see :mod:`scene3D.twoview`)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from ..camera import principal_point_hint
-from ..epipolar import essential_distances, essential_from_pose
 from ..essential_fit import EssentialFit
+from ..flow_check import FLOW_BAND_PX, FlowCheck
 from ..focal_fit import FocalFit, fit_focal_scale
-from ..geometry import FloatArray
+from ..geometry import FloatArray, pose_angle_deg
 from ..pose import nearest_decomposition
+from ..refinement import sampson_residuals
 from ..uncertainty import CHI2_99_POSE, PoseUncertainty, pose_difference_chi2
 from .results import TwoViewSettings
 
@@ -55,7 +58,8 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
                    median_parallax_deg: float, homography_ratio: float, s: TwoViewSettings,
                    fit: EssentialFit | None = None, focal: FocalFit | None = None,
                    rotation_share: float = 0.0, rivals_chi2: float = float("inf"),
-                   rotation_focal_scale: float = 1.0) -> list[str]:
+                   rotation_focal_scale: float = 1.0,
+                   focal_ratio: FocalFit | None = None) -> list[str]:
     """Reasons to doubt a pose that passed every hard check (empty: trusted).
 
     The verdicts:
@@ -77,7 +81,8 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
       allows; the focal length the matches call
       for (``focal``, :func:`scene3D.focal_fit.fit_focal_scale`) differs from the
       calibration's by more than ``s.max_focal_mismatch`` and
-      ``s.focal_mismatch_sigmas`` standard deviations; fewer than
+      ``s.focal_mismatch_sigmas`` standard deviations, or image 2's against image 1's
+      (``focal_ratio``, :func:`scene3D.focal_fit.fit_focal_ratio`) by as much; fewer than
       ``s.trusted_inliers`` inliers, too few to estimate a covariance from and few
       enough for wrong matches to agree by chance; a rotation alone explains more than
       ``s.max_rotation_share`` of the inliers (``rotation_share``,
@@ -125,24 +130,45 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
                         f"the translation rests on the other {1 - rotation_share:.0%}, which a "
                         "moving object would explain as well as a camera that moved (the "
                         f"{sigmas} assume a rigid scene)")
-    if fit is not None and s.max_starts > 1 and rivals_chi2 > CHI2_99_POSE:
-        if not fit.confirmed and fit.spread_deg > s.restart_agreement_deg:
-            warnings.append(f"no pose was found twice in {fit.starts} robust starts: poses "
-                            f"up to {fit.spread_deg:.1f} deg apart fit the matches about "
-                            f"equally well (the best one's {sigmas} cannot show this)")
-        elif fit.confirmed and fit.spread_deg > s.uncertainty_limit_deg:
-            warnings.append(f"another pose {fit.spread_deg:.1f} deg away fits the matches "
-                            "about as well (the robust starts reached both): the pose may "
-                            f"be off by that much, which its {sigmas} cannot show")
-    if focal is not None:
-        log_scale = abs(np.log(focal.scale))
-        if (log_scale > np.log1p(s.max_focal_mismatch)
-                and log_scale > s.focal_mismatch_sigmas * focal.sigma_log):
-            warnings.append(
-                f"the matches fit a focal length {focal.scale:.2f} times the calibration's "
-                f"(+-{focal.scale * focal.sigma_log:.2f}): is the calibration for this camera, "
-                f"lens and zoom? The pose may be off by degrees, beyond its {sigmas}")
+    if (rivals := restarts_warning(fit, rivals_chi2, sigmas, s)) is not None:
+        warnings.append(rivals)
+    if focal is not None and _focal_mismatch(focal, s):
+        warnings.append(
+            f"the matches fit a focal length {focal.scale:.2f} times the calibration's "
+            f"(+-{focal.scale * focal.sigma_log:.2f}): is the calibration for this camera, "
+            f"lens and zoom? The pose may be off by degrees, beyond its {sigmas}")
+    if focal_ratio is not None and _focal_mismatch(focal_ratio, s):
+        warnings.append(
+            f"the matches fit image 2 with a focal length {focal_ratio.scale:.2f} times image "
+            f"1's (+-{focal_ratio.scale * focal_ratio.sigma_log:.2g}): were the photos taken "
+            "at two zoom settings, or one cropped or resized? One calibration holds for "
+            f"both only at one zoom; the pose may be off by degrees, beyond its {sigmas}")
     return warnings
+
+
+def restarts_warning(fit: EssentialFit | None, rivals_chi2: float, sigmas: str,
+                     s: TwoViewSettings) -> str | None:
+    """The robust restarts' doubt of :func:`trust_warnings` (several optima), or None;
+    ``sigmas`` is the pose's :func:`sigmas_text`."""
+    if fit is None or s.max_starts == 1 or rivals_chi2 <= CHI2_99_POSE:
+        return None
+    if not fit.confirmed and fit.spread_deg > s.restart_agreement_deg:
+        return (f"no pose was found twice in {fit.starts} robust starts: poses up to "
+                f"{fit.spread_deg:.1f} deg apart fit the matches about equally well (the best "
+                f"one's {sigmas} cannot show this)")
+    if fit.confirmed and fit.spread_deg > s.uncertainty_limit_deg:
+        return (f"another pose {fit.spread_deg:.1f} deg away fits the matches about as well "
+                "(the robust starts reached both): the pose may be off by that much, which "
+                f"its {sigmas} cannot show")
+    return None
+
+
+def _focal_mismatch(focal: FocalFit, s: TwoViewSettings) -> bool:
+    """``focal.scale`` beyond ``1 + s.max_focal_mismatch`` either way, by more than
+    ``s.focal_mismatch_sigmas`` standard deviations."""
+    log_scale = abs(np.log(focal.scale))
+    return (log_scale > np.log1p(s.max_focal_mismatch)
+            and log_scale > s.focal_mismatch_sigmas * focal.sigma_log)
 
 
 def principal_point_warning(K: FloatArray, pts1: FloatArray, pts2: FloatArray,
@@ -174,24 +200,53 @@ def principal_point_warning(K: FloatArray, pts1: FloatArray, pts2: FloatArray,
 
 def check_focal_length(R: FloatArray, t: FloatArray, p1: FloatArray, p2: FloatArray,
                        inliers: np.ndarray, K: FloatArray, threshold_px: float,
-                       scale_px: float, rounds: int = 3) -> FocalFit:
-    """The focal length the matches call for (:func:`scene3D.focal_fit.fit_focal_scale`).
+                       scale_px: float, rounds: int = 3,
+                       fit: Callable[..., FocalFit] = fit_focal_scale) -> FocalFit:
+    """The focal length the matches call for (:func:`scene3D.focal_fit.fit_focal_scale`,
+    or with ``fit=fit_focal_ratio`` image 2's against image 1's).
 
     ``p1, p2`` are all the correspondences ``(N, 2)``, ``inliers`` the ``(N,) bool``
     inliers of the pose ``R, t`` found with ``K``. Those inliers were chosen under
     ``K``: with a wrong focal length they favour the matches that fit it, so they
-    are re-selected under the fitted focal length (at ``threshold_px``) and the fit
+    are re-selected under the fitted focal lengths (at ``threshold_px``) and the fit
     repeated (as :func:`scene3D.essential_fit.refine_essential` does for the pose), under
     a Cauchy loss of scale ``scale_px``.
     """
-    focal = fit_focal_scale(R, t, p1[inliers], p2[inliers], K, "cauchy", scale_px)
+    focal = fit(R, t, p1[inliers], p2[inliers], K, "cauchy", scale_px)
     for _ in range(rounds - 1):
-        K_s = K @ np.diag([focal.scale, focal.scale, 1.0])
-        new = essential_distances(essential_from_pose(focal.R, focal.t), p1, p2, K_s) \
-            <= threshold_px
+        new = np.abs(sampson_residuals(focal.fundamental(K), p1, p2)) <= threshold_px
         if new.sum() < 6 or np.array_equal(new, inliers):
             break
         inliers = new
-        focal = fit_focal_scale(focal.R, focal.t, p1[inliers], p2[inliers], K, "cauchy",
-                                scale_px, initial_scale=focal.scale)
+        focal = fit(focal.R, focal.t, p1[inliers], p2[inliers], K, "cauchy", scale_px,
+                    30, focal.scale)
     return focal
+
+
+def flow_warning(R: FloatArray, t: FloatArray, flow: FlowCheck | None,
+                 s: TwoViewSettings) -> str | None:
+    """Why the dense optical flow doubts the pose ``R, t``, or None.
+
+    ``flow`` is :func:`scene3D.flow_check.check_pose_against_flow`'s verdict (None: too
+    little texture to judge); the pose is doubted when the flow's own pose explains more
+    than ``s.max_flow_gain`` of the flow more and lies at least half
+    ``s.uncertainty_limit_deg`` away: a pose nearer the flow's than that is near enough
+    for the purpose, whatever the flow prefers.
+    """
+    if flow is None or flow.gain <= s.max_flow_gain or flow_within_purpose(R, t, flow, s):
+        return None
+    apart = pose_angle_deg(flow.R, flow.t, R, t)
+    return (f"the dense optical flow between the images fits a pose {_deg(apart)} deg away "
+            f"better: it puts {flow.flow_share:.0%} of the flow of {flow.points} textured "
+            f"pixels within {FLOW_BAND_PX:g} px of its epipolar lines, this pose "
+            f"{flow.share:.0%} (sparse matches on repeated texture, such as rows of "
+            "identical windows, can agree on a wrong pose)")
+
+
+def flow_within_purpose(R: FloatArray, t: FloatArray, flow: FlowCheck,
+                        s: TwoViewSettings) -> bool:
+    """The flow's pose lies within half ``s.uncertainty_limit_deg`` of ``R, t``: near
+    enough for the purpose. Then the flow does not doubt the pose, and the robust
+    restarts' other optima (:func:`restarts_warning`) do not either: the flow, which
+    does not share the sparse matches' ambiguities, settles where the pose lies."""
+    return pose_angle_deg(flow.R, flow.t, R, t) < s.uncertainty_limit_deg / 2
