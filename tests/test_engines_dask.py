@@ -233,7 +233,9 @@ def test_a_task_whose_workers_keep_dying_is_given_up_with_an_engine_error():
 
 def test_a_run_whose_workers_all_left_stops_with_an_engine_error():
     """Dask reschedules the tasks of workers that leave and waits for another, without
-    limit: the engine stops the wait once the cluster has had no worker for its limit."""
+    limit: the engine stops the wait once the cluster has had no worker for its limit.
+    The first task has finished, but its value left with its worker before it was
+    fetched (the fetch waited without limit until 2026-12-03)."""
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
                                   host="127.0.0.1", dashboard_address=":0") as cluster, \
             distributed.Client(cluster, set_as_default=False) as client:
@@ -242,6 +244,9 @@ def test_a_run_whose_workers_all_left_stops_with_an_engine_error():
         def remove_the_workers(label: str, done: int, total: int) -> None:
             if done == 1:
                 cluster.scale(0)
+                deadline = time.monotonic() + 20
+                while client.nthreads() and time.monotonic() < deadline:
+                    time.sleep(0.05)
 
         started = time.monotonic()
         with pytest.raises(EngineError, match=r"^the Dask cluster has had no worker for 2 s "

@@ -520,9 +520,21 @@ class DaskEngine:
             time.sleep(0.02)
 
     def _result(self, future: Any, label: str, index: int) -> Any:
+        """``future``'s value. A finished task's value lives on the worker that made it:
+        when that worker leaves before the value is fetched, Dask computes it again and
+        the fetch waits for a worker, so it waits as :meth:`_completed` does, within the
+        no-worker limit."""
         distributed = require_distributed()
         try:
-            return future.result()
+            while True:
+                for _ in self._completed(distributed.as_completed([future],
+                                                                 loop=self._client.loop),
+                                         label):
+                    pass
+                try:
+                    return future.result(timeout=1.0)
+                except TimeoutError:  # lost with its worker since it finished
+                    continue
         except distributed.KilledWorker as exc:
             deaths = exc.allowed_failures + 1
             raise EngineError(f"{label} task {index} was given up: the worker running it died "
