@@ -211,7 +211,7 @@ class SceneReconstruction3D:
         result = reconstruct_two_view(img1, matches, self.K, self.settings, img2)
         # The pose's uncertainty includes the focal length's (the calibration's geometry).
         marginal = calibration.geometry
-        self._results[mode] = replace(result, trusted=result.trusted and calibration.trusted,
+        self._results[mode] = replace(result, trusted=result.trusted and calibration.focal_trusted,
                                       warnings=result.warnings + calibration.warnings,
                                       pose_covariance=marginal.pose_covariance,
                                       rotation_sigma_deg=marginal.rotation_sigma_deg,

@@ -281,7 +281,7 @@ def _evaluate_pair_no_calib(name: str, view_a: _View, view_b: _View,
                    rotation_chi2=rotation_chi2, translation_chi2=translation_chi2)
         row.update(rotation_deg=err.rotation_deg, translation_deg=err.translation_deg,
                    inliers=result.num_inliers, points=len(result.points3d), focal_scale=scale,
-                   flagged=not (calibration.trusted and result.trusted),
+                   flagged=not (result.trusted and calibration.focal_trusted),
                    focal_error=scale - 1.0,
                    calibration_source=calibration.source,
                    note="; ".join(calibration.warnings + result.warnings))

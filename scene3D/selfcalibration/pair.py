@@ -161,6 +161,10 @@ class SelfCalibration:
         value (by more than three sigmas), and the pose certain enough for
         ``TwoViewSettings`` (``uncertainty_sigmas`` of its marginal sigmas within
         ``uncertainty_limit_deg``).
+    focal_trusted : bool
+        Those conditions but the first: ``trusted`` is ``geometry.trusted and
+        focal_trusted``. A later check of the pose under ``K`` (the dense flow check,
+        :func:`scene3D.twoview.check_against_flow`) combines with this one.
     seconds : float
         Time spent.
     """
@@ -181,6 +185,7 @@ class SelfCalibration:
     iterations: int
     warnings: tuple[str, ...] = ()
     trusted: bool = True
+    focal_trusted: bool = True
     seconds: float = 0.0
 
 
@@ -371,13 +376,14 @@ def self_calibrate_pair(
             f"uncertain pose once the focal length's and the principal point's uncertainty "
             f"is included: {sigmas}, more than {tv.uncertainty_limit_deg:g} deg at "
             f"{tv.uncertainty_sigmas:g} sigma")
-    trusted = (geometry.trusted and not ambiguous and not pose_rivals and not disagree
-               and not uncertain and sigma <= s.max_trusted_sigma_log)
+    focal_trusted = (not ambiguous and not pose_rivals and not disagree and not uncertain
+                     and sigma <= s.max_trusted_sigma_log)
     return SelfCalibration(
         K=geometry.K, focal_px=float(geometry.K[0, 0]), focal_sigma_px=focal * sigma,
         source=source, determined=determined, data_focal_px=f_data,
         data_sigma_log=sigma_data, uncertainty=uncertainty,
         start_focal_px=f0, start_sigma_log=prior_sigma_log, geometry=geometry,
         profile=profile, candidates=tuple((float(g.K[0, 0]), float(c)) for c, g in runs),
-        iterations=iterations, warnings=tuple(warnings), trusted=trusted,
+        iterations=iterations, warnings=tuple(warnings),
+        trusted=geometry.trusted and focal_trusted, focal_trusted=focal_trusted,
         seconds=time.perf_counter() - t0)
