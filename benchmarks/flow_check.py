@@ -8,15 +8,13 @@ Each pair (i, i + gap) is reconstructed from its SIFT matches with the Strecha c
 ``K`` (``scene3D.twoview.reconstruct_from_matches``, the sparse checks only), then checked
 against the dense optical flow between its images (``scene3D.flow_check``), on every
 pair, including those the sparse checks already flag (the pipeline checks only trusted
-poses and those whose one doubt is the robust restarts' other optima). Printed per scene
-and size: the pairs; the right poses (both errors under 1 degree) and the largest flow
-gain among them; the poses more than 2 degrees off and their gains; the verdicts the
-check changes: trusted -> flagged (with the errors of the pose and of the flow's pose),
-and flagged -> trusted where the flow lifts the restarts' doubt (with the pose's error);
-the seconds the check takes a pair (median). Then every pair whose gain exceeds half of
-``TwoViewSettings.max_flow_gain``. The flow is taken at 768 px at most
-(``scene3D.flow_check.MAX_FLOW_WIDTH_PX``). One thread; about 15 minutes for the three
-scenes at both sizes.
+poses). Printed per scene and size: the pairs; the right poses (both errors under 1
+degree) and the largest flow gain among them; the poses more than 2 degrees off and their
+gains; the verdicts the check changes (trusted -> flagged, with the errors of the pose and
+of the flow's pose); the seconds the check takes a pair (median). Then every pair whose
+gain exceeds half of ``TwoViewSettings.max_flow_gain``. The flow is taken at 768 px at
+most (``scene3D.flow_check.MAX_FLOW_WIDTH_PX``). One thread; about 12 minutes for the
+three scenes at both sizes.
 """
 
 from __future__ import annotations
@@ -49,9 +47,8 @@ def main(argv: list[str] | None = None) -> int:
     data = data_folder(parser, args)
     settings = TwoViewSettings()
     print("| scene | width | pairs | right (< 1 deg) | their largest gain | > 2 deg off: gains "
-          "| newly flagged: pose / flow's pose error (deg) | restarts' doubt lifted: error "
-          "(deg) | s a pair |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| newly flagged: pose / flow's pose error (deg) | s a pair |")
+    print("|---|---|---|---|---|---|---|---|")
     notable = []
     for scene in args.scenes:
         views = strecha_views(data / scene)
@@ -63,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
                 images.append(img)
                 K = scale_intrinsics_halved(camera.K, levels)
             pairs = [(i, i + gap) for gap in args.gaps for i in range(len(views) - gap)]
-            right_gains, wrong, newly, settled, seconds = [], [], [], [], []
+            right_gains, wrong, newly, seconds = [], [], [], []
             for i, j in pairs:
                 matches = find_matches(images[i], images[j])
                 try:
@@ -87,8 +84,6 @@ def main(argv: list[str] | None = None) -> int:
                 checked = check_against_flow(geometry, images[i], images[j], settings)
                 if geometry.trusted and not checked.trusted:
                     newly.append(f"{i}-{j} {error:.1f} / {flow_error:.1f}")
-                if checked.trusted and not geometry.trusted:
-                    settled.append(f"{i}-{j} {error:.2f}")
                 if flow.gain > settings.max_flow_gain / 2:
                     doubt = flow_warning(geometry.R, geometry.t, flow, settings)
                     notable.append(f"{scene} {width} {i}-{j}: {error:.2f} deg off, "
@@ -98,8 +93,7 @@ def main(argv: list[str] | None = None) -> int:
                                    + ("" if doubt else ", no doubt (gain or distance)"))
             print(f"| {scene} | {width} | {len(pairs)} | {len(right_gains)} | "
                   f"{max(right_gains, default=float('nan')):.3f} | {', '.join(wrong) or '-'} | "
-                  f"{', '.join(newly) or '-'} | {', '.join(settled) or '-'} | "
-                  f"{np.median(seconds):.2f} |", flush=True)
+                  f"{', '.join(newly) or '-'} | {np.median(seconds):.2f} |", flush=True)
     print()
     print("Gains above half the limit:")
     for line in notable:

@@ -101,14 +101,14 @@ def test_without_image_2_the_flow_is_not_checked(castle):
     assert "flow check" not in result.timings_s
 
 
-def test_the_flow_settles_restarts_that_ended_at_several_optima(castle):
-    """castle-P19 10-12 at 768 px, 0.43 deg off: eight restarts never met twice, and an
-    optimum 1.4 deg away lies outside the pose's covariance, so the sparse matches alone
-    leave it in doubt. The flow's own pose lies within half the 2 deg limit of it."""
-    scene, truth = strecha_pair(castle, 10, 12, 768)
-    alone = reconstruct_two_view(scene.img1, scene.matches("SIFT"), scene.K)
-    assert alone.warnings == (alone.restarts_warning,) and "robust starts" in alone.warnings[0]
+
+def test_the_flow_does_not_lift_the_restarts_doubt(castle):
+    """castle-P19 10-12 at 768 px, 0.43 deg off: the restarts never met twice, and an
+    optimum 1.4 deg away lies outside the pose's covariance. The flow's pose lies within
+    1 deg, but refined from the pose under the same K it would also stay near a pose that
+    a focal length a few per cent off put 10 deg wrong: the doubt stays."""
+    scene, _ = strecha_pair(castle, 10, 12, 768)
     result = scene.reconstruct("SIFT")
-    assert relative_pose_error(result.R, result.t, *truth).max_deg < 0.5
-    assert result.trusted, result.warnings
-    assert np.isfinite(result.flow_gain)
+    assert not result.trusted
+    assert any("robust starts" in w for w in result.warnings)
+    assert np.isnan(result.flow_gain)  # only trusted poses are checked

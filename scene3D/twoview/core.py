@@ -50,11 +50,8 @@ from .results import TwoViewGeometry, TwoViewReconstruction, TwoViewSettings
 from .trust import (
     check_focal_length,
     flow_warning,
-    flow_within_purpose,
     principal_point_warning,
-    restarts_warning,
     rival_chi2,
-    sigmas_text,
     trust_warnings,
 )
 
@@ -320,12 +317,10 @@ def reconstruct_from_matches(
                                 uncertainty.noise_sigma_px)
     # A rotation under another focal length counts where it explains more of the matches.
     rotation_share, rotation_focal_scale = motion.widest_rotation
-    rivals = rival_chi2(fit, R, t, uncertainty.covariance)
     warnings = trust_warnings(uncertainty, n, num_inliers, median_kept_parallax, h_ratio, s,
-                              fit, focal, rotation_share, rivals, rotation_focal_scale,
-                              focal_ratio)
-    several_optima = restarts_warning(fit, rivals, sigmas_text(
-        uncertainty.rotation_sigma_deg, uncertainty.translation_sigma_deg), s) or ""
+                              fit, focal, rotation_share,
+                              rival_chi2(fit, R, t, uncertainty.covariance),
+                              rotation_focal_scale, focal_ratio)
     # A K for larger photos or turned ones gave trusted poses 11-40 deg off.
     if (misplaced := principal_point_warning(K, p1, p2, image_size)) is not None:
         warnings.append(misplaced)
@@ -337,8 +332,7 @@ def reconstruct_from_matches(
         median_parallax_deg=median_kept_parallax,
         homography_inlier_ratio=h_ratio, trusted=not warnings, warnings=tuple(warnings),
         inlier_pts1=in1, inlier_pts2=in2, refinement_s=refine_s, robust_starts=fit.starts,
-        robust_spread_deg=fit.spread_deg, restarts_warning=several_optima,
-        focal_scale=focal.scale,
+        robust_spread_deg=fit.spread_deg, focal_scale=focal.scale,
         focal_scale_sigma=focal.scale * focal.sigma_log, focal_ratio=focal_ratio.scale,
         focal_ratio_sigma=focal_ratio.scale * focal_ratio.sigma_log,
         pose_covariance=uncertainty.covariance,
@@ -355,15 +349,13 @@ def check_against_flow(geometry: TwoViewGeometry, img1: np.ndarray, img2: np.nda
     the images (:mod:`scene3D.flow_check`).
 
     ``img1, img2`` are the working images ``(H, W, 3)`` BGR or ``(H, W)`` grey ``uint8``
-    that ``geometry``'s points were found in. A trusted pose is checked, and one whose
-    only doubt is the robust restarts' other optima (``restarts_warning``); none when
-    ``settings.max_flow_gain`` is 1. The result then carries ``flow_gain`` and, when
-    the flow doubts the pose (:func:`scene3D.twoview.trust.flow_warning`), a warning and
-    ``trusted=False``; when the flow's own pose lies within half
-    ``settings.uncertainty_limit_deg`` of it
-    (:func:`scene3D.twoview.trust.flow_within_purpose`), the restarts' doubt is lifted:
-    the flow, which does not share the sparse matches' ambiguities, puts the pose near
-    enough for the purpose. About
+    that ``geometry``'s points were found in. Only a trusted pose is checked (a doubt
+    is already said), and none when ``settings.max_flow_gain`` is 1. The result then
+    carries ``flow_gain`` and, when the flow doubts the pose
+    (:func:`scene3D.twoview.trust.flow_warning`), a warning and ``trusted=False``. The
+    flow never lifts a doubt: refined from the pose, under the same ``K``, it stays
+    near a pose that a wrong focal length, a zoom or a moving object put wrong
+    (docs/benchmarks.md). About
     0.05 s (the flow is taken at 768 px at most; docs/benchmarks.md).
 
     Raises
@@ -376,19 +368,15 @@ def check_against_flow(geometry: TwoViewGeometry, img1: np.ndarray, img2: np.nda
     if gray1.shape != gray2.shape:
         raise ValueError(f"img1 and img2 must be of one size (one camera), got "
                          f"{gray1.shape[1]}x{gray1.shape[0]} and {gray2.shape[1]}x{gray2.shape[0]}")
-    only_restarts = geometry.warnings == (geometry.restarts_warning,)
-    if not (geometry.trusted or only_restarts) or s.max_flow_gain >= 1.0:
+    if not geometry.trusted or s.max_flow_gain >= 1.0:
         return geometry
     R, t = geometry.R, geometry.t
     flow = check_pose_against_images(R, t, geometry.K, gray1, gray2, geometry.inlier_pts1,
                                      geometry.inlier_pts2)
     if flow is None:
         return geometry
-    warnings = geometry.warnings
-    if only_restarts and flow_within_purpose(R, t, flow, s):
-        warnings = ()  # the flow settles which of the restarts' optima the pose is near
-    if (doubt := flow_warning(R, t, flow, s)) is not None:
-        warnings += (doubt,)
+    doubt = flow_warning(R, t, flow, s)
+    warnings = geometry.warnings + ((doubt,) if doubt else ())
     return replace(geometry, flow_gain=flow.gain, trusted=not warnings, warnings=warnings)
 
 

@@ -32,10 +32,7 @@ class TwoViewSettings:
         (:func:`scene3D.twoview.rival_chi2`: the sigmas already say it); beyond
         both the result is marked untrusted: a covariance describes one optimum
         and cannot see the others. When the best was found twice, a rival outside
-        that region counts from ``uncertainty_limit_deg`` on. With both images at hand
-        the dense flow check lifts this doubt when the flow's pose lies within half
-        ``uncertainty_limit_deg`` of the pose (:func:`scene3D.twoview.check_against_flow`).
-        0 to 180.
+        that region counts from ``uncertainty_limit_deg`` on. 0 to 180.
     min_matches, min_inliers, min_points : int
         Below these counts the pair is refused (at least 5, 5 and 1: five
         correspondences determine an essential matrix).
@@ -255,10 +252,6 @@ class TwoViewGeometry:
     robust_spread_deg : float
         How far the other starts' optima lie from the chosen one
         (:attr:`scene3D.essential_fit.EssentialFit.spread_deg`; 0 when they all agree).
-    restarts_warning : str
-        The one of ``warnings`` that says the robust restarts ended at optima the
-        covariance does not allow for ('' when none): the dense flow check can lift it
-        (:func:`scene3D.twoview.check_against_flow`).
     focal_scale, focal_scale_sigma : float
         The focal length the inliers call for, as a multiple of the calibration's,
         and its standard deviation (:func:`scene3D.focal_fit.fit_focal_scale`;
@@ -316,7 +309,6 @@ class TwoViewGeometry:
     refinement_s: float = 0.0
     robust_starts: int = 1
     robust_spread_deg: float = 0.0
-    restarts_warning: str = ""
     focal_scale: float = 1.0
     focal_scale_sigma: float = float("inf")
     focal_ratio: float = 1.0

@@ -246,7 +246,8 @@ def flow_warning(R: FloatArray, t: FloatArray, flow: FlowCheck | None,
 def flow_within_purpose(R: FloatArray, t: FloatArray, flow: FlowCheck,
                         s: TwoViewSettings) -> bool:
     """The flow's pose lies within half ``s.uncertainty_limit_deg`` of ``R, t``: near
-    enough for the purpose. Then the flow does not doubt the pose, and the robust
-    restarts' other optima (:func:`restarts_warning`) do not either: the flow, which
-    does not share the sparse matches' ambiguities, settles where the pose lies."""
+    enough for the purpose, whatever the flow prefers (:func:`flow_warning`). Not a
+    reason to lift another doubt: refined from ``R, t`` under the same ``K``, the flow's
+    pose stays near a pose that a focal length a few per cent off, a zoom or a moving
+    object put wrong."""
     return pose_angle_deg(flow.R, flow.t, R, t) < s.uncertainty_limit_deg / 2
