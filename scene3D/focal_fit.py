@@ -40,6 +40,10 @@ from .uncertainty import tangent_basis
 #: (``s2 / s1 = exp(x)``, the same for the pair taken in either order).
 COMMON = (1.0, 1.0)
 RATIO = (-0.5, 0.5)
+#: The fit does not step beyond this factor either way (``|x| <= log(100)``): a focal
+#: length a hundred times off is no calibration a little off, and on matches that fit no
+#: geometry the steps ran on until ``exp`` overflowed.
+MAX_LOG_SCALE = float(np.log(100.0))
 
 
 def _scaled_inverses(x: float, weights: tuple[float, float],
@@ -114,6 +118,8 @@ def _fit_focal(R: ArrayLike, t: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: 
     K_inv = np.linalg.inv(np.asarray(K, dtype=np.float64))
 
     def evaluate(R_: FloatArray, t_: FloatArray, x: float) -> tuple[tuple, float]:
+        if not abs(x) <= MAX_LOG_SCALE:
+            return (R_, t_, x, None, None), np.inf  # a step Levenberg-Marquardt rejects
         F_ = _scaled_fundamental(R_, t_, x, weights, K_inv)
         r_ = _sampson(F_, h1, h2)
         return (R_, t_, x, F_, r_), _robust_cost(r_, loss, scale_px)

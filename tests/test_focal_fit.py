@@ -1,3 +1,5 @@
+import warnings
+
 import cv2
 import numpy as np
 import pytest
@@ -6,6 +8,7 @@ from scene3D.evaluation import relative_pose_error
 from scene3D.features import find_matches
 from scene3D.focal_fit import (
     COMMON,
+    MAX_LOG_SCALE,
     RATIO,
     _focal_fundamental_derivatives,
     _scaled_fundamental,
@@ -102,3 +105,17 @@ def test_image_2_at_another_zoom_with_one_calibration_is_flagged(fountain):
     assert any("image 2 with a focal length 0.85 times" in w for w in result.warnings)
     right = scene.reconstruct("SIFT")
     assert right.trusted and right.focal_ratio == pytest.approx(1.0, abs=0.02)
+
+
+@pytest.mark.parametrize("fit", [fit_focal_scale, fit_focal_ratio])
+def test_matches_that_fit_no_geometry_do_not_overflow(camera, true_pose, fit):
+    """Random matches: the steps ran on until exp overflowed, and RuntimeWarnings reached
+    the user (an ORB sweep of a review). The fit now stays within MAX_LOG_SCALE."""
+    R, t = true_pose
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        pts1, pts2 = rng.uniform(0, 640, (40, 2)), rng.uniform(0, 480, (40, 2))
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            result = fit(R, t, pts1, pts2, camera)
+        assert abs(np.log(result.scale)) <= MAX_LOG_SCALE
