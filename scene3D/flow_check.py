@@ -31,9 +31,10 @@ import cv2
 import numpy as np
 
 from .camera import scale_intrinsics_halved
-from .geometry import FloatArray, skew
+from .epipolar import essential_distances, essential_from_pose
+from .geometry import FloatArray
 from .imageio import BOOK_MAX_WIDTH_PX, halve, halving_levels
-from .refinement import refine_relative_pose, sampson_residuals
+from .refinement import refine_relative_pose
 
 #: The flow is taken on images halved while wider than this (the book's rule, 3072 ->
 #: 768 px): its gains were measured at 768 px, and at 1536 px it would cost four times as
@@ -130,9 +131,8 @@ class FlowCheck(NamedTuple):
 
 def _share_within_band(R: FloatArray, t: FloatArray, K: FloatArray, q1: FloatArray,
                        q2: FloatArray) -> float:
-    K_inv = np.linalg.inv(K)
-    F = K_inv.T @ skew(t) @ R @ K_inv
-    return float(np.mean(np.abs(sampson_residuals(F, q1, q2)) < FLOW_BAND_PX))
+    distances = essential_distances(essential_from_pose(R, t), q1, q2, K)
+    return float(np.mean(distances < FLOW_BAND_PX))
 
 
 def check_pose_against_flow(R: FloatArray, t: FloatArray, K: FloatArray, q1: FloatArray,

@@ -354,9 +354,8 @@ def check_against_flow(geometry: TwoViewGeometry, img1: np.ndarray, img2: np.nda
     carries ``flow_gain`` and, when the flow doubts the pose
     (:func:`scene3D.twoview.trust.flow_warning`), a warning and ``trusted=False``. The
     flow never lifts a doubt: refined from the pose, under the same ``K``, it stays
-    near a pose that a wrong focal length, a zoom or a moving object put wrong
-    (docs/benchmarks.md). About
-    0.05 s (the flow is taken at 768 px at most; docs/benchmarks.md).
+    near a pose that a wrong focal length, a zoom or a moving object put wrong. About
+    0.05 s: the flow is taken at 768 px at most (docs/benchmarks.md).
 
     Raises
     ------
@@ -364,15 +363,15 @@ def check_against_flow(geometry: TwoViewGeometry, img1: np.ndarray, img2: np.nda
         If an image is not such an array, or the two differ in size.
     """
     s = TwoViewSettings() if settings is None else settings
-    gray1, gray2 = to_gray(check_image(img1, "img1")), to_gray(check_image(img2, "img2"))
-    if gray1.shape != gray2.shape:
+    img1, img2 = check_image(img1, "img1"), check_image(img2, "img2")
+    if img1.shape[:2] != img2.shape[:2]:
         raise ValueError(f"img1 and img2 must be of one size (one camera), got "
-                         f"{gray1.shape[1]}x{gray1.shape[0]} and {gray2.shape[1]}x{gray2.shape[0]}")
+                         f"{img1.shape[1]}x{img1.shape[0]} and {img2.shape[1]}x{img2.shape[0]}")
     if not geometry.trusted or s.max_flow_gain >= 1.0:
         return geometry
     R, t = geometry.R, geometry.t
-    flow = check_pose_against_images(R, t, geometry.K, gray1, gray2, geometry.inlier_pts1,
-                                     geometry.inlier_pts2)
+    flow = check_pose_against_images(R, t, geometry.K, to_gray(img1), to_gray(img2),
+                                     geometry.inlier_pts1, geometry.inlier_pts2)
     if flow is None:
         return geometry
     doubt = flow_warning(R, t, flow, s)

@@ -130,8 +130,15 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
                         f"the translation rests on the other {1 - rotation_share:.0%}, which a "
                         "moving object would explain as well as a camera that moved (the "
                         f"{sigmas} assume a rigid scene)")
-    if (rivals := restarts_warning(fit, rivals_chi2, sigmas, s)) is not None:
-        warnings.append(rivals)
+    if fit is not None and s.max_starts > 1 and rivals_chi2 > CHI2_99_POSE:
+        if not fit.confirmed and fit.spread_deg > s.restart_agreement_deg:
+            warnings.append(f"no pose was found twice in {fit.starts} robust starts: poses "
+                            f"up to {fit.spread_deg:.1f} deg apart fit the matches about "
+                            f"equally well (the best one's {sigmas} cannot show this)")
+        elif fit.confirmed and fit.spread_deg > s.uncertainty_limit_deg:
+            warnings.append(f"another pose {fit.spread_deg:.1f} deg away fits the matches "
+                            "about as well (the robust starts reached both): the pose may "
+                            f"be off by that much, which its {sigmas} cannot show")
     if focal is not None and _focal_mismatch(focal, s):
         warnings.append(
             f"the matches fit a focal length {focal.scale:.2f} times the calibration's "
@@ -144,23 +151,6 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
             "at two zoom settings, or one cropped or resized? One calibration holds for "
             f"both only at one zoom; the pose may be off by degrees, beyond its {sigmas}")
     return warnings
-
-
-def restarts_warning(fit: EssentialFit | None, rivals_chi2: float, sigmas: str,
-                     s: TwoViewSettings) -> str | None:
-    """The robust restarts' doubt of :func:`trust_warnings` (several optima), or None;
-    ``sigmas`` is the pose's :func:`sigmas_text`."""
-    if fit is None or s.max_starts == 1 or rivals_chi2 <= CHI2_99_POSE:
-        return None
-    if not fit.confirmed and fit.spread_deg > s.restart_agreement_deg:
-        return (f"no pose was found twice in {fit.starts} robust starts: poses up to "
-                f"{fit.spread_deg:.1f} deg apart fit the matches about equally well (the best "
-                f"one's {sigmas} cannot show this)")
-    if fit.confirmed and fit.spread_deg > s.uncertainty_limit_deg:
-        return (f"another pose {fit.spread_deg:.1f} deg away fits the matches about as well "
-                "(the robust starts reached both): the pose may be off by that much, which "
-                f"its {sigmas} cannot show")
-    return None
 
 
 def _focal_mismatch(focal: FocalFit, s: TwoViewSettings) -> bool:
@@ -233,21 +223,14 @@ def flow_warning(R: FloatArray, t: FloatArray, flow: FlowCheck | None,
     ``s.uncertainty_limit_deg`` away: a pose nearer the flow's than that is near enough
     for the purpose, whatever the flow prefers.
     """
-    if flow is None or flow.gain <= s.max_flow_gain or flow_within_purpose(R, t, flow, s):
+    if flow is None or flow.gain <= s.max_flow_gain:
         return None
     apart = pose_angle_deg(flow.R, flow.t, R, t)
+    if apart < s.uncertainty_limit_deg / 2:
+        return None
     return (f"the dense optical flow between the images fits a pose {_deg(apart)} deg away "
             f"better: it puts {flow.flow_share:.0%} of the flow of {flow.points} textured "
             f"pixels within {FLOW_BAND_PX:g} px of its epipolar lines, this pose "
             f"{flow.share:.0%} (sparse matches on repeated texture, such as rows of "
             "identical windows, can agree on a wrong pose)")
 
-
-def flow_within_purpose(R: FloatArray, t: FloatArray, flow: FlowCheck,
-                        s: TwoViewSettings) -> bool:
-    """The flow's pose lies within half ``s.uncertainty_limit_deg`` of ``R, t``: near
-    enough for the purpose, whatever the flow prefers (:func:`flow_warning`). Not a
-    reason to lift another doubt: refined from ``R, t`` under the same ``K``, the flow's
-    pose stays near a pose that a focal length a few per cent off, a zoom or a moving
-    object put wrong."""
-    return pose_angle_deg(flow.R, flow.t, R, t) < s.uncertainty_limit_deg / 2
