@@ -77,6 +77,7 @@ class Run:
     sigmas_deg: tuple[float, float] = (float("nan"), float("nan"))
     chi2: tuple[float, float] = (float("nan"), float("nan"))
     warnings: tuple[str, ...] = ()
+    behind_share: float = float("nan")
 
 
 def _pairs(n_views: int, gaps: list[int]) -> Iterator[tuple[int, int]]:
@@ -95,7 +96,7 @@ def _run(img1, matches: Matches, K, truth, **where) -> Run:
                error_deg=max(error.rotation_deg, error.translation_deg),
                inliers=r.num_inliers, sigmas_deg=(r.rotation_sigma_deg, r.translation_sigma_deg),
                chi2=pose_error_chi2(r.R, r.t, *truth, r.pose_covariance),
-               warnings=tuple(r.warnings), **where)
+               warnings=tuple(r.warnings), behind_share=r.behind_share, **where)
 
 
 def _kept(matches: Matches, keep: np.ndarray) -> Matches:

@@ -6,6 +6,7 @@ from scene3D import essential_fit
 from scene3D.essential_fit import fit_essential
 from scene3D.evaluation import relative_pose_error
 from scene3D.pose import choose_pose
+from scene3D.twoview import TwoViewSettings
 from scene3D.uncertainty import CHI2_99_POSE
 
 from .helpers import strecha_pair
@@ -67,3 +68,31 @@ def test_the_refinement_at_the_threshold_may_not_leave_the_fit_at_the_noise(cast
     R, t, _, _ = choose_pose(wide.E, matches.pts1[wide.inliers], matches.pts2[wide.inliers],
                              scene.K)
     assert relative_pose_error(R, t, *truth).max_deg > 2.0
+
+
+def test_a_pose_whose_inliers_lie_behind_the_cameras_is_flagged(castle):
+    """Pair 12-16 at 1536 px (four views apart across the courtyard): 79 of the matches
+    agree on a pose 87-91 deg off with sigmas of 0.14 / 0.41 deg, and no other check
+    doubts it; 37 % of those inliers triangulate behind a camera."""
+    scene, truth = strecha_pair(castle, 12, 16, 1536)
+    result = scene.reconstruct("SIFT")
+    assert relative_pose_error(result.R, result.t, *truth).max_deg > 45
+    assert result.behind_share > 0.3
+    assert not result.trusted
+    assert any("behind a camera" in w for w in result.warnings)
+
+
+def test_right_poses_have_few_inliers_behind_the_cameras(castle):
+    """Pairs 4-6 and 4-7 at 768 px, right poses (< 1 deg) with the most inliers behind
+    a camera of the Strecha scenes' gaps 1-5 (0.04 with SIFT; 4-7 with ORB 0.11)."""
+    for pair in [(4, 6), (4, 7)]:
+        scene, truth = strecha_pair(castle, *pair, 768)
+        result = scene.reconstruct("SIFT")
+        assert relative_pose_error(result.R, result.t, *truth).max_deg < 1
+        assert result.behind_share < 0.06  # the limit is 0.2
+        assert not any("behind a camera" in w for w in result.warnings)
+
+
+def test_max_behind_share_is_a_share():
+    with pytest.raises(ValueError, match="max_behind_share"):
+        TwoViewSettings(max_behind_share=1.5)

@@ -217,7 +217,7 @@ def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path],
         "pose_covariance": result.pose_covariance,
         "pose_covariance_basis": result.pose_uncertainty.basis,
         "noise_sigma_px": result.noise_sigma_px, "noise_cut_share": result.noise_cut_share,
-        "flow_gain": result.flow_gain,
+        "behind_share": result.behind_share, "flow_gain": result.flow_gain,
         "trusted": result.trusted, "warnings": list(result.warnings),
         "timings_s": timings,
     }

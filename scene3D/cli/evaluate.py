@@ -197,16 +197,21 @@ def _matches(view_a: _View, view_b: _View) -> Matches:
     return match_features(view_a.features, view_b.features)
 
 
+def _unanswered_row(name: str, width: int) -> dict:
+    """A row of the table before its pair is answered: what a refused pair keeps."""
+    return {"pair": name, "width": width, "feature": "",
+            "rotation_deg": np.inf, "translation_deg": np.inf, "inliers": 0, "points": 0,
+            "rotation_sigma_deg": np.nan, "translation_sigma_deg": np.nan,
+            "rotation_chi2": np.nan, "translation_chi2": np.nan,
+            "focal_scale": np.nan, "behind_share": np.nan, "flagged": True, "note": ""}
+
+
 def _evaluate_pair(name: str, view_a: _View, view_b: _View,
                    truth: tuple[np.ndarray, np.ndarray], settings: TwoViewSettings) -> dict:
     """One row of the table: the pose errors of a pair against the true relative pose
     ``truth`` = (R, t), or why it was refused (a task: see :func:`evaluate_pairs`)."""
     t0 = time.perf_counter()
-    row = {"pair": name, "width": view_a.shape[1], "feature": "",
-           "rotation_deg": np.inf, "translation_deg": np.inf, "inliers": 0, "points": 0,
-           "rotation_sigma_deg": np.nan, "translation_sigma_deg": np.nan,
-           "rotation_chi2": np.nan, "translation_chi2": np.nan,
-           "focal_scale": np.nan, "flagged": True, "note": ""}
+    row = _unanswered_row(name, view_a.shape[1])
     try:
         if view_a.shape != view_b.shape or not np.allclose(view_a.K, view_b.K, rtol=1e-6,
                                                            atol=1e-6):
@@ -229,7 +234,8 @@ def _evaluate_pair(name: str, view_a: _View, view_b: _View,
                    translation_sigma_deg=result.translation_sigma_deg,
                    rotation_chi2=rotation_chi2, translation_chi2=translation_chi2,
                    inliers=result.num_inliers, points=len(result.points3d),
-                   focal_scale=result.focal_scale, flagged=not result.trusted,
+                   focal_scale=result.focal_scale, behind_share=result.behind_share,
+                   flagged=not result.trusted,
                    note="; ".join(result.warnings))
         return row
     finally:  # the row's last column, whichever way it ends
@@ -247,12 +253,8 @@ def _evaluate_pair_no_calib(name: str, view_a: _View, view_b: _View,
     from ..selfcalibration import self_calibrate_pair
 
     t0 = time.perf_counter()
-    row = {"pair": name, "width": view_a.shape[1], "feature": "",
-           "rotation_deg": np.inf, "translation_deg": np.inf, "inliers": 0, "points": 0,
-           "rotation_sigma_deg": np.nan, "translation_sigma_deg": np.nan,
-           "rotation_chi2": np.nan, "translation_chi2": np.nan,
-           "focal_scale": np.nan, "flagged": True, "note": "", "focal_error": np.nan,
-           "calibration_source": ""}
+    row = _unanswered_row(name, view_a.shape[1]) | {"focal_error": np.nan,
+                                                    "calibration_source": ""}
     try:
         try:
             prior = camera_prior([view_a.photo, view_b.photo])
@@ -281,6 +283,7 @@ def _evaluate_pair_no_calib(name: str, view_a: _View, view_b: _View,
                    rotation_chi2=rotation_chi2, translation_chi2=translation_chi2)
         row.update(rotation_deg=err.rotation_deg, translation_deg=err.translation_deg,
                    inliers=result.num_inliers, points=len(result.points3d), focal_scale=scale,
+                   behind_share=result.behind_share,
                    flagged=not (result.trusted and calibration.focal_trusted),
                    focal_error=scale - 1.0,
                    calibration_source=calibration.source,

@@ -82,11 +82,15 @@ def _first_model_lost(model: SfMModel, start: PairMatches, left_out: dict[int, s
         whose = "its pose" if len(out) == 1 else "their poses"
         taken = (f"; {_views(len(out))} taken out because {whose} contradicted the pair "
                  f"geometry ({', '.join(names[v] for v in out)})")
-    hint = ("does the calibration fit these photos?" if calibrated else
-            "are the photos of one still scene, from one camera at one zoom setting?")
     return (f"no model could be kept: the one started from views {names[start.i]} and "
             f"{names[start.j]} ended with {_views(kept)}, fewer than the "
-            f"{s.min_model_views} a model needs{taken}; {hint}")
+            f"{s.min_model_views} a model needs{taken}; {_input_hint(calibrated)}")
+
+
+def _input_hint(calibrated: bool) -> str:
+    """What to check in the input when the views give no model."""
+    return ("does the calibration fit these photos?" if calibrated else
+            "are the photos of one still scene, from one camera at one zoom setting?")
 
 
 def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches], K: FloatArray,
@@ -300,7 +304,8 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
         timings["initialisation"] += time.perf_counter() - t0
         if isinstance(start, str):
             if not models:
-                raise ReconstructionError("no_initial_pair", start, verified_pairs=len(pairs))
+                why = f"{start}; {_input_hint(focal is None)}" if inside else start
+                raise ReconstructionError("no_initial_pair", why, verified_pairs=len(pairs))
             break
         model, left_out = grow_model(features, pairs, K, s, remaining.copy(), start,
                                      more_pairs if not models else None, say, timings, names,

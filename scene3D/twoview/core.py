@@ -38,7 +38,12 @@ from ..geometry import (
 )
 from ..pose import choose_pose
 from ..refinement import refine_relative_pose, relative_pose_covariance
-from ..triangulation import behind_beyond_noise, parallax_angles_deg, reprojection_errors
+from ..triangulation import (
+    behind_at_scene_parallax,
+    behind_beyond_noise,
+    parallax_angles_deg,
+    reprojection_errors,
+)
 from ..uncertainty import (
     PoseUncertainty,
     depth_sigmas,
@@ -244,6 +249,10 @@ def reconstruct_from_matches(
     distances = essential_distances(E, in1, in2, K)
     noise = noise_sigma_px(distances)
     behind = behind_beyond_noise(points, R, t, K, noise)
+    # Inliers behind at the scene's parallax: wrong matches, not far ones a slightly wrong
+    # K pushed across infinity (scene3D.triangulation.behind_at_scene_parallax).
+    angles = parallax_angles_deg(np.nan_to_num(points), R, t)
+    behind_share = float(behind_at_scene_parallax(angles, behind, front).sum()) / num_inliers
     if planar:
         evidence = off_plane_evidence(H, K, R, t, in1, in2, h_inliers, s.threshold_px)
         if evidence < s.min_off_plane_matches:
@@ -268,7 +277,7 @@ def reconstruct_from_matches(
             "warped copy of the other (shifted, scaled, turned), not a second view of the "
             "scene, or the matches are noise-free ones of a planar scene; no pose follows "
             "from either", inliers=num_inliers, homography_inlier_ratio=h_ratio)
-    parallax = np.where(front, parallax_angles_deg(np.nan_to_num(points), R, t), 0.0)
+    parallax = np.where(front, angles, 0.0)
     errors = np.full((len(in1), 2), np.inf)
     errors[front] = reprojection_errors(points[front], in1[front], in2[front], K, R, t)
     valid = front & (errors.max(axis=1) <= s.max_reprojection_px)
@@ -320,7 +329,7 @@ def reconstruct_from_matches(
     warnings = trust_warnings(uncertainty, n, num_inliers, median_kept_parallax, h_ratio, s,
                               fit, focal, rotation_share,
                               rival_chi2(fit, R, t, uncertainty.covariance),
-                              rotation_focal_scale, focal_ratio)
+                              rotation_focal_scale, focal_ratio, behind_share)
     # A K for larger photos or turned ones gave trusted poses 11-40 deg off.
     if (misplaced := principal_point_warning(K, p1, p2, image_size)) is not None:
         warnings.append(misplaced)
@@ -339,7 +348,7 @@ def reconstruct_from_matches(
         rotation_sigma_deg=uncertainty.rotation_sigma_deg,
         translation_sigma_deg=uncertainty.translation_sigma_deg,
         noise_sigma_px=uncertainty.noise_sigma_px, noise_cut_share=cut.cut_share,
-        depth_sigmas=point_sigmas,
+        behind_share=behind_share, depth_sigmas=point_sigmas,
     )
 
 

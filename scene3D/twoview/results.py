@@ -90,6 +90,19 @@ class TwoViewSettings:
         ``trusted_parallax_deg`` (short baseline), a homography explaining more
         than ``planar_warning_ratio`` of the inliers (a nearly planar scene). All
         three 0 to 1 (the angle 0 to 180).
+    max_behind_share : float
+        The pose is untrusted when more than this share of its inliers triangulate
+        behind a camera, by more than the noise explains and at the scene's parallax
+        (:func:`scene3D.triangulation.behind_at_scene_parallax`; ``behind_share`` of
+        the result). Each is a wrong match that happens to lie near its epipolar line
+        (or a point of an object that moved), and a random match within 1 px of a
+        pose's epipolar line lands so 19-44 % of the time (synthetic poses), so a
+        fifth behind means that about half of the inliers or more are wrong: the pose
+        itself may rest on wrong matches that agree (repeated texture), which its
+        covariance cannot see. Far points that a focal length a few percent off or an
+        uncorrected distortion pushes across infinity meet at angles far below the
+        scene's and do not count. Measured values: docs/benchmarks.md. 0 to 1 (1:
+        never flagged).
     max_focal_mismatch, focal_mismatch_sigmas : float, float
         The result is marked untrusted when the matches call for a focal length more
         than ``1 + max_focal_mismatch`` times larger or smaller than the
@@ -150,6 +163,7 @@ class TwoViewSettings:
     trusted_parallax_deg: float = 2.0
     planar_warning_ratio: float = 0.85
     max_noise_cut_share: float = 0.1
+    max_behind_share: float = 0.2
     max_focal_mismatch: float = 0.15
     focal_mismatch_sigmas: float = 3.0
     max_flow_gain: float = 0.1
@@ -197,6 +211,7 @@ _REAL_RANGES: dict[str, tuple[float, float, bool, bool]] = {
     "trusted_parallax_deg": (0.0, 180.0, False, False),
     "planar_warning_ratio": (0.0, 1.0, False, False),
     "max_noise_cut_share": (0.0, 1.0, False, False),
+    "max_behind_share": (0.0, 1.0, False, False),
     "max_focal_mismatch": (0.0, math.inf, False, True),
     "focal_mismatch_sigmas": (0.0, math.inf, False, False),
     "max_flow_gain": (0.0, 1.0, False, False),
@@ -277,6 +292,11 @@ class TwoViewGeometry:
     noise_cut_share : float
         Share of the matches that fit the pose which the inlier threshold cut off
         (:func:`scene3D.uncertainty.truncated_noise`; the covariance allows for it).
+    behind_share : float
+        Share of the inliers whose point lies behind a camera by more than the noise
+        explains, at the scene's parallax
+        (:func:`scene3D.triangulation.behind_at_scene_parallax`): wrong matches near
+        their epipolar lines (``TwoViewSettings.max_behind_share``).
     flow_gain : float
         How much more of the dense optical flow between the images the pose refined on
         the flow explains than this pose (:attr:`scene3D.flow_check.FlowCheck.gain`; near
@@ -318,6 +338,7 @@ class TwoViewGeometry:
     translation_sigma_deg: float = float("inf")
     noise_sigma_px: float = float("nan")
     noise_cut_share: float = 0.0
+    behind_share: float = 0.0
     flow_gain: float = float("nan")
     depth_sigmas: FloatArray = field(default_factory=lambda: np.zeros(0))
 

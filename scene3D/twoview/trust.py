@@ -59,7 +59,8 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
                    fit: EssentialFit | None = None, focal: FocalFit | None = None,
                    rotation_share: float = 0.0, rivals_chi2: float = float("inf"),
                    rotation_focal_scale: float = 1.0,
-                   focal_ratio: FocalFit | None = None) -> list[str]:
+                   focal_ratio: FocalFit | None = None,
+                   behind_share: float = 0.0) -> list[str]:
     """Reasons to doubt a pose that passed every hard check (empty: trusted).
 
     The verdicts:
@@ -90,7 +91,10 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
       ``rotation_focal_scale`` times the calibration's when that rotation fitted better),
       so the translation rests on the few that show parallax; the inlier threshold cuts
       off more than ``s.max_noise_cut_share`` of the matches that fit the pose
-      (``uncertainty.noise_cut_share``): noisier matches than it can hold.
+      (``uncertainty.noise_cut_share``): noisier matches than it can hold; more than
+      ``s.max_behind_share`` of the inliers triangulate behind a camera beyond the
+      noise (``behind_share``): wrong matches near their epipolar lines, so many that
+      the pose itself may rest on wrong matches that agree.
 
     Every warning quotes the uncertainty.
     """
@@ -122,6 +126,12 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
                         "which then rests on those that happen to fit best; its "
                         f"{sigmas} understate how far off it may be (a larger "
                         "TwoViewSettings.threshold_px would hold them)")
+    if behind_share > s.max_behind_share:
+        warnings.append(f"{behind_share:.0%} of the inliers triangulate behind a camera: wrong "
+                        "matches that happen to fit the pose's epipolar lines, or an object "
+                        "that moved between the photos; with that many, the pose itself may "
+                        "rest on wrong matches that agree (repeated texture?), which its "
+                        f"{sigmas} cannot show")
     if rotation_share > s.max_rotation_share:
         under = ("" if rotation_focal_scale == 1.0 else
                  f" (under a focal length {rotation_focal_scale:.2f} times the calibration's: "
