@@ -50,14 +50,12 @@ def _earlier_run(out):
     return files
 
 
-def test_a_calibration_that_leaves_no_model_stops_in_one_line(fountain, tmp_path, capsys):
-    """A focal length of 800 px for fountain-P11's 2759 px (0004-0008): the check takes
-    the first model's views out until one is left (before: on until none was, and an
-    IndexError; all 11 views: one left, and an IndexError in the command). Exit 1, one
-    line that says why, and nothing written: an earlier run's files stay as they were.
-    (At 600 px no pair is trusted to start from: the next test.)"""
+def _fail_under_focal_length(fountain, tmp_path, capsys, focal_px: float) -> str:
+    """reconstruct-views of fountain-P11 0004-0008 at 768 px with a calibration whose focal
+    length is ``focal_px`` (the truth: 2759 px): exit 1 in one line, and an earlier run's
+    files in ``--out`` as they were. The line."""
     K = read_strecha_camera(fountain / "gt_dense_cameras" / "0004.jpg.camera").K.copy()
-    K[0, 0] = K[1, 1] = 800.0
+    K[0, 0] = K[1, 1] = focal_px
     calib = save_calibration(tmp_path / "wrong.yaml",
                              CameraCalibration(K, np.zeros(5), (3072, 2048)))
     images = [str(fountain / "images" / f"{i:04d}.jpg") for i in range(4, 9)]
@@ -66,34 +64,31 @@ def test_a_calibration_that_leaves_no_model_stops_in_one_line(fountain, tmp_path
     assert multiview.main([*images, "--calib", str(calib), "--max-width", "768", "--no-plots",
                            "-q", "--out", str(out)]) == 1
     err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert {p.name: p.read_text() for p in out.iterdir()} == earlier
+    return err
+
+
+def test_a_calibration_that_leaves_no_model_stops_in_one_line(fountain, tmp_path, capsys):
+    """A focal length of 800 px: the check takes the first model's views out until one
+    is left (before: on until none was, and an IndexError; all 11 views: one left, and
+    an IndexError in the command). (At 600 px no pair is trusted to start from: the
+    next test.)"""
+    err = _fail_under_focal_length(fountain, tmp_path, capsys, 800.0)
     assert err.startswith("error: no model could be kept: the one started from views ")
     assert "taken out because their poses contradicted the pair geometry" in err
     assert "does the calibration fit these photos?" in err
-    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
-    assert {p.name: p.read_text() for p in out.iterdir()} == earlier
 
 
 def test_a_calibration_that_leaves_no_trusted_start_says_so_in_one_line(fountain, tmp_path,
                                                                       capsys):
-    """A focal length of 600 px for fountain-P11's 2759 px (0004-0008): every candidate
-    start is doubted (the focal check; 0007-0008, once trusted, has 29 % of its inliers
-    behind a camera). Exit 1, one line that quotes a doubt and asks about the
-    calibration, and nothing written."""
-    K = read_strecha_camera(fountain / "gt_dense_cameras" / "0004.jpg.camera").K.copy()
-    K[0, 0] = K[1, 1] = 600.0
-    calib = save_calibration(tmp_path / "wrong.yaml",
-                             CameraCalibration(K, np.zeros(5), (3072, 2048)))
-    images = [str(fountain / "images" / f"{i:04d}.jpg") for i in range(4, 9)]
-    out = tmp_path / "out"
-    earlier = _earlier_run(out)
-    assert multiview.main([*images, "--calib", str(calib), "--max-width", "768", "--no-plots",
-                           "-q", "--out", str(out)]) == 1
-    err = capsys.readouterr().err
+    """A focal length of 600 px: every candidate start is doubted (the focal check;
+    0007-0008, once trusted, has 29 % of its inliers behind a camera). The line quotes a
+    doubt and asks about the calibration."""
+    err = _fail_under_focal_length(fountain, tmp_path, capsys, 600.0)
     assert err.startswith("error: no pair of views gives a trustworthy two-view start; the "
                           "best candidate pair: ")
     assert "does the calibration fit these photos?" in err
-    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
-    assert {p.name: p.read_text() for p in out.iterdir()} == earlier
 
 
 def test_photos_of_one_name_in_two_folders_are_refused(tmp_path, capsys, no_reconstruction):
