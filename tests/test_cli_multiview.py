@@ -13,6 +13,7 @@ from scene3D.cli import multiview
 from scene3D.datasets import read_strecha_camera
 from scene3D.errors import ReconstructionError
 from scene3D.export import colmap_text_files
+from scene3D.multiview import mapper
 
 from .conftest import REPO
 
@@ -69,14 +70,28 @@ def _fail_under_focal_length(fountain, tmp_path, capsys, focal_px: float) -> str
     return err
 
 
-def test_a_calibration_that_leaves_no_model_stops_in_one_line(fountain, tmp_path, capsys):
-    """A focal length of 800 px: the check takes the first model's views out until one
-    is left (before: on until none was, and an IndexError; all 11 views: one left, and
-    an IndexError in the command). (At 600 px no pair is trusted to start from: the
-    next test.)"""
+def test_a_calibration_that_leaves_no_model_stops_in_one_line(fountain, tmp_path, capsys,
+                                                              monkeypatch):
+    """A focal length of 800 px, the run started from the one candidate pair trusted under
+    it as if the candidates' focal checks were not weighed together (they now stop it at
+    the start: test below): the check takes the first model's views out until one is
+    left (before: on until none was, and an IndexError; all 11 views: one left, and an
+    IndexError in the command)."""
+    _start_without_weighing_the_candidates(monkeypatch)
     err = _fail_under_focal_length(fountain, tmp_path, capsys, 800.0)
     assert err.startswith("error: no model could be kept: the one started from views ")
     assert "taken out because their poses contradicted the pair geometry" in err
+    assert "does the calibration fit these photos?" in err
+
+
+def test_a_calibration_most_start_pairs_refute_stops_at_the_start(fountain, tmp_path, capsys):
+    """A focal length of 900 px (a third of the truth): one candidate pair is trusted
+    under it, its own focal check passing, 14 deg off; grown from it, a model of three
+    views came back with status ok, 10-12 deg off. Three of the five candidates fit a
+    focal length 2.8 times the calibration's: the run stops at the start."""
+    err = _fail_under_focal_length(fountain, tmp_path, capsys, 900.0)
+    assert err.startswith("error: 3 of the 5 candidate pairs to start from fit a focal length "
+                          "2.8")
     assert "does the calibration fit these photos?" in err
 
 
@@ -200,13 +215,25 @@ def test_photos_with_spaces_in_their_names(fountain, tmp_path, capsys):
     assert sorted(f[9] for f in fields) == [n.replace(" ", "_") for n in names]
 
 
-def test_a_calibration_for_another_focal_length_fails_the_check(fountain, tmp_path, capsys):
+def _start_without_weighing_the_candidates(monkeypatch):
+    """The mapper chooses its start as before its candidates' focal checks were weighed
+    together (mapper.initial_pair's ``calibrated``), to reach the checks after it."""
+    choose = mapper.initial_pair
+    monkeypatch.setattr(mapper, "initial_pair",
+                        lambda *args, **kwargs: choose(*args, **{**kwargs, "calibrated": False}))
+
+
+def test_a_calibration_for_another_focal_length_fails_the_check(fountain, tmp_path, capsys,
+                                                                monkeypatch):
     """850 px for fountain-P11's 2759 px, all 11 views: six register in one model and
     five in another, with reprojection errors under half a pixel, and both came back
     'ok' with camera centres 33 % of the scene off (a review). Adjusted with the focal
     length free, the observations call for 1.4 and 3.3 times the calibration's: the
     check fails (exit 1), the models are written for inspection with status 'failed',
-    and the error says why."""
+    and the error says why. (Three of the four candidate pairs to start from refute
+    that calibration too, which now stops the run before any model: the start is
+    chosen here as before, to test the model's check.)"""
+    _start_without_weighing_the_candidates(monkeypatch)
     K = read_strecha_camera(fountain / "gt_dense_cameras" / "0004.jpg.camera").K.copy()
     K[0, 0] = K[1, 1] = 850.0
     calib = save_calibration(tmp_path / "wrong.yaml",

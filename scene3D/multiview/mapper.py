@@ -32,8 +32,9 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..errors import ReconstructionError
-from ..geometry import FloatArray
+from ..geometry import FloatArray, median
 from ..twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
+from ..twoview.trust import focal_mismatch
 from .focal import (
     FocalSettings,
     focal_estimate,
@@ -94,23 +95,30 @@ def _input_hint(calibrated: bool) -> str:
 
 
 def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches], K: FloatArray,
-                 candidates: int = 6) -> tuple[PairMatches, TwoViewGeometry] | str:
+                 candidates: int = 6, calibrated: bool = False
+                 ) -> tuple[PairMatches, TwoViewGeometry] | str:
     """The verified pair (among those with most inliers) giving most reliable points.
 
     Returns the pair and its two-view geometry, or, when no candidate is trusted, the
     reason (quoting the doubt about the best-scoring one, e.g. a calibration that does
-    not fit).
+    not fit). With ``calibrated`` (``K`` from a calibration file), also the reason when
+    most candidates' matches refute the calibration's focal length
+    (:func:`scene3D.twoview.trust.focal_mismatch`): a pair whose own focal check passed
+    may then sit in a wrong pose's valley (fountain-P11 4-8 under a focal length a third
+    of the truth: a trusted start 14 deg off, and a model 10-12 deg off with status ok).
     """
     ranked = sorted(pairs, key=lambda p: (-p.num_inliers, p.i, p.j))
     best, best_score = None, -1.0
     doubt, doubt_score = "", -1.0
+    settings = TwoViewSettings()
+    answered: list[TwoViewGeometry] = []
     for pair in ranked[:candidates]:
         try:
             r = reconstruct_from_matches(features[pair.i].keypoints[pair.idx_i],
-                                         features[pair.j].keypoints[pair.idx_j], K,
-                                         TwoViewSettings())
+                                         features[pair.j].keypoints[pair.idx_j], K, settings)
         except ReconstructionError:
             continue
+        answered.append(r)
         # Favour many points seen under a good angle (a wide but well-matched baseline).
         score = r.points3d.shape[0] * min(r.median_parallax_deg, 8.0)
         if r.trusted and score > best_score:
@@ -119,6 +127,12 @@ def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches],
             doubt, doubt_score = f"; the best candidate pair: {r.warnings[0]}", score
     if best is None:
         return "no pair of views gives a trustworthy two-view start" + doubt
+    refuting = [r.focal_scale for r in answered
+                if focal_mismatch(r.focal_scale, r.focal_scale_sigma / r.focal_scale, settings)]
+    if calibrated and 2 * len(refuting) > len(answered):
+        return (f"{len(refuting)} of the {len(answered)} candidate pairs to start from fit a "
+                f"focal length {median(np.array(refuting)):.2f} times the calibration's "
+                "(median)")
     return best
 
 
@@ -300,7 +314,8 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
                                               start_pair=None)
             start = initial_pair(features, inside, K)
         else:
-            start = initial_pair(features, inside, K) if inside else _no_pair_left(s)
+            start = (initial_pair(features, inside, K, calibrated=focal is None) if inside
+                     else _no_pair_left(s))
         timings["initialisation"] += time.perf_counter() - t0
         if isinstance(start, str):
             if not models:

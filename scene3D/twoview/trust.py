@@ -149,12 +149,13 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
             warnings.append(f"another pose {fit.spread_deg:.1f} deg away fits the matches "
                             "about as well (the robust starts reached both): the pose may "
                             f"be off by that much, which its {sigmas} cannot show")
-    if focal is not None and _focal_mismatch(focal, s):
+    if focal is not None and focal_mismatch(focal.scale, focal.sigma_log, s):
         warnings.append(
             f"the matches fit a focal length {focal.scale:.2f} times the calibration's "
             f"(+-{focal.scale * focal.sigma_log:.2f}): is the calibration for this camera, "
             f"lens and zoom? The pose may be off by degrees, beyond its {sigmas}")
-    if focal_ratio is not None and _focal_mismatch(focal_ratio, s):
+    if focal_ratio is not None and focal_mismatch(focal_ratio.scale, focal_ratio.sigma_log,
+                                                       s):
         warnings.append(
             f"the matches fit image 2 with a focal length {focal_ratio.scale:.2f} times image "
             f"1's (+-{focal_ratio.scale * focal_ratio.sigma_log:.2g}): were the photos taken "
@@ -163,12 +164,14 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
     return warnings
 
 
-def _focal_mismatch(focal: FocalFit, s: TwoViewSettings) -> bool:
-    """``focal.scale`` beyond ``1 + s.max_focal_mismatch`` either way, by more than
-    ``s.focal_mismatch_sigmas`` standard deviations."""
-    log_scale = abs(np.log(focal.scale))
+def focal_mismatch(scale: float, sigma_log: float, s: TwoViewSettings) -> bool:
+    """A focal length ``scale`` times the calibration's, ``sigma_log`` the standard deviation
+    of its log (:class:`scene3D.focal_fit.FocalFit`), that refutes the calibration: beyond
+    ``1 + s.max_focal_mismatch`` either way, by more than ``s.focal_mismatch_sigmas``
+    standard deviations."""
+    log_scale = abs(np.log(scale))
     return (log_scale > np.log1p(s.max_focal_mismatch)
-            and log_scale > s.focal_mismatch_sigmas * focal.sigma_log)
+            and log_scale > s.focal_mismatch_sigmas * sigma_log)
 
 
 def principal_point_warning(K: FloatArray, pts1: FloatArray, pts2: FloatArray,
