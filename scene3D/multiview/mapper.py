@@ -127,12 +127,13 @@ def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches],
             doubt, doubt_score = f"; the best candidate pair: {r.warnings[0]}", score
     if best is None:
         return "no pair of views gives a trustworthy two-view start" + doubt
-    refuting = [r.focal_scale for r in answered
-                if focal_mismatch(r.focal_scale, r.focal_scale_sigma / r.focal_scale, settings)]
-    if calibrated and 2 * len(refuting) > len(answered):
-        return (f"{len(refuting)} of the {len(answered)} candidate pairs to start from fit a "
-                f"focal length {median(np.array(refuting)):.2f} times the calibration's "
-                "(median)")
+    if calibrated:
+        refuting = [r.focal_scale for r in answered if focal_mismatch(
+            r.focal_scale, r.focal_scale_sigma / r.focal_scale, settings)]
+        if 2 * len(refuting) > len(answered):
+            return (f"{len(refuting)} of the {len(answered)} candidate pairs to start from "
+                    f"fit a focal length {median(np.array(refuting)):.2f} times the "
+                    "calibration's (median)")
     return best
 
 

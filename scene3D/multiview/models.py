@@ -14,13 +14,8 @@ import numpy as np
 
 from ..bundle import Observations, reprojection_residuals
 from ..geometry import FloatArray, camera_centers
-
-#: A model whose observations call for a focal length more than this share away from the
-#: calibration's, and by more than :data:`FOCAL_MISMATCH_SIGMAS` standard deviations,
-#: fails its check: the two-view check's limits (``TwoViewSettings.max_focal_mismatch``,
-#: ``focal_mismatch_sigmas``).
-MAX_FOCAL_MISMATCH = 0.15
-FOCAL_MISMATCH_SIGMAS = 3.0
+from ..twoview.results import TwoViewSettings
+from ..twoview.trust import focal_mismatch
 
 
 @dataclass(frozen=True)
@@ -190,12 +185,10 @@ class ModelCheck:
 
     @property
     def focal_mismatch(self) -> bool:
-        """The observations call for another focal length than the calibration's: by more
-        than :data:`MAX_FOCAL_MISMATCH` and :data:`FOCAL_MISMATCH_SIGMAS` standard
-        deviations (the two-view check's limits, ``TwoViewSettings``)."""
-        log_scale = abs(float(np.log(self.focal_scale)))
-        return (log_scale > np.log1p(MAX_FOCAL_MISMATCH)
-                and log_scale > FOCAL_MISMATCH_SIGMAS * self.focal_scale_sigma_log)
+        """The observations call for another focal length than the calibration's: the
+        two-view check's test and limits (:func:`scene3D.twoview.trust.focal_mismatch`,
+        ``TwoViewSettings.max_focal_mismatch`` and ``focal_mismatch_sigmas``)."""
+        return focal_mismatch(self.focal_scale, self.focal_scale_sigma_log, TwoViewSettings())
 
     @property
     def ok(self) -> bool:
