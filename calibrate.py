@@ -4,9 +4,8 @@
 Run ``python calibrate.py --help``. The work is done by ``scene3D.calibration``.
 """
 
-import sys
-
+from scene3D.cli import exit_process
 from scene3D.cli.calibrate import main
 
 if __name__ == "__main__":
-    sys.exit(main())
+    exit_process(main())

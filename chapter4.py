@@ -5,9 +5,8 @@ Run ``python chapter4.py --help``. The work is done by the ``scene3D`` package;
 this script is the book's entry point.
 """
 
-import sys
-
+from scene3D.cli import exit_process
 from scene3D.cli.chapter4 import main
 
 if __name__ == "__main__":
-    sys.exit(main())
+    exit_process(main())

@@ -1,7 +1,5 @@
 """``python -m scene3D``: the same as the ``scene3d`` command."""
 
-import sys
+from .cli import exit_process, main
 
-from .cli import main
-
-sys.exit(main())
+exit_process(main())

@@ -86,12 +86,13 @@ def flow_correspondences(gray1: np.ndarray, gray2: np.ndarray, pts1: FloatArray,
     forward = flow.calc(gray1, warped, None)
     backward = flow.calc(warped, gray1, None)
     ys, xs = np.mgrid[0:h:GRID_STEP_PX, 0:w:GRID_STEP_PX]
-    step = forward[ys, xs]
+    grid = np.s_[::GRID_STEP_PX, ::GRID_STEP_PX]  # the pixels (ys, xs), by slicing
+    step = forward[grid]
     xw, yw = (xs + step[..., 0]).astype(np.float32), (ys + step[..., 1]).astype(np.float32)
     back = cv2.remap(backward, xw, yw, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                      borderValue=(1e6, 1e6))
     returned = np.hypot(xw + back[..., 0] - xs, yw + back[..., 1] - ys)
-    texture = cv2.cornerMinEigenVal(gray1.astype(np.float32) / 255.0, 5, 3)[ys, xs]
+    texture = cv2.cornerMinEigenVal(gray1.astype(np.float32) / 255.0, 5, 3)[grid]
     inside = (xw >= 2) & (xw < w - 2) & (yw >= 2) & (yw < h - 2)
     inside &= covered[np.clip(yw, 0, h - 1).astype(int), np.clip(xw, 0, w - 1).astype(int)] > 0
     keep = inside & (returned < MAX_FORWARD_BACKWARD_PX) & (texture > MIN_TEXTURE)

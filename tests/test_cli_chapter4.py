@@ -320,6 +320,17 @@ def test_startup_imports_nothing_heavy_before_the_cli_sets_up_blas():
     assert out == ["[]", "10"]
 
 
+def test_the_scripts_exit_keeps_the_code_and_the_exit_handlers():
+    """`exit_process` (the scripts' end: Python's last collections skipped) still exits
+    with the command's code, runs atexit handlers and flushes what was printed."""
+    code = ("import atexit, sys; from scene3D.cli import exit_process; "
+            "atexit.register(lambda: print('handler ran')); print('output', end=''); "
+            "sys.stdout.write(' kept\\n'); exit_process(3)")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 3
+    assert proc.stdout.split() == ["output", "kept", "handler", "ran"]
+
+
 @pytest.mark.parametrize("module", ["chapter4", "calibrate", "evaluate", "multiview"])
 def test_every_argument_of_every_command_has_help(module):
     import argparse

@@ -8,14 +8,13 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from .. import __version__
 from ..calibration_io import load_calibration
 from ..camera import adapt_intrinsics_to_size
-from ..datasets import BOOK_PAIR, fetch_fountain_p11
 from ..export import (
     all_or_nothing,
     atomic_write_bytes,
@@ -26,7 +25,6 @@ from ..export import (
 from ..features import FEATURE_MODES, normalize_feature_mode
 from ..geometry import camera_centers, rotation_angle_deg
 from ..imageio import BOOK_MAX_WIDTH_PX, image_size, read_image_size
-from ..intrinsics_prior import FocalPrior
 from ..scene import SceneReconstruction3D
 from ..twoview import TwoViewSettings
 from .common import (
@@ -46,6 +44,9 @@ from .common import (
     show_images,
 )
 from .outputs import FILES_KEY, SUMMARY_FILE, OutputFolder, out_help
+
+if TYPE_CHECKING:
+    from ..intrinsics_prior import FocalPrior
 
 logger = logging.getLogger("scene3D.cli")
 
@@ -120,6 +121,8 @@ def _resolve_inputs(args: argparse.Namespace) -> tuple[Path, Path, Path | None]:
         path1, path2 = Path(args.images[0]), Path(args.images[1])
         check_image_paths([path1, path2])
         return path1, path2, args.calib
+    from ..datasets import BOOK_PAIR, fetch_fountain_p11  # the book's pair: its only use
+
     folder = fetch_fountain_p11(BOOK_PAIR)
     calib = args.calib if args.calib is not None else DEFAULT_CALIB
     return folder / BOOK_PAIR[0], folder / BOOK_PAIR[1], calib
@@ -144,6 +147,8 @@ def _load_camera(calib_path: Path | None, images: tuple[Path, Path]) -> _Camera:
         return _Camera(prior.K, np.zeros(5), prior.image_size, prior)
     if calib_path == DEFAULT_CALIB and not calib_path.is_file():
         # An installed copy without the repository's data/ folder: the same K from the dataset.
+        from ..datasets import fetch_fountain_p11
+
         K = np.loadtxt(fetch_fountain_p11(("images/K.txt",)) / "images" / "K.txt")
         return _Camera(K, np.zeros(5), (3072, 2048))
     camera = load_calibration(calib_path)
