@@ -399,6 +399,7 @@ def run(args: argparse.Namespace) -> int:
             "verified_pairs": recon.verified_pairs,
             "image_size": list(recon.image_size), "K": recon.K,
             "calibration_source": recon.calibration_source,
+            "focal_refits": list(recon.focal_refits),
             "focal_px_sigma": recon.focal_px_sigma,
             "self_calibration": focal_summary(recon, recon.main, prior.camera_name)
             if prior is not None else None,
@@ -431,6 +432,12 @@ def run(args: argparse.Namespace) -> int:
     if recon.focal is not None:
         for message in recon.focal.warnings:
             logger.warning("focal length: %s", message)
+    if recon.focal_refits:
+        factors = ", then ".join(f"{f:.3f}" for f in recon.focal_refits)
+        logger.warning("the views refuted the calibration's focal length: they were "
+                       "reconstructed with %.3f times it (%s), the K of reconstruction.json; "
+                       "is the calibration for this camera, lens and zoom?",
+                       float(np.prod(recon.focal_refits)), factors)
     if not args.quiet:
         print(f"{summary['registered']} of {len(names)} views registered, "
               f"{summary['points']} points, mean track length "
@@ -468,9 +475,13 @@ def run(args: argparse.Namespace) -> int:
         bad = [f"{names[v]}" for model in recon.models for v in model.check.suspect_views]
         focal = [model.check for model in recon.models if model.check.focal_mismatch]
         why = [f"the poses of {', '.join(bad)} contradict their pair geometry"] if bad else []
-        why += [f"the views fit a focal length {c.focal_scale:.2f} times the calibration's "
-                f"(+-{c.focal_scale * c.focal_scale_sigma_log:.2f}): is the calibration for "
-                "this camera, lens and zoom?" for c in focal[:1]]
+        tried = float(np.prod(recon.focal_refits))
+        why += [f"the views fit a focal length {c.focal_scale * tried:.3f} times the "
+                f"calibration's (+-{c.focal_scale * tried * c.focal_scale_sigma_log:.2g})"
+                + (f", still after {len(recon.focal_refits)} reconstruction"
+                   f"{'s' * (len(recon.focal_refits) > 1)} with the focal length they "
+                   "called for" if recon.focal_refits else "")
+                + ": is the calibration for this camera, lens and zoom?" for c in focal[:1]]
         print(f"error: the reconstruction failed its consistency check: {'; '.join(why)} "
               "(see reconstruction.json; the files are written for inspection only)",
               file=sys.stderr)

@@ -14,8 +14,13 @@ import numpy as np
 
 from ..bundle import Observations, reprojection_residuals
 from ..geometry import FloatArray, camera_centers
-from ..twoview.results import TwoViewSettings
-from ..twoview.trust import focal_mismatch
+
+#: How far apart the focal lengths that different views of one scene call for lie under
+#: the right calibration, as the standard deviation of their log: 0.0020 at 768 px and
+#: 0.0011 at 1536 px over subsets of the three Strecha scenes, about 11 times the
+#: adjustment's formal sigma (which takes every observation as independent and the
+#: principal point as known). :func:`refutes_calibration` adds it to that sigma.
+FOCAL_SPREAD_LOG = 0.002
 
 
 @dataclass(frozen=True)
@@ -108,6 +113,18 @@ class SfMSettings:
         divided by a standard deviation proportional to it,
         :mod:`scene3D.multiview.weights`), when the features carry sizes; False: all
         observations weigh the same.
+    max_focal_mismatch, focal_mismatch_sigmas : float, float
+        With a calibration file, a model of three views or more whose views call for a
+        focal length more than ``max_focal_mismatch`` from the calibration's (in log,
+        about a fraction) and more than ``focal_mismatch_sigmas`` standard deviations
+        (:func:`refutes_calibration`) refutes it. Under the right calibration the
+        Strecha scenes' models stay within 0.5 %; a calibration 3 % off is measured
+        at least 2.3 % off, and models more than 2 degrees off at least 2.8 %.
+    max_focal_refits : int
+        When the largest model refutes the calibration's focal length, the views are
+        reconstructed again with the focal length they call for, at most this many
+        times (:attr:`MultiViewReconstruction.focal_refits`); 0: never (the model then
+        fails its check).
     """
 
     threshold_px: float = 1.0
@@ -129,6 +146,21 @@ class SfMSettings:
     consistency_px: float = 2.0
     min_model_views: int = 2
     weight_by_size: bool = True
+    max_focal_mismatch: float = 0.02
+    focal_mismatch_sigmas: float = 5.0
+    max_focal_refits: int = 2
+
+
+def refutes_calibration(focal_scale: float, sigma_log: float, s: SfMSettings) -> bool:
+    """A model's views call for a focal length ``focal_scale`` times the calibration's,
+    the standard deviation of its log ``sigma_log``
+    (:attr:`ModelCheck.focal_scale`): beyond ``s.max_focal_mismatch`` in log and beyond
+    ``s.focal_mismatch_sigmas`` standard deviations, ``sigma_log`` widened by
+    :data:`FOCAL_SPREAD_LOG`."""
+    log_scale = abs(float(np.log(focal_scale)))
+    return (log_scale > s.max_focal_mismatch
+            and log_scale > s.focal_mismatch_sigmas * float(np.hypot(sigma_log,
+                                                                     FOCAL_SPREAD_LOG)))
 
 
 @dataclass(frozen=True)
@@ -175,6 +207,8 @@ class ModelCheck:
         cameras and points; :func:`scene3D.bundle.bundle_adjust_focal`), as a factor of
         the calibration's, and the standard deviation of its log. 1 and inf when not
         tested.
+    focal_mismatch : bool
+        That focal length refutes the calibration's (:func:`refutes_calibration`).
     """
 
     pairs_checked: int
@@ -182,13 +216,7 @@ class ModelCheck:
     suspect_views: tuple[int, ...] = ()
     focal_scale: float = 1.0
     focal_scale_sigma_log: float = float("inf")
-
-    @property
-    def focal_mismatch(self) -> bool:
-        """The observations call for another focal length than the calibration's: the
-        two-view check's test and limits (:func:`scene3D.twoview.trust.focal_mismatch`,
-        ``TwoViewSettings.max_focal_mismatch`` and ``focal_mismatch_sigmas``)."""
-        return focal_mismatch(self.focal_scale, self.focal_scale_sigma_log, TwoViewSettings())
+    focal_mismatch: bool = False
 
     @property
     def ok(self) -> bool:
@@ -367,6 +395,11 @@ class MultiViewReconstruction:
     calibration_source : str
         Where ``K``'s focal length comes from: ``"file"`` (a calibration), or
         ``FocalEstimate.source`` of the largest model.
+    focal_refits : tuple[float, ...]
+        With a calibration file: the factors by which its focal length was changed, in
+        turn, because the largest model's views refuted it
+        (``SfMSettings.max_focal_refits``); ``K`` carries their product. Empty when the
+        calibration held.
     prior_description : str
         Without a calibration, where the prior came from ("EXIF FocalLengthIn35mmFilm
         32 mm", the default); empty with one.
@@ -383,6 +416,7 @@ class MultiViewReconstruction:
     timings_s: dict[str, float] = field(default_factory=dict)
     calibration_source: str = "file"
     prior_description: str = ""
+    focal_refits: tuple[float, ...] = ()
 
     @property
     def main(self) -> SfMModel:

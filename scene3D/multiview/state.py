@@ -20,7 +20,14 @@ from ..bundle import Observations, bundle_adjust, bundle_adjust_focal, reproject
 from ..geometry import FloatArray, camera_centers
 from .checks import check_model
 from .focal import FocalSettings, longer_side_px
-from .models import ModelCheck, PairMatches, SfMModel, SfMSettings, ViewFeatures
+from .models import (
+    ModelCheck,
+    PairMatches,
+    SfMModel,
+    SfMSettings,
+    ViewFeatures,
+    refutes_calibration,
+)
 from .points import max_parallax_deg, observation_errors, refine_points, triangulate_groups
 from .tracks import Tracks, build_tracks, connected_components
 from .weights import keypoint_sigma
@@ -382,8 +389,9 @@ class GrowingModel:
                                      max_iterations=20)
         except (ValueError, np.linalg.LinAlgError):
             return check
-        return dataclasses.replace(check, focal_scale=float(fa.focal_px / self.K[0, 0]),
-                                   focal_scale_sigma_log=float(fa.sigma_log))
+        scale, sigma_log = float(fa.focal_px / self.K[0, 0]), float(fa.sigma_log)
+        return dataclasses.replace(check, focal_scale=scale, focal_scale_sigma_log=sigma_log,
+                                   focal_mismatch=refutes_calibration(scale, sigma_log, self.s))
 
     def result(self, check: ModelCheck) -> SfMModel:
         check = self.focal_test(check)
