@@ -1,6 +1,6 @@
-"""``scene3d reconstruct-views`` at its edges: a calibration that leaves no model, photos
-of one name in two folders, ``--out`` among the photos, hidden files in a folder, and
-names COLMAP's text format cannot hold."""
+"""``scene3d reconstruct-views`` at its edges: a calibration that leaves no model or that
+the views refute, photos of one name in two folders, ``--out`` among the photos, hidden
+files in a folder, and names COLMAP's text format cannot hold."""
 
 import json
 
@@ -13,7 +13,8 @@ from scene3D.cli import multiview
 from scene3D.datasets import read_strecha_camera
 from scene3D.errors import ReconstructionError
 from scene3D.export import colmap_text_files
-from scene3D.multiview import mapper
+from scene3D.multiview import SfMSettings, mapper, reconstruct_views
+from scene3D.multiview.models import refutes_calibration
 
 from .conftest import REPO
 
@@ -248,3 +249,48 @@ def test_a_calibration_for_another_focal_length_fails_the_check(fountain, tmp_pa
     check = summary["models"][0]["check"]
     assert check["status"] == "failed" and check["focal_scale"] > 1.15
     assert check["focal_scale_sigma"] < 0.1 * (check["focal_scale"] - 1)
+
+
+def test_the_focal_test_keeps_right_calibrations_and_refutes_a_few_percent():
+    """The many-view focal test: Strecha models under their right calibrations stay
+    within 0.5 % at formal sigmas of 0.0001-0.0003 (up to 24 of them, so the sigma alone
+    cannot judge); a calibration 3 % off is measured at least 2.3 % off; a weak model's
+    3 % within its own uncertainty refutes nothing."""
+    s = SfMSettings()
+    assert not refutes_calibration(0.9953, 0.0002, s)
+    assert not refutes_calibration(1.0047, 0.00015, s)
+    assert refutes_calibration(1.0307, 0.0003, s) and refutes_calibration(0.9700, 0.0003, s)
+    assert refutes_calibration(1 / 0.88, 0.0003, s)
+    assert not refutes_calibration(1.03, 0.01, s)  # 5 sigma is 5 %
+    assert not refutes_calibration(1.10, 0.0003, SfMSettings(max_focal_mismatch=0.12))
+
+
+def test_a_calibration_a_few_percent_off_is_refitted_by_the_views(castle, tmp_path, capsys):
+    """castle-P19, all 19 views at 768 px, with a calibration whose focal length is 0.92
+    times the truth: the model came back 'ok' with cameras 10.7 deg off (a review). Its
+    views call for 1.08 times that focal length, so they are reconstructed again with
+    it: the cameras land within a degree of the Strecha ones, K within 1 % of the true
+    focal length, and a warning says the calibration was refuted. Without the second
+    reconstruction the model fails its check."""
+    camera = read_strecha_camera(castle / "gt_dense_cameras" / "0000.jpg.camera")
+    wrong = camera.K.copy()
+    wrong[:2, :2] *= 0.92
+    calib = save_calibration(tmp_path / "wrong.yaml",
+                             CameraCalibration(wrong, np.zeros(5), (3072, 2048)))
+    out = tmp_path / "out"
+    assert multiview.main([str(castle / "images"), "--calib", str(calib), "--ground-truth",
+                           str(castle / "gt_dense_cameras"), "--max-width", "768",
+                           "--no-plots", "--no-report", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "refuted the calibration's focal length" in err and "zoom?" in err
+    summary = json.loads((out / "reconstruction.json").read_text())
+    assert summary["status"] == "ok" and summary["registered"] == 19
+    assert len(summary["focal_refits"]) >= 1 and summary["focal_refits"][0] > 1.05
+    assert summary["K"][0][0] == pytest.approx(camera.K[0, 0] / 4, rel=0.01)
+    assert summary["ground_truth"]["max_rotation_error_deg"] < 1.0
+
+    paths = sorted((castle / "images").glob("*.jpg"))
+    once = reconstruct_views(paths, wrong, np.zeros(5), max_width=768,
+                             settings=SfMSettings(max_focal_refits=0))
+    assert once.focal_refits == () and once.main.check.focal_mismatch and not once.ok
+    assert once.main.check.focal_scale == pytest.approx(1 / 0.92, rel=0.03)
