@@ -285,6 +285,7 @@ def test_a_calibration_a_few_percent_off_is_refitted_by_the_views(castle, tmp_pa
     assert "refuted the calibration's focal length" in err and "zoom?" in err
     summary = json.loads((out / "reconstruction.json").read_text())
     assert summary["status"] == "ok" and summary["registered"] == 19
+    assert [w for w in summary["warnings"] if "refuted the calibration's focal" in w]
     assert len(summary["focal_refits"]) >= 1 and summary["focal_refits"][0] > 1.05
     assert summary["K"][0][0] == pytest.approx(camera.K[0, 0] / 4, rel=0.01)
     assert summary["ground_truth"]["max_rotation_error_deg"] < 1.0

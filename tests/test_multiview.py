@@ -307,6 +307,7 @@ def test_fountain_all_views_against_ground_truth(fountain_views):
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((out / "reconstruction.json").read_text())
     assert summary["registered"] == 11 and summary["unregistered"] == []
+    assert summary["focal_refits"] == [] and summary["warnings"] == []  # the calibration fits
     assert summary["image_size"] == [1536, 1024]
     assert summary["reprojection_rmse_px"] < 1.0
     gt = summary["ground_truth"]

@@ -239,6 +239,16 @@ def evaluate_against(cameras: list[StrechaCamera], names: list[str], model: SfMM
     }
 
 
+def _refit_warnings(recon: MultiViewReconstruction) -> list[str]:
+    """What to say when the views refuted the calibration's focal length (none else)."""
+    if not recon.focal_refits:
+        return []
+    factors = ", then ".join(f"{f:.3f}" for f in recon.focal_refits)
+    return [f"the views refuted the calibration's focal length: they were reconstructed "
+            f"with {np.prod(recon.focal_refits):.3f} times it ({factors}), the K of "
+            "reconstruction.json; is the calibration for this camera, lens and zoom?"]
+
+
 def check_summary(model: SfMModel, names: list[str]) -> dict:
     check = model.check
     return {
@@ -400,6 +410,7 @@ def run(args: argparse.Namespace) -> int:
             "image_size": list(recon.image_size), "K": recon.K,
             "calibration_source": recon.calibration_source,
             "focal_refits": list(recon.focal_refits),
+            "warnings": _refit_warnings(recon),
             "focal_px_sigma": recon.focal_px_sigma,
             "self_calibration": focal_summary(recon, recon.main, prior.camera_name)
             if prior is not None else None,
@@ -432,12 +443,8 @@ def run(args: argparse.Namespace) -> int:
     if recon.focal is not None:
         for message in recon.focal.warnings:
             logger.warning("focal length: %s", message)
-    if recon.focal_refits:
-        factors = ", then ".join(f"{f:.3f}" for f in recon.focal_refits)
-        logger.warning("the views refuted the calibration's focal length: they were "
-                       "reconstructed with %.3f times it (%s), the K of reconstruction.json; "
-                       "is the calibration for this camera, lens and zoom?",
-                       float(np.prod(recon.focal_refits)), factors)
+    for message in summary["warnings"]:
+        logger.warning("%s", message)
     if not args.quiet:
         print(f"{summary['registered']} of {len(names)} views registered, "
               f"{summary['points']} points, mean track length "
