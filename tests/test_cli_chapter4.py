@@ -320,6 +320,24 @@ def test_startup_imports_nothing_heavy_before_the_cli_sets_up_blas():
     assert out == ["[]", "10"]
 
 
+def test_reconstruct_views_runs_blas_on_one_thread_unless_told():
+    """`scene3d reconstruct-views` sets OpenBLAS to one thread before numpy loads (its
+    bundle adjustment ran ten times slower on two threads beside another busy program);
+    a value the user chose is kept, and the other commands are left alone."""
+    code = ("import os, sys; from scene3D.cli import main; main(sys.argv[1:]); "
+            "print(os.environ.get('OPENBLAS_NUM_THREADS'))")
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+
+    def threads(*args, **extra):
+        return subprocess.run([sys.executable, "-c", code, *args, "--help"],
+                              env={**env, **extra}, capture_output=True, text=True,
+                              check=True).stdout.split()[-1]
+
+    assert threads("reconstruct-views") == "1"
+    assert threads("reconstruct-views", OPENBLAS_NUM_THREADS="2") == "2"
+    assert threads("evaluate") == "None"
+
+
 def test_the_scripts_exit_keeps_the_code_and_the_exit_handlers():
     """`exit_process` (the scripts' end: Python's last collections skipped) still exits
     with the command's code, runs atexit handlers and flushes what was printed."""

@@ -44,6 +44,12 @@ def main(argv: list[str] | None = None) -> int:
     elif command == "evaluate":
         from .evaluate import main as run
     elif command == "reconstruct-views":
+        # Before numpy loads: bundle adjustment's matrices are small (a Schur complement
+        # of 6 numbers a camera), and OpenBLAS's threads wait on each other: with another
+        # program busy on the 2-core test machine, castle-P19's adjustment took 28-30 s on
+        # two threads and 2-3 s on one; on a quiet machine the two are level
+        # (docs/benchmarks.md, many views). A value the user has set is kept.
+        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
         from .multiview import main as run
     else:
         print(f"{USAGE}\nerror: unknown command {command!r}", file=sys.stderr)
