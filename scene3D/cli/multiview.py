@@ -243,10 +243,12 @@ def _refit_warnings(recon: MultiViewReconstruction) -> list[str]:
     """What to say when the views refuted the calibration's focal length (none else)."""
     if not recon.focal_refits:
         return []
-    factors = ", then ".join(f"{f:.3f}" for f in recon.focal_refits)
+    steps = (" (" + ", then ".join(f"{f:.3f}" for f in recon.focal_refits) + ")"
+             if len(recon.focal_refits) > 1 else "")
     return [f"the views refuted the calibration's focal length: they were reconstructed "
-            f"with {np.prod(recon.focal_refits):.3f} times it ({factors}), the K of "
-            "reconstruction.json; is the calibration for this camera, lens and zoom?"]
+            f"with the one they called for, {np.prod(recon.focal_refits):.3f} times it"
+            f"{steps}, K in reconstruction.json; is the calibration for this camera, lens "
+            "and zoom?"]
 
 
 def check_summary(model: SfMModel, names: list[str]) -> dict:
@@ -457,6 +459,10 @@ def run(args: argparse.Namespace) -> int:
             print(f"focal length {recon.K[0, 0]:.1f} px {sigma} at the "
                   f"working size ({recon.prior_description}; {how}"
                   + ("" if recon.focal.trusted else "; untrusted") + ")")
+        if recon.focal_refits:
+            print(f"focal length {recon.K[0, 0]:.1f} px at the working size, "
+                  f"{np.prod(recon.focal_refits):.3f} times the calibration's (the views "
+                  "refuted it)")
         for m, entry in enumerate(models[1:], start=1):
             print(f"model {m} ({entry['folder']}/): {entry['registered']} more views: "
                   f"{', '.join(entry['views'])}")
