@@ -248,7 +248,7 @@ def _refit_warnings(recon: MultiViewReconstruction) -> list[str]:
     return [f"the views refuted the calibration's focal length: they were reconstructed "
             f"with the one they called for, {np.prod(recon.focal_refits):.3f} times it"
             f"{steps}, K in reconstruction.json; is the calibration for this camera, lens "
-            "and zoom?"]
+            "and zoom, with the lens's distortion?"]
 
 
 def check_summary(model: SfMModel, names: list[str]) -> dict:

@@ -391,7 +391,8 @@ class GrowingModel:
             return check
         scale, sigma_log = float(fa.focal_px / self.K[0, 0]), float(fa.sigma_log)
         return dataclasses.replace(check, focal_scale=scale, focal_scale_sigma_log=sigma_log,
-                                   focal_mismatch=refutes_calibration(scale, sigma_log, self.s))
+                                   focal_mismatch=refutes_calibration(
+                                       scale, sigma_log, int(self.registered.sum()), self.s))
 
     def result(self, check: ModelCheck) -> SfMModel:
         check = self.focal_test(check)
