@@ -246,7 +246,7 @@ def _refit_warnings(recon: MultiViewReconstruction) -> list[str]:
     steps = (" (" + ", then ".join(f"{f:.3f}" for f in recon.focal_refits) + ")"
              if len(recon.focal_refits) > 1 else "")
     return [f"the views refuted the calibration's focal length: they were reconstructed "
-            f"with the one they called for, {np.prod(recon.focal_refits):.3f} times it"
+            f"with the one they called for, {recon.focal_refit_scale:.3f} times it"
             f"{steps}, K in reconstruction.json; is the calibration for this camera, lens "
             "and zoom, with the lens's distortion?"]
 
@@ -461,7 +461,7 @@ def run(args: argparse.Namespace) -> int:
                   + ("" if recon.focal.trusted else "; untrusted") + ")")
         if recon.focal_refits:
             print(f"focal length {recon.K[0, 0]:.1f} px at the working size, "
-                  f"{np.prod(recon.focal_refits):.3f} times the calibration's (the views "
+                  f"{recon.focal_refit_scale:.3f} times the calibration's (the views "
                   "refuted it)")
         for m, entry in enumerate(models[1:], start=1):
             print(f"model {m} ({entry['folder']}/): {entry['registered']} more views: "
@@ -488,7 +488,7 @@ def run(args: argparse.Namespace) -> int:
         bad = [f"{names[v]}" for model in recon.models for v in model.check.suspect_views]
         focal = [model.check for model in recon.models if model.check.focal_mismatch]
         why = [f"the poses of {', '.join(bad)} contradict their pair geometry"] if bad else []
-        tried = float(np.prod(recon.focal_refits))
+        tried = recon.focal_refit_scale
         why += [f"the views fit a focal length {c.focal_scale * tried:.3f} times the "
                 f"calibration's (+-{c.focal_scale * tried * c.focal_scale_sigma_log:.2g})"
                 + (f", still after {len(recon.focal_refits)} reconstruction"

@@ -116,8 +116,9 @@ class SfMSettings:
         :mod:`scene3D.multiview.weights`), when the features carry sizes; False: all
         observations weigh the same.
     max_focal_mismatch, focal_mismatch_sigmas : float, float
-        With a calibration file, a model of three views or more whose views call for a
-        focal length more than ``max_focal_mismatch`` from the calibration's (in log,
+        With a calibration file, a model of ``min_focal_test_views`` views or more whose
+        views call for a focal length more than ``max_focal_mismatch`` from the
+        calibration's (in log,
         about a fraction) and more than ``focal_mismatch_sigmas`` standard deviations
         (:func:`refutes_calibration`) refutes it. Under the right calibration the
         Strecha scenes' models stay within 0.5 %; a calibration 3 % off is measured
@@ -429,6 +430,12 @@ class MultiViewReconstruction:
     calibration_source: str = "file"
     prior_description: str = ""
     focal_refits: tuple[float, ...] = ()
+
+    @property
+    def focal_refit_scale(self) -> float:
+        """The product of :attr:`focal_refits`: ``K``'s focal length over the
+        calibration's (1 when it held)."""
+        return float(np.prod(self.focal_refits))
 
     @property
     def main(self) -> SfMModel:
