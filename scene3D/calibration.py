@@ -27,7 +27,7 @@ import numpy as np
 
 from .calibration_io import CameraCalibration, load_calibration, save_calibration
 from .calibration_uncertainty import IntrinsicsCovariance, intrinsics_covariance
-from .camera import check_intrinsics_for_size
+from .camera import DISTORTION_NAMES, check_intrinsics_for_size
 from .errors import CalibrationError
 from .features import check_image
 from .geometry import FloatArray, is_real_number, is_whole_number
@@ -47,8 +47,6 @@ _SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01)
 #: Seed of OpenCV's RNG before ``findChessboardCornersSB``, which draws from it: a fixed
 #: seed makes :func:`detect_board` give the same answer for the same image every time.
 _SB_SEED = 0
-DISTORTION_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4",
-                    "tx", "ty")
 #: Board points a view needs to count (:func:`calibrate`).
 MIN_POINTS_PER_VIEW = 6
 

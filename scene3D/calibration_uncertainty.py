@@ -53,6 +53,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .camera import DISTORTION_NAMES
 from .geometry import FloatArray
 
 logger = logging.getLogger(__name__)
@@ -64,8 +65,6 @@ __all__ = [
 ]
 
 INTRINSIC_NAMES = ("fx", "fy", "cx", "cy")
-DISTORTION_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4",
-                    "tx", "ty")
 #: Default limit (px) above which the corners of the map earn a warning.
 CORNER_LIMIT_PX = 1.0
 #: A pixel whose ray projects back farther than this is not reached by any ray

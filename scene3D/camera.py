@@ -15,6 +15,9 @@ from numpy.typing import ArrayLike
 from .geometry import FloatArray
 
 VALID_DIST_LENGTHS = (0, 4, 5, 8, 12, 14)
+#: OpenCV's distortion coefficients in their order (a vector holds the first 4-14).
+DISTORTION_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4",
+                    "tx", "ty")
 
 #: The focal lengths :func:`check_intrinsics_for_size` takes, as multiples of the image's
 #: longer side: from a fisheye's (about 0.3) to a 2000 mm lens on a 36 mm sensor (about 55).

@@ -309,3 +309,20 @@ def test_a_calibration_a_few_percent_off_is_refitted_by_the_views(castle, tmp_pa
                              settings=SfMSettings(max_focal_refits=0))
     assert once.focal_refits == () and once.main.check.focal_mismatch and not once.ok
     assert once.main.check.focal_scale == pytest.approx(1 / 0.92, rel=0.03)
+
+
+def test_the_failure_message_names_the_suspect_views_and_the_focal_length_called_for():
+    """After two refits the message gives the focal length the views still call for, as a
+    multiple of the calibration's (the refits' product times the last model's factor),
+    and asks about the lens's distortion as the refit warning does."""
+    from types import SimpleNamespace
+
+    check = SimpleNamespace(suspect_views=[2], focal_mismatch=True, focal_scale=1.1,
+                            focal_scale_sigma_log=0.002)
+    recon = SimpleNamespace(models=[SimpleNamespace(check=check)], focal_refits=(1.1, 1.05),
+                            focal_refit_scale=1.1 * 1.05)
+    message = multiview._failure_message(recon, ["a.jpg", "b.jpg", "c.jpg"])
+    assert "the poses of c.jpg contradict their pair geometry" in message
+    assert "a focal length 1.271 times the calibration's" in message
+    assert "still after 2 reconstructions" in message and "lens's distortion?" in message
+    assert "\n" not in message

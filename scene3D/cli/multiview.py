@@ -239,6 +239,23 @@ def evaluate_against(cameras: list[StrechaCamera], names: list[str], model: SfMM
     }
 
 
+def _failure_message(recon: MultiViewReconstruction, names: list[str]) -> str:
+    """Why a reconstruction failed its consistency check, in one line."""
+    bad = [f"{names[v]}" for model in recon.models for v in model.check.suspect_views]
+    focal = [model.check for model in recon.models if model.check.focal_mismatch]
+    why = [f"the poses of {', '.join(bad)} contradict their pair geometry"] if bad else []
+    tried = recon.focal_refit_scale
+    why += [f"the views fit a focal length {c.focal_scale * tried:.3f} times the "
+            f"calibration's (+-{c.focal_scale * tried * c.focal_scale_sigma_log:.2g})"
+            + (f", still after {len(recon.focal_refits)} reconstruction"
+               f"{'s' * (len(recon.focal_refits) > 1)} with the focal length they "
+               "called for" if recon.focal_refits else "")
+            + ": is the calibration for this camera, lens and zoom, with the lens's "
+            "distortion?" for c in focal[:1]]
+    return (f"the reconstruction failed its consistency check: {'; '.join(why)} "
+            "(see reconstruction.json; the files are written for inspection only)")
+
+
 def _refit_warnings(recon: MultiViewReconstruction) -> list[str]:
     """What to say when the views refuted the calibration's focal length (none else)."""
     if not recon.focal_refits:
@@ -485,19 +502,7 @@ def run(args: argparse.Namespace) -> int:
               "reconstruction.json, the files are written for inspection only",
               file=sys.stderr)
     if not recon.ok:
-        bad = [f"{names[v]}" for model in recon.models for v in model.check.suspect_views]
-        focal = [model.check for model in recon.models if model.check.focal_mismatch]
-        why = [f"the poses of {', '.join(bad)} contradict their pair geometry"] if bad else []
-        tried = recon.focal_refit_scale
-        why += [f"the views fit a focal length {c.focal_scale * tried:.3f} times the "
-                f"calibration's (+-{c.focal_scale * tried * c.focal_scale_sigma_log:.2g})"
-                + (f", still after {len(recon.focal_refits)} reconstruction"
-                   f"{'s' * (len(recon.focal_refits) > 1)} with the focal length they "
-                   "called for" if recon.focal_refits else "")
-                + ": is the calibration for this camera, lens and zoom?" for c in focal[:1]]
-        print(f"error: the reconstruction failed its consistency check: {'; '.join(why)} "
-              "(see reconstruction.json; the files are written for inspection only)",
-              file=sys.stderr)
+        print(f"error: {_failure_message(recon, names)}", file=sys.stderr)
     return EXIT_FAILED if thin or not recon.ok else EXIT_OK
 
 
