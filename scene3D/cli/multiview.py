@@ -100,9 +100,11 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
     parser.add_argument("images", nargs="+", metavar="IMAGES",
                         help="image files, a folder, or quoted globs such as 'photos/*.jpg'")
     parser.add_argument("--calib", type=Path, metavar="FILE",
-                        help="camera calibration (OpenCV YAML/XML as calibrate.py writes it); "
-                             "without it the photos must come from one camera (one size, "
-                             "EXIF make, model and focal length) and one focal length is "
+                        help="camera calibration (OpenCV YAML/XML as calibrate.py writes it; "
+                             "a focal length the photos refute is replaced by the one they "
+                             "call for, with a warning); without it the photos must come "
+                             "from one camera (one size, EXIF make, model and focal length) "
+                             "and one focal length is "
                              "found from them (principal point at the centre, no "
                              "distortion; see docs/own-photos.md)")
     add_size_args(parser, 2 * BOOK_MAX_WIDTH_PX, "3072 -> 1536, half resolution")
