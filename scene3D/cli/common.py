@@ -158,14 +158,15 @@ def check_report_viewer() -> None:
         raise UsageError(str(exc)) from None
 
 
-def add_common_args(parser: argparse.ArgumentParser) -> None:
-    """``-v/--verbose``, ``-q/--quiet`` and ``--debug``."""
+def add_common_args(parser: argparse.ArgumentParser,
+                    quiet_stdout: str = "the files written") -> None:
+    """``-v/--verbose``, ``-q/--quiet`` (keeping ``quiet_stdout`` on stdout) and
+    ``--debug``."""
     group = parser.add_argument_group("output and diagnostics")
     group.add_argument("-v", "--verbose", action="count", default=0,
                        help="more log messages on stderr (-vv for debug)")
     group.add_argument("-q", "--quiet", action="store_true",
-                       help="only errors on stderr, and on stdout only the files written "
-                            "(scene3d evaluate: its table)")
+                       help=f"only errors on stderr, and on stdout only {quiet_stdout}")
     group.add_argument("--debug", action="store_true",
                        help="show the full traceback of an error")
 

@@ -91,7 +91,7 @@ def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
     parser.add_argument("--force", action="store_true",
                         help="overwrite an existing --csv file")
     add_engine_args(parser)
-    add_common_args(parser)
+    add_common_args(parser, quiet_stdout="the table")
     return parser
 
 

@@ -106,7 +106,8 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
                              "from one camera (one size, EXIF make, model and focal length) "
                              "and one focal length is "
                              "found from them (principal point at the centre, no "
-                             "distortion; see docs/own-photos.md)")
+                             "distortion; the documentation's page 'Photos without a "
+                             "calibration file')")
     add_size_args(parser, 2 * BOOK_MAX_WIDTH_PX, "3072 -> 1536, half resolution")
     parser.add_argument("--pairs", choices=PAIR_MODES, default="auto",
                         help="which pairs to match: 'retrieval' (each view with its "
