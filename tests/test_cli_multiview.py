@@ -85,62 +85,15 @@ def test_a_calibration_that_leaves_no_model_stops_in_one_line(fountain, tmp_path
     assert "does the calibration fit these photos?" in err
 
 
-def test_a_calibration_most_start_pairs_refute_is_replaced_by_the_one_they_call_for(
-        fountain, tmp_path, capsys):
+def test_a_calibration_most_start_pairs_refute_stops_at_the_start(fountain, tmp_path, capsys):
     """A focal length of 900 px (a third of the truth): one candidate pair is trusted
     under it, its own focal check passing, 14 deg off; grown from it, a model of three
     views came back with status ok, 10-12 deg off. Three of the five candidates fit a
-    focal length 2.8 times the calibration's, so the views are reconstructed with it, then
-    refitted once more by the model: K within 1 % of the truth, the cameras within half a
-    degree, and a warning."""
-    K = read_strecha_camera(fountain / "gt_dense_cameras" / "0004.jpg.camera").K.copy()
-    true_focal = K[0, 0]
-    K[0, 0] = K[1, 1] = 900.0
-    calib = save_calibration(tmp_path / "wrong.yaml",
-                             CameraCalibration(K, np.zeros(5), (3072, 2048)))
-    images = [str(fountain / "images" / f"{i:04d}.jpg") for i in range(4, 9)]
-    out = tmp_path / "out"
-    assert multiview.main([*images, "--calib", str(calib), "--ground-truth",
-                           str(fountain / "gt_dense_cameras"), "--max-width", "768",
-                           "--no-plots", "--no-report", "--out", str(out)]) == 0
-    captured = capsys.readouterr()
-    assert "the candidate start pairs fit a focal length 2.8" in captured.out + captured.err
-    assert "refuted the calibration's focal length" in captured.err
-    summary = json.loads((out / "reconstruction.json").read_text())
-    assert summary["status"] == "ok" and summary["registered"] == 5
-    assert 2.7 < summary["focal_refits"][0] < 2.9
-    assert summary["K"][0][0] == pytest.approx(true_focal / 4, rel=0.01)
-    assert summary["ground_truth"]["max_rotation_error_deg"] < 0.5
-
-
-def test_without_refits_a_calibration_most_start_pairs_refute_stops_at_the_start(fountain):
-    """The same calibration with ``max_focal_refits=0``: the run stops at the start and
-    says what the candidates call for."""
-    K = read_strecha_camera(fountain / "gt_dense_cameras" / "0004.jpg.camera").K.copy()
-    K[0, 0] = K[1, 1] = 900.0
-    images = [fountain / "images" / f"{i:04d}.jpg" for i in range(4, 9)]
-    with pytest.raises(ReconstructionError, match="^3 of the 5 candidate pairs to start from "
-                       "fit a focal length 2.8") as info:
-        reconstruct_views(images, K, np.zeros(5), max_width=768,
-                          settings=SfMSettings(max_focal_refits=0))
-    assert info.value.reason == "no_initial_pair" and "calibration fit" in str(info.value)
-    assert 2.7 < info.value.counts["focal_scale"] < 2.9
-
-
-def test_when_the_refitted_focal_length_gives_no_model_the_first_reason_is_kept():
-    """The error names the first pass's reason and what the refitted passes ended with."""
-    from scene3D.multiview.pipeline import _no_model_after_refits
-
-    first = ReconstructionError("no_initial_pair", "3 of the 5 candidate pairs to start from "
-                                "fit a focal length 2.00 times the calibration's (median)",
-                                verified_pairs=9, focal_scale=2.0)
-    last = ReconstructionError("no_model", "no model could be kept: ...")
-    assert _no_model_after_refits(first, last, []) is first
-    error = _no_model_after_refits(first, last, [2.0, 1.1])
-    assert error.reason == "no_initial_pair" and error.counts == first.counts
-    assert error.message.startswith(first.message)
-    assert "with 2.200 times its focal length" in error.message
-    assert error.message.endswith("no model could be kept: ...)")
+    focal length 2.8 times the calibration's: the run stops at the start."""
+    err = _fail_under_focal_length(fountain, tmp_path, capsys, 900.0)
+    assert err.startswith("error: 3 of the 5 candidate pairs to start from fit a focal length "
+                          "2.8")
+    assert "does the calibration fit these photos?" in err
 
 
 def test_a_calibration_that_leaves_no_trusted_start_says_so_in_one_line(fountain, tmp_path,

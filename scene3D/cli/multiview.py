@@ -101,10 +101,10 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
                         help="image files, a folder, or quoted globs such as 'photos/*.jpg'")
     parser.add_argument("--calib", type=Path, metavar="FILE",
                         help="camera calibration (OpenCV YAML/XML as calibrate.py writes it; "
-                             "a focal length the photos refute is replaced by the one they "
-                             "call for, with a warning); without it the photos must come "
-                             "from one camera (one size, EXIF make, model and focal length) "
-                             "and one focal length is "
+                             "a focal length the photos refute by more than 2 %% is replaced "
+                             "by the one they call for, with a warning); without it the "
+                             "photos must come from one camera (one size, EXIF make, model "
+                             "and focal length) and one focal length is "
                              "found from them (principal point at the centre, no "
                              "distortion; the documentation's page 'Photos without a "
                              "calibration file')")

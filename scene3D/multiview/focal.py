@@ -46,7 +46,7 @@ from ..errors import ReconstructionError
 from ..geometry import FloatArray
 from ..selfcalibration import SelfCalibration, self_calibrate_pair
 from ..twoview import TwoViewGeometry
-from .models import FocalEstimate, NoStart, PairMatches, ViewFeatures
+from .models import FocalEstimate, PairMatches, ViewFeatures
 
 logger = logging.getLogger(__name__)
 
@@ -125,7 +125,7 @@ def self_calibrated_start(
 
     Returns
     -------
-    start : (PairMatches, TwoViewGeometry) or NoStart
+    start : (PairMatches, TwoViewGeometry) or str
         As :func:`scene3D.multiview.mapper.initial_pair` returns it, under ``K_start``.
     K_start : (3, 3)
     focal_start : FocalEstimate
@@ -149,7 +149,7 @@ def self_calibrated_start(
                                                                                         None)
     K_start = K if calibration is None else calibration.K
     start = choose_start(features, pairs, K_start)
-    if isinstance(start, NoStart):
+    if isinstance(start, str):
         # No pair is trusted under that focal length: a self-calibrated pair whose own
         # geometry is trusted (under its own focal length) can start.
         for candidate, other in tried:

@@ -41,14 +41,7 @@ from .focal import (
     prior_intrinsics,
     self_calibrated_start,
 )
-from .models import (
-    FocalEstimate,
-    NoStart,
-    PairMatches,
-    SfMModel,
-    SfMSettings,
-    ViewFeatures,
-)
+from .models import FocalEstimate, PairMatches, SfMModel, SfMSettings, ViewFeatures
 from .state import GrowingModel
 
 logger = logging.getLogger(__name__)
@@ -103,17 +96,16 @@ def _input_hint(calibrated: bool) -> str:
 
 def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches], K: FloatArray,
                  candidates: int = 6, calibrated: bool = False
-                 ) -> tuple[PairMatches, TwoViewGeometry] | NoStart:
+                 ) -> tuple[PairMatches, TwoViewGeometry] | str:
     """The verified pair (among those with most inliers) giving most reliable points.
 
-    Returns the pair and its two-view geometry, or, when no candidate is trusted, why
-    (quoting the doubt about the best-scoring one, e.g. a calibration that does not
-    fit). With ``calibrated`` (``K`` from a calibration file), also why when most
-    candidates' matches refute the calibration's focal length
-    (:func:`scene3D.twoview.trust.focal_mismatch`), with the median focal length they
-    call for: a pair whose own focal check passed may then sit in a wrong pose's valley
-    (fountain-P11 4-8 under a focal length a third of the truth: a trusted start 14 deg
-    off, and a model 10-12 deg off with status ok).
+    Returns the pair and its two-view geometry, or, when no candidate is trusted, the
+    reason (quoting the doubt about the best-scoring one, e.g. a calibration that does
+    not fit). With ``calibrated`` (``K`` from a calibration file), also the reason when
+    most candidates' matches refute the calibration's focal length
+    (:func:`scene3D.twoview.trust.focal_mismatch`): a pair whose own focal check passed
+    may then sit in a wrong pose's valley (fountain-P11 4-8 under a focal length a third
+    of the truth: a trusted start 14 deg off, and a model 10-12 deg off with status ok).
     """
     ranked = sorted(pairs, key=lambda p: (-p.num_inliers, p.i, p.j))
     best, best_score = None, -1.0
@@ -133,15 +125,15 @@ def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches],
             best, best_score = (pair, r), score
         elif not r.trusted and score > doubt_score:
             doubt, doubt_score = f"; the best candidate pair: {r.warnings[0]}", score
-    refuting = [r.focal_scale for r in answered if focal_mismatch(
-        r.focal_scale, r.focal_scale_sigma / r.focal_scale, settings)] if calibrated else []
-    if 2 * len(refuting) > len(answered):
-        scale = median(np.array(refuting))
-        return NoStart(f"{len(refuting)} of the {len(answered)} candidate pairs to start from "
-                       f"fit a focal length {scale:.2f} times the calibration's (median)",
-                       scale)
     if best is None:
-        return NoStart("no pair of views gives a trustworthy two-view start" + doubt)
+        return "no pair of views gives a trustworthy two-view start" + doubt
+    if calibrated:
+        refuting = [r.focal_scale for r in answered if focal_mismatch(
+            r.focal_scale, r.focal_scale_sigma / r.focal_scale, settings)]
+        if 2 * len(refuting) > len(answered):
+            return (f"{len(refuting)} of the {len(answered)} candidate pairs to start from "
+                    f"fit a focal length {median(np.array(refuting)):.2f} times the "
+                    "calibration's (median)")
     return best
 
 
@@ -313,7 +305,7 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
         if focal is not None and not models and inside:
             start, K, focal_start = self_calibrated_start(features, inside, K, focal,
                                                           initial_pair)
-            if not isinstance(start, NoStart):
+            if not isinstance(start, str):
                 say(f"focal length {K[0, 0]:.1f} px to start with: "
                     f"{_START_SOURCE.get(focal_start.source, focal_start.source)}, views "
                     f"{names[start[0].i]} and {names[start[0].j]}")
@@ -324,14 +316,12 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
             start = initial_pair(features, inside, K)
         else:
             start = (initial_pair(features, inside, K, calibrated=focal is None) if inside
-                     else NoStart(_no_pair_left(s)))
+                     else _no_pair_left(s))
         timings["initialisation"] += time.perf_counter() - t0
-        if isinstance(start, NoStart):
+        if isinstance(start, str):
             if not models:
-                why = f"{start.why}; {_input_hint(focal is None)}" if inside else start.why
-                counts = {} if start.focal_scale is None else {"focal_scale": start.focal_scale}
-                raise ReconstructionError("no_initial_pair", why, verified_pairs=len(pairs),
-                                          **counts)
+                why = f"{start}; {_input_hint(focal is None)}" if inside else start
+                raise ReconstructionError("no_initial_pair", why, verified_pairs=len(pairs))
             break
         model, left_out = grow_model(features, pairs, K, s, remaining.copy(), start,
                                      more_pairs if not models else None, say, timings, names,

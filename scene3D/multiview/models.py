@@ -8,7 +8,6 @@ its initial pair) and scale (that pair's baseline). Poses are world-to-camera,
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -125,11 +124,10 @@ class SfMSettings:
         Strecha scenes' models stay within 0.5 %; a calibration 3 % off is measured
         at least 2.3 % off, and models more than 2 degrees off at least 2.8 %.
     max_focal_refits : int
-        When the largest model refutes the calibration's focal length, or most candidate
-        pairs to start from do (a calibration 15 % or more off), the views are
+        When the largest model refutes the calibration's focal length, the views are
         reconstructed again with the focal length they call for, at most this many
-        times in all (:attr:`MultiViewReconstruction.focal_refits`); 0: never (the model
-        then fails its check, or the run stops at the start).
+        times (:attr:`MultiViewReconstruction.focal_refits`); 0: never (the model then
+        fails its check).
     min_focal_test_views : int
         Models of fewer views are held to the two-view check's limits instead
         (``TwoViewSettings.max_focal_mismatch``, 15 %): three views of a short stretch
@@ -176,22 +174,6 @@ def refutes_calibration(focal_scale: float, sigma_log: float, views: int,
     return (log_scale > s.max_focal_mismatch
             and log_scale > s.focal_mismatch_sigmas * float(np.hypot(sigma_log,
                                                                      FOCAL_SPREAD_LOG)))
-
-
-class NoStart(NamedTuple):
-    """Why no model can start (:func:`scene3D.multiview.mapper.initial_pair`).
-
-    Attributes
-    ----------
-    why : str
-        The reason, one sentence.
-    focal_scale : float or None
-        When most candidate pairs refute the calibration: the median focal length they
-        call for, as a multiple of ``K``'s.
-    """
-
-    why: str
-    focal_scale: float | None = None
 
 
 @dataclass(frozen=True)
@@ -428,7 +410,7 @@ class MultiViewReconstruction:
         ``FocalEstimate.source`` of the largest model.
     focal_refits : tuple[float, ...]
         With a calibration file: the factors by which its focal length was changed, in
-        turn, because the largest model's views or most candidate start pairs refuted it
+        turn, because the largest model's views refuted it
         (``SfMSettings.max_focal_refits``); ``K`` carries their product. Empty when the
         calibration held.
     prior_description : str

@@ -134,18 +134,6 @@ def _check_distinct_names(images: Sequence[ImageSource], names: Sequence[str]) -
                              "file name; rename one or pass distinct `names`")
 
 
-def _no_model_after_refits(first: ReconstructionError, last: ReconstructionError,
-                           tried: Sequence[float]) -> ReconstructionError:
-    """The first pass's error, with what the passes under the focal lengths the views
-    called for (``tried``, each a factor on the one before) ended with."""
-    if not tried:
-        return first
-    return ReconstructionError(
-        first.reason, f"{first.message} (reconstructed with {float(np.prod(tried)):.3f} times "
-        f"its focal length, which they called for, the views gave no model either: "
-        f"{last.message})", **first.counts)
-
-
 def reconstruct_views(
     images: Sequence[ImageSource],
     K: ArrayLike | None,
@@ -332,39 +320,25 @@ def reconstruct_views(
             timings[stage] = timings.get(stage, 0.0) + seconds
         return models, reasons, len(matched), len(verified)
 
+    models, reasons, num_matched, num_verified = reconstruct_with(K_work)
+    refits: list[float] = []
     # With a calibration file: views that refute its focal length are reconstructed
     # again with the one they call for (castle-P19 under a calibration 8 % off: cameras
-    # 4.7 degrees off, and 0.26 with the focal length its views called for), and so are
-    # views whose candidate start pairs refute it (a calibration 15 % or more off, under
-    # which no model starts). A pass that finds no model keeps the last one (which fails
-    # its check); with none, the first pass's error is raised.
-    models = None
-    tried: list[float] = []  # the factors from the calibration's K to K_try
-    refits: list[float] = []  # those from the calibration's K to K_work, the models' K
-    K_try, first_error = K_work, None
-    while True:
+    # 4.7 degrees off, and 0.26 with the focal length its views called for).
+    # A pass that finds no model keeps the last one, which fails its check.
+    while (focal is None and models[0].check.focal_mismatch
+           and len(refits) < s.max_focal_refits):
+        scale = models[0].check.focal_scale
+        K_refit = K_work @ np.diag([scale, scale, 1.0])
+        say(f"the views fit a focal length {scale:.3f} times the one used: reconstructing "
+            "them with it")
         try:
-            attempt = reconstruct_with(K_try)
+            models, reasons, num_matched, num_verified = reconstruct_with(K_refit)
         except ReconstructionError as exc:
-            if models is not None:
-                say(f"no model with it either ({exc})")
-                break
-            first_error = first_error or exc
-            scale = exc.counts.get("focal_scale")  # the start pairs refuted K_try
-            if focal is not None or scale is None or len(tried) >= s.max_focal_refits:
-                raise _no_model_after_refits(first_error, exc, tried) from None
-            who = "the candidate start pairs"
-        else:
-            models, reasons, num_matched, num_verified = attempt
-            K_work, refits = K_try, list(tried)
-            if not (focal is None and models[0].check.focal_mismatch
-                    and len(tried) < s.max_focal_refits):
-                break
-            scale, who = models[0].check.focal_scale, "the views"
-        tried.append(float(scale))
-        say(f"{who} fit a focal length {scale:.3f} times the one used: reconstructing the "
-            "views with it")
-        K_try = K_try @ np.diag([scale, scale, 1.0])
+            say(f"no model with it either ({exc})")
+            break
+        refits.append(scale)
+        K_work = K_refit
     timings["total"] = sum(timings.values())
     if focal is not None:
         K_work = models[0].K if models[0].K is not None else K_work
