@@ -129,8 +129,10 @@ class TwoViewSettings:
         0.6 deg away) and 0.17-0.24 on four of castle-P19's six poses more than 2 deg
         off at 768 px, whose flow poses lie 0.3-1.2 deg from the truth
         (docs/benchmarks.md). Half the limit: a pose nearer the flow's
-        than that is near enough for the purpose, whatever the flow prefers. 0 to 1
-        (1: not checked, which saves the flow's 0.05 s a pair).
+        than that is near enough for the purpose, whatever the flow prefers. Whatever
+        the gain, a flow's pose more than twice ``uncertainty_limit_deg`` away is a
+        doubt too (right poses: at most 2.1 deg). 0 to 1 (1: not checked, which saves
+        the flow's 0.05 s a pair).
     bundle_adjust : bool
         Finish with a two-view bundle adjustment of pose and points
         (:func:`scene3D.bundle_two_view.bundle_adjust_two_view`) with the same Cauchy

@@ -233,17 +233,25 @@ def flow_warning(R: FloatArray, t: FloatArray, flow: FlowCheck | None,
     ``flow`` is :func:`scene3D.flow_check.check_pose_against_flow`'s verdict (None: too
     little texture to judge); the pose is doubted when the flow's own pose explains more
     than ``s.max_flow_gain`` of the flow more and lies at least half
-    ``s.uncertainty_limit_deg`` away: a pose nearer the flow's than that is near enough
-    for the purpose, whatever the flow prefers.
+    ``s.uncertainty_limit_deg`` away (a pose nearer the flow's than that is near enough
+    for the purpose, whatever the flow prefers), or, whatever the gain, when the flow's
+    pose lies more than twice ``s.uncertainty_limit_deg`` away: refined from this pose,
+    the flow left its basin (right poses of the three Strecha scenes: at most 2.1 deg;
+    castle-P19 pairs whose second photo shows a strip of the first's scene, 7-11 deg off
+    and trusted, 7-11 deg with gains of 0.03-0.08: docs/benchmarks.md).
     """
-    if flow is None or flow.gain <= s.max_flow_gain:
+    if flow is None or s.max_flow_gain >= 1.0:
         return None
     apart = pose_angle_deg(flow.R, flow.t, R, t)
-    if apart < s.uncertainty_limit_deg / 2:
+    shares = (f"it puts {flow.flow_share:.0%} of the flow of {flow.points} textured pixels "
+              f"within {FLOW_BAND_PX:g} px of its epipolar lines, this pose {flow.share:.0%}")
+    if apart > 2 * s.uncertainty_limit_deg:
+        return (f"the pose refined on the dense optical flow between the images lies "
+                f"{_deg(apart)} deg from this one ({shares}; sparse matches on repeated "
+                "texture, such as rows of identical windows, can agree on a wrong pose)")
+    if flow.gain <= s.max_flow_gain or apart < s.uncertainty_limit_deg / 2:
         return None
     return (f"the dense optical flow between the images fits a pose {_deg(apart)} deg away "
-            f"better: it puts {flow.flow_share:.0%} of the flow of {flow.points} textured "
-            f"pixels within {FLOW_BAND_PX:g} px of its epipolar lines, this pose "
-            f"{flow.share:.0%} (sparse matches on repeated texture, such as rows of "
+            f"better: {shares} (sparse matches on repeated texture, such as rows of "
             "identical windows, can agree on a wrong pose)")
 
