@@ -242,19 +242,24 @@ def evaluate_against(cameras: list[StrechaCamera], names: list[str], model: SfMM
     }
 
 
+#: What to ask when the views refute the calibration's focal length.
+_CALIBRATION_QUESTION = ("is the calibration for this camera, lens and zoom, with the lens's "
+                         "distortion?")
+
+
 def _failure_message(recon: MultiViewReconstruction, names: list[str]) -> str:
     """Why a reconstruction failed its consistency check, in one line."""
-    bad = [f"{names[v]}" for model in recon.models for v in model.check.suspect_views]
-    focal = [model.check for model in recon.models if model.check.focal_mismatch]
+    bad = [names[v] for model in recon.models for v in model.check.suspect_views]
     why = [f"the poses of {', '.join(bad)} contradict their pair geometry"] if bad else []
-    tried = recon.focal_refit_scale
-    why += [f"the views fit a focal length {c.focal_scale * tried:.3f} times the "
-            f"calibration's (+-{c.focal_scale * tried * c.focal_scale_sigma_log:.2g})"
-            + (f", still after {len(recon.focal_refits)} reconstruction"
-               f"{'s' * (len(recon.focal_refits) > 1)} with the focal length they "
-               "called for" if recon.focal_refits else "")
-            + ": is the calibration for this camera, lens and zoom, with the lens's "
-            "distortion?" for c in focal[:1]]
+    refuting = [model.check for model in recon.models if model.check.focal_mismatch]
+    if refuting:
+        check, refits = refuting[0], len(recon.focal_refits)
+        scale = check.focal_scale * recon.focal_refit_scale  # over the calibration's
+        after = (f", still after {refits} reconstruction{'s' * (refits > 1)} with the focal "
+                 "length they called for" if refits else "")
+        why.append(f"the views fit a focal length {scale:.3f} times the calibration's "
+                   f"(+-{scale * check.focal_scale_sigma_log:.2g}){after}: "
+                   f"{_CALIBRATION_QUESTION}")
     return (f"the reconstruction failed its consistency check: {'; '.join(why)} "
             "(see reconstruction.json; the files are written for inspection only)")
 
@@ -267,8 +272,7 @@ def _refit_warnings(recon: MultiViewReconstruction) -> list[str]:
              if len(recon.focal_refits) > 1 else "")
     return [f"the views refuted the calibration's focal length: they were reconstructed "
             f"with the one they called for, {recon.focal_refit_scale:.3f} times it"
-            f"{steps}, K in reconstruction.json; is the calibration for this camera, lens "
-            "and zoom, with the lens's distortion?"]
+            f"{steps}, K in reconstruction.json; {_CALIBRATION_QUESTION}"]
 
 
 def check_summary(model: SfMModel, names: list[str]) -> dict:

@@ -226,6 +226,11 @@ def check_focal_length(R: FloatArray, t: FloatArray, p1: FloatArray, p2: FloatAr
     return focal
 
 
+#: Why the flow may doubt a pose that every sparse check passed.
+_REPEATED_TEXTURE = ("sparse matches on repeated texture, such as rows of identical windows, "
+                     "can agree on a wrong pose")
+
+
 def flow_warning(R: FloatArray, t: FloatArray, flow: FlowCheck | None,
                  s: TwoViewSettings) -> str | None:
     """Why the dense optical flow doubts the pose ``R, t``, or None.
@@ -237,8 +242,9 @@ def flow_warning(R: FloatArray, t: FloatArray, flow: FlowCheck | None,
     for the purpose, whatever the flow prefers), or, whatever the gain, when the flow's
     pose lies more than twice ``s.uncertainty_limit_deg`` away: refined from this pose,
     the flow left its basin (right poses of the three Strecha scenes: at most 2.1 deg;
-    castle-P19 pairs whose second photo shows a strip of the first's scene, 7-11 deg off
-    and trusted, 7-11 deg with gains of 0.03-0.08: docs/benchmarks.md).
+    castle-P19 pairs whose second photo shows a strip of the first's scene, trusted 8 and
+    11 deg off, their flow poses 7 and 11 deg away with gains of 0.03 and 0.08:
+    docs/benchmarks.md).
     """
     if flow is None or s.max_flow_gain >= 1.0:
         return None
@@ -247,11 +253,9 @@ def flow_warning(R: FloatArray, t: FloatArray, flow: FlowCheck | None,
               f"within {FLOW_BAND_PX:g} px of its epipolar lines, this pose {flow.share:.0%}")
     if apart > 2 * s.uncertainty_limit_deg:
         return (f"the pose refined on the dense optical flow between the images lies "
-                f"{_deg(apart)} deg from this one ({shares}; sparse matches on repeated "
-                "texture, such as rows of identical windows, can agree on a wrong pose)")
+                f"{_deg(apart)} deg from this one ({shares}; {_REPEATED_TEXTURE})")
     if flow.gain <= s.max_flow_gain or apart < s.uncertainty_limit_deg / 2:
         return None
     return (f"the dense optical flow between the images fits a pose {_deg(apart)} deg away "
-            f"better: {shares} (sparse matches on repeated texture, such as rows of "
-            "identical windows, can agree on a wrong pose)")
+            f"better: {shares} ({_REPEATED_TEXTURE})")
 
