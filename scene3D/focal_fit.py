@@ -16,7 +16,6 @@ deviation and the pose's covariance
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -24,16 +23,12 @@ from numpy.typing import ArrayLike
 
 from .geometry import FloatArray, skew, to_homogeneous
 from .refinement import (
-    _damped_steps,
     _fundamental_derivatives,
-    _levenberg_marquardt,
-    _robust_cost,
-    _robust_covariance,
+    _refine_pose_and_one,
     _sampson,
     _sampson_jacobian,
-    _update_pose,
+    sampson_residuals,
 )
-from .uncertainty import tangent_basis
 
 #: How each check scales the two focal lengths: ``log s1 = w1 x``, ``log s2 = w2 x`` for
 #: the fitted unknown ``x``. A common factor; image 2's against image 1's, half each way
@@ -98,6 +93,17 @@ class FocalFit(NamedTuple):
     t: FloatArray
     weights: tuple[float, float] = COMMON
 
+    @property
+    def parameter(self) -> float:
+        """The fitted unknown, to start a refit from (``scale``)."""
+        return self.scale
+
+    def residuals(self, K: ArrayLike, pts1: ArrayLike, pts2: ArrayLike) -> FloatArray:
+        """Signed Sampson distances ``(N,)`` in pixels of the correspondences ``pts1, pts2``
+        ``(N, 2)`` to the fitted pose and focal lengths (:meth:`fundamental`)."""
+        return sampson_residuals(self.fundamental(K), np.asarray(pts1, dtype=np.float64),
+                                 np.asarray(pts2, dtype=np.float64))
+
     def fundamental(self, K: ArrayLike) -> FloatArray:
         """``(3, 3)`` the fundamental matrix of the fitted pose and focal lengths, for
         the calibration ``K`` the fit started from."""
@@ -117,36 +123,20 @@ def _fit_focal(R: ArrayLike, t: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: 
     h2 = to_homogeneous(np.asarray(pts2, dtype=np.float64))
     K_inv = np.linalg.inv(np.asarray(K, dtype=np.float64))
 
-    def evaluate(R_: FloatArray, t_: FloatArray, x: float) -> tuple[tuple, float]:
-        if not abs(x) <= MAX_LOG_SCALE:
-            return (R_, t_, x, None, None), np.inf  # a step Levenberg-Marquardt rejects
+    def residuals(R_: FloatArray, t_: FloatArray, x: float) -> tuple[FloatArray, FloatArray]:
         F_ = _scaled_fundamental(R_, t_, x, weights, K_inv)
-        r_ = _sampson(F_, h1, h2)
-        return (R_, t_, x, F_, r_), _robust_cost(r_, loss, scale_px)
+        return _sampson(F_, h1, h2), F_
 
-    def jacobian(state: tuple) -> tuple[FloatArray, FloatArray]:
-        R_, t_, x, F_, _ = state
-        basis = tangent_basis(t_)
+    def jacobian(R_: FloatArray, t_: FloatArray, x: float, basis: FloatArray,
+                 F_: FloatArray) -> FloatArray:
         dF = _focal_fundamental_derivatives(R_, t_, x, weights, basis, K_inv)
-        return _sampson_jacobian(F_, dF, h1, h2), basis
+        return _sampson_jacobian(F_, dF, h1, h2)
 
-    def linearize(state: tuple) -> Callable[[float], tuple]:
-        R_, t_, x, _, r_ = state
-        J, basis = jacobian(state)
-        step = _damped_steps(J, r_, loss, scale_px)
-
-        def try_step(damping: float) -> tuple[tuple, float]:
-            dx = step(damping)
-            return evaluate(*_update_pose(R_, t_, dx[:5], basis), x + dx[5])
-        return try_step
-
-    state, cost = evaluate(R, t, float(np.log(initial_scale)))
-    state = _levenberg_marquardt(state, cost, linearize, max_iterations, 1e-10)
-    x, r = state[2], state[4]
     # The same first-order covariance as the pose's (refinement.relative_pose_covariance).
-    variance = _robust_covariance(jacobian(state)[0], r, loss, scale_px)[5, 5]
-    sigma_log = float(np.sqrt(variance)) if 0 < variance < np.inf else np.inf
-    return FocalFit(float(np.exp(x)), sigma_log, state[0], state[1], weights)
+    R, t, x, sigma_log = _refine_pose_and_one(R, t, float(np.log(initial_scale)), residuals,
+                                              jacobian, MAX_LOG_SCALE, loss, scale_px,
+                                              max_iterations)
+    return FocalFit(float(np.exp(x)), sigma_log, R, t, weights)
 
 
 def fit_focal_scale(

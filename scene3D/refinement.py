@@ -209,6 +209,50 @@ def _levenberg_marquardt(
     return state
 
 
+def _refine_pose_and_one(
+    R: FloatArray, t: FloatArray, x0: float,
+    residuals: Callable[[FloatArray, FloatArray, float], tuple[FloatArray, object]],
+    jacobian: Callable[[FloatArray, FloatArray, float, FloatArray, object], FloatArray],
+    max_abs: float, loss: str, scale_px: float, max_iterations: int,
+) -> tuple[FloatArray, FloatArray, float, float]:
+    """The robust refinement of a pose ``R, t`` (``|t| = 1``) and one more unknown ``x``
+    from ``x0``: the focal checks' factor, the distortion check's coefficient.
+
+    ``residuals(R, t, x) -> (r, cache)`` gives the signed distances ``(N,)`` in pixels
+    and whatever ``jacobian(R, t, x, basis, cache) -> J`` ``(N, 6)`` reuses (columns: the
+    pose step of :func:`_update_pose` in the tangent ``basis`` of ``t``, then ``x``).
+    Levenberg-Marquardt does not step beyond ``|x| <= max_abs``. Returns the refined
+    ``R, t, x`` and the first-order standard deviation of ``x`` (the sandwich of
+    :func:`_robust_covariance`; inf when the matches do not determine it).
+    """
+    def evaluate(R_: FloatArray, t_: FloatArray, x: float) -> tuple[tuple, float]:
+        if not abs(x) <= max_abs:
+            return (R_, t_, x, None, None), np.inf  # a step Levenberg-Marquardt rejects
+        r_, cache = residuals(R_, t_, x)
+        return (R_, t_, x, r_, cache), _robust_cost(r_, loss, scale_px)
+
+    def full_jacobian(state: tuple) -> tuple[FloatArray, FloatArray]:
+        R_, t_, x, _, cache = state
+        basis = tangent_basis(t_)
+        return jacobian(R_, t_, x, basis, cache), basis
+
+    def linearize(state: tuple) -> Callable[[float], tuple]:
+        R_, t_, x, r_, _ = state
+        J, basis = full_jacobian(state)
+        step = _damped_steps(J, r_, loss, scale_px)
+
+        def try_step(damping: float) -> tuple[tuple, float]:
+            dx = step(damping)
+            return evaluate(*_update_pose(R_, t_, dx[:5], basis), x + dx[5])
+        return try_step
+
+    state, cost = evaluate(R, t, float(x0))
+    state = _levenberg_marquardt(state, cost, linearize, max_iterations, 1e-10)
+    variance = _robust_covariance(full_jacobian(state)[0], state[3], loss, scale_px)[5, 5]
+    sigma = float(np.sqrt(variance)) if 0 < variance < np.inf else np.inf
+    return state[0], state[1], state[2], sigma
+
+
 def refine_relative_pose(
     R: ArrayLike,
     t: ArrayLike,

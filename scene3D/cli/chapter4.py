@@ -223,6 +223,8 @@ def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path],
         "pose_covariance_basis": result.pose_uncertainty.basis,
         "noise_sigma_px": result.noise_sigma_px, "noise_cut_share": result.noise_cut_share,
         "behind_share": result.behind_share, "flow_gain": result.flow_gain,
+        "distortion_k": result.distortion_k,
+        "distortion_pose_shift_deg": result.distortion_pose_shift_deg,
         "trusted": result.trusted, "warnings": list(result.warnings),
         "timings_s": timings,
     }

@@ -203,7 +203,8 @@ def _unanswered_row(name: str, width: int) -> dict:
             "rotation_deg": np.inf, "translation_deg": np.inf, "inliers": 0, "points": 0,
             "rotation_sigma_deg": np.nan, "translation_sigma_deg": np.nan,
             "rotation_chi2": np.nan, "translation_chi2": np.nan,
-            "focal_scale": np.nan, "behind_share": np.nan, "flagged": True, "note": ""}
+            "focal_scale": np.nan, "behind_share": np.nan, "distortion_shift_deg": np.nan,
+            "flagged": True, "note": ""}
 
 
 def _evaluate_pair(name: str, view_a: _View, view_b: _View,
@@ -235,6 +236,7 @@ def _evaluate_pair(name: str, view_a: _View, view_b: _View,
                    rotation_chi2=rotation_chi2, translation_chi2=translation_chi2,
                    inliers=result.num_inliers, points=len(result.points3d),
                    focal_scale=result.focal_scale, behind_share=result.behind_share,
+                   distortion_shift_deg=result.distortion_pose_shift_deg,
                    flagged=not result.trusted,
                    note="; ".join(result.warnings))
         return row
@@ -284,6 +286,7 @@ def _evaluate_pair_no_calib(name: str, view_a: _View, view_b: _View,
         row.update(rotation_deg=err.rotation_deg, translation_deg=err.translation_deg,
                    inliers=result.num_inliers, points=len(result.points3d), focal_scale=scale,
                    behind_share=result.behind_share,
+                   distortion_shift_deg=result.distortion_pose_shift_deg,
                    flagged=not (result.trusted and calibration.focal_trusted),
                    focal_error=scale - 1.0,
                    calibration_source=calibration.source,

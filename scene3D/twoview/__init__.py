@@ -21,7 +21,10 @@ The pipeline (book chapter 4, done right):
    deviations beyond ``uncertainty_limit_deg``), or when something the covariance
    cannot see is at work: restarts that end at distinct optima, a focal length
    that does not fit the calibration (:func:`check_focal_length`), too few inliers
-   for the covariance to be estimated or for wrong matches not to agree by chance,
+   for the covariance to be estimated or for wrong matches not to agree by chance;
+   and, for a pose that passed all that, a lens distortion the calibration leaves out
+   (:func:`check_distortion`): the pose refined with one radial distortion lies more
+   than twice the limit away,
 7. with both images at hand, the dense optical flow between them
    (:func:`check_against_flow`): sparse matches on repeated texture can agree on a
    wrong pose that the flow does not follow.
@@ -39,11 +42,11 @@ from .core import (
     sample_colors,
 )
 from .results import TwoViewGeometry, TwoViewReconstruction, TwoViewSettings
-from .trust import check_focal_length, rival_chi2, trust_warnings
+from .trust import check_distortion, check_focal_length, rival_chi2, trust_warnings
 
 __all__ = [  # the plane checks lived here before scene3D.degeneracy
     "TwoViewGeometry", "TwoViewReconstruction", "TwoViewSettings", "check_against_flow",
-    "check_focal_length",
+    "check_distortion", "check_focal_length",
     "is_rotation_homography", "off_plane_evidence", "plane_poses", "reconstruct_from_matches",
     "reconstruct_two_view", "require_enough_matches", "rival_chi2", "sample_colors",
     "trust_warnings",

@@ -35,6 +35,7 @@ from ..geometry import (
     check_same_length,
     distinct_correspondences,
     median,
+    pose_angle_deg,
 )
 from ..pose import choose_pose
 from ..refinement import refine_relative_pose, relative_pose_covariance
@@ -53,7 +54,9 @@ from ..uncertainty import (
 )
 from .results import TwoViewGeometry, TwoViewReconstruction, TwoViewSettings
 from .trust import (
+    check_distortion,
     check_focal_length,
+    distortion_warning,
     flow_warning,
     principal_point_warning,
     rival_chi2,
@@ -333,6 +336,14 @@ def reconstruct_from_matches(
     # A K for larger photos or turned ones gave trusted poses 11-40 deg off.
     if (misplaced := principal_point_warning(K, p1, p2, image_size)) is not None:
         warnings.append(misplaced)
+    distortion = None
+    if not warnings:  # a doubt is already said; this one costs a refit
+        t_distortion = time.perf_counter()
+        distortion = check_distortion(R, t, p1, p2, inliers, K, check_px, loss_scale)
+        refine_s += time.perf_counter() - t_distortion
+        far, where = _farthest_pixel(K, image_size, np.vstack([p1, p2]))
+        if (doubt := distortion_warning(R, t, distortion, K, far, where, s, uncertainty)):
+            warnings.append(doubt)
     F = fundamental_from_essential(E, K)  # the epipolar geometry the final pose obeys
     return TwoViewGeometry(
         R=R, t=t, points3d=points, pts1=pts1_kept, pts2=pts2_kept, K=K, F=F, E=E,
@@ -349,7 +360,23 @@ def reconstruct_from_matches(
         translation_sigma_deg=uncertainty.translation_sigma_deg,
         noise_sigma_px=uncertainty.noise_sigma_px, noise_cut_share=cut.cut_share,
         behind_share=behind_share, depth_sigmas=point_sigmas,
+        distortion_k=np.nan if distortion is None else distortion.k,
+        distortion_pose_shift_deg=(np.nan if distortion is None else
+                                   pose_angle_deg(distortion.R, distortion.t, R, t)),
     )
+
+
+def _farthest_pixel(K: FloatArray, image_size: tuple[int, int] | None,
+                    points: FloatArray) -> tuple[FloatArray, str]:
+    """``(2,)`` the image corner farthest from ``K``'s principal point, or without the
+    ``image_size`` (width, height) the farthest of the matched ``points`` ``(N, 2)``, and
+    what it is, for a message."""
+    where = "the farthest match"
+    if image_size is not None:
+        w, h = image_size
+        points = np.array([[0.0, 0.0], [w - 1.0, 0.0], [0.0, h - 1.0], [w - 1.0, h - 1.0]])
+        where = "the image's corners"
+    return points[np.argmax(np.sum((points - K[:2, 2]) ** 2, axis=1))], where
 
 
 def check_against_flow(geometry: TwoViewGeometry, img1: np.ndarray, img2: np.ndarray,

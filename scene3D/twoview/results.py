@@ -55,7 +55,10 @@ class TwoViewSettings:
         (``rotation_sigma_deg``, ``translation_sigma_deg`` of the result) exceed
         ``uncertainty_limit_deg``. The default, 3 sigma within 2 deg, keeps the
         direction within 2 deg with at least 98.9 % probability. Both > 0; the limit
-        may be ``inf`` (no limit), the sigmas not.
+        may be ``inf`` (no limit), the sigmas not. Twice the limit is how far the pose
+        refined on the dense flow (``max_flow_gain``) or with a radial lens distortion
+        (:func:`scene3D.twoview.trust.distortion_warning`) may lie before the pose is
+        doubted.
     max_noise_cut_share : float
         The pose is untrusted when the inlier threshold cuts off more than this share
         of the matches that fit it (:func:`scene3D.uncertainty.truncated_noise`: the
@@ -309,6 +312,14 @@ class TwoViewGeometry:
         1-sigma depth of each point in camera 1, in units of the baseline, from the
         pose covariance and the keypoint noise (:func:`scene3D.uncertainty.depth_sigmas`);
         divide by ``points3d[:, 2]`` for a relative uncertainty.
+    distortion_k : float
+        The radial lens distortion the matches call for, as the coefficient of the
+        division model (:mod:`scene3D.distortion_fit`; 0: none, negative: barrel).
+        NaN when the check did not run: a pose already untrusted.
+    distortion_pose_shift_deg : float
+        How far the pose refined with that distortion lies from this one, in degrees
+        (:func:`scene3D.geometry.pose_angle_deg`;
+        :func:`scene3D.twoview.trust.distortion_warning`). NaN when not checked.
     """
 
     R: FloatArray
@@ -343,6 +354,8 @@ class TwoViewGeometry:
     behind_share: float = 0.0
     flow_gain: float = float("nan")
     depth_sigmas: FloatArray = field(default_factory=lambda: np.zeros(0))
+    distortion_k: float = float("nan")
+    distortion_pose_shift_deg: float = float("nan")
 
     @property
     def pose_uncertainty(self) -> PoseUncertainty:

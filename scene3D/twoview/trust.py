@@ -4,18 +4,22 @@ what the uncertainty cannot see (see :mod:`scene3D.twoview`)."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TypeVar
 
 import numpy as np
 
 from ..camera import principal_point_hint
+from ..distortion_fit import DistortionFit, fit_radial_distortion
 from ..essential_fit import EssentialFit
 from ..flow_check import FLOW_BAND_PX, FlowCheck
 from ..focal_fit import FocalFit, fit_focal_scale
 from ..geometry import FloatArray, pose_angle_deg
 from ..pose import nearest_decomposition
-from ..refinement import sampson_residuals
 from ..uncertainty import CHI2_99_POSE, PoseUncertainty, pose_difference_chi2
 from .results import TwoViewSettings
+
+#: The fits that :func:`_reselected_fit` repeats.
+FitT = TypeVar("FitT", FocalFit, DistortionFit)
 
 
 def _deg(angle: float) -> str:
@@ -215,15 +219,70 @@ def check_focal_length(R: FloatArray, t: FloatArray, p1: FloatArray, p2: FloatAr
     repeated (as :func:`scene3D.essential_fit.refine_essential` does for the pose), under
     a Cauchy loss of scale ``scale_px``.
     """
-    focal = fit(R, t, p1[inliers], p2[inliers], K, "cauchy", scale_px)
+    return _reselected_fit(fit, R, t, p1, p2, inliers, K, threshold_px, scale_px, rounds)
+
+
+def check_distortion(R: FloatArray, t: FloatArray, p1: FloatArray, p2: FloatArray,
+                     inliers: np.ndarray, K: FloatArray, threshold_px: float,
+                     scale_px: float, rounds: int = 3) -> DistortionFit:
+    """The radial lens distortion the matches call for, and the pose with it
+    (:func:`scene3D.distortion_fit.fit_radial_distortion`), the inliers re-selected
+    under it as :func:`check_focal_length` does."""
+    return _reselected_fit(fit_radial_distortion, R, t, p1, p2, inliers, K, threshold_px,
+                           scale_px, rounds)
+
+
+def _reselected_fit(fit: Callable[..., FitT], R: FloatArray, t: FloatArray, p1: FloatArray,
+                    p2: FloatArray, inliers: np.ndarray, K: FloatArray, threshold_px: float,
+                    scale_px: float, rounds: int) -> FitT:
+    """``fit`` (pose and one more unknown) on the inliers, re-selected among all matches
+    ``p1, p2`` within ``threshold_px`` of each fit and refitted, ``rounds`` times at most."""
+    result = fit(R, t, p1[inliers], p2[inliers], K, "cauchy", scale_px)
     for _ in range(rounds - 1):
-        new = np.abs(sampson_residuals(focal.fundamental(K), p1, p2)) <= threshold_px
+        new = np.abs(result.residuals(K, p1, p2)) <= threshold_px
         if new.sum() < 6 or np.array_equal(new, inliers):
             break
         inliers = new
-        focal = fit(focal.R, focal.t, p1[inliers], p2[inliers], K, "cauchy", scale_px,
-                    30, focal.scale)
-    return focal
+        result = fit(result.R, result.t, p1[inliers], p2[inliers], K, "cauchy", scale_px, 30,
+                     result.parameter)
+    return result
+
+
+#: A fitted distortion counts only beyond this many of its standard deviations.
+DISTORTION_SIGMAS = 3.0
+
+
+def distortion_warning(R: FloatArray, t: FloatArray, fit: DistortionFit, K: FloatArray,
+                       far_pixel: FloatArray, where: str, s: TwoViewSettings,
+                       uncertainty: PoseUncertainty | None = None) -> str | None:
+    """Why a lens distortion that the calibration ``K`` leaves out may have put the pose
+    ``R, t`` off, or None.
+
+    ``fit`` is the pose refined with one radial distortion (:func:`check_distortion`).
+    The pose is doubted when the matches call for a distortion (more than
+    :data:`DISTORTION_SIGMAS` standard deviations from none) and the pose with it lies
+    more than twice ``s.uncertainty_limit_deg`` away: which of the two is right, the
+    matches cannot say, and they lie further apart than the purpose allows. Trusted
+    right poses of the three Strecha scenes (gaps 1-5, 768 and 1536 px) move at most
+    3.9 deg, most under 2; with the matches of a corner or a subset, up to 15. Of
+    the poses more than 5 deg off that photos through a lens of ``k1`` -0.2 to +0.05
+    left trusted by every other check, 7 of 12 move 4.9-8.4 deg and are flagged, the
+    others stay within 3.3 deg of their wrong pose (docs/benchmarks.md).
+    ``far_pixel`` ``(2,)`` is where the distortion's shift is quoted, as ``where`` (the
+    image corner farthest from the principal point: "the image's corners"); the pose's
+    ``uncertainty``, when given, is quoted too.
+    """
+    apart = pose_angle_deg(fit.R, fit.t, R, t)
+    if apart <= 2 * s.uncertainty_limit_deg or not abs(fit.k) > DISTORTION_SIGMAS * fit.sigma:
+        return None
+    kind = "barrel" if fit.k < 0 else "pincushion"
+    beyond = ("" if uncertainty is None else ", beyond its " + sigmas_text(
+        uncertainty.rotation_sigma_deg, uncertainty.translation_sigma_deg))
+    return (f"the matches fit a pose {_deg(apart)} deg from this one with a {kind} lens "
+            f"distortion that moves {where} by {fit.shift_px(K, far_pixel):.0f} px "
+            f"and that the calibration leaves out: the pose may be off by degrees{beyond}. "
+            "Is the calibration for this camera and lens, with its distortion (calibrate.py "
+            "fits it), and are the photos as the camera took them?")
 
 
 #: Why the flow may doubt a pose that every sparse check passed.
