@@ -72,8 +72,8 @@ def _undistorted(h: FloatArray, K: FloatArray, k: float) -> _Undistorted:
     return _Undistorted(u, du, g, -rho2 * g**2)
 
 
-def _observed_sampson(F: FloatArray, p1: _Undistorted, p2: _Undistorted,
-                      ) -> tuple[FloatArray, tuple]:
+def _observed_sampson(F: FloatArray, p1: _Undistorted,
+                      p2: _Undistorted) -> tuple[FloatArray, tuple]:
     """Sampson distances ``(N,)`` of undistorted correspondences to ``x2^T F x1 = 0``,
     in the pixels of the photos as given, and the terms their derivatives reuse.
 

@@ -282,7 +282,8 @@ def distortion_warning(R: FloatArray, t: FloatArray, fit: DistortionFit, K: Floa
             f"distortion that moves {where} by {fit.shift_px(K, far_pixel):.0f} px "
             f"and that the calibration leaves out: the pose may be off by degrees{beyond}. "
             "Is the calibration for this camera and lens, with its distortion (calibrate.py "
-            "fits it), and are the photos as the camera took them?")
+            "fits it), and are the photos as the camera took them? (Wrong matches that "
+            "agree, on repeated texture, can do the same.)")
 
 
 #: Why the flow may doubt a pose that every sparse check passed.
