@@ -6,10 +6,10 @@ leaves out: does it flag the wrong poses, and only those?
 
 Both photos of every pair (i, i + gap) are warped as a lens with radial distortion ``k1``
 would have taken them (``r_d = r_u (1 + k1 r_u^2)`` in normalised coordinates about the
-Strecha principal point; ``k1 = 0``: the photos as they are), and reconstructed with
-the true, distortion-free ``K`` as ``chapter4.py`` does
-(``scene3D.twoview.reconstruct_two_view`` with both images: every check, the flow's
-too). Printed per scene, size and ``k1``: the pairs answered; the right poses (within 1
+Strecha principal point; ``k1 = 0``: the photos as they are, decoded whole and then
+halved), and reconstructed with the true, distortion-free ``K`` by every check that
+``chapter4.py`` runs (``scene3D.twoview.reconstruct_two_view`` with both images, the
+flow's too). Printed per scene, size and ``k1``: the pairs answered; the right poses (within 1
 degree; the larger of the rotation and translation-direction errors) and those the
 distortion check flags; the largest pose shift among right poses it checked
 (``distortion_pose_shift_deg``: how far the pose refined with a radial distortion
