@@ -20,6 +20,7 @@ from scene3D.features import find_matches
 from scene3D.geometry import pose_angle_deg, project, rotation_about_axis, skew, to_homogeneous
 from scene3D.imageio import load_working_image
 from scene3D.refinement import _fundamental_derivatives, _update_pose, refine_relative_pose
+from scene3D.selfcalibration import self_calibrate_pair
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches, reconstruct_two_view
 from scene3D.twoview.trust import distortion_warning
 from scene3D.uncertainty import tangent_basis
@@ -166,3 +167,13 @@ def test_castle_pair_with_a_distortion_left_out_is_flagged(castle, k1):
         assert not result.trusted  # ... is no longer trusted, and the warning says why
         assert any("lens distortion" in w and "calibrate.py" in w for w in result.warnings)
         assert result.distortion_k < 0 and result.distortion_pose_shift_deg > 4.0
+
+
+def test_the_check_can_be_turned_off_and_self_calibration_does_not_run_it(camera, true_pose):
+    _, pts1, pts2 = correspondences(camera, *true_pose, n=300, noise_px=0.3, seed=3)
+    off = reconstruct_from_matches(pts1, pts2, camera, TwoViewSettings(check_distortion=False))
+    assert np.isnan(off.distortion_k) and np.isnan(off.distortion_pose_shift_deg)
+    calibration = self_calibrate_pair(pts1, pts2, camera, 0.2, "prior")
+    assert np.isnan(calibration.geometry.distortion_k)
+    with pytest.raises(ValueError, match="check_distortion"):
+        TwoViewSettings(check_distortion="yes")

@@ -227,7 +227,8 @@ def self_calibrate_pair(
     prior_source : str
         ``"exif"`` or ``"prior"``: names the result's ``source``.
     settings : TwoViewSettings, optional
-        The two-view pipeline's thresholds.
+        The two-view pipeline's thresholds (its ``check_distortion`` is not used: the
+        distortion check does not run here).
     search : SelfCalibrationSettings, optional
         The self-calibration's.
 
@@ -246,7 +247,9 @@ def self_calibrate_pair(
     """
     t0 = time.perf_counter()
     s = search or SelfCalibrationSettings()
-    tv = settings or TwoViewSettings()
+    # The distortion check is nearly blind under a fitted focal length, which soaks up
+    # most of a distortion, and would run in every round of the search (docs/trust.md).
+    tv = replace(settings or TwoViewSettings(), check_distortion=False)
     if prior_source not in ("exif", "prior"):
         raise ValueError(f"`prior_source` must be 'exif' or 'prior', got {prior_source!r}")
     require_real_number(prior_sigma_log, "prior_sigma_log", 0.0, 10.0)

@@ -337,7 +337,7 @@ def reconstruct_from_matches(
     if (misplaced := principal_point_warning(K, p1, p2, image_size)) is not None:
         warnings.append(misplaced)
     distortion = None
-    if not warnings:  # a doubt is already said; this one costs a refit
+    if not warnings and s.check_distortion:  # a doubt is already said; this costs a refit
         t_distortion = time.perf_counter()
         distortion = check_distortion(R, t, p1, p2, inliers, K, check_px, loss_scale)
         refine_s += time.perf_counter() - t_distortion

@@ -136,6 +136,14 @@ class TwoViewSettings:
         the gain, a flow's pose more than twice ``uncertainty_limit_deg`` away is a
         doubt too (right poses: at most 2.1 deg). 0 to 1 (1: not checked, which saves
         the flow's 0.05 s a pair).
+    check_distortion : bool
+        Refine a pose that passed every other check once more with one radial lens
+        distortion, and doubt it when that moves it more than twice
+        ``uncertainty_limit_deg`` (:func:`scene3D.twoview.trust.distortion_warning`): a
+        calibration that leaves out the lens's distortion gave trusted poses 5-10 deg
+        off. About 2 ms a pair. The self-calibration of photos without a calibration
+        file turns it off: its fitted focal length soaks up most of a distortion, which
+        leaves the check nearly blind there (docs/trust.md).
     bundle_adjust : bool
         Finish with a two-view bundle adjustment of pose and points
         (:func:`scene3D.bundle_two_view.bundle_adjust_two_view`) with the same Cauchy
@@ -172,6 +180,7 @@ class TwoViewSettings:
     max_focal_mismatch: float = 0.15
     focal_mismatch_sigmas: float = 3.0
     max_flow_gain: float = 0.1
+    check_distortion: bool = True
     bundle_adjust: bool = False
 
     def __post_init__(self) -> None:
@@ -187,9 +196,10 @@ class TwoViewSettings:
             if not (is_whole_number(value) and value >= low):
                 raise ValueError(f"TwoViewSettings.{name} must be an integer >= {low}, "
                                  f"got {value!r}")
-        if not isinstance(self.bundle_adjust, (bool, np.bool_)):
-            raise ValueError(f"TwoViewSettings.bundle_adjust must be True or False, got "
-                             f"{self.bundle_adjust!r}")
+        for name in ("check_distortion", "bundle_adjust"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise ValueError(f"TwoViewSettings.{name} must be True or False, got "
+                                 f"{getattr(self, name)!r}")
 
 
 def _in_range(value: object, low: float, high: float, low_open: bool, inf_ok: bool) -> bool:
@@ -315,7 +325,8 @@ class TwoViewGeometry:
     distortion_k : float
         The radial lens distortion the matches call for, as the coefficient of the
         division model (:mod:`scene3D.distortion_fit`; 0: none, negative: barrel).
-        NaN when the check did not run: a pose already untrusted.
+        NaN when the check did not run: a pose already untrusted, or
+        ``check_distortion`` off (as in the self-calibration).
     distortion_pose_shift_deg : float
         How far the pose refined with that distortion lies from this one, in degrees
         (:func:`scene3D.geometry.pose_angle_deg`;
