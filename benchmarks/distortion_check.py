@@ -34,24 +34,11 @@ from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import image_features, match_features
 from scene3D.imageio import load_working_image
+from scene3D.synthetic import lens_photo
 from scene3D.twoview import reconstruct_two_view
 
-#: How the check's warning begins to name the cause (scene3D.twoview.trust.distortion_warning).
+#: Words of the check's warning that name its cause (scene3D.twoview.trust.distortion_warning).
 DISTORTION_WORDS = "lens distortion"
-
-
-def lens_photo(img: np.ndarray, K: np.ndarray, k1: float) -> np.ndarray:
-    """The photo ``img`` (a pinhole camera ``K``) as a lens with radial distortion ``k1``
-    would have taken it."""
-    h, w = img.shape[:2]
-    xs, ys = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
-    xd, yd = (xs - K[0, 2]) / K[0, 0], (ys - K[1, 2]) / K[1, 1]
-    xu, yu = xd.copy(), yd.copy()
-    for _ in range(20):  # the undistorted point that the lens takes to each pixel
-        r2 = xu**2 + yu**2
-        xu, yu = xd / (1 + k1 * r2), yd / (1 + k1 * r2)
-    return cv2.remap(img, (xu * K[0, 0] + K[0, 2]).astype(np.float32),
-                     (yu * K[1, 1] + K[1, 2]).astype(np.float32), cv2.INTER_LINEAR)
 
 
 def main(argv: list[str] | None = None) -> int:

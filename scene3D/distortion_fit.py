@@ -40,10 +40,8 @@ MAX_ABS_K = 1.0
 def undistort_division(pts: ArrayLike, K: ArrayLike, k: float) -> FloatArray:
     """Pixels ``(N, 2)`` as a pinhole camera ``K`` would have seen the pixels ``pts``
     ``(N, 2)`` of a lens with the division-model coefficient ``k`` (module docstring)."""
-    K = np.asarray(K, dtype=np.float64)
-    pts = np.asarray(pts, dtype=np.float64).reshape(-1, 2)
-    n = (pts - K[:2, 2]) / np.diag(K)[:2]
-    return K[:2, 2] + (n / (1.0 + k * np.sum(n**2, axis=1))[:, None]) * np.diag(K)[:2]
+    h = to_homogeneous(np.asarray(pts, dtype=np.float64).reshape(-1, 2))
+    return _undistorted(h, np.asarray(K, dtype=np.float64), k).u[:, :2]
 
 
 class _Undistorted(NamedTuple):

@@ -6,6 +6,7 @@
 - :func:`render_planes`: ray-cast textured rectangles (a room corner with a box)
   seen by a pinhole camera.
 - :func:`render_board`: a chessboard seen by a camera with lens distortion.
+- :func:`lens_photo`: a photo as a lens with radial distortion would have taken it.
 - :func:`orbit_scene` / :func:`orbit_poses`: a courtyard (tiled ground, walls, boxes)
   and any number of cameras circling it, for many-view tests and benchmarks.
 
@@ -325,3 +326,19 @@ def render_circles_board(
     margin = (a >= -2) & (a <= width + 1) & (b >= -2) & (b <= rows + 1) & front
     value = np.where((best <= radius) & front, 20.0, np.where(margin, 235.0, 120.0))
     return _grey_image(value, size, supersample)
+
+
+def lens_photo(img: np.ndarray, K: FloatArray, k1: float) -> np.ndarray:
+    """The photo ``img`` ``(H, W[, C])`` of a pinhole camera ``K`` ``(3, 3)`` as a lens with
+    radial distortion ``k1`` (``r_d = r_u (1 + k1 r_u^2)`` in normalised coordinates
+    about the principal point) would have taken it: the distortion the two-view
+    distortion check looks for (:mod:`scene3D.distortion_fit`)."""
+    h, w = img.shape[:2]
+    xs, ys = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+    xd, yd = (xs - K[0, 2]) / K[0, 0], (ys - K[1, 2]) / K[1, 1]
+    xu, yu = xd.copy(), yd.copy()
+    for _ in range(20):  # the undistorted point that the lens takes to each pixel
+        r2 = xu**2 + yu**2
+        xu, yu = xd / (1 + k1 * r2), yd / (1 + k1 * r2)
+    return cv2.remap(img, (xu * K[0, 0] + K[0, 2]).astype(np.float32),
+                     (yu * K[1, 1] + K[1, 2]).astype(np.float32), cv2.INTER_LINEAR)

@@ -21,6 +21,7 @@ from scene3D.geometry import pose_angle_deg, project, rotation_about_axis, skew,
 from scene3D.imageio import load_working_image
 from scene3D.refinement import _fundamental_derivatives, _update_pose, refine_relative_pose
 from scene3D.selfcalibration import self_calibrate_pair
+from scene3D.synthetic import lens_photo
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches, reconstruct_two_view
 from scene3D.twoview.trust import distortion_warning
 from scene3D.uncertainty import tangent_basis
@@ -131,19 +132,6 @@ def test_distortion_warning_needs_a_determined_distortion_that_moves_the_pose(
         assert "barrel" in warning and "calibrate.py" in warning and f"{apart:.1f} deg" in warning
 
 
-def _lens(img, K, k1):
-    """The photo a lens with radial distortion ``k1`` (r_d = r_u (1 + k1 r_u^2)) would take."""
-    h, w = img.shape[:2]
-    xs, ys = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
-    xd, yd = (xs - K[0, 2]) / K[0, 0], (ys - K[1, 2]) / K[1, 1]
-    xu, yu = xd.copy(), yd.copy()
-    for _ in range(20):
-        r2 = xu**2 + yu**2
-        xu, yu = xd / (1 + k1 * r2), yd / (1 + k1 * r2)
-    return cv2.remap(img, (xu * K[0, 0] + K[0, 2]).astype(np.float32),
-                     (yu * K[1, 1] + K[1, 2]).astype(np.float32), cv2.INTER_LINEAR)
-
-
 @pytest.mark.parametrize("k1", [0.0, -0.1])
 def test_castle_pair_with_a_distortion_left_out_is_flagged(castle, k1):
     # castle-P19 0-1, both photos as a lens with k1 = -0.1 would take them, the true
@@ -152,7 +140,7 @@ def test_castle_pair_with_a_distortion_left_out_is_flagged(castle, k1):
             for i in (0, 1)]
     images = []
     for i, cam in enumerate(cams):
-        native = _lens(cv2.imread(str(castle / "images" / f"{i:04d}.jpg")), cam.K, k1)
+        native = lens_photo(cv2.imread(str(castle / "images" / f"{i:04d}.jpg")), cam.K, k1)
         img, _, levels = load_working_image(native, cam.K, cam.dist, 768)
         images.append(img)
     K = scale_intrinsics_halved(cams[0].K, levels)
