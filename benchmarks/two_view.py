@@ -60,6 +60,7 @@ from scene3D.evaluation import (
 )
 from scene3D.features import find_matches
 from scene3D.imageio import load_working_image
+from scene3D.memory import malloc_environment
 from scene3D.pose import choose_pose
 from scene3D.twoview import reconstruct_two_view
 from scene3D.uncertainty import pose_error_chi2
@@ -230,9 +231,10 @@ def process_times(folder: Path, runs: int = PROCESS_RUNS) -> dict[str, list[floa
 
     Both run as a user runs them: Python may cache bytecode (PYTHONDONTWRITEBYTECODE is
     removed from their environment) and one untimed warm-up run of each comes first.
-    ``"plain_tuned"`` is the plain script given the OpenBLAS setting that scene3D's
-    command-line tools make for themselves (OPENBLAS_THREAD_TIMEOUT=4), to show how much
-    of the difference that setting alone accounts for.
+    ``"plain_tuned"`` is the plain script given the OpenBLAS and malloc settings that
+    scene3D's command-line tools make for themselves (OPENBLAS_THREAD_TIMEOUT=4 and
+    :func:`scene3D.memory.malloc_environment`), to show how much of the difference those
+    settings alone account for.
     """
     img1, img2 = (folder / name for name in BOOK_PAIR)
     ours = [sys.executable, str(REPO / "chapter4.py"), str(img1), str(img2), "--calib",
@@ -240,7 +242,7 @@ def process_times(folder: Path, runs: int = PROCESS_RUNS) -> dict[str, list[floa
     plain = [sys.executable, str(REPO / "benchmarks" / "plain_opencv.py"), str(img1), str(img2),
              str(folder / "images" / "K.txt")]
     env = {k: v for k, v in _USER_ENV.items() if k != "PYTHONDONTWRITEBYTECODE"}
-    tuned = dict(env, OPENBLAS_THREAD_TIMEOUT="4")
+    tuned = dict(env, OPENBLAS_THREAD_TIMEOUT="4", **malloc_environment())
     times: dict[str, list[float]] = {"ours": [], "plain": [], "plain_tuned": []}
     with tempfile.TemporaryDirectory() as tmp:
         commands = (("plain", plain, env), ("ours", ours + ["--out", tmp], env),
@@ -393,7 +395,8 @@ def _print_process_ratio(fountain: Path | None) -> None:
           f"--no-plots {t['ours']:.2f} s, plain-OpenCV script {t['plain']:.2f} s, ratio "
           f"{t['ours'] / t['plain']:.2f}; fastest runs {fastest['ours']:.2f} s and "
           f"{fastest['plain']:.2f} s, ratio {fastest['ours'] / fastest['plain']:.2f} (against "
-          f"the plain script with OPENBLAS_THREAD_TIMEOUT=4 too: median {t['plain_tuned']:.2f} s, "
+          f"the plain script given the same OpenBLAS and malloc settings: median "
+          f"{t['plain_tuned']:.2f} s, "
           f"ratio {t['ours'] / t['plain_tuned']:.2f})")
 
 

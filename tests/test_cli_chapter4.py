@@ -18,6 +18,7 @@ from scene3D.datasets import read_strecha_camera, relative_pose
 from scene3D.evaluation import relative_pose_error
 from scene3D.export import read_ply
 from scene3D.geometry import angle_between_deg
+from scene3D.memory import KEPT_BYTES, MMAP_THRESHOLD_BYTES
 
 from .conftest import REPO
 
@@ -318,6 +319,36 @@ def test_startup_imports_nothing_heavy_before_the_cli_sets_up_blas():
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
                          text=True, check=True).stdout.split()
     assert out == ["[]", "10"]
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="glibc's malloc")
+def test_cli_keeps_freed_memory_for_reuse_unless_the_user_tuned_malloc():
+    """Importing the CLI package lets malloc reuse a freed 24 MB block (SIFT's largest
+    level at 1536 px is 25 MB): allocated again, it faults in no fresh pages, where
+    glibc's defaults map it afresh; the processes it starts get the same settings. A malloc
+    setting of the user's is kept."""
+    code = ("import os, resource, sys, scene3D.cli\n"
+            "def faults(): return resource.getrusage(resource.RUSAGE_SELF).ru_minflt\n"
+            "for _ in range(3):\n"
+            "    before = faults(); block = bytearray(24 << 20); del block\n"
+            "    print(faults() - before)\n"
+            "if sys.argv[1:]: scene3D.cli.main([*sys.argv[1:], '--help'])\n"
+            "print(os.environ.get('MALLOC_MMAP_THRESHOLD_'), "
+            "os.environ.get('MALLOC_TRIM_THRESHOLD_'))\n")
+    env = {k: v for k, v in os.environ.items()
+           if not k.startswith("MALLOC_") and k != "GLIBC_TUNABLES"}
+
+    def run_code(*command: str, **extra_env: str) -> list[str]:
+        return subprocess.run([sys.executable, "-c", code, *command], env={**env, **extra_env},
+                              capture_output=True, text=True, check=True).stdout.split()
+
+    first, *again, mapped, kept = run_code()
+    assert int(first) > 5000 and max(map(int, again)) < 100  # 6144 pages of 4 KiB, then reused
+    assert (int(mapped), int(kept)) == (MMAP_THRESHOLD_BYTES, KEPT_BYTES)
+    out = run_code("reconstruct-views", MALLOC_MMAP_THRESHOLD_="131072")  # faults, help, env
+    faults, (mapped, kept) = out[:3], out[-2:]
+    assert min(map(int, faults)) > 5000  # mapped each time, as the user said
+    assert (mapped, kept) == ("131072", "None")
 
 
 def test_reconstruct_views_runs_blas_on_one_thread_unless_told():

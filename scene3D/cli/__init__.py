@@ -8,12 +8,16 @@ import sys
 from typing import NoReturn
 
 from .. import __version__
+from ..memory import keep_freed_memory
 
 # Before numpy loads: OpenBLAS's worker threads otherwise spin for about 0.1 s after
 # numpy starts (and after each BLAS call), taking one of the cores that OpenCV's
 # parallel decoding and SIFT need. With a short timeout they sleep at once; BLAS stays
 # multi-threaded. A value the user has set is kept.
 os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")
+
+# Before anything large is allocated (docs/cli.md, memory).
+keep_freed_memory()
 
 COMMANDS = {
     "reconstruct": "reconstruct a scene from two photos (chapter4.py)",

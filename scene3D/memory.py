@@ -1,0 +1,71 @@
+"""glibc malloc settings for processes that extract the features of image after image.
+
+By default glibc maps each block over 128 KiB afresh and unmaps it when it is freed,
+raising that threshold by itself only after a larger block is freed, and gives freed heap
+beyond 128 KiB back to the system (raised along, to at most 64 MiB). SIFT's scale space
+(at the book's 768 px, images of 6 MB upscaled to 1536 x 1024, float32, about 90 MB; at
+1536 px about 350 MB) is then mapped, touched page by page and given back at every
+image: 15 000 page faults per image at 768 px, and a warm call took 0.09 s where it takes
+0.07 with the memory kept. :func:`keep_freed_memory` keeps it; the command-line tools
+call it when they start (docs/cli.md, memory; measured in docs/benchmarks.md, freed
+memory kept for reuse). Linux (glibc) only; elsewhere it does nothing. Importing this
+module changes nothing.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Mapping
+
+#: Blocks up to this size come from the heap and are reused: glibc's own ceiling for the
+#: threshold it raises by itself (32 MiB on 64-bit systems, also the most ``mallopt``
+#: takes); SIFT's largest level at 1536 px is 25 MB.
+MMAP_THRESHOLD_BYTES = 32 << 20
+#: Freed heap kept before it goes back to the system: more than one image's scale space at
+#: 1536 px (about 350 MB), so that the next image reuses it; glibc by itself keeps at most
+#: 64 MiB, which in some runs left castle-P19's features at 1536 px as slow as glibc's
+#: defaults and made ``--dense`` at 1536 px slower. A process's peak memory grows by up
+#: to this much: by 20 % (30 MB) for ``chapter4.py`` on the book pair, 25 % with
+#: ``--dense --max-width 1536``, 12 % for a local Dask worker, a few per cent for
+#: ``reconstruct-views`` (docs/benchmarks.md, freed memory kept for reuse).
+KEPT_BYTES = 512 << 20
+#: glibc's ``mallopt`` parameters (malloc.h).
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+
+
+def malloc_environment() -> dict[str, str]:
+    """The environment variables that give a process started with them the settings of
+    :func:`keep_freed_memory` (glibc reads them at start), e.g. for ``dask worker``."""
+    return {"MALLOC_MMAP_THRESHOLD_": str(MMAP_THRESHOLD_BYTES),
+            "MALLOC_TRIM_THRESHOLD_": str(KEPT_BYTES)}
+
+
+def user_tuned_malloc(environ: Mapping[str, str]) -> bool:
+    """Whether ``environ`` holds a malloc setting: a ``MALLOC_..._`` variable, or
+    ``glibc.malloc`` in ``GLIBC_TUNABLES``."""
+    return (any(k.startswith("MALLOC_") and k.endswith("_") for k in environ)
+            or "glibc.malloc" in environ.get("GLIBC_TUNABLES", ""))
+
+
+def keep_freed_memory() -> bool:
+    """Let glibc's malloc reuse large freed blocks instead of returning them to the system.
+
+    Sets ``M_MMAP_THRESHOLD`` to :data:`MMAP_THRESHOLD_BYTES` and ``M_TRIM_THRESHOLD`` (the
+    freed heap kept) to :data:`KEPT_BYTES` in this process (``mallopt``), and the
+    variables of :func:`malloc_environment` in ``os.environ``, for the processes it starts
+    (a local Dask cluster's workers). Call it before large allocations. Only on Linux, and
+    only when the user has not tuned malloc (:func:`user_tuned_malloc`), whose settings
+    are kept. Returns whether it set them (False when called again).
+    """
+    if sys.platform != "linux" or user_tuned_malloc(os.environ):
+        return False
+    import ctypes
+
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):  # no C library symbols, or not glibc's malloc
+        return False
+    os.environ.update(malloc_environment())
+    return bool(mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES)
+                and mallopt(_M_TRIM_THRESHOLD, KEPT_BYTES))
