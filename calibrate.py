@@ -4,8 +4,8 @@
 Run ``python calibrate.py --help``. The work is done by ``scene3D.calibration``.
 """
 
-from scene3D.cli import exit_process
+from scene3D.cli import run_script
 from scene3D.cli.calibrate import main
 
 if __name__ == "__main__":
-    exit_process(main())
+    run_script(main)

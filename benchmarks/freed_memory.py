@@ -19,8 +19,10 @@ shared machine's load hits every variant alike:
 - ``scene3d reconstruct-views`` of each scene (1536 px, the Strecha calibration,
   ``--no-plots --no-report``), ``--views-runs`` times each: wall time, the features stage
   (``timings_s`` of reconstruction.json) and the peak memory of the largest process
-  (``ru_maxrss``; with ``--workers N``, on a local Dask cluster, a worker's); the
-  reconstructions are compared too (keeping memory changes no number);
+  (``ru_maxrss``; with ``--workers N``, on a local Dask cluster, a worker's, and the
+  workers of the two variants other than the command's run with Dask's own
+  ``MALLOC_TRIM_THRESHOLD_=65536``); the reconstructions are compared too (keeping
+  memory changes no number);
 - ``chapter4.py`` as users run it (figures and report, 768 px) and with ``--dense
   --max-width 1536``, ``--full-runs`` times each: wall time and peak memory.
 """

@@ -1,5 +1,5 @@
 """``python -m scene3D``: the same as the ``scene3d`` command."""
 
-from .cli import exit_process, main
+from .cli import main, run_script
 
-exit_process(main())
+run_script(main)

@@ -6,8 +6,9 @@ beyond 128 KiB back to the system (raised along, to at most 64 MiB). SIFT's scal
 (at the book's 768 px, images of 6 MB upscaled to 1536 x 1024, float32, about 90 MB; at
 1536 px about 350 MB) is then mapped, touched page by page and given back at every
 image: 15 000 page faults per image at 768 px, and a warm call took 0.09 s where it takes
-0.07 with the memory kept. :func:`keep_freed_memory` keeps it; the command-line tools
-call it when they start (docs/cli.md, memory; measured in docs/benchmarks.md, freed
+0.07 with the memory kept. :func:`keep_freed_memory` keeps it; the command-line scripts
+call it when they start, and a local Dask cluster they start gets it for its workers
+(:func:`worker_environment`; docs/cli.md, memory; measured in docs/benchmarks.md, freed
 memory kept for reuse). Linux (glibc) only; elsewhere it does nothing. Importing this
 module changes nothing.
 """
@@ -27,11 +28,17 @@ MMAP_THRESHOLD_BYTES = 32 << 20
 #: 64 MiB, which in some runs left castle-P19's features at 1536 px as slow as glibc's
 #: defaults and made ``--dense`` at 1536 px slower. A process's peak memory grows by up
 #: to this much: by 20 % (30 MB) for ``chapter4.py`` on the book pair, 25 % with
-#: ``--dense --max-width 1536``, 12 % for a local Dask worker, a few per cent for
-#: ``reconstruct-views`` (docs/benchmarks.md, freed memory kept for reuse).
+#: ``--dense --max-width 1536``, a few per cent for ``reconstruct-views``; with
+#: ``--workers 2`` 12 % a worker and 23-26 % for all the processes together
+#: (docs/benchmarks.md, freed memory kept for reuse).
 KEPT_BYTES = 512 << 20
 #: glibc's ``mallopt`` parameters (malloc.h).
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+#: The trim threshold a Dask nanny gives its workers unless configured otherwise
+#: (``distributed.nanny.pre-spawn-environ``): freed memory back to the system at once.
+DASK_WORKER_TRIM_BYTES = 65536
+#: Whether :func:`keep_freed_memory` set this process's malloc.
+_kept = False
 
 
 def malloc_environment() -> dict[str, str]:
@@ -42,22 +49,38 @@ def malloc_environment() -> dict[str, str]:
 
 
 def user_tuned_malloc(environ: Mapping[str, str]) -> bool:
-    """Whether ``environ`` holds a malloc setting: a ``MALLOC_..._`` variable, or
-    ``glibc.malloc`` in ``GLIBC_TUNABLES``."""
-    return (any(k.startswith("MALLOC_") and k.endswith("_") for k in environ)
+    """Whether ``environ`` holds a malloc setting: a ``MALLOC_...`` variable (glibc's are
+    ``MALLOC_ARENA_MAX``, ``MALLOC_TRIM_THRESHOLD_`` and the like), or ``glibc.malloc``
+    in ``GLIBC_TUNABLES``."""
+    return (any(k.startswith("MALLOC_") for k in environ)
             or "glibc.malloc" in environ.get("GLIBC_TUNABLES", ""))
+
+
+def worker_environment(spawn_environ: Mapping[str, object]) -> dict[str, object]:
+    """The environment a local Dask cluster's nanny gives its workers
+    (``distributed.nanny.pre-spawn-environ``, ``spawn_environ``), with
+    :func:`malloc_environment` when this process keeps freed memory
+    (:func:`keep_freed_memory`) and the configuration holds Dask's own trim threshold
+    (:data:`DASK_WORKER_TRIM_BYTES`; another value is the user's, and kept). Each worker
+    then holds up to :data:`KEPT_BYTES` for its next image."""
+    environ = dict(spawn_environ)
+    trim = environ.get("MALLOC_TRIM_THRESHOLD_", DASK_WORKER_TRIM_BYTES)
+    if _kept and str(trim) == str(DASK_WORKER_TRIM_BYTES):
+        environ.update(malloc_environment())
+    return environ
 
 
 def keep_freed_memory() -> bool:
     """Let glibc's malloc reuse large freed blocks instead of returning them to the system.
 
     Sets ``M_MMAP_THRESHOLD`` to :data:`MMAP_THRESHOLD_BYTES` and ``M_TRIM_THRESHOLD`` (the
-    freed heap kept) to :data:`KEPT_BYTES` in this process (``mallopt``), and the
-    variables of :func:`malloc_environment` in ``os.environ``, for the processes it starts
-    (a local Dask cluster's workers). Call it before large allocations. Only on Linux, and
-    only when the user has not tuned malloc (:func:`user_tuned_malloc`), whose settings
-    are kept. Returns whether it set them (False when called again).
+    freed heap kept) to :data:`KEPT_BYTES` in this process (``mallopt``); a local Dask
+    cluster started afterwards passes them on to its workers (:func:`worker_environment`).
+    Call it before large allocations. Only on Linux, and only when the user has not tuned
+    malloc (:func:`user_tuned_malloc`), whose settings are kept. Returns whether it set
+    them.
     """
+    global _kept
     if sys.platform != "linux" or user_tuned_malloc(os.environ):
         return False
     import ctypes
@@ -66,6 +89,6 @@ def keep_freed_memory() -> bool:
         mallopt = ctypes.CDLL(None).mallopt
     except (OSError, AttributeError):  # no C library symbols, or not glibc's malloc
         return False
-    os.environ.update(malloc_environment())
-    return bool(mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES)
-                and mallopt(_M_TRIM_THRESHOLD, KEPT_BYTES))
+    _kept = bool(mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES)
+                 and mallopt(_M_TRIM_THRESHOLD, KEPT_BYTES))
+    return _kept

@@ -3,8 +3,14 @@ real Strecha pairs with their true pose."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import cv2
 import numpy as np
+import pytest
 
 from scene3D import SceneReconstruction3D
 from scene3D.calibration import detect_board
@@ -110,3 +116,41 @@ def perturbed_pose(R, t, angle_deg=1.0):
     R0 = rotation_about_axis([0.3, -0.2, 1.0], angle_deg) @ R
     t0 = t / np.linalg.norm(t) + np.array([0.02, -0.03, 0.01])
     return R0, t0 / np.linalg.norm(t0)
+
+
+def _faults_count_small_pages() -> bool:
+    """Linux (glibc's malloc), where a page fault maps one 4 KiB page: not with transparent
+    huge pages for every mapping, which fault 2 MiB at a time."""
+    if sys.platform != "linux":
+        return False
+    try:
+        return "[always]" not in Path("/sys/kernel/mm/transparent_hugepage/enabled").read_text()
+    except OSError:  # no transparent huge pages at all
+        return True
+
+
+#: Tests that count page faults to see whether malloc reused memory.
+counts_page_faults = pytest.mark.skipif(
+    not _faults_count_small_pages(),
+    reason="counts page faults of glibc's malloc: Linux without huge pages for every mapping")
+
+
+#: Python that prints the pages faulted in by three rounds of allocating ``blocks``
+#: blocks of ``mib`` MiB and freeing them (transparent huge pages off for the process,
+#: so that a fault is one 4 KiB page).
+ROUNDS = ("import ctypes, resource\n"
+          "ctypes.CDLL(None).prctl(41, 1, 0, 0, 0)  # PR_SET_THP_DISABLE\n"
+          "def rounds(blocks, mib):\n"
+          "    def faults(): return resource.getrusage(resource.RUSAGE_SELF).ru_minflt\n"
+          "    for _ in range(3):\n"
+          "        before = faults(); held = [bytearray(mib << 20) for _ in range(blocks)]\n"
+          "        del held; print(faults() - before)\n")
+
+
+def run_python(code: str, *args: str, **extra_env: str) -> list[str]:
+    """What ``code`` prints with ``args``, run in a fresh interpreter without the caller's
+    malloc settings (plus ``extra_env``)."""
+    env = {k: v for k, v in os.environ.items()
+           if not k.startswith("MALLOC_") and k != "GLIBC_TUNABLES"}
+    return subprocess.run([sys.executable, "-c", code, *args], env={**env, **extra_env},
+                          capture_output=True, text=True, check=True).stdout.split()

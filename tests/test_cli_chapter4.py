@@ -18,9 +18,9 @@ from scene3D.datasets import read_strecha_camera, relative_pose
 from scene3D.evaluation import relative_pose_error
 from scene3D.export import read_ply
 from scene3D.geometry import angle_between_deg
-from scene3D.memory import KEPT_BYTES, MMAP_THRESHOLD_BYTES
 
 from .conftest import REPO
+from .helpers import ROUNDS, counts_page_faults, run_python
 
 
 def run(args, cwd, env=None, data_root=None):
@@ -321,34 +321,23 @@ def test_startup_imports_nothing_heavy_before_the_cli_sets_up_blas():
     assert out == ["[]", "10"]
 
 
-@pytest.mark.skipif(sys.platform != "linux", reason="glibc's malloc")
-def test_cli_keeps_freed_memory_for_reuse_unless_the_user_tuned_malloc():
-    """Importing the CLI package lets malloc reuse a freed 24 MB block (SIFT's largest
-    level at 1536 px is 25 MB): allocated again, it faults in no fresh pages, where
-    glibc's defaults map it afresh; the processes it starts get the same settings. A malloc
-    setting of the user's is kept."""
-    code = ("import os, resource, sys, scene3D.cli\n"
-            "def faults(): return resource.getrusage(resource.RUSAGE_SELF).ru_minflt\n"
-            "for _ in range(3):\n"
-            "    before = faults(); block = bytearray(24 << 20); del block\n"
-            "    print(faults() - before)\n"
-            "if sys.argv[1:]: scene3D.cli.main([*sys.argv[1:], '--help'])\n"
-            "print(os.environ.get('MALLOC_MMAP_THRESHOLD_'), "
-            "os.environ.get('MALLOC_TRIM_THRESHOLD_'))\n")
-    env = {k: v for k, v in os.environ.items()
-           if not k.startswith("MALLOC_") and k != "GLIBC_TUNABLES"}
+@counts_page_faults
+def test_the_scripts_keep_freed_memory_unless_the_user_tuned_malloc():
+    """A script's process (run_script: chapter4.py, calibrate.py, scene3d) lets malloc
+    reuse a freed 24 MB block (SIFT's largest level at 1536 px is 25 MB): allocated
+    again, it faults in no fresh pages. Importing the CLI alone changes nothing (a test
+    or a library user's process), and a malloc setting of the user's is kept."""
+    script = ROUNDS + ("import scene3D.cli, sys\n"
+                       "def body(): rounds(1, 24); return 0\n"
+                       "scene3D.cli.run_script(body) if sys.argv[1:] else body()\n")
 
-    def run_code(*command: str, **extra_env: str) -> list[str]:
-        return subprocess.run([sys.executable, "-c", code, *command], env={**env, **extra_env},
-                              capture_output=True, text=True, check=True).stdout.split()
+    def faults(*args: str, **extra_env: str) -> list[int]:
+        return [int(n) for n in run_python(script, *args, **extra_env)]
 
-    first, *again, mapped, kept = run_code()
-    assert int(first) > 5000 and max(map(int, again)) < 100  # 6144 pages of 4 KiB, then reused
-    assert (int(mapped), int(kept)) == (MMAP_THRESHOLD_BYTES, KEPT_BYTES)
-    out = run_code("reconstruct-views", MALLOC_MMAP_THRESHOLD_="131072")  # faults, help, env
-    faults, (mapped, kept) = out[:3], out[-2:]
-    assert min(map(int, faults)) > 5000  # mapped each time, as the user said
-    assert (mapped, kept) == ("131072", "None")
+    first, *again = faults("script")
+    assert first > 5000 and max(again) < 100  # 6144 pages of 4 KiB, then reused
+    assert faults()[1] > 5000  # imported only: glibc's defaults map it afresh once more
+    assert min(faults("script", MALLOC_MMAP_THRESHOLD_="131072")) > 5000  # the user's
 
 
 def test_reconstruct_views_runs_blas_on_one_thread_unless_told():

@@ -1,68 +1,80 @@
 """glibc malloc settings that keep freed memory for reuse (scene3D.memory)."""
 
-import os
-import subprocess
-import sys
-
 import pytest
 
-from scene3D.memory import KEPT_BYTES, malloc_environment, user_tuned_malloc
+from scene3D import memory
+from scene3D.memory import (
+    DASK_WORKER_TRIM_BYTES,
+    malloc_environment,
+    user_tuned_malloc,
+    worker_environment,
+)
 
-#: Allocates ``blocks`` blocks of ``mib`` MiB, frees them, three times, and prints the
-#: pages each round faulted in: run in a process started by one that called
-#: keep_freed_memory, as a local Dask cluster's workers are.
-_ROUNDS = ("import resource, sys\n"
-           "blocks, mib = int(sys.argv[1]), int(sys.argv[2])\n"
-           "def faults(): return resource.getrusage(resource.RUSAGE_SELF).ru_minflt\n"
-           "for _ in range(3):\n"
-           "    before = faults(); held = [bytearray(mib << 20) for _ in range(blocks)]\n"
-           "    del held; print(faults() - before)\n")
-
-
-def _faults_in_child(setup: str, blocks: int, mib: int) -> tuple[list[str], list[int]]:
-    """What ``setup`` (Python calling keep_freed_memory) printed, and the pages each round
-    of :data:`_ROUNDS` faulted in, in a process it then started."""
-    parent = (f"import os, subprocess, sys\n{setup}\n"
-              f"subprocess.run([sys.executable, '-c', {_ROUNDS!r}, '{blocks}', '{mib}'], "
-              "check=True)\n")
-    env = {k: v for k, v in os.environ.items()
-           if not k.startswith("MALLOC_") and k != "GLIBC_TUNABLES"}
-    out = subprocess.run([sys.executable, "-c", parent], env=env, capture_output=True,
-                         text=True, check=True).stdout.split()
-    return out[:-3], [int(n) for n in out[-3:]]
+from .helpers import ROUNDS, counts_page_faults, run_python
 
 
 def test_user_tuned_malloc_sees_malloc_variables_and_tunables():
     assert not user_tuned_malloc({})
     assert not user_tuned_malloc({"MALLOC": "1", "PATH": "/bin",
                                   "GLIBC_TUNABLES": "glibc.rtld.nns=2"})
-    assert user_tuned_malloc({"MALLOC_ARENA_MAX_": "2"})
+    assert user_tuned_malloc({"MALLOC_ARENA_MAX": "2"})  # glibc's name: no trailing '_'
     assert user_tuned_malloc({"GLIBC_TUNABLES": "glibc.malloc.trim_threshold=0"})
     assert user_tuned_malloc(malloc_environment())
 
 
-@pytest.mark.skipif(sys.platform != "linux", reason="glibc's malloc")
-def test_processes_started_afterwards_reuse_freed_blocks():
-    """In a process started after keep_freed_memory (a local Dask worker), a 24 MB block
-    (SIFT's largest level at 1536 px is 25 MB) and 96 MB in blocks of 8 MB freed together
-    (a scale space: glibc by itself would keep 64 MiB of it) fault in no fresh pages when
-    allocated again. A second call changes nothing and says so."""
-    printed, faults = _faults_in_child(
-        "from scene3D.memory import keep_freed_memory\n"
-        "print(keep_freed_memory(), keep_freed_memory(), os.environ['MALLOC_TRIM_THRESHOLD_'])",
-        1, 24)
-    assert printed == ["True", "False", str(KEPT_BYTES)]
-    assert faults[0] > 5000 and max(faults[1:]) < 100  # 6144 pages of 4 KiB, then reused
-    _, faults = _faults_in_child(
-        "from scene3D.memory import keep_freed_memory; keep_freed_memory()", 12, 8)
-    assert faults[0] > 20000 and max(faults[1:]) < 100
+@counts_page_faults
+def test_freed_blocks_are_reused():
+    """A 24 MB block (SIFT's largest level at 1536 px is 25 MB) and 96 MB in blocks of 8 MB
+    freed together (a scale space; glibc by itself keeps 64 MiB of it) fault in no fresh
+    pages when allocated again; without the setting they do."""
+    keep = ROUNDS + "from scene3D.memory import keep_freed_memory\nprint(keep_freed_memory())\n"
+    kept, *faults = run_python(keep + "rounds(1, 24); rounds(12, 8)")
+    assert kept == "True"
+    faults = [int(n) for n in faults]
+    assert faults[0] > 5000 and max(faults[1:3]) < 100  # 6144 pages of 4 KiB, then reused
+    assert faults[3] > 10000 and max(faults[4:]) < 100  # 72 of its 96 MB fresh
+    glibc = [int(n) for n in run_python(ROUNDS + "rounds(12, 8)")]
+    assert min(glibc[1:]) > 5000  # the heap beyond 64 MiB given back and faulted in again
 
 
 def test_a_user_setting_is_kept():
-    """With a malloc variable of the user's, keep_freed_memory changes nothing."""
-    code = ("import os; from scene3D.memory import keep_freed_memory; "
-            "print(keep_freed_memory(), os.environ.get('MALLOC_TRIM_THRESHOLD_'))")
-    env = {k: v for k, v in os.environ.items() if not k.startswith("MALLOC_")}
-    out = subprocess.run([sys.executable, "-c", code], env={**env, "MALLOC_ARENA_MAX_": "2"},
-                         capture_output=True, text=True, check=True).stdout.split()
+    """With a malloc variable of the user's (glibc's real MALLOC_ARENA_MAX),
+    keep_freed_memory changes nothing, and a local Dask cluster's workers get no setting."""
+    out = run_python("from scene3D import memory\n"
+                     "print(memory.keep_freed_memory(), "
+                     "memory.worker_environment({}).get('MALLOC_TRIM_THRESHOLD_'))",
+                     MALLOC_ARENA_MAX="2")
     assert out == ["False", "None"]
+
+
+def test_worker_environment_keeps_the_users_dask_setting(monkeypatch):
+    """The local workers keep freed memory only when this process does, and only in place
+    of Dask's own trim threshold: a value configured by the user is theirs."""
+    dask_default = {"MALLOC_TRIM_THRESHOLD_": DASK_WORKER_TRIM_BYTES, "OMP_NUM_THREADS": 1}
+    monkeypatch.setattr(memory, "_kept", False)
+    assert worker_environment(dask_default) == dask_default
+    monkeypatch.setattr(memory, "_kept", True)
+    assert worker_environment(dask_default) == {**dask_default, **malloc_environment()}
+    assert worker_environment({}) == malloc_environment()
+    users = {"MALLOC_TRIM_THRESHOLD_": "0"}
+    assert worker_environment(users) == users
+
+
+@counts_page_faults
+def test_a_local_dask_clusters_workers_keep_freed_memory():
+    """A local cluster started after keep_freed_memory (reconstruct-views --workers) gives
+    its workers the setting: there too a freed 24 MB block is reused."""
+    pytest.importorskip("distributed")
+    code = (ROUNDS + "import io, contextlib\n"
+            "from scene3D.memory import keep_freed_memory\n"
+            "from scene3D.engines.dask_engine import DaskEngine\n"
+            "def task():\n"
+            "    out = io.StringIO()\n"
+            "    with contextlib.redirect_stdout(out): rounds(1, 24)\n"
+            "    return out.getvalue()\n"
+            "if __name__ == '__main__':\n"
+            "    keep_freed_memory()\n"
+            "    with DaskEngine.local(1) as engine:\n"
+            "        print(engine.client.submit(task, pure=False).result())\n")
+    faults = [int(n) for n in run_python(code)]
+    assert faults[0] > 5000 and max(faults[1:]) < 100

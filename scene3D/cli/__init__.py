@@ -5,6 +5,7 @@ from __future__ import annotations
 import gc
 import os
 import sys
+from collections.abc import Callable
 from typing import NoReturn
 
 from .. import __version__
@@ -15,9 +16,6 @@ from ..memory import keep_freed_memory
 # parallel decoding and SIFT need. With a short timeout they sleep at once; BLAS stays
 # multi-threaded. A value the user has set is kept.
 os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")
-
-# Before anything large is allocated (docs/cli.md, memory).
-keep_freed_memory()
 
 COMMANDS = {
     "reconstruct": "reconstruct a scene from two photos (chapter4.py)",
@@ -81,6 +79,14 @@ def exit_process(code: int) -> NoReturn:
     sys.exit(code)
 
 
+def run_script(command: Callable[[], int]) -> NoReturn:
+    """A script's whole process: ``command`` (a command's ``main``) with freed memory kept
+    for reuse (:func:`scene3D.memory.keep_freed_memory`, docs/cli.md, memory), then
+    :func:`exit_process` with its exit status."""
+    keep_freed_memory()
+    exit_process(command())
+
+
 def console_main() -> NoReturn:
     """The ``scene3d`` console script: :func:`main` in a process of its own."""
-    exit_process(main())
+    run_script(main)

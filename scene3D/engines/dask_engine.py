@@ -60,6 +60,7 @@ from pathlib import Path, PurePath
 from typing import Any, Literal, TypeVar
 
 from ..errors import EngineError, first_line
+from ..memory import worker_environment
 from . import Progress
 
 logger = logging.getLogger(__name__)
@@ -367,7 +368,11 @@ class DaskEngine:
         # The workers' own log is silenced below CRITICAL: a task that fails raises its
         # error here, where the command says it in one line; the worker's "Compute Failed"
         # and its traceback would say it again.
-        with dask.config.set({"distributed.worker.profile.enabled": False}):
+        # The workers keep freed memory for their next image when this process does
+        # (scene3D.memory.worker_environment).
+        spawn_environ = worker_environment(dask.config.get("distributed.nanny.pre-spawn-environ"))
+        with dask.config.set({"distributed.worker.profile.enabled": False,
+                              "distributed.nanny.pre-spawn-environ": spawn_environ}):
             cluster = distributed.LocalCluster(
                 n_workers=workers, threads_per_worker=threads_per_worker, processes=True,
                 host="127.0.0.1", dashboard_address=":0", silence_logs=logging.CRITICAL)
