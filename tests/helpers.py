@@ -6,7 +6,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -118,21 +117,10 @@ def perturbed_pose(R, t, angle_deg=1.0):
     return R0, t0 / np.linalg.norm(t0)
 
 
-def _faults_count_small_pages() -> bool:
-    """Linux (glibc's malloc), where a page fault maps one 4 KiB page: not with transparent
-    huge pages for every mapping, which fault 2 MiB at a time."""
-    if sys.platform != "linux":
-        return False
-    try:
-        return "[always]" not in Path("/sys/kernel/mm/transparent_hugepage/enabled").read_text()
-    except OSError:  # no transparent huge pages at all
-        return True
-
-
-#: Tests that count page faults to see whether malloc reused memory.
-counts_page_faults = pytest.mark.skipif(
-    not _faults_count_small_pages(),
-    reason="counts page faults of glibc's malloc: Linux without huge pages for every mapping")
+#: Tests that count page faults to see whether malloc reused memory (glibc's malloc; each
+#: test turns transparent huge pages off for its process, so that a fault is one page).
+counts_page_faults = pytest.mark.skipif(sys.platform != "linux",
+                                        reason="counts page faults of glibc's malloc")
 
 
 #: Python that prints the pages faulted in by three rounds of allocating ``blocks``
