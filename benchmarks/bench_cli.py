@@ -3,9 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import subprocess
+import sys
+import time
 from pathlib import Path
 
-from scene3D.datasets import default_data_root
+from scene3D.datasets import BOOK_PAIR, default_data_root
+
+REPO = Path(__file__).resolve().parents[1]
 
 #: The shared Strecha-format scenes, easiest first.
 STRECHA_SCENES = ("fountain-P11", "Herz-Jesus-P8", "castle-P19")
@@ -51,3 +56,23 @@ def verdict(outcome) -> str:
         return f"refused: {outcome.reason}"
     return "trusted" if outcome.trusted else "flagged"
 
+
+def plain_command(folder: Path) -> list[str]:
+    """The plain-OpenCV script (``plain_opencv.py``) on the book pair of ``folder``."""
+    img1, img2 = (folder / name for name in BOOK_PAIR)
+    return [sys.executable, str(REPO / "benchmarks" / "plain_opencv.py"), str(img1), str(img2),
+            str(folder / "images" / "K.txt")]
+
+
+def interleaved_times(commands: dict[str, tuple[list[str], dict[str, str]]],
+                      runs: int) -> dict[str, list[float]]:
+    """Wall seconds of ``runs`` runs of each named ``(command, environment)``, one after the
+    other in turn so that machine noise hits all alike, after one untimed warm-up each."""
+    times: dict[str, list[float]] = {name: [] for name in commands}
+    for run in range(runs + 1):
+        for name, (cmd, cmd_env) in commands.items():
+            t0 = time.perf_counter()
+            subprocess.run(cmd, check=True, capture_output=True, env=cmd_env)
+            if run > 0:
+                times[name].append(time.perf_counter() - t0)
+    return times

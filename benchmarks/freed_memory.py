@@ -37,14 +37,14 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
-from bench_cli import add_data_arguments, data_folder
+from bench_cli import REPO, add_data_arguments, data_folder, interleaved_times, plain_command
 
 from scene3D.datasets import BOOK_PAIR
 from scene3D.memory import MMAP_THRESHOLD_BYTES, user_tuned_malloc
 
-REPO = Path(__file__).resolve().parents[1]
 CALIB = REPO / "data" / "fountain_P11_intrinsics.yaml"  # the Strecha scenes' camera
 GLIBC_DEFAULTS = {"GLIBC_TUNABLES": "glibc.malloc.perturb=0"}
 #: The heap glibc keeps by itself at most: twice its largest self-raised threshold.
@@ -84,23 +84,15 @@ def run_measured(cmd: list[str], env: dict[str, str]) -> tuple[float, float]:
 
 def two_view_rows(data: Path, runs: int) -> list[str]:
     folder = data / "fountain-P11"
-    img1, img2 = (str(folder / name) for name in BOOK_PAIR)
     env = user_environment()
     with tempfile.TemporaryDirectory() as out:
-        ours = [sys.executable, str(REPO / "chapter4.py"), img1, img2, "--calib", str(CALIB),
+        ours = [sys.executable, str(REPO / "chapter4.py"),
+                *(str(folder / name) for name in BOOK_PAIR), "--calib", str(CALIB),
                 "--no-plots", "-q", "--out", out]
-        commands = {"plain-OpenCV script": (
-            [sys.executable, str(REPO / "benchmarks" / "plain_opencv.py"), img1, img2,
-             str(folder / "images" / "K.txt")], env)}
+        commands = {"plain-OpenCV script": (plain_command(folder), env)}
         commands.update({f"chapter4.py --no-plots, {name}": (ours, variant_env)
                          for name, variant_env in variants(env).items()})
-        times: dict[str, list[float]] = {name: [] for name in commands}
-        for run in range(runs + 1):
-            for name, (cmd, cmd_env) in commands.items():
-                t0 = time.perf_counter()
-                subprocess.run(cmd, check=True, capture_output=True, env=cmd_env)
-                if run:
-                    times[name].append(time.perf_counter() - t0)
+        times = interleaved_times(commands, runs)
     plain = times["plain-OpenCV script"]
     rows = ["| process | median s | fastest s | median / plain | fastest / plain |",
             "|---|---|---|---|---|"]
@@ -111,37 +103,42 @@ def two_view_rows(data: Path, runs: int) -> list[str]:
     return rows
 
 
-def _median_row(label: str, values: dict[str, list[float]]) -> str:
+def measure_variants(command: Callable[[str], list[str]], runs: int
+                     ) -> tuple[dict[str, dict[str, list[float]]], bool]:
+    """``runs`` interleaved runs of ``command(out_folder)`` in each of :func:`variants`:
+    per variant the wall seconds, the features stage and the peak MiB of each run, and
+    whether the variants' last reconstruction.json files differ beyond their timings."""
+    env = user_environment()
+    results = {v: {"wall": [], "features": [], "peak": []} for v in variants(env)}
+    summaries = {}
+    for _ in range(runs):
+        for variant, variant_env in variants(env).items():
+            with tempfile.TemporaryDirectory() as out:
+                seconds, peak = run_measured(command(out), variant_env)
+                summary = json.loads((Path(out) / "reconstruction.json").read_text())
+            results[variant]["wall"].append(seconds)
+            results[variant]["peak"].append(peak)
+            results[variant]["features"].append(summary["timings_s"]["features"])
+            summaries[variant] = json.dumps(
+                {k: v for k, v in summary.items() if k not in ("timings_s", "files")},
+                sort_keys=True)
+    return results, len(set(summaries.values())) > 1
+
+
+def _median_row(label: str, values: dict[str, list[float]], features: bool = True) -> str:
     return (f"| {label} | {statistics.median(values['wall']):.2f} | "
-            + (f"{statistics.median(values['features']):.2f} | " if values["features"] else "")
+            + (f"{statistics.median(values['features']):.2f} | " if features else "")
             + f"{statistics.median(values['peak']):.0f} |")
 
 
-def _without_timings(summary: dict) -> dict:
-    return {k: v for k, v in summary.items() if k not in ("timings_s", "files")}
-
-
 def views_rows(data: Path, scenes: list[str], runs: int, workers: int | None) -> list[str]:
-    env = user_environment()
     rows = ["| scene | memory | wall s | features s | peak MiB |", "|---|---|---|---|---|"]
     for scene in scenes:
-        results = {v: {"wall": [], "features": [], "peak": []} for v in variants(env)}
-        summaries = {}
-        for _ in range(runs):
-            for variant, variant_env in variants(env).items():
-                with tempfile.TemporaryDirectory() as out:
-                    cmd = [sys.executable, "-m", "scene3D", "reconstruct-views",
-                           str(data / scene / "images"), "--calib", str(CALIB), "--no-plots",
-                           "--no-report", "-q", "--out", out]
-                    if workers:
-                        cmd += ["--workers", str(workers)]
-                    seconds, peak = run_measured(cmd, variant_env)
-                    summary = json.loads((Path(out) / "reconstruction.json").read_text())
-                results[variant]["wall"].append(seconds)
-                results[variant]["peak"].append(peak)
-                results[variant]["features"].append(summary["timings_s"]["features"])
-                summaries[variant] = _without_timings(summary)
-        differ = len({json.dumps(s, sort_keys=True) for s in summaries.values()}) > 1
+        results, differ = measure_variants(
+            lambda out, scene=scene: [
+                sys.executable, "-m", "scene3D", "reconstruct-views", str(data / scene / "images"),
+                "--calib", str(CALIB), "--no-plots", "--no-report", "-q", "--out", out,
+                *(["--workers", str(workers)] if workers else [])], runs)
         rows += [_median_row(f"{scene}{' (results differ!)' if differ else ''} | {variant}",
                              values) for variant, values in results.items()]
     return rows
@@ -149,22 +146,16 @@ def views_rows(data: Path, scenes: list[str], runs: int, workers: int | None) ->
 
 def full_run_rows(data: Path, runs: int) -> list[str]:
     folder = data / "fountain-P11"
-    env = user_environment()
     runs_of = {"figures and report, 768 px": [], "--dense --max-width 1536": [
         "--dense", "--max-width", "1536"]}
     rows = ["| chapter4.py | memory | wall s | peak MiB |", "|---|---|---|---|"]
     for label, options in runs_of.items():
-        results = {v: {"wall": [], "features": [], "peak": []} for v in variants(env)}
-        for _ in range(runs):
-            for variant, variant_env in variants(env).items():
-                with tempfile.TemporaryDirectory() as out:
-                    cmd = [sys.executable, str(REPO / "chapter4.py"),
-                           *(str(folder / name) for name in BOOK_PAIR), "--calib",
-                           str(CALIB), *options, "-q", "--out", out]
-                    seconds, peak = run_measured(cmd, variant_env)
-                results[variant]["wall"].append(seconds)
-                results[variant]["peak"].append(peak)
-        rows += [_median_row(f"{label} | {variant}", values)
+        results, _ = measure_variants(
+            lambda out, options=options: [
+                sys.executable, str(REPO / "chapter4.py"),
+                *(str(folder / name) for name in BOOK_PAIR), "--calib", str(CALIB), *options,
+                "-q", "--out", out], runs)
+        rows += [_median_row(f"{label} | {variant}", values, features=False)
                  for variant, values in results.items()]
     return rows
 

@@ -32,7 +32,6 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import argparse
 import csv
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -41,6 +40,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from bench_cli import REPO, interleaved_times, plain_command
 
 from scene3D.camera import scale_intrinsics_halved
 from scene3D.datasets import (
@@ -65,7 +65,6 @@ from scene3D.pose import choose_pose
 from scene3D.twoview import reconstruct_two_view
 from scene3D.uncertainty import pose_error_chi2
 
-REPO = Path(__file__).resolve().parents[1]
 METHODS = ("book", "opencv", "poselib", "pycolmap", "scene3D")
 
 
@@ -239,21 +238,12 @@ def process_times(folder: Path, runs: int = PROCESS_RUNS) -> dict[str, list[floa
     img1, img2 = (folder / name for name in BOOK_PAIR)
     ours = [sys.executable, str(REPO / "chapter4.py"), str(img1), str(img2), "--calib",
             str(REPO / "data" / "fountain_P11_intrinsics.yaml"), "--no-plots", "-q"]
-    plain = [sys.executable, str(REPO / "benchmarks" / "plain_opencv.py"), str(img1), str(img2),
-             str(folder / "images" / "K.txt")]
     env = {k: v for k, v in _USER_ENV.items() if k != "PYTHONDONTWRITEBYTECODE"}
     tuned = dict(env, OPENBLAS_THREAD_TIMEOUT="4", **malloc_environment())
-    times: dict[str, list[float]] = {"ours": [], "plain": [], "plain_tuned": []}
     with tempfile.TemporaryDirectory() as tmp:
-        commands = (("plain", plain, env), ("ours", ours + ["--out", tmp], env),
-                    ("plain_tuned", plain, tuned))
-        for run in range(runs + 1):  # interleaved, so that machine noise hits all alike
-            for name, cmd, cmd_env in commands:
-                t0 = time.perf_counter()
-                subprocess.run(cmd, check=True, capture_output=True, env=cmd_env)
-                if run > 0:
-                    times[name].append(time.perf_counter() - t0)
-    return times
+        return interleaved_times({"plain": (plain_command(folder), env),
+                                  "ours": (ours + ["--out", tmp], env),
+                                  "plain_tuned": (plain_command(folder), tuned)}, runs)
 
 
 def main(argv: list[str] | None = None) -> int:
