@@ -181,7 +181,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="noise models (default: all; see the description below)")
     parser.add_argument("--draws", type=int, default=5,
                         help="noise draws per pair and noise model (default: 5; the "
-                             "uncertainty's table needs 20 or more, docs/benchmarks.md)")
+                             "uncertainty's table needs 40, a binomial standard error of "
+                             "1.1 %%: docs/benchmarks.md)")
     parser.add_argument("--outliers", type=float, default=0.05,
                         help="fraction of image-2 points replaced by uniform outliers")
     parser.add_argument("--fixed-scale", action="store_true",
