@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+import cv2
 
 from scene3D.datasets import BOOK_PAIR, default_data_root
 
@@ -37,6 +40,15 @@ def data_folder(parser: argparse.ArgumentParser, args: argparse.Namespace) -> Pa
     if data is None:
         parser.error("no data folder: pass --data or set SCENE3D_DATA")
     return data
+
+
+def quiet_run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> Path:
+    """Set a verdict benchmark up and return its data folder (:func:`data_folder`): one
+    OpenCV thread, as every benchmark times it, and the pipeline's warnings silenced (the
+    benchmark counts them in its rows)."""
+    cv2.setNumThreads(1)
+    logging.disable(logging.WARNING)
+    return data_folder(parser, args)
 
 
 def reconstruct_or_refusal(scene, feature: str):

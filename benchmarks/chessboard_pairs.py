@@ -33,13 +33,12 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import argparse
 import itertools
 import json
-import logging
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import cv2
 import numpy as np
-from bench_cli import add_data_arguments, data_folder
+from bench_cli import add_data_arguments, quiet_run
 
 from scene3D.calibration import BoardSpec, calibrate, detect_board
 from scene3D.errors import ReconstructionError
@@ -117,9 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rows", type=Path, default=None,
                         help="also write every pair as a JSON line to this file")
     args = parser.parse_args(argv)
-    cv2.setNumThreads(1)
-    logging.disable(logging.WARNING)  # the warnings are in the rows
-    data = data_folder(parser, args)
+    data = quiet_run(parser, args)
     settings = TwoViewSettings()
     runs = []
     print("| set | pairs | median matches (as listed) | refused | flagged | trusted | > 5 deg "

@@ -22,11 +22,10 @@ thread; about 15 minutes for the defaults.
 from __future__ import annotations
 
 import argparse
-import logging
 
 import cv2
 import numpy as np
-from bench_cli import add_data_arguments, data_folder
+from bench_cli import add_data_arguments, quiet_run
 
 from scene3D.camera import scale_intrinsics_halved
 from scene3D.datasets import read_strecha_camera, relative_pose, strecha_views
@@ -49,9 +48,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sizes", type=int, nargs="+", default=[768],
                         help="working widths in px")
     args = parser.parse_args(argv)
-    cv2.setNumThreads(1)
-    logging.disable(logging.WARNING)  # the warnings are counted, not printed
-    data = data_folder(parser, args)
+    data = quiet_run(parser, args)
     print("| scene | width | k1 | pairs | right (< 1 deg): flagged by the check | largest "
           "shift of a right pose (deg) | > 5 deg off, trusted by the rest: flagged by it "
           "| > 2 deg off, the same |")

@@ -32,15 +32,13 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
 import json
-import logging
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-import cv2
 import numpy as np
-from bench_cli import add_data_arguments, data_folder
+from bench_cli import add_data_arguments, quiet_run
 from two_view import load_pair  # benchmarks/two_view.py, as exact_truth.py does
 
 from scene3D.datasets import strecha_views
@@ -167,9 +165,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rows", type=Path, default=None,
                         help="also write every run as a JSON line to this file")
     args = parser.parse_args(argv)
-    cv2.setNumThreads(1)
-    logging.disable(logging.WARNING)  # the warnings are in the runs; the table counts them
-    data = data_folder(parser, args)
+    data = quiet_run(parser, args)
     runs = []
     for scene in args.scenes:
         runs += scene_runs(data / scene, args.gaps, args.seeds)

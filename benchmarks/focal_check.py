@@ -18,11 +18,9 @@ refused pair counts as flagged, not as wrong. One thread; about 15 minutes.
 from __future__ import annotations
 
 import argparse
-import logging
 
-import cv2
 import numpy as np
-from bench_cli import add_data_arguments, data_folder
+from bench_cli import add_data_arguments, quiet_run
 
 from scene3D.camera import scale_intrinsics_halved
 from scene3D.datasets import read_strecha_camera, relative_pose, strecha_views
@@ -81,9 +79,7 @@ def main(argv: list[str] | None = None) -> int:
                         default=[1.0, 0.8, 0.85, 1.18, 1.25, 1.5],
                         help="calibration focal length / true focal length")
     args = parser.parse_args(argv)
-    cv2.setNumThreads(1)
-    logging.disable(logging.WARNING)  # the warnings are counted, not printed
-    data = data_folder(parser, args)
+    data = quiet_run(parser, args)
     print("| scene | calibration focal / true | width | median focal_scale (expected) | range "
           "| pairs flagged for it | pairs > 5 deg off | of those trusted | right poses (< 1 "
           "deg) flagged |")

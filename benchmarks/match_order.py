@@ -27,13 +27,11 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
-import logging
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
-from bench_cli import add_data_arguments, data_folder
+from bench_cli import add_data_arguments, quiet_run
 
 import scene3D
 from scene3D.camera import scale_intrinsics_halved
@@ -115,9 +113,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--orders", type=int, default=5,
                         help="orders of the matches: the matcher's and random ones (default: 5)")
     args = parser.parse_args(argv)
-    cv2.setNumThreads(1)
-    logging.disable(logging.WARNING)  # the verdicts are in the table
-    data = data_folder(parser, args)
+    data = quiet_run(parser, args)
     print(f"scene3D from {Path(scene3D.__file__).parent}")
     print(f"{args.orders} orders of the same matches; sums over the orders; 'unsteady': "
           "pairs whose verdict is not the same in every order\n")
