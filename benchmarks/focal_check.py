@@ -12,7 +12,7 @@ matches, as ``chapter4.py`` and ``scene3d evaluate`` do: the sparse checks
 ``focal_scale`` the matches call for (expected: 1 / factor), how many pairs are flagged
 for it (a warning about the focal length), the poses more than 5 deg off and how many of
 them end trusted, and the right poses (both errors under 1 deg) that end flagged. A
-refused pair counts as flagged, not as wrong. One thread; about 15 minutes.
+refused pair counts as flagged, not as wrong. One thread; about 9 minutes.
 """
 
 from __future__ import annotations
