@@ -325,8 +325,9 @@ def main(argv: list[str] | None = None) -> int:
                   f"{s['t_features']:.2f} | {s['t_matching']:.2f} | {s['t_geometry']:.3f} | "
                   f"{s['t_refinement']:.3f} | {s['t_total']:.2f} |")
     _print_trust(outcomes, methods, widths)
-    if "scene3D" in methods:
-        _print_auc_differences(outcomes, [m for m in methods if m != "scene3D"])
+    peers = [m for m in methods if m != "scene3D"]
+    if "scene3D" in methods and peers:  # scene3D alone has nothing to be compared with
+        _print_auc_differences(outcomes, peers)
     if not args.no_process:
         _print_process_ratio(fountain)
     print(f"Per-pair rows: {args.csv}")
