@@ -451,6 +451,31 @@ def test_a_reconstruction_json_of_someone_else_is_not_replaced(tmp_path, synthet
     assert sorted(p.name for p in tmp_path.iterdir()) == ["reconstruction.json"]
 
 
+def test_a_file_of_the_users_named_like_an_output_is_not_replaced(tmp_path, synthetic_files):
+    """--out holding the user's point_cloud.ply (no earlier run wrote it), or being the
+    photos' folder where a photo is named like a figure: exit 2 before any work, every
+    file as it was."""
+    f = synthetic_files
+    (tmp_path / "point_cloud.ply").write_text("the user's")
+    shutil.copy(f / "b.png", tmp_path / "rectified.png")
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    proc = run([f / "a.png", f / "b.png", "--calib", f / "camera.yaml", "--out", tmp_path,
+                "--no-plots", "--no-report"], cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == (
+        f"error: --out '{tmp_path}' holds '{tmp_path / 'point_cloud.ply'}', which no earlier "
+        "scene3D run there wrote, and the run would replace it; move it or choose another --out")
+    (tmp_path / "point_cloud.ply").unlink()
+    del before["point_cloud.ply"]
+    proc = run([f / "a.png", tmp_path / "rectified.png", "--calib", f / "camera.yaml",
+                "--out", tmp_path], cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == (
+        f"error: --out '{tmp_path}': the run would write '{tmp_path / 'rectified.png'}', one "
+        "of its inputs; choose another folder for the outputs")
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
 def test_a_write_that_fails_leaves_the_previous_run_whole(tmp_path, synthetic_files):
     """A folder where report.html goes: refused before any file is replaced."""
     f = synthetic_files

@@ -154,6 +154,54 @@ def test_out_among_the_photos_is_refused(tmp_path, capsys, no_reconstruction):
     assert capsys.readouterr().err == "error: reached the reconstruction\n"
 
 
+def test_a_file_of_the_users_named_like_an_output_is_refused(tmp_path, capsys,
+                                                            no_reconstruction):
+    """The user's points.ply in --out (no earlier run wrote it): exit 2 before any work;
+    an earlier run's own files are no obstacle."""
+    photos = _photos(tmp_path / "photos", ["a.jpg", "b.jpg"])
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "points.ply").write_text("the user's")
+    assert multiview.main([*map(str, photos), "--out", str(out)]) == 2
+    assert capsys.readouterr().err == (
+        f"error: --out '{out}' holds '{out / 'points.ply'}', which no earlier scene3D run "
+        "there wrote, and the run would replace it; move it or choose another --out\n")
+    assert (out / "points.ply").read_text() == "the user's"
+    earlier = tmp_path / "earlier"
+    _earlier_run(earlier)
+    assert multiview.main([*map(str, photos), "--out", str(earlier)]) == 1
+    assert capsys.readouterr().err == "error: reached the reconstruction\n"
+
+
+def test_ground_truth_for_other_images_is_refused(tmp_path, capsys, no_reconstruction,
+                                                 fountain):
+    """fountain-P11's camera files (3072x2048) given for photos stored turned (64x96) or
+    cropped (120x100): exit 2 before any work, naming both; the photos scaled down pass."""
+    photos = [tmp_path / "photos" / name for name in ("a.jpg", "b.jpg")]
+    photos[0].parent.mkdir()
+    for photo in photos:
+        cv2.imwrite(str(photo), np.zeros((96, 64, 3), np.uint8))
+    truth = tmp_path / "truth"
+    truth.mkdir()
+    camera = (fountain / "gt_dense_cameras" / "0004.jpg.camera").read_text()
+    for photo in photos:
+        (truth / f"{photo.name}.camera").write_text(camera)
+    args = [str(tmp_path / "photos"), "--ground-truth", str(truth), "--out",
+            str(tmp_path / "out")]
+    assert multiview.main(args) == 2
+    assert capsys.readouterr().err == (
+        f"error: --ground-truth '{truth / 'a.jpg.camera'}' is for 3072x2048 images, but "
+        f"'{photos[0]}' is 64x96, turned by 90 degrees: not the photo it describes\n")
+    for photo in photos:
+        cv2.imwrite(str(photo), np.zeros((100, 120, 3), np.uint8))
+    assert multiview.main(args) == 2
+    assert "is 120x100: not the photo it describes" in capsys.readouterr().err
+    for photo in photos:
+        cv2.imwrite(str(photo), np.zeros((64, 96, 3), np.uint8))
+    assert multiview.main(args) == 1
+    assert capsys.readouterr().err == "error: reached the reconstruction\n"
+
+
 def test_hidden_files_of_a_folder_are_left_out(tmp_path):
     """macOS's AppleDouble files (._NAME.jpg, not images) and other names starting with
     '.' are not photos of the folder; a hidden file named on its own is still read."""

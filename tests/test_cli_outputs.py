@@ -1,6 +1,7 @@
 """The --out folder of reconstruct and reconstruct-views (scene3D.cli.outputs): a run
 records its files, removes the previous run's it did not write again and nothing else,
-refuses a reconstruction.json it did not write, and a failed run leaves no empty folder."""
+refuses a reconstruction.json it did not write and any other file it would replace that is
+not an earlier run's (or is one of its inputs), and a failed run leaves no empty folder."""
 
 import json
 
@@ -8,6 +9,7 @@ import pytest
 
 from scene3D.cli.common import EXIT_FAILED, EXIT_OK, UsageError, run_command
 from scene3D.cli.outputs import (
+    OutputFolder,
     prepare_output_dir,
     previous_outputs,
     recorded_files,
@@ -121,3 +123,38 @@ def test_a_failed_run_removes_the_folders_it_created_if_empty(tmp_path):
     with pytest.raises(RuntimeError):
         run_command(Args(), crashes)
     assert not (tmp_path / "e").exists()
+
+
+def test_a_file_the_run_would_replace_must_be_an_earlier_runs(tmp_path):
+    """A user's point_cloud.ply in --out, or one of the run's photos there (named like a
+    figure), is refused; the earlier run's own files are replaced as before."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "point_cloud.ply").write_text("the user's")
+    (out / "rectified.png").write_text("a photo")
+    (out / "report.html").write_text("an earlier run's")
+    _summary(out, ["report.html", "reconstruction.json"])
+    folder = OutputFolder(out, inputs=[out / "rectified.png", tmp_path / "b.png"])
+    folder.check_free([out / "report.html", out / "reconstruction.json", out / "new.ply"])
+    with pytest.raises(UsageError, match=r"holds '.*point_cloud.ply', which no earlier "
+                                         r"scene3D run there wrote"):
+        folder.check_free([out / "report.html", out / "point_cloud.ply"])
+    with pytest.raises(UsageError, match=r"would write '.*rectified.png', one of its inputs"):
+        folder.record([out / "rectified.png"])
+    # Without an earlier run, any file there is the user's.
+    fresh = tmp_path / "fresh"
+    fresh.mkdir()
+    (fresh / "report.html").write_text("the user's")
+    with pytest.raises(UsageError, match="which no earlier"):
+        OutputFolder(fresh).check_free([fresh / "report.html"])
+
+
+def test_a_summary_from_before_the_file_list_owns_the_output_names(tmp_path):
+    """Its run's files were not listed: files named like outputs are taken to be its
+    (replaced, as they were then), but an input is still never written over."""
+    (tmp_path / "reconstruction.json").write_text('{"conventions": "x"}')
+    (tmp_path / "point_cloud.ply").write_text("an earlier run's")
+    folder = OutputFolder(tmp_path, inputs=[tmp_path / "reconstruction.json"])
+    folder.check_free([tmp_path / "point_cloud.ply"])
+    with pytest.raises(UsageError, match="one of its inputs"):
+        folder.check_free([tmp_path / "reconstruction.json"])

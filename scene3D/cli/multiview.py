@@ -200,19 +200,37 @@ def check_out_folder(out: Path, paths: list[Path]) -> None:
                                  "where a run writes; choose another folder for the outputs")
 
 
-def read_ground_truth(folder: Path, names: list[str]) -> list[StrechaCamera]:
-    """The Strecha camera of every image (``folder/NAME.camera``), read and checked
-    before any work: a missing or invalid file is a one-line input error."""
+def read_ground_truth(folder: Path, paths: list[Path]) -> list[StrechaCamera]:
+    """The Strecha camera of every photo (``folder/NAME.camera``), read and checked
+    before any work: a missing or invalid file, or one for images of another aspect ratio
+    than its photo's (a photo stored turned, a cropped one), is a one-line input error."""
     if not folder.is_dir():
         raise UsageError(f"--ground-truth '{folder}' is not a folder")
     cameras = []
-    for name in names:
-        path = folder / f"{name}.camera"
+    for photo in paths:
+        path = folder / f"{photo.name}.camera"
         if not path.is_file():
-            raise UsageError(f"--ground-truth '{folder}' has no camera file for '{name}' "
-                             f"(expected '{path}')")
-        cameras.append(read_strecha_camera(path))
+            raise UsageError(f"--ground-truth '{folder}' has no camera file for "
+                             f"'{photo.name}' (expected '{path}')")
+        camera = read_strecha_camera(path)
+        (w, h), size = camera.image_size, read_image_size(photo)
+        if not _fits(camera.K, (w, h), size):
+            turned = ", turned by 90 degrees" if _fits(camera.K, (h, w), size) else ""
+            raise UsageError(f"--ground-truth '{path}' is for {w}x{h} images, but '{photo}' "
+                             f"is {size[0]}x{size[1]}{turned}: not the photo it describes"
+                             ) from None
+        cameras.append(camera)
     return cameras
+
+
+def _fits(K: np.ndarray, calib_size: tuple[int, int], size: tuple[int, int]) -> bool:
+    """Whether ``K`` of ``calib_size`` images describes images of ``size`` (the same
+    aspect ratio: :func:`~scene3D.camera.adapt_intrinsics_to_size`)."""
+    try:
+        adapt_intrinsics_to_size(K, calib_size, size)
+    except ValueError:
+        return False
+    return True
 
 
 def evaluate_against(cameras: list[StrechaCamera], names: list[str], model: SfMModel,
@@ -312,6 +330,12 @@ def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, s
     return atomic_write_pieces(out / REPORT_FILE, page.encoded())
 
 
+#: The files of a model in its folder (--out for the first), and its figure.
+MODEL_FILES = ("points.ply", "cameras.json", "colmap/cameras.txt", "colmap/images.txt",
+               "colmap/points3D.txt")
+MODEL_FIGURE = "cameras.png"
+
+
 def write_model(folder: Path, names: list[str], recon: MultiViewReconstruction,
                 model: SfMModel, plots: bool) -> list[Path]:
     """The files of one model: PLY, cameras JSON, COLMAP text model, figure."""
@@ -324,17 +348,18 @@ def write_model(folder: Path, names: list[str], recon: MultiViewReconstruction,
     colmap = colmap_text_files(names, K, recon.image_size, model.registered, model.R,
                                model.t, model.points3d, model.colors, obs.view, obs.point,
                                obs.xy, model.point_errors_px(K))
-    written = [write_ply(folder / "points.ply", model.points3d, model.colors)]
+    points_file, cameras_file = MODEL_FILES[:2]
+    written = [write_ply(folder / points_file, model.points3d, model.colors)]
     cameras = {n: {"R": model.R[i], "t": model.t[i], "center": model.centers[i]}
                for i, n in enumerate(names) if model.registered[i]}
-    written.append(write_json(folder / "cameras.json", cameras))
+    written.append(write_json(folder / cameras_file, cameras))
     written += write_text_files(folder / "colmap", colmap)
     if plots:
         from ..plotting import plot_cameras_and_points
 
         figure = plot_cameras_and_points(model.points3d, model.colors, model.R, model.t,
                                          K, recon.image_size)
-        written.append(save_figure(figure, folder / "cameras.png"))
+        written.append(save_figure(figure, folder / MODEL_FIGURE))
     return written
 
 
@@ -368,9 +393,13 @@ def run(args: argparse.Namespace) -> int:
     else:
         camera = load_calibration(args.calib)
     names = [p.name for p in paths]
-    truth = None if args.ground_truth is None else read_ground_truth(args.ground_truth, names)
-    out_folder = OutputFolder(args.out)
+    truth = None if args.ground_truth is None else read_ground_truth(args.ground_truth, paths)
+    out_folder = OutputFolder(args.out, inputs=[*paths, *filter(None, [args.calib])])
     out = out_folder.path
+    # The first model's files, known before the work (the others' are checked as written).
+    out_folder.check_free(out / name for name in (
+        *MODEL_FILES, *([] if args.no_plots else [MODEL_FIGURE]), SUMMARY_FILE,
+        *([] if args.no_report else [REPORT_FILE])))
     if not args.no_report:
         check_report_viewer()
 

@@ -5,7 +5,9 @@ a ``reconstruction.json`` there that scene3D did not write, lists the files it w
 in its own ``reconstruction.json`` (``"files"``, relative to the folder), and, once its
 files are in place, removes those of the previous run it did not write again: a
 report.html after ``--no-report``, a model-2/ when fewer models came out. Nothing else in
-the folder is touched.
+the folder is touched: a file a run would write that is already there and is no earlier
+run's output (nor listed by one), or that is one of the run's inputs, is refused, not
+replaced.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+from collections.abc import Iterable
 from pathlib import Path, PurePosixPath
 
 from .common import UsageError, note_created_folders, remove_empty_folders
@@ -30,7 +33,9 @@ def out_help(default: str) -> str:
     """``--out``'s help text, the same for both commands."""
     return (f"output folder (default: {default}); a successful run replaces an earlier "
             "run's files there and removes those it does not write again (as listed in "
-            "that run's reconstruction.json); anything else in the folder is kept")
+            "that run's reconstruction.json); anything else in the folder is kept, and "
+            "a run that would replace a file no earlier run wrote, or one of its inputs, "
+            "stops before any work (exit code 2)")
 
 
 def prepare_output_dir(path: Path) -> Path:
@@ -133,15 +138,40 @@ def _file_id(path: Path) -> tuple[int, int] | None:
 
 class OutputFolder:
     """A run's ``--out``: created and checked on construction (:func:`prepare_output_dir`,
-    :func:`previous_outputs`); :meth:`record` lists the run's files for its summary and
-    :meth:`remove_stale` clears what the previous run left that this one did not write."""
+    :func:`previous_outputs`); :meth:`check_free` refuses to replace a file that is not
+    the previous run's, :meth:`record` lists the run's files for its summary (checking
+    them so) and :meth:`remove_stale` clears what the previous run left that this one did
+    not write. ``inputs`` are the run's photos and calibration: never written over."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, inputs: Iterable[Path] = ()) -> None:
         self.path = prepare_output_dir(path)
         self.previous = previous_outputs(self.path)
+        # A summary from before the file list: that run's files are not known, and files
+        # named like outputs are taken to be its own (as they were before the list).
+        self.lists_files = bool(self.previous) or not (self.path / SUMMARY_FILE).is_file()
+        self.inputs = {_file_id(p) for p in inputs} - {None}
+
+    def check_free(self, paths: Iterable[Path]) -> None:
+        """Raise :class:`UsageError` when one of ``paths`` (files this run is to write)
+        is one of the run's inputs, or is there already and the previous run did not
+        write it (a file of the user's, which would be replaced)."""
+        previous = {_file_id(p) for p in self.previous} - {None}
+        for path in paths:
+            found = _file_id(path)
+            if found is None or not path.is_file():  # a folder there: the writer says so
+                continue
+            if found in self.inputs:
+                raise UsageError(f"--out '{self.path}': the run would write '{path}', one "
+                                 "of its inputs; choose another folder for the outputs")
+            if self.lists_files and found not in previous:
+                raise UsageError(f"--out '{self.path}' holds '{path}', which no earlier "
+                                 "scene3D run there wrote, and the run would replace it; "
+                                 "move it or choose another --out")
 
     def record(self, paths: list[Path]) -> list[str]:
-        """The summary's ``FILES_KEY`` entry for ``paths`` (:func:`recorded_files`)."""
+        """The summary's ``FILES_KEY`` entry for ``paths`` (:func:`recorded_files`), once
+        :meth:`check_free` has passed them: call it before the files are put in place."""
+        self.check_free(paths)
         return recorded_files(self.path, paths)
 
     def remove_stale(self, written: list[Path]) -> list[Path]:
