@@ -490,3 +490,16 @@ def test_a_write_that_fails_leaves_the_previous_run_whole(tmp_path, synthetic_fi
                                    f"'{out / 'report.html'}'")
     after = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
     assert after == before  # the earlier point cloud and JSON, and no temporary file
+
+
+def test_warnings_are_printed_also_when_they_leave_the_pose_trusted():
+    """A result's warnings are logged marked as the result's (the command drops those
+    records) and printed with it: all in one line when the pose is doubted, each on its
+    own when it stays trusted (a focal length kept from EXIF)."""
+    from scene3D.cli.chapter4 import warning_lines
+
+    kept = "the photos do not determine the focal length better than the EXIF value"
+    assert warning_lines(True, (kept,)) == [f"warning: {kept}"]
+    assert warning_lines(True, ()) == []
+    assert warning_lines(False, ("a", "b")) == [
+        "warning: the pose may not be trustworthy: a; b"]

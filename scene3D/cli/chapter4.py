@@ -252,9 +252,16 @@ def _result_lines(scene: SceneReconstruction3D, result, paths: tuple[Path, Path]
     if np.isfinite(result.rotation_sigma_deg) and np.isfinite(result.translation_sigma_deg):
         lines.append(f"pose uncertainty (1 sigma): rotation +-{result.rotation_sigma_deg:.3f} "
                      f"deg, translation direction +-{result.translation_sigma_deg:.3f} deg")
-    if not result.trusted:
-        lines.append("warning: the pose may not be trustworthy: " + "; ".join(result.warnings))
-    return lines
+    return lines + warning_lines(result.trusted, result.warnings)
+
+
+def warning_lines(trusted: bool, warnings: tuple[str, ...]) -> list[str]:
+    """A result's warnings as printed: one line with the reasons when the pose is not
+    trusted; one line each when they leave it trusted (a focal length the photos could
+    not refine, kept from EXIF)."""
+    if not trusted:
+        return ["warning: the pose may not be trustworthy: " + "; ".join(warnings)]
+    return [f"warning: {warning}" for warning in warnings]
 
 
 def _figure_jobs(scene: SceneReconstruction3D, result, dense) -> dict[str, Callable]:
