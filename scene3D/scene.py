@@ -15,6 +15,7 @@ reconstruction are computed once per feature mode and reused by every plot.
 from __future__ import annotations
 
 import logging
+import os
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
@@ -115,7 +116,8 @@ class SceneReconstruction3D:
         FileNotFoundError
             A path does not exist.
         ValueError
-            A file is not an image, the two images differ in size, or ``K`` cannot be a
+            A file is not an image, the two images differ in size or are one photo (a
+            copy under another name: the same pixels), or ``K`` cannot be a
             camera matrix for their native size (a principal point far outside them, a
             focal length no lens has: :func:`~scene3D.camera.check_intrinsics_for_size`),
             as when ``K`` was calibrated on larger photos than these.
@@ -124,6 +126,11 @@ class SceneReconstruction3D:
             (img1, img2), self.K_native, self.d, max_width if use_pyr_down else None,
             ("img1", "img2"))
         check_intrinsics_for_native_size(self.K_native, size)
+        if np.array_equal(a, b):
+            first, second = (src if isinstance(src, (str, os.PathLike)) else name
+                             for src, name in ((img1, "img1"), (img2, "img2")))
+            raise ValueError(f"'{first}' and '{second}' are the same photo (the same pixels): "
+                             "a pair needs two views of the scene")
         self.img1, self.img2 = a, b
         self.native_size = size
         self.halvings = levels

@@ -170,6 +170,7 @@ def test_console_script_reconstruct(tmp_path, synthetic_files):
     ("one_image", 2, "exactly two images"),
     ("same_image", 2, "image given twice"),
     ("hard_link", 2, "image given twice"),
+    ("copy", 2, "are the same photo (the same pixels): a pair needs two views"),
     ("bad_option_value", 2, "error: argument --max-width: must be at least 1, got 0 (see "),
     ("empty_out", 2, "error: argument --out: must name a file or folder, got ''"),
     ("non_utf8_name", 2, "is not valid UTF-8 (from another system?): rename it"),
@@ -187,6 +188,7 @@ def test_bad_inputs_exit_codes_and_messages(tmp_path, synthetic_files, case, cod
     (tmp_path / "nomatrix.yaml").write_text("%YAML:1.0\n---\nimage_width: 640\n")
     (tmp_path / "file").write_text("x")
     os.link(f / "a.png", tmp_path / "linked.png")  # the same file under another name
+    shutil.copy(f / "a.png", tmp_path / "copy.png")  # the same pixels in another file
     shutil.copy(f / "b.png", tmp_path / os.fsdecode(b"b\xe9.png"))  # Latin-1 bytes
     matrix = ("camera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
               "  data: [500., {skew}, {cx}, 0., 500., 240., 0., 0., 1.]\n")
@@ -218,6 +220,7 @@ def test_bad_inputs_exit_codes_and_messages(tmp_path, synthetic_files, case, cod
         "one_image": [f / "a.png", "--calib", calib],
         "same_image": [f / "a.png", f / ".." / f.name / "a.png", "--calib", calib],
         "hard_link": [f / "a.png", tmp_path / "linked.png", "--calib", calib],
+        "copy": [f / "a.png", tmp_path / "copy.png", "--calib", calib],
         "bad_option_value": [f / "a.png", f / "b.png", "--max-width", "0"],
         "empty_out": [f / "a.png", f / "b.png", "--out", ""],
         "non_utf8_name": [f / "a.png", tmp_path / os.fsdecode(b"b\xe9.png"), "--calib", calib],

@@ -73,6 +73,15 @@ def test_the_book_class_refuses_none_for_an_image_as_the_wrong_kind(camera, imag
         scene.load_image_pair(None, image)
 
 
+def test_the_book_class_refuses_one_photo_as_a_pair(image):
+    """The same pixels twice (a copy under another name) cannot give depth: an input
+    error before any matching, not a 'pure rotation' after it."""
+    scene = SceneReconstruction3D(np.array([[150.0, 0, 80], [0, 150.0, 60], [0, 0, 1]]))
+    with pytest.raises(ValueError, match=r"'img1' and 'img2' are the same photo"):
+        scene.load_image_pair(image, image.copy())
+    scene.load_image_pair(image, image[:, ::-1].copy())
+
+
 @pytest.mark.parametrize("K, expected", [
     (None, r"`K` must be a 3x3 camera matrix, got None"),
     ("K.txt", r"got 'K.txt' \(a calibration file is read by .*load_calibration\)"),
