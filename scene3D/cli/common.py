@@ -387,6 +387,8 @@ def remove_empty_folders(folders: Iterable[Path]) -> None:
 def _exit_code(args: argparse.Namespace, body: Callable[[argparse.Namespace], int]) -> int:
     try:
         return body(args)
+    except BrokenPipeError:  # stdout closed under the command: not an input error
+        raise                # (scene3D.cli.run_script ends the process quietly)
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)
         return 130
