@@ -121,3 +121,10 @@ def test_a_failed_run_removes_the_folders_it_created_if_empty(tmp_path):
     with pytest.raises(RuntimeError):
         run_command(Args(), crashes)
     assert not (tmp_path / "e").exists()
+
+
+def test_a_workers_task_counts_say_task_for_one():
+    from scene3D.cli.common import ran_tasks
+
+    assert ran_tasks({"pairs": 43, "features": 1}) == "1 features task, 43 pairs tasks"
+    assert ran_tasks({}) == "no tasks"

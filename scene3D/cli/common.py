@@ -279,9 +279,7 @@ def open_engine(args: argparse.Namespace) -> Iterator[Engine]:
         yield _Reporting(engine, progress)
         task_counts = engine.task_counts()
         for worker, counts in sorted(task_counts.items()):
-            log.info("worker %s ran %s", worker,
-                     ", ".join(f"{n} {label} tasks" for label, n in sorted(counts.items()))
-                     or "no tasks")
+            log.info("worker %s ran %s", worker, ran_tasks(counts))
         gone = engine.submitted.total() - sum(sum(c.values()) for c in task_counts.values())
         if gone > 0:
             log.info("%d task%s finished on workers that have since left (their counts went "
@@ -372,6 +370,13 @@ def run_command(args: argparse.Namespace, body: Callable[[argparse.Namespace], i
         if code != EXIT_OK:
             remove_empty_folders(created)
     return code
+
+
+def ran_tasks(counts: dict[str, int]) -> str:
+    """What a worker ran, for ``-v``: ``"1 features task, 43 pairs tasks"`` (by label),
+    or ``"no tasks"``."""
+    return ", ".join(f"{n} {label} task{'s' * (n != 1)}"
+                     for label, n in sorted(counts.items())) or "no tasks"
 
 
 def remove_empty_folders(folders: Iterable[Path]) -> None:
