@@ -51,13 +51,15 @@ def load_calibration(path: str | os.PathLike) -> CameraCalibration:
     Raises
     ------
     FileNotFoundError
-        If the file does not exist.
+        If the file does not exist, or a folder stands there (saying which).
     ValueError
         If it is not FileStorage YAML/XML or lacks or garbles a required field.
     """
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"calibration file not found: '{path}'")
+        what = ("a folder, not a calibration file" if path.is_dir()
+                else "calibration file not found")
+        raise FileNotFoundError(f"{what}: '{path}'")
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     except (cv2.error, SystemError) as exc:

@@ -673,7 +673,7 @@ def test_cli_says_views_were_dropped_as_not_distinct(tmp_path, board_views, caps
     argv = ["--video", str(video), "--out", str(tmp_path / "v.yaml"), "--min-motion", "5"]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err[-1] == ("error: only 1 distinct view(s) of the board in 4 frames of the video: "
+    assert err[-1] == ("error: only 1 distinct view of the board in 4 frames of the video: "
                        "3 more with the board were dropped as not distinct (its corners moved "
                        "less than --min-motion 5 of the image diagonal from a view already "
                        "kept); calibration needs at least 3")

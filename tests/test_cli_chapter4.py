@@ -150,6 +150,41 @@ def test_console_script_reconstruct(tmp_path, synthetic_files):
     assert bad.returncode == 2 and "unknown command 'explode'" in bad.stderr
 
 
+def _run_with_stdout_closed(args):
+    """``args`` run with stdout a pipe whose reader has gone (``... | head -1`` once
+    ``head`` has its line): every write to stdout fails with EPIPE."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        return subprocess.run([*map(str, args)], stdout=write_end, stderr=subprocess.PIPE,
+                              text=True, timeout=300)
+    finally:
+        os.close(write_end)
+
+
+@pytest.mark.parametrize("args", [["--help"], ["--version"], ["reconstruct", "--help"],
+                                  ["reconstruct-views", "--help"], ["evaluate", "--help"],
+                                  ["calibrate", "--help"], ["run"]])
+def test_a_closed_stdout_ends_the_command_quietly(tmp_path, synthetic_files, args):
+    """`scene3d --help | head -1`: no BrokenPipeError traceback, no "error: Broken pipe"
+    (exit code 2, as if the input were wrong); the command ends with 141 (128 + SIGPIPE),
+    the files of a run written all the same."""
+    f = synthetic_files
+    if args == ["run"]:  # results printed on stdout at the end of a reconstruction
+        args = ["reconstruct", f / "a.png", f / "b.png", "--calib", f / "camera.yaml",
+                "--no-plots", "--out", tmp_path]
+    proc = _run_with_stdout_closed([*_scene3d_command(), *args])
+    assert proc.stderr == ""
+    if args[-1] == "--help" and args[0] != "--help":
+        # argparse itself drops a help it cannot write (exit code 0) unless it is short
+        # enough to wait in stdout's buffer, whose flush then fails in run_script
+        assert proc.returncode in (0, 141)
+    else:
+        assert proc.returncode == 141  # scene3D.cli.EXIT_STDOUT_CLOSED
+    if args[0] == "reconstruct" and args[-1] != "--help":
+        assert (tmp_path / "reconstruction.json").exists()
+
+
 @pytest.mark.parametrize("case, code, message", [
     ("missing", 2, "image not found"),
     ("folder", 2, "a folder, not an image file"),
@@ -157,6 +192,8 @@ def test_console_script_reconstruct(tmp_path, synthetic_files):
     ("empty", 2, "the file is empty"),
     ("sizes", 2, "same size"),
     ("bad_yaml", 2, "calibration file"),
+    ("calib_missing", 2, "calibration file not found: '"),
+    ("calib_folder", 2, "a folder, not a calibration file: '"),
     ("no_matrix", 2, "no 'camera_matrix'"),
     ("scalar_matrix", 2, "no 'camera_matrix' matrix"),
     ("width_half", 2, "whole numbers of pixels"),
@@ -207,6 +244,8 @@ def test_bad_inputs_exit_codes_and_messages(tmp_path, synthetic_files, case, cod
         "empty": [f / "a.png", tmp_path / "empty.jpg", "--calib", calib],
         "sizes": [f / "a.png", f / "small.png", "--calib", calib],
         "bad_yaml": [f / "a.png", f / "b.png", "--calib", tmp_path / "bad.yaml"],
+        "calib_missing": [f / "a.png", f / "b.png", "--calib", tmp_path / "nope.yaml"],
+        "calib_folder": [f / "a.png", f / "b.png", "--calib", f],
         "no_matrix": [f / "a.png", f / "b.png", "--calib", tmp_path / "nomatrix.yaml"],
         "aspect": [f / "a.png", f / "b.png", "--calib", f / "camera_wide.yaml"],
         "scalar_matrix": [f / "a.png", f / "b.png", "--calib", tmp_path / "scalar.yaml"],

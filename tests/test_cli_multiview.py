@@ -220,6 +220,30 @@ def test_a_glob_in_a_folder_whose_name_holds_brackets(tmp_path):
     assert multiview.image_paths([f"{folder}/*.jpg"]) == photos
 
 
+def test_a_folder_that_does_not_exist_is_named_as_such(tmp_path, capsys):
+    """A missing folder (an unset variable in ``$DATA/images``) is not "no image
+    matches": said as a folder, with the first missing folder on its way; a missing
+    image as an image; a glob in a missing folder names the folder."""
+    photos = _photos(tmp_path / "photos", ["0003.jpg", "0004.jpg"])
+    cases = {
+        str(tmp_path / "photos2"): f"folder not found: '{tmp_path / 'photos2'}'",
+        str(tmp_path / "nope" / "images"): (f"folder not found: '{tmp_path / 'nope' / 'images'}'"
+                                            f" ('{tmp_path / 'nope'}' does not exist)"),
+        str(tmp_path / "photos" / "0009.JPG"): (
+            f"image not found: '{tmp_path / 'photos' / '0009.JPG'}'"),
+        f"{tmp_path}/nope/*.jpg": (f"no image matches '{tmp_path}/nope/*.jpg': folder not "
+                                   f"found: '{tmp_path / 'nope'}'"),
+        f"{tmp_path}/photos/*.png": f"no image matches '{tmp_path}/photos/*.png'",
+    }
+    for spec, message in cases.items():
+        with pytest.raises(FileNotFoundError) as info:
+            multiview.image_paths([spec, str(photos[0])])
+        assert str(info.value) == message
+    assert multiview.main([str(tmp_path / "photos2"), str(photos[0]), "--calib", CALIB,
+                           "--out", str(tmp_path / "out")]) == 2
+    assert capsys.readouterr().err == f"error: folder not found: '{tmp_path / 'photos2'}'\n"
+
+
 def _image_lines(images_txt):
     """The first line of each image in a COLMAP images.txt, split as COLMAP splits it."""
     lines = [line for line in images_txt.splitlines() if not line.startswith("#")]

@@ -158,3 +158,10 @@ def test_a_summary_from_before_the_file_list_owns_the_output_names(tmp_path):
     folder.check_free([tmp_path / "point_cloud.ply"])
     with pytest.raises(UsageError, match="one of its inputs"):
         folder.check_free([tmp_path / "reconstruction.json"])
+
+
+def test_a_workers_task_counts_say_task_for_one():
+    from scene3D.cli.common import ran_tasks
+
+    assert ran_tasks({"pairs": 43, "features": 1}) == "1 features task, 43 pairs tasks"
+    assert ran_tasks({}) == "no tasks"

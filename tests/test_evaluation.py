@@ -126,6 +126,27 @@ def test_evaluate_command_on_fountain(fountain, tmp_path, capsys):
     assert abs(median_focal - 1.0) < 0.05
 
 
+def test_evaluate_summary_counts_one_pose_in_the_singular(fountain, capsys):
+    assert main([str(fountain), "--pairs", "4-5", "-q"]) == 0
+    out = capsys.readouterr().out
+    assert "\n1 pair at 768 px" in out and "90 % bounds (1 pose; about 90 %" in out
+    assert "1 poses" not in out
+
+
+@pytest.mark.parametrize("counts, line", [
+    ({"right_flagged": 1, "off2_flagged": 0, "off2": 1, "wrong_unflagged": 0},
+     "Trust: 1 right pose (< 1 deg) flagged; 0 of 1 pose more than 2 deg off (or refused) "
+     "flagged; 0 more than 5 deg off not flagged."),
+    ({"right_flagged": 0, "off2_flagged": 2, "off2": 3, "wrong_unflagged": 1},
+     "Trust: 0 right poses (< 1 deg) flagged; 2 of 3 poses more than 2 deg off (or refused) "
+     "flagged; 1 more than 5 deg off not flagged."),
+])
+def test_evaluate_trust_line_says_pose_for_one(counts, line):
+    from scene3D.cli.evaluate import _trust_line
+
+    assert _trust_line(counts) == line
+
+
 def test_evaluate_refuses_a_pair_of_two_cameras(fountain, tmp_path, capsys):
     # The same two photos, but the second view's camera file claims another focal length:
     # one K for both would be a silent wrong answer, so the pair is refused and flagged.

@@ -79,12 +79,30 @@ def exit_process(code: int) -> NoReturn:
     sys.exit(code)
 
 
+#: The exit status of a command whose stdout was closed under it (``scene3d --help |
+#: head -1``): 128 + SIGPIPE, what the shell reports for a program a closed pipe ends.
+EXIT_STDOUT_CLOSED = 141
+
+
 def run_script(command: Callable[[], int]) -> NoReturn:
     """A script's whole process: ``command`` (a command's ``main``) with freed memory kept
     for reuse (:func:`scene3D.memory.keep_freed_memory`, docs/cli.md, memory), then
-    :func:`exit_process` with its exit status."""
+    :func:`exit_process` with its exit status.
+
+    A closed stdout (the reader of a pipe gone, as ``head`` goes after its lines) ends the
+    command quietly with :data:`EXIT_STDOUT_CLOSED`, not a traceback: stdout is flushed
+    here, so that the closed pipe shows before Python's exit, and then pointed at
+    ``os.devnull``, so that the exit's own flush does not fail again (Python's documented
+    way, "Note on SIGPIPE" in the ``signal`` module).
+    """
     keep_freed_memory()
-    exit_process(command())
+    try:
+        code = command()
+        sys.stdout.flush()
+    except BrokenPipeError:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        code = EXIT_STDOUT_CLOSED
+    exit_process(code)
 
 
 def console_main() -> NoReturn:

@@ -471,9 +471,11 @@ def _too_few_views(args: argparse.Namespace, board: BoardSpec, found: CollectedV
     """Why ``found`` holds fewer than 3 views, for the error."""
     seen, n = found.seen, len(found.views)
     if found.not_distinct:
-        return (f"only {n} distinct view(s) of the board in {seen} frames of the "
+        return (f"only {n} distinct view{'s' * (n != 1)} of the board in {seen} "
+                f"frame{'s' * (seen != 1)} of the "
                 f"{_stream_kind(args)}: "
-                f"{found.not_distinct} more with the board were dropped as not distinct "
+                f"{found.not_distinct} more with the board "
+                f"{'was' if found.not_distinct == 1 else 'were'} dropped as not distinct "
                 f"(its corners moved less than --min-motion {args.min_motion:g} of the image "
                 "diagonal from a view already kept); calibration needs at least 3")
     if not found.views:
@@ -488,7 +490,8 @@ def _too_few_views(args: argparse.Namespace, board: BoardSpec, found: CollectedV
                     "acircles); the whole grid must be in view")
         else:
             hint = "check --board (squares), --marker-size and --dictionary"
-        return f"the board was not found in any of the {seen} views; {hint}"
+        where = f"any of the {seen} views" if seen != 1 else "the one view"
+        return f"the board was not found in {where}; {hint}"
     hint = ("; if it is in more of them, check --board (a wrong size can be found by "
             "chance in a view or two)") if n < seen / 2 else ""
     return (f"the board was found in only {n} of {seen} views; calibration needs at least 3"

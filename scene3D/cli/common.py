@@ -279,9 +279,7 @@ def open_engine(args: argparse.Namespace) -> Iterator[Engine]:
         yield _Reporting(engine, progress)
         task_counts = engine.task_counts()
         for worker, counts in sorted(task_counts.items()):
-            log.info("worker %s ran %s", worker,
-                     ", ".join(f"{n} {label} tasks" for label, n in sorted(counts.items()))
-                     or "no tasks")
+            log.info("worker %s ran %s", worker, ran_tasks(counts))
         gone = engine.submitted.total() - sum(sum(c.values()) for c in task_counts.values())
         if gone > 0:
             log.info("%d task%s finished on workers that have since left (their counts went "
@@ -374,6 +372,13 @@ def run_command(args: argparse.Namespace, body: Callable[[argparse.Namespace], i
     return code
 
 
+def ran_tasks(counts: dict[str, int]) -> str:
+    """What a worker ran, for ``-v``: ``"1 features task, 43 pairs tasks"`` (by label),
+    or ``"no tasks"``."""
+    return ", ".join(f"{n} {label} task{'s' * (n != 1)}"
+                     for label, n in sorted(counts.items())) or "no tasks"
+
+
 def remove_empty_folders(folders: Iterable[Path]) -> None:
     """Remove those of ``folders`` that are empty, deepest first (a folder emptied by
     removing its subfolder goes too); a folder that is not empty, or a link, stays."""
@@ -387,6 +392,8 @@ def remove_empty_folders(folders: Iterable[Path]) -> None:
 def _exit_code(args: argparse.Namespace, body: Callable[[argparse.Namespace], int]) -> int:
     try:
         return body(args)
+    except BrokenPipeError:  # stdout closed under the command: not an input error
+        raise                # (scene3D.cli.run_script ends the process quietly)
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)
         return 130

@@ -399,13 +399,11 @@ def run(args: argparse.Namespace) -> int:
           f"flagged {int(stats['flagged'])}, wrong and unflagged {int(stats['wrong_unflagged'])}"
           + (f"; the matches' focal length: median {float(np.median(fitted)):.3f} times the "
              "calibration's" if fitted else ""))
-    print(f"Trust: {int(stats['right_flagged'])} right poses (< 1 deg) flagged; "
-          f"{int(stats['off2_flagged'])} of {int(stats['off2'])} poses more than 2 deg off (or "
-          f"refused) flagged; {int(stats['wrong_unflagged'])} more than 5 deg off not flagged.")
+    print(_trust_line(stats))
     if calibration["pairs"]:
         print(f"Sigma calibration: {calibration['rotation_within90']:.0%} of the rotation errors "
               f"and {calibration['translation_within90']:.0%} of the translation-direction "
-              f"errors within their predicted 90 % bounds ({int(calibration['pairs'])} poses; "
+              f"errors within their predicted 90 % bounds ({_poses(calibration['pairs'])}; "
               "about 90 % when the sigmas are right, less when the camera files' own error "
               "is comparable to them)")
     if args.no_calib:
@@ -414,6 +412,19 @@ def run(args: argparse.Namespace) -> int:
         atomic_write_bytes(args.csv, _csv_text(rows).encode())
         print(f"Wrote '{args.csv}'")
     return EXIT_OK
+
+
+def _poses(count: float) -> str:
+    """``"1 pose"``, ``"2 poses"``."""
+    return f"{int(count)} pose{'s' * (int(count) != 1)}"
+
+
+def _trust_line(stats: dict[str, float]) -> str:
+    """The summary's line on the flags: right poses flagged, poses off and flagged."""
+    return (f"Trust: {_poses(stats['right_flagged']).replace(' pose', ' right pose')} "
+            f"(< 1 deg) flagged; {int(stats['off2_flagged'])} of {_poses(stats['off2'])} "
+            f"more than 2 deg off (or refused) flagged; {int(stats['wrong_unflagged'])} more "
+            "than 5 deg off not flagged.")
 
 
 def main(argv: list[str] | None = None, prog: str = "scene3d evaluate") -> int:

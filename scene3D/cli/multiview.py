@@ -155,13 +155,36 @@ def image_paths(specs: list[str]) -> list[Path]:
         else:
             matched = glob_files(spec)
             if not matched:
-                raise FileNotFoundError(f"no image matches '{spec}'")
+                raise FileNotFoundError(_nothing_at(spec))
             paths += matched
     if len(paths) < 2:
         raise UsageError(f"need at least two images, got {len(paths)}")
     check_image_paths(paths)
     check_view_names(paths)
     return paths
+
+
+def _nothing_at(spec: str) -> str:
+    """Why ``spec`` (neither a file nor a folder) gives no image: a missing folder or image
+    named as such (with the first missing folder on the way, as an unset variable in
+    ``$DATA/images`` leaves), else a glob that matches nothing."""
+    from ..imageio import IMAGE_SUFFIXES
+
+    def missing(path: Path) -> str:
+        first = next((a for a in reversed(path.parents) if not a.exists()), path)
+        return f" ('{first}' does not exist)" if first != path else ""
+
+    def is_glob(text: str) -> bool:  # as glob.has_magic
+        return any(c in text for c in "*?[")
+
+    path = Path(spec)
+    if not is_glob(spec):
+        what = "image" if path.suffix.lower() in IMAGE_SUFFIXES else "folder"
+        return f"{what} not found: '{spec}'{missing(path)}"
+    folder = path.parent
+    if not is_glob(str(folder)) and not folder.is_dir():
+        return f"no image matches '{spec}': folder not found: '{folder}'{missing(folder)}"
+    return f"no image matches '{spec}'"
 
 
 def check_view_names(paths: list[Path]) -> None:
