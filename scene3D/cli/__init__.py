@@ -16,6 +16,12 @@ from ..memory import keep_freed_memory
 # parallel decoding and SIFT need. With a short timeout they sleep at once; BLAS stays
 # multi-threaded. A value the user has set is kept.
 os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")
+# Before cv2 loads: OpenCV's and FFmpeg's own warnings ("[ WARN:0@0.169] global
+# cap_v4l.cpp:915 open VIDEOIO(V4L2:/dev/video0): can't open camera by index", "moov atom
+# not found") would come before the command's one-line error, which says the same for the
+# user. Errors stay; values the user has set are kept.
+os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
 
 COMMANDS = {
     "reconstruct": "reconstruct a scene from two photos (chapter4.py)",
