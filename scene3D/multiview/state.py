@@ -29,7 +29,7 @@ from .models import (
     refutes_calibration,
 )
 from .points import max_parallax_deg, observation_errors, refine_points, triangulate_groups
-from .tracks import Tracks, build_tracks, connected_components
+from .tracks import build_tracks, connected_components
 from .weights import keypoint_sigma
 
 #: Points (at most, about) in the adjustment that tests a calibrated model's focal length.
@@ -59,21 +59,25 @@ class GrowingModel:
         self.blocked = np.zeros(V, dtype=bool)  # taken out by the check: not put back
         self.X = np.zeros((0, 3))
         self.reference = -1
-        self._set_tracks(build_tracks([len(f.keypoints) for f in features], self.pairs))
+        self._build_tracks()
         self.node_point = np.full(len(self.xy), -1, dtype=int)
         self.track_point = np.full(self.tracks.num_tracks, -1, dtype=int)
 
     # -- bookkeeping --------------------------------------------------------------------
 
-    def _set_tracks(self, tracks: Tracks) -> None:
+    def _build_tracks(self) -> None:
+        """The tracks of ``self.pairs``, their time added to ``timings["tracks"]``."""
+        t0 = time.perf_counter()
+        tracks = build_tracks([len(f.keypoints) for f in self.features], self.pairs)
         self.tracks = tracks
         self.node_view = tracks.node_view
         self.track_nodes, self.track_starts = tracks.members()
+        self.timings["tracks"] = self.timings.get("tracks", 0.0) + time.perf_counter() - t0
 
     def add_pairs(self, new: list[PairMatches]) -> None:
         """Take further verified pairs: rebuild the tracks, keep every point."""
         self.pairs += [p for p in new if self.allowed[p.i] and self.allowed[p.j]]
-        self._set_tracks(build_tracks([len(f.keypoints) for f in self.features], self.pairs))
+        self._build_tracks()
         self._relink_tracks()
 
     def drop_pairs(self, bad: set[tuple[int, int]]) -> None:
@@ -82,7 +86,7 @@ class GrowingModel:
         observations in the track that holds most of them, so that nothing stays attached
         through a false pair."""
         self.pairs = [p for p in self.pairs if (p.i, p.j) not in bad]
-        self._set_tracks(build_tracks([len(f.keypoints) for f in self.features], self.pairs))
+        self._build_tracks()
         obs = np.flatnonzero(self.node_point >= 0)
         point, track = self.node_point[obs], self.tracks.node_track[obs]
         span = self.tracks.num_tracks + 1
