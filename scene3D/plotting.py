@@ -277,8 +277,9 @@ def plot_cameras_and_points(
 def plot_uncertainty_map(umap: UncertaintyMap, ax: Axes | None = None) -> Figure:
     """Heat map of the projection uncertainty (1 sigma, worst direction, pixels) over the
     image, with contours, its median and worst values, and the corners' values."""
-    fig, (ax,) = _axes(ax, figsize=(9, 6.5))
     w, h = umap.image_size
+    # The image's aspect, with room for the title above and the colour bar beside it.
+    fig, (ax,) = _axes(ax, figsize=(9, min(7.2 * h / w, 9.0) + 1.3))
     extent = (-0.5, w - 0.5, h - 0.5, -0.5)
     from matplotlib.colors import LogNorm
 
@@ -306,7 +307,8 @@ def plot_uncertainty_map(umap: UncertaintyMap, ax: Axes | None = None) -> Figure
     ax.set_xlim(extent[0], extent[1])
     ax.set_ylim(extent[2], extent[3])
     ax.set_aspect("equal")
-    ax.set_title(f"Projection uncertainty: median {format_px(umap.median_px)}, "
+    # Short lines: a title wider than the image ran under the colour bar (16:9 photos).
+    ax.set_title(f"Projection uncertainty: median {format_px(umap.median_px)},\n"
                  f"worst {format_px(umap.worst_px)}, centre {format_px(umap.centre_px)}"
                  + (f"; no ray reaches {umap.unreachable_share:.1%} (blank)"
                     if umap.unreachable_share else ""))
