@@ -420,6 +420,12 @@ def test_every_argument_of_every_command_has_help(module):
     silent = [action.dest for action in parser._actions
               if not action.help and not isinstance(action, argparse._HelpAction)]
     assert silent == []
+    # An option with a default says which ('--pairs' did not).
+    unsaid = [action.dest for action in parser._actions
+              if action.option_strings and action.default not in (None, False, argparse.SUPPRESS)
+              and not isinstance(action, (argparse._HelpAction, argparse._CountAction))
+              and "default" not in action.help]
+    assert unsaid == []
 
 
 def test_a_still_camera_before_a_moving_board_gives_no_trusted_pose(tmp_path, chessboards, capsys):

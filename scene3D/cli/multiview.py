@@ -113,9 +113,10 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
                         help="which pairs to match: 'retrieval' (each view with its "
                              "--retrieval-neighbours most similar views, any order), "
                              "'sequential' (each with its --neighbours followers in the "
-                             "given order), 'all', or 'auto' (all pairs up to 2K+1 views, "
-                             "else retrieval, plus sequential when the images show that "
-                             "the given order is a sequence; the summary says which)")
+                             "given order), 'all', or 'auto', the default (all pairs up to "
+                             "2K+1 views, K being --retrieval-neighbours, else retrieval, "
+                             "plus sequential when the images show that the given order is "
+                             "a sequence; the summary says which)")
     parser.add_argument("--neighbours", type=positive_int, default=3, metavar="N",
                         help="sequential pairs: how many following views each view is "
                              "matched with (default 3)")
@@ -128,10 +129,11 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
                              "errors after a similarity alignment")
     parser.add_argument("--out", type=path_arg, default=Path("out/views"), metavar="DIR",
                         help="output folder (default: out/views), not that of the "
-                             "photos: a run replaces the files there named as its outputs "
-                             "(below) and removes an earlier run's that it does not write "
-                             "again (as listed in that run's reconstruction.json); other "
-                             "files are kept")
+                             "photos: a run replaces an earlier run's files there named as "
+                             "its outputs (below) and removes those it does not write again "
+                             "(as listed in that run's reconstruction.json); other files "
+                             "are kept, and a file named as an output that no earlier run "
+                             "wrote stops the run (exit code 2)")
     parser.add_argument("--no-plots", action="store_true", help="skip cameras.png")
     parser.add_argument("--no-report", action="store_true",
                         help="skip report.html (one self-contained page: the numbers, the "
