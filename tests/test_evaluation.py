@@ -240,6 +240,7 @@ def test_evaluate_pair_specs():
     (["{fountain}", "--csv", "{tmp}/no/rows.csv"], "does not exist"),
     (["{fountain}", "--csv", "{tmp}/kept.csv/rows.csv"], "is a file, not a folder"),
     (["{tmp}/nope"], "scene folder not found"),
+    (["{fountain}", "--csv", "-"], "--csv '-': give a file name"),
 ])
 def test_evaluate_bad_input(fountain, tmp_path, capsys, argv, message):
     argv = [a.format(tmp=tmp_path, fountain=fountain) for a in argv]
@@ -248,6 +249,14 @@ def test_evaluate_bad_input(fountain, tmp_path, capsys, argv, message):
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1
     assert (tmp_path / "kept.csv").read_text() == "the user's rows"
+
+
+def test_evaluate_progress_lines_name_each_pair_without_trailing_space(fountain, capsys):
+    assert main([str(fountain), "--pairs", "4-5"]) == 0
+    err = capsys.readouterr().err
+    (line,) = [line for line in err.splitlines() if line.startswith("0004.jpg-0005.jpg: ")]
+    assert re.fullmatch(r"0004.jpg-0005.jpg: rot [0-9.]+ deg, t-dir [0-9.]+ deg, \d+ inliers, "
+                        r"[0-9.]+ s", line)
 
 
 def test_paired_auc_difference_is_the_auc_difference_with_an_interval():

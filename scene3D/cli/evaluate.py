@@ -91,7 +91,8 @@ def build_parser(prog: str = "scene3d evaluate") -> argparse.ArgumentParser:
     parser.add_argument("--force", action="store_true",
                         help="overwrite an existing --csv file")
     add_engine_args(parser)
-    add_common_args(parser, quiet_stdout="the table")
+    add_common_args(parser, quiet_stdout="the result: the table, its summary lines and the "
+                                         "CSV file written")
     return parser
 
 
@@ -336,9 +337,13 @@ def _focal_summary(rows: list[dict]) -> str:
 
 
 def _check_csv_target(path: Path | None, force: bool) -> None:
-    """Refuse, before any work, a --csv file that could not or should not be written."""
+    """Refuse, before any work, a --csv file that could not or should not be written
+    (``-``, which elsewhere means stdout, too: the table is printed there)."""
     if path is None:
         return
+    if str(path) == "-":
+        raise UsageError("--csv '-': give a file name (the table is printed on stdout; "
+                         "the CSV goes to a file)")
     if path.exists() and (path.is_dir() or not force):
         raise UsageError(f"--csv '{path}' exists; use --force to overwrite it"
                          if not path.is_dir() else f"--csv '{path}' is a folder")
@@ -371,7 +376,8 @@ def run(args: argparse.Namespace) -> int:
             if not args.quiet:
                 print(f"{row['pair']}: rot {row['rotation_deg']:.3f} deg, t-dir "
                       f"{row['translation_deg']:.3f} deg, {row['inliers']} inliers, "
-                      f"{row['seconds']:.2f} s {row['note']}", file=sys.stderr)
+                      f"{row['seconds']:.2f} s" + (f" {row['note']}" if row["note"] else ""),
+                      file=sys.stderr)
     fitted = [r["focal_scale"] for r in rows if np.isfinite(r["focal_scale"])]
     stats = summarize_pose_errors([r["rotation_deg"] for r in rows],
                                   [r["translation_deg"] for r in rows],

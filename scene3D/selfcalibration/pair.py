@@ -349,7 +349,8 @@ def self_calibrate_pair(
     if pose_rivals:
         worst_rival = max(pose_rivals, key=lambda r: r.pose_difference_deg)
         warnings.append(
-            f"the matches do not tell {f_data:.1f} px from {worst_rival.focal_px:.1f} px "
+            f"the matches do not tell their best fit, {f_data:.1f} px, from "
+            f"{worst_rival.focal_px:.1f} px "
             f"(cost difference {worst_rival.z:.1f} standard errors), whose pose differs by "
             f"{worst_rival.pose_difference_deg:.1f} deg: the focal length, and the pose, may "
             "be wrong" + (f" ({len(pose_rivals)} such focal lengths)"
