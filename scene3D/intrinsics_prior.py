@@ -299,7 +299,9 @@ def check_one_camera(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, i
     size, one EXIF make and model (among those that record one) and one EXIF focal
     length (among those that record one: a zoom lens at two settings is two cameras),
     like compared with like: ``FocalLength`` values with each other, and
-    ``FocalLengthIn35mmFilm`` values with each other.
+    ``FocalLengthIn35mmFilm`` values with each other. A photo whose EXIF focal length
+    cannot be used (a corrupt block, 0, an implausible value: :func:`focal_from_exif`)
+    is left out of that comparison; :func:`camera_prior` warns about it and ignores it.
     """
     if not photos:
         raise ValueError("no photos given")
@@ -319,7 +321,8 @@ def check_one_camera(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, i
                              f"{named[0][1]}: one camera is needed; or {_GIVE_CALIBRATION}")
     for field, kind in _FOCAL_KINDS:
         zooms = [(n, float(getattr(e, field))) for n, e, _ in photos
-                 if e is not None and e.error is None and _usable(getattr(e, field))]
+                 if e is not None and _usable(getattr(e, field))
+                 and not focal_from_exif(e, size0).problem]
         for name, focal in zooms[1:]:
             if abs(focal / zooms[0][1] - 1.0) > SAME_FOCAL_TOLERANCE:
                 raise ValueError(f"'{name}' was taken at {focal:g} mm and '{zooms[0][0]}' at "
