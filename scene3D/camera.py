@@ -222,6 +222,25 @@ def scale_intrinsics_resize(
     return scale_intrinsics(K, to_size[0] / from_size[0], to_size[1] / from_size[1])
 
 
+def different_sizes_message(name: str, size: tuple[int, int], first_name: str,
+                            first_size: tuple[int, int]) -> str:
+    """The one-line error for photo ``name`` of ``size`` next to ``first_name`` of
+    ``first_size`` (width, height): one camera matrix holds for one size, whether it comes
+    from a calibration or from the photos. Says what to do: store a rotated photo the
+    same way round, give a resized one (the same aspect ratio) the other's size, replace
+    a cropped one by the camera's original."""
+    (w, h), (w0, h0) = size, first_size
+    head = f"'{name}' is {w}x{h} but '{first_name}' is {w0}x{h0}"
+    if (w, h) == (h0, w0):
+        return f"{head}: one was rotated; store both the same way round"
+    head += ": photos of one camera at one size are needed"
+    if abs(w * h0 / (h * w0) - 1.0) <= 0.01:
+        small = min((w, h), (w0, h0))
+        return (f"{head}; one was resized: use the camera's originals, or resize the larger "
+                f"to {small[0]}x{small[1]}")
+    return f"{head}; one was cropped, or taken with another camera: use the camera's originals"
+
+
 def adapt_intrinsics_to_size(
     K: FloatArray,
     calib_size: tuple[int, int],

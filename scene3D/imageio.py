@@ -22,7 +22,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .camera import has_distortion, undistort_image
+from .camera import different_sizes_message, has_distortion, undistort_image
 from .errors import first_line
 
 logger = logging.getLogger(__name__)
@@ -491,21 +491,19 @@ def iter_working_images(
     ------
     ValueError
         At the first source whose size differs from the first's: one calibration
-        holds for one size.
+        holds for one size (:func:`scene3D.camera.different_sizes_message`).
     """
     names = list(names) if names is not None else [f"image {i}" for i in range(len(sources))]
-    first: tuple[int, int] | None = None
+    first: tuple[str, tuple[int, int]] | None = None
 
     def checked(src: ImageSource, name: str, job: Future
                 ) -> tuple[np.ndarray, tuple[int, int], int]:
         nonlocal first
         img, size, levels = job.result()
-        first = first or size
-        if size != first:
-            label = src if isinstance(src, (str, os.PathLike)) else name
-            raise ValueError(f"'{label}' is {size[0]}x{size[1]}, not {first[0]}x{first[1]} "
-                             "like the first image: the images must have the same size "
-                             "(one camera, one size)")
+        label = os.fspath(src) if isinstance(src, (str, os.PathLike)) else name
+        first = first or (label, size)
+        if size != first[1]:
+            raise ValueError(different_sizes_message(label, size, *first))
         return img, size, levels
 
     with ThreadPoolExecutor(max_workers=2) as pool:

@@ -251,7 +251,7 @@ def _evaluate_pair_no_calib(name: str, view_a: _View, view_b: _View,
     from its photos' EXIF or the default prior (:mod:`scene3D.selfcalibration`), and
     ``focal_scale`` is the focal length found over the camera file's (a task: see
     :func:`evaluate_pairs`)."""
-    from ..intrinsics_prior import camera_prior
+    from ..intrinsics_prior import CameraMismatchError, camera_prior
     from ..selfcalibration import self_calibrate_pair
 
     t0 = time.perf_counter()
@@ -260,8 +260,9 @@ def _evaluate_pair_no_calib(name: str, view_a: _View, view_b: _View,
     try:
         try:
             prior = camera_prior([view_a.photo, view_b.photo])
-        except ValueError as exc:
-            row["note"] = f"refused: {exc}"
+        except ValueError as exc:  # two sizes, cameras or zoom settings
+            problem = exc.problem if isinstance(exc, CameraMismatchError) else exc
+            row["note"] = f"refused: {problem}"  # without --no-calib, the camera files serve
             return row
         for message in prior.warnings:
             logger.warning("%s", message)
