@@ -167,7 +167,11 @@ def test_console_script_reconstruct(tmp_path, synthetic_files):
     ("width_text", 2, "whole numbers of pixels"),
     ("far_principal_point", 2, "lies far outside the 640x480 image"),
     ("skew", 2, "skew of 3000"),
-    ("aspect", 2, "aspect ratio"),
+    ("aspect", 2, "images are 640x480 but the calibration is for 640x360, another aspect "
+                  "ratio: cropped images, or another camera's?"),
+    ("turned", 2, "images are 640x480 but the calibration is for 480x640: the images are "
+                  "turned by 90 degrees from it (landscape against portrait); turn them back "
+                  "to portrait"),
     ("out_is_file", 2, "is not a folder"),
     ("sizes_no_calib", 2, "error: 'small.png' is 320x240 but 'a.png' is 640x480: photos of "
                           "one camera at one size are needed; one was resized: use the "
@@ -203,6 +207,10 @@ def test_bad_inputs_exit_codes_and_messages(tmp_path, synthetic_files, case, cod
                               ("skew", matrix.format(skew=3000, cx=320), "640")):
         (tmp_path / f"{name}.yaml").write_text(
             f"%YAML:1.0\n---\n{head}image_width: {width}\nimage_height: 480\n")
+    # The camera held upright: a calibration of portrait images, 480x640.
+    save_calibration(tmp_path / "turned.yaml", CameraCalibration(
+        np.array([[500.0, 0.0, 239.5], [0.0, 500.0, 319.5], [0.0, 0.0, 1.0]]), np.zeros(5),
+        (480, 640)))
     args = {
         "missing": [tmp_path / "nope.jpg", f / "b.png", "--calib", calib],
         "folder": [f, f / "b.png", "--calib", calib],
@@ -212,6 +220,7 @@ def test_bad_inputs_exit_codes_and_messages(tmp_path, synthetic_files, case, cod
         "bad_yaml": [f / "a.png", f / "b.png", "--calib", tmp_path / "bad.yaml"],
         "no_matrix": [f / "a.png", f / "b.png", "--calib", tmp_path / "nomatrix.yaml"],
         "aspect": [f / "a.png", f / "b.png", "--calib", f / "camera_wide.yaml"],
+        "turned": [f / "a.png", f / "b.png", "--calib", tmp_path / "turned.yaml"],
         "scalar_matrix": [f / "a.png", f / "b.png", "--calib", tmp_path / "scalar.yaml"],
         "width_half": [f / "a.png", f / "b.png", "--calib", tmp_path / "half.yaml"],
         "width_inf": [f / "a.png", f / "b.png", "--calib", tmp_path / "inf.yaml"],

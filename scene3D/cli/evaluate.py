@@ -173,7 +173,8 @@ def _load_view(path: Path, camera: StrechaCamera, max_width: int | None,
     """
     size = read_image_size(path)
     try:
-        K = adapt_intrinsics_to_size(camera.K, camera.image_size, size)
+        K = adapt_intrinsics_to_size(camera.K, camera.image_size, size,
+                                     what="its camera file")
     except ValueError as exc:
         raise ValueError(f"'{path}': {exc}") from None
     dist = camera.dist  # in normalised coordinates: the same at any size
@@ -399,7 +400,7 @@ def run(args: argparse.Namespace) -> int:
           f"< 5 deg {stats['within_5deg']:.0%}, AUC@5deg {stats['auc_5deg']:.1f}, "
           f"flagged {int(stats['flagged'])}, wrong and unflagged {int(stats['wrong_unflagged'])}"
           + (f"; the matches' focal length: median {float(np.median(fitted)):.3f} times the "
-             "calibration's" if fitted else ""))
+             "camera files'" if fitted else ""))
     print(f"Trust: {int(stats['right_flagged'])} right poses (< 1 deg) flagged; "
           f"{int(stats['off2_flagged'])} of {int(stats['off2'])} poses more than 2 deg off (or "
           f"refused) flagged; {int(stats['wrong_unflagged'])} more than 5 deg off not flagged.")
