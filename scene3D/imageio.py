@@ -24,6 +24,7 @@ import numpy as np
 
 from .camera import different_sizes_message, has_distortion, undistort_image
 from .errors import first_line
+from .image_integrity import intact_image_data
 
 logger = logging.getLogger(__name__)
 
@@ -209,6 +210,7 @@ def _decode(data: np.ndarray, flags: int, path: str | os.PathLike) -> np.ndarray
     if is_heif(head):
         return _decode_heif(data, path)
     _check_header(head, data.size, path)
+    data = intact_image_data(data, path)
     try:
         img = cv2.imdecode(data, flags | cv2.IMREAD_IGNORE_ORIENTATION)
     except cv2.error as exc:  # OpenCV asserts rather than returning None for some files
@@ -244,8 +246,11 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
         If ``path`` does not exist.
     ValueError
         If the file is empty or not an image OpenCV can decode: damaged, too large
-        for OpenCV, or a JPEG whose header claims more pixels than the file holds; or a
-        HEIC/HEIF photo without ``pillow-heif`` installed (the message says how).
+        for OpenCV, or a JPEG whose header claims more pixels than the file holds; a
+        truncated JPEG, PNG or TIFF file, or a JPEG whose compressed data holds garbage
+        (:func:`scene3D.image_integrity.intact_image_data`, before any decoder prints
+        to stderr); or a HEIC/HEIF photo without ``pillow-heif`` installed (the message
+        says how).
     """
     return _decode(_read_bytes(path), _AS_STORED, path)
 

@@ -81,7 +81,7 @@ def test_bad_files(tmp_path):
     cut = tmp_path / "cut.jpg"
     cut.write_bytes(photo.read_bytes()[:2000])  # the header survives, the pixels do not
     for max_width in (None, 300):  # full decoding and decoding at the reduced size
-        with pytest.raises(ValueError, match="damaged"):
+        with pytest.raises(ValueError, match="cut.jpg': a truncated JPEG file"):
             load_working_image(cut, np.eye(3), np.zeros(5), max_width)
 
 
