@@ -35,8 +35,11 @@ _TIFF_DATA_TAGS = ((273, 279), (324, 325))
 def intact_image_data(data: np.ndarray, path: str | os.PathLike) -> np.ndarray:
     """The bytes of an image file ``(n,) uint8``, once its structure shows it whole.
 
-    JPEG: every marker segment in place, the compressed data of each scan free of
-    markers other than restart markers in order, and an end-of-image marker. Stray bytes
+    JPEG: every marker segment in place up to the first scan, and the compressed data
+    of each scan free of markers other than restart markers in order. A file that ends
+    in a scan, without its end-of-image marker, is left to the decoder: OpenCV decodes
+    one that lost only that marker whole and refuses one cut short
+    (:func:`jpeg_cut_short` then names the cause). Stray bytes
     between the segments before the first scan (which hold no pixel) are dropped, with a
     warning naming the file. PNG: chunks up to ``IEND``. TIFF: the first directory and the
     image data it points to within the file. Other formats pass unchecked.
@@ -56,6 +59,14 @@ def intact_image_data(data: np.ndarray, path: str | os.PathLike) -> np.ndarray:
     return data
 
 
+def jpeg_cut_short(data: np.ndarray, path: str | os.PathLike) -> ValueError | None:
+    """The error for a JPEG file ``data`` that its decoder refused and that does not end
+    with an end-of-image marker (cut short); None for any other file."""
+    if data[:2].tobytes() == b"\xff\xd8" and data[-2:].tobytes() != b"\xff\xd9":
+        return _truncated(path, "JPEG", "it ends before its end-of-image marker")
+    return None
+
+
 def _truncated(path: str | os.PathLike, kind: str, detail: str) -> ValueError:
     return ValueError(f"cannot read image '{path}': a truncated {kind} file ({detail})")
 
@@ -73,6 +84,8 @@ def _check_jpeg(data: np.ndarray, path: str | os.PathLike) -> np.ndarray:
     restart_interval, scanned, i = 0, False, 2
     while True:
         if i + 2 > n:
+            if scanned:  # no end-of-image marker: cut short, or only that marker lost
+                break
             raise truncated
         if data[i] != 0xFF:  # bytes where a marker belongs
             k = int(np.searchsorted(markers, i))
@@ -108,8 +121,8 @@ def _check_jpeg(data: np.ndarray, path: str | os.PathLike) -> np.ndarray:
             scanned = True
             k = int(np.searchsorted(markers, end))
             j = int(np.searchsorted(not_restart, k))
-            if j == len(not_restart):
-                raise truncated
+            if j == len(not_restart):  # the scan runs to the end of the file
+                break
             restarts = codes[k:not_restart[j]].astype(np.int64) - 0xD0
             if restarts.size and (not restart_interval or np.any(
                     restarts != np.arange(restarts.size) % 8)):

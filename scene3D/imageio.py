@@ -24,7 +24,7 @@ import numpy as np
 
 from .camera import different_sizes_message, has_distortion, undistort_image
 from .errors import first_line
-from .image_integrity import intact_image_data
+from .image_integrity import intact_image_data, jpeg_cut_short
 
 logger = logging.getLogger(__name__)
 
@@ -221,7 +221,8 @@ def _decode(data: np.ndarray, flags: int, path: str | os.PathLike) -> np.ndarray
                              "damaged file") from None
         raise ValueError(f"cannot read image '{path}': a damaged image file{claim}") from None
     if img is None or img.size == 0:
-        raise ValueError(f"cannot read image '{path}': not an image file, or a damaged one")
+        raise jpeg_cut_short(data, path) or ValueError(
+            f"cannot read image '{path}': not an image file, or a damaged one")
     return img
 
 

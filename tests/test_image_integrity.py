@@ -66,6 +66,21 @@ def test_a_damaged_or_truncated_jpeg_is_refused_naming_it(tmp_path, capfd, name,
     assert capfd.readouterr().err == ""  # no line of libjpeg's
 
 
+def test_a_jpeg_without_its_end_marker_is_left_to_its_decoder(tmp_path, capfd, fountain):
+    """fountain-P11's 0004.jpg without its last two bytes decodes whole in OpenCV (its
+    compressed data ends complete): read, not refused. A small photo's does not: refused
+    as cut short, in one line."""
+    original = (fountain / "images" / "0004.jpg").read_bytes()
+    path = tmp_path / "no_eoi.jpg"
+    path.write_bytes(original[:-2])
+    np.testing.assert_array_equal(read_image(path), read_image(fountain / "images" / "0004.jpg"))
+    path.write_bytes(_encoded(".jpg")[:-2])
+    with pytest.raises(ValueError, match=r"a truncated JPEG file \(it ends before its "
+                                         r"end-of-image marker\)$"):
+        read_image(path)
+    assert capfd.readouterr().err == ""
+
+
 def test_restart_markers_out_of_order_are_damage(tmp_path, capfd):
     jpeg = _encoded(".jpg", [cv2.IMWRITE_JPEG_RST_INTERVAL, 4])
     first = jpeg.index(b"\xff\xd0", _scan_start(jpeg))
