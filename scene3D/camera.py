@@ -222,17 +222,38 @@ def scale_intrinsics_resize(
     return scale_intrinsics(K, to_size[0] / from_size[0], to_size[1] / from_size[1])
 
 
+def different_sizes_message(name: str, size: tuple[int, int], first_name: str,
+                            first_size: tuple[int, int]) -> str:
+    """The one-line error for photo ``name`` of ``size`` next to ``first_name`` of
+    ``first_size`` (width, height): one camera matrix holds for one size, whether it comes
+    from a calibration or from the photos. Says what to do: store a rotated photo the
+    same way round, give a resized one (the same aspect ratio) the other's size, replace
+    a cropped one by the camera's original."""
+    (w, h), (w0, h0) = size, first_size
+    head = f"'{name}' is {w}x{h} but '{first_name}' is {w0}x{h0}"
+    if (w, h) == (h0, w0):
+        return f"{head}: one was rotated; store both the same way round"
+    head += ": photos of one camera at one size are needed"
+    if abs(w * h0 / (h * w0) - 1.0) <= 0.01:
+        small = min((w, h), (w0, h0))
+        return (f"{head}; one was resized: use the camera's originals, or resize the larger "
+                f"to {small[0]}x{small[1]}")
+    return f"{head}; one was cropped, or taken with another camera: use the camera's originals"
+
+
 def adapt_intrinsics_to_size(
     K: FloatArray,
     calib_size: tuple[int, int],
     image_size: tuple[int, int],
     aspect_tolerance: float = 0.01,
+    what: str = "the calibration",
 ) -> FloatArray:
     """Return ``K`` for images of ``image_size`` when it was calibrated at ``calib_size``.
 
     Sizes are (width, height). Same size: ``K`` unchanged. Same aspect ratio
     (within ``aspect_tolerance``, relative): ``K`` scaled. Otherwise the
-    calibration does not describe these images.
+    calibration does not describe these images; the error names ``what`` gave ``K``
+    and says whether the images are turned by 90 degrees from it.
 
     Raises
     ------
@@ -241,14 +262,18 @@ def adapt_intrinsics_to_size(
     """
     if tuple(calib_size) == tuple(image_size):
         return K.copy()
-    calib_aspect = calib_size[0] / calib_size[1]
-    image_aspect = image_size[0] / image_size[1]
-    if abs(calib_aspect / image_aspect - 1.0) > aspect_tolerance:
-        raise ValueError(
-            f"images are {image_size[0]}x{image_size[1]} but the calibration is for "
-            f"{calib_size[0]}x{calib_size[1]} with another aspect ratio; "
-            "calibrate at this size or crop the images"
-        )
+    (w, h), (cw, ch) = image_size, calib_size
+    if abs(cw * h / (ch * w) - 1.0) > aspect_tolerance:
+        head = f"images are {w}x{h} but {what} is for {cw}x{ch}"
+        if abs(cw * w / (ch * h) - 1.0) <= aspect_tolerance:
+            def shape(width: int, height: int) -> str:
+                return "portrait" if height > width else "landscape"
+            raise ValueError(f"{head}: the images are turned by 90 degrees from it "
+                             f"({shape(w, h)} against {shape(cw, ch)}); turn them back to "
+                             f"{shape(cw, ch)} (scene3D uses the pixels as stored, not the EXIF "
+                             "orientation)")
+        raise ValueError(f"{head}, another aspect ratio: cropped images, or another camera's? "
+                         "It holds for images of its size and copies scaled from them")
     return scale_intrinsics_resize(K, calib_size, image_size)
 
 

@@ -22,8 +22,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .camera import has_distortion, undistort_image
+from .camera import different_sizes_message, has_distortion, undistort_image
 from .errors import first_line
+from .image_integrity import intact_image_data, jpeg_cut_short
 
 logger = logging.getLogger(__name__)
 
@@ -209,6 +210,7 @@ def _decode(data: np.ndarray, flags: int, path: str | os.PathLike) -> np.ndarray
     if is_heif(head):
         return _decode_heif(data, path)
     _check_header(head, data.size, path)
+    data = intact_image_data(data, path)
     try:
         img = cv2.imdecode(data, flags | cv2.IMREAD_IGNORE_ORIENTATION)
     except cv2.error as exc:  # OpenCV asserts rather than returning None for some files
@@ -219,7 +221,8 @@ def _decode(data: np.ndarray, flags: int, path: str | os.PathLike) -> np.ndarray
                              "damaged file") from None
         raise ValueError(f"cannot read image '{path}': a damaged image file{claim}") from None
     if img is None or img.size == 0:
-        raise ValueError(f"cannot read image '{path}': not an image file, or a damaged one")
+        raise jpeg_cut_short(data, path) or ValueError(
+            f"cannot read image '{path}': not an image file, or a damaged one")
     return img
 
 
@@ -244,8 +247,11 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
         If ``path`` does not exist.
     ValueError
         If the file is empty or not an image OpenCV can decode: damaged, too large
-        for OpenCV, or a JPEG whose header claims more pixels than the file holds; or a
-        HEIC/HEIF photo without ``pillow-heif`` installed (the message says how).
+        for OpenCV, or a JPEG whose header claims more pixels than the file holds; a
+        truncated JPEG, PNG or TIFF file, or a JPEG whose compressed data holds garbage
+        (:func:`scene3D.image_integrity.intact_image_data`, before any decoder prints
+        to stderr); or a HEIC/HEIF photo without ``pillow-heif`` installed (the message
+        says how).
     """
     return _decode(_read_bytes(path), _AS_STORED, path)
 
@@ -491,21 +497,19 @@ def iter_working_images(
     ------
     ValueError
         At the first source whose size differs from the first's: one calibration
-        holds for one size.
+        holds for one size (:func:`scene3D.camera.different_sizes_message`).
     """
     names = list(names) if names is not None else [f"image {i}" for i in range(len(sources))]
-    first: tuple[int, int] | None = None
+    first: tuple[str, tuple[int, int]] | None = None
 
     def checked(src: ImageSource, name: str, job: Future
                 ) -> tuple[np.ndarray, tuple[int, int], int]:
         nonlocal first
         img, size, levels = job.result()
-        first = first or size
-        if size != first:
-            label = src if isinstance(src, (str, os.PathLike)) else name
-            raise ValueError(f"'{label}' is {size[0]}x{size[1]}, not {first[0]}x{first[1]} "
-                             "like the first image: the images must have the same size "
-                             "(one camera, one size)")
+        label = os.fspath(src) if isinstance(src, (str, os.PathLike)) else name
+        first = first or (label, size)
+        if size != first[1]:
+            raise ValueError(different_sizes_message(label, size, *first))
         return img, size, levels
 
     with ThreadPoolExecutor(max_workers=2) as pool:

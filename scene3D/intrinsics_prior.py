@@ -46,6 +46,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .camera import different_sizes_message
 from .geometry import FloatArray
 
 #: Diagonal of the 36 x 24 mm frame, the CIPA reference for the 35 mm equivalent.
@@ -284,8 +285,26 @@ def focal_prior(exif: ExifCamera | None, image_size: tuple[int, int]) -> FocalPr
     return camera_prior([("image", exif, image_size)])
 
 
-#: How to give a calibration, for Python and command-line users alike.
-_GIVE_CALIBRATION = "give the calibration as `K` (--calib on the command line)"
+class CameraMismatchError(ValueError):
+    """The photos come from two cameras, or from one at two zoom settings, by their EXIF
+    (:func:`check_one_camera`): no focal length can start from them. A calibration that
+    holds for them all would serve; the message says how to give it in Python (``K``),
+    a command says how on its command line.
+
+    Attributes
+    ----------
+    problem : str
+        What differs, naming the photos, without the remedy.
+    """
+
+    def __init__(self, problem: str) -> None:
+        super().__init__(f"{problem}; or, if one calibration holds for them all, use its "
+                         "`K` (scene3D.calibration_io.load_calibration)")
+        self.problem = problem
+
+    def __reduce__(self) -> tuple:  # picklable, for tasks run in other processes
+        return type(self), (self.problem,)
+
 
 #: The EXIF focal lengths that :func:`check_one_camera` compares, each with its own kind
 #: only: a real focal length is not comparable with a 35 mm equivalent.
@@ -293,38 +312,38 @@ _FOCAL_KINDS = (("focal_length_mm", ""), ("focal_length_35mm", ", 35 mm equivale
 
 
 def check_one_camera(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, int]]]) -> None:
-    """Raise ``ValueError`` unless the photos can share one camera matrix.
+    """Raise ``ValueError`` unless the photos can share one camera matrix:
+    :class:`CameraMismatchError` when their EXIF names two cameras or zoom settings.
 
     ``photos`` are ``(name, exif, (width, height))``. They must have one stored
     size, one EXIF make and model (among those that record one) and one EXIF focal
     length (among those that record one: a zoom lens at two settings is two cameras),
     like compared with like: ``FocalLength`` values with each other, and
-    ``FocalLengthIn35mmFilm`` values with each other.
+    ``FocalLengthIn35mmFilm`` values with each other. A photo whose EXIF focal length
+    cannot be used (a corrupt block, 0, an implausible value: :func:`focal_from_exif`)
+    is left out of that comparison; :func:`camera_prior` warns about it and ignores it.
     """
     if not photos:
         raise ValueError("no photos given")
     name0, _, size0 = photos[0]
     for name, _, size in photos[1:]:
         if tuple(size) != tuple(size0):
-            rotated = tuple(size) == (size0[1], size0[0])
-            raise ValueError(
-                f"'{name}' is {size[0]}x{size[1]} but '{name0}' is {size0[0]}x{size0[1]}: "
-                + ("one was rotated; store both the same way round" if rotated else
-                   "photos of one camera at one size are needed; resize or crop them alike, "
-                   f"or {_GIVE_CALIBRATION}"))
+            raise ValueError(different_sizes_message(name, tuple(size), name0, tuple(size0)))
     named = [(n, e.camera_name) for n, e, _ in photos if e is not None and e.camera_name]
     for name, camera in named[1:]:
         if camera != named[0][1]:
-            raise ValueError(f"'{name}' was taken with a {camera} and '{named[0][0]}' with a "
-                             f"{named[0][1]}: one camera is needed; or {_GIVE_CALIBRATION}")
+            raise CameraMismatchError(f"'{name}' was taken with a {camera} and "
+                                      f"'{named[0][0]}' with a {named[0][1]}: one camera is "
+                                      "needed")
     for field, kind in _FOCAL_KINDS:
         zooms = [(n, float(getattr(e, field))) for n, e, _ in photos
-                 if e is not None and e.error is None and _usable(getattr(e, field))]
+                 if e is not None and _usable(getattr(e, field))
+                 and not focal_from_exif(e, size0).problem]
         for name, focal in zooms[1:]:
             if abs(focal / zooms[0][1] - 1.0) > SAME_FOCAL_TOLERANCE:
-                raise ValueError(f"'{name}' was taken at {focal:g} mm and '{zooms[0][0]}' at "
-                                 f"{zooms[0][1]:g} mm (EXIF{kind}): one focal length is "
-                                 f"needed; or {_GIVE_CALIBRATION}")
+                raise CameraMismatchError(f"'{name}' was taken at {focal:g} mm and "
+                                          f"'{zooms[0][0]}' at {zooms[0][1]:g} mm (EXIF{kind}): "
+                                          "one focal length is needed")
 
 
 def camera_prior(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, int]]]
@@ -339,7 +358,8 @@ def camera_prior(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, int]]
     Raises
     ------
     ValueError
-        The photos differ in size, camera or EXIF focal length.
+        The photos differ in size; :class:`CameraMismatchError` in camera or EXIF focal
+        length.
     """
     check_one_camera(photos)
     size = tuple(photos[0][2])

@@ -41,8 +41,22 @@ def test_adapt_intrinsics():
     np.testing.assert_allclose(adapt_intrinsics_to_size(K, (640, 480), (640, 480)), K)
     half = adapt_intrinsics_to_size(K, (640, 480), (320, 240))
     assert half[0, 0] == pytest.approx(400.0)
-    with pytest.raises(ValueError, match="aspect ratio"):
+    with pytest.raises(ValueError, match=r"images are 640x360 but the calibration is for "
+                                         r"640x480, another aspect ratio: cropped images"):
         adapt_intrinsics_to_size(K, (640, 480), (640, 360))
+
+
+@pytest.mark.parametrize("image_size", [(480, 640), (240, 320)])
+def test_adapt_intrinsics_says_the_images_are_turned(image_size):
+    """Portrait images with a landscape calibration (the camera turned, its pixels stored
+    upright): turned by 90 degrees, not cropped; also when stored smaller."""
+    w, h = image_size
+    with pytest.raises(ValueError) as info:
+        adapt_intrinsics_to_size(K, (640, 480), image_size, what="its camera file")
+    assert str(info.value) == (
+        f"images are {w}x{h} but its camera file is for 640x480: the images are turned by "
+        "90 degrees from it (portrait against landscape); turn them back to landscape "
+        "(scene3D uses the pixels as stored, not the EXIF orientation)")
 
 
 @pytest.mark.parametrize("bad, message", [

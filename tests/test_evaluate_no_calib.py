@@ -14,6 +14,9 @@ def test_evaluate_no_calib(fountain, tmp_path, capsys):
                  "-q"]) == 0
     out = capsys.readouterr().out
     assert "without a calibration: focal length within" in out and "2 prior+refined" in out
+    # The focal fit is over the camera files' focal length: no calibration was given.
+    assert "the matches' focal length: median" in out and "times the camera files'" in out
+    assert "times the calibration's" not in out
     with open(csv_path, newline="") as f:
         rows = list(csv.DictReader(f))
     assert [r["calibration_source"] for r in rows] == ["prior+refined"] * 2
@@ -143,7 +146,9 @@ def test_evaluate_scales_the_camera_files_K_to_photos_stored_smaller(fountain, t
     img = cv2.imread(str(tmp_path / "images" / "0005.jpg"))
     cv2.imwrite(str(tmp_path / "images" / "0005.jpg"), img[:, :1400])  # another aspect ratio
     capsys.readouterr()
-    assert main([str(tmp_path), "--pairs", "0-1", "-q"]) == 2
-    err = capsys.readouterr().err.strip()
-    assert "0005.jpg': images are 1400x1024 but the calibration is for 3072x2048" in err
-    assert len(err.splitlines()) == 1
+    for no_calib in ([], ["--no-calib"]):  # no calibration is given: the camera file is named
+        assert main([str(tmp_path), "--pairs", "0-1", "-q", *no_calib]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "0005.jpg': images are 1400x1024 but its camera file is for 3072x2048, another " \
+               "aspect ratio" in err
+        assert "calibrat" not in err and len(err.splitlines()) == 1

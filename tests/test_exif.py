@@ -101,6 +101,16 @@ def test_absurd_focal_length_is_not_used(tmp_path):
     assert prior.source == "prior" and "implausible" in prior.warnings[0]
 
 
+def test_absurd_focal_length_next_to_a_plausible_one_is_warned_about(tmp_path, caplog):
+    a = save(tmp_path / "a.jpg", exif_bytes(focal_35mm=32))
+    b = save(tmp_path / "b.jpg", exif_bytes(focal_35mm=5000))
+    with caplog.at_level("WARNING", logger="scene3D.exif"):
+        prior = read_camera_prior([a, b])
+    assert prior.source == "exif"
+    assert prior.focal_px == pytest.approx(focal_px_from_35mm(32, SIZE))
+    assert "'b.jpg': EXIF FocalLengthIn35mmFilm 5000 mm is implausible" in caplog.text
+
+
 def test_a_35mm_equivalent_is_not_compared_with_a_real_focal_length(tmp_path):
     """One camera: 'a.jpg' records FocalLength 7 mm and its 35 mm equivalent 32 mm, 'b.jpg'
     FocalLength 7 mm only. Not 'taken at 7 mm and at 32 mm': one focal length, from 'a.jpg'."""

@@ -125,6 +125,21 @@ def test_unusable_exif_falls_back_to_the_prior_with_a_warning():
         assert words in prior.warnings[0] and "not used" in prior.warnings[0]
 
 
+def test_an_implausible_focal_length_next_to_a_plausible_one_is_ignored_with_a_warning():
+    """5000 mm is no camera's (docs/own-photos.md, Bad input): not 'taken at 5000 mm and at
+    32 mm', but a warning naming the photo, and the plausible value is used."""
+    good = ("a.jpg", ExifCamera(make="Canon", model="EOS 5D", focal_length_35mm=32), STRECHA)
+    absurd = ("b.jpg", ExifCamera(make="Canon", model="EOS 5D", focal_length_35mm=5000), STRECHA)
+    for photos in ([good, absurd], [absurd, good]):
+        prior = camera_prior(photos)
+        assert prior.source == "exif" and prior.description == "EXIF FocalLengthIn35mmFilm 32 mm"
+        assert len(prior.warnings) == 1 and prior.warnings[0].startswith(
+            "'b.jpg': EXIF FocalLengthIn35mmFilm 5000 mm is implausible")
+    zoomed = ("c.jpg", ExifCamera(make="Canon", model="EOS 5D", focal_length_35mm=50), STRECHA)
+    with pytest.raises(ValueError, match="'c.jpg' was taken at 50 mm and 'a.jpg' at 32 mm"):
+        camera_prior([absurd, good, zoomed])  # two plausible ones are still compared
+
+
 def test_one_photo_without_exif_shares_the_others_focal_length_with_a_warning():
     exif = ExifCamera(make="Apple", model="iPhone 12", focal_length_35mm=26)
     prior = camera_prior([("a.jpg", exif, (4032, 3024)), ("b.jpg", None, (4032, 3024))])

@@ -2,16 +2,26 @@
 another image size, one path where a list of paths is expected, how to give a calibration."""
 
 from pathlib import Path
+from unittest.mock import patch
 
 import cv2
 import numpy as np
 import pytest
 
 from scene3D.camera import scale_intrinsics_halved
+from scene3D.cli.common import UsageError
+from scene3D.cli.common import read_camera_prior as cli_read_camera_prior
 from scene3D.datasets import fetch_fountain_p11, read_strecha_camera
 from scene3D.errors import DatasetError
 from scene3D.exif import read_camera_prior
-from scene3D.intrinsics_prior import ExifCamera, camera_prior, check_one_camera, focal_prior
+from scene3D.imageio import load_working_images
+from scene3D.intrinsics_prior import (
+    CameraMismatchError,
+    ExifCamera,
+    camera_prior,
+    check_one_camera,
+    focal_prior,
+)
 from scene3D.multiview import reconstruct_views
 
 VIEWS = ("0004.jpg", "0005.jpg", "0006.jpg")
@@ -76,9 +86,29 @@ def test_one_dataset_file_is_not_a_tuple(tmp_path):
 SIZE = (3072, 2048)
 
 
+@pytest.mark.parametrize("second, words", [
+    (("b.jpg", None, (1536, 1024)), "one was resized: use the camera's originals, or resize "
+                                    "the larger to 1536x1024"),
+    (("b.jpg", None, (2800, 2048)), "one was cropped, or taken with another camera: use the "
+                                    "camera's originals"),
+])
+def test_photos_of_two_sizes_are_not_told_to_give_a_calibration(second, words):
+    """A calibration holds for one size too: `K` or --calib would refuse these photos
+    alike (:func:`scene3D.imageio.iter_working_images`), so the message does not offer it."""
+    photos = [("a.jpg", None, SIZE), second]
+    with pytest.raises(ValueError, match="photos of one camera at one size are needed") as info:
+        check_one_camera(photos)
+    assert str(info.value).endswith(words)
+    assert "`K`" not in str(info.value) and "--calib" not in str(info.value)
+    images = [np.zeros((SIZE[1], SIZE[0]), np.uint8),
+              np.zeros((second[2][1], second[2][0]), np.uint8)]
+    with pytest.raises(ValueError) as given_K:  # the same photos with a calibration
+        load_working_images(images, np.diag([2760.0, 2760.0, 1.0]), np.zeros(5), None,
+                            ["a.jpg", "b.jpg"])
+    assert str(given_K.value) == str(info.value)
+
+
 @pytest.mark.parametrize("photos, words", [
-    ([("a.jpg", None, SIZE), ("b.jpg", None, (1536, 1024))],
-     "photos of one camera at one size are needed"),
     ([("a.jpg", ExifCamera(make="Canon", model="EOS 5D"), SIZE),
       ("b.jpg", ExifCamera(make="Apple", model="iPhone 12"), SIZE)],
      "one camera is needed"),
@@ -86,14 +116,19 @@ SIZE = (3072, 2048)
       ("b.jpg", ExifCamera(focal_length_mm=50.0), SIZE)],
      "one focal length is needed"),
 ])
-def test_one_camera_messages_speak_to_python_and_the_shell(photos, words):
-    with pytest.raises(ValueError, match=words) as info:
+def test_two_cameras_are_told_how_to_give_a_calibration_in_python_or_the_shell(photos, words):
+    with pytest.raises(CameraMismatchError, match=words) as info:
         check_one_camera(photos)
-    message = str(info.value)
-    assert "give the calibration as `K` (--calib on the command line)" in message
-    assert "give --calib" not in message
-    with pytest.raises(ValueError, match=r"`K` \(--calib on the command line\)"):
+    assert str(info.value) == (f"{info.value.problem}; or, if one calibration holds for them "
+                               "all, use its `K` (scene3D.calibration_io.load_calibration)")
+    assert "--calib" not in str(info.value)
+    with pytest.raises(CameraMismatchError, match=words):
         camera_prior(photos)
+    with pytest.raises(UsageError) as cli:  # what the commands print without --calib
+        with patch("scene3D.exif.read_camera_prior", side_effect=info.value):
+            cli_read_camera_prior([Path("a.jpg"), Path("b.jpg")])
+    assert str(cli.value) == (f"{info.value.problem}; or, if one calibration holds for them "
+                              "all, give it with --calib FILE")
 
 
 def test_missing_dataset_message_names_K_and_calib(tmp_path):

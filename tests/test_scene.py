@@ -97,7 +97,8 @@ def test_bad_inputs(tmp_path, rendered_pair):
     s = SceneReconstruction3D(K)
     with pytest.raises(FileNotFoundError, match="nope.jpg"):
         s.load_image_pair(tmp_path / "nope.jpg", img1)
-    with pytest.raises(ValueError, match="same size"):
+    with pytest.raises(ValueError, match=r"'img2' is \d+x200 but 'img1' is \d+x\d+: photos of "
+                                         "one camera at one size are needed"):
         s.load_image_pair(img1, img1[:200])
     with pytest.raises(ValueError, match="unknown feature mode 'HOG'"):
         s.load_image_pair(img1, img1)

@@ -40,6 +40,7 @@ from .common import (
     exit_codes_help,
     focal_sigma_text,
     path_arg,
+    read_camera_prior,
     run_command,
     show_images,
 )
@@ -141,9 +142,7 @@ def _load_camera(calib_path: Path | None, images: tuple[Path, Path]) -> _Camera:
     """The calibration file's camera, or without one the EXIF/default focal prior of
     ``images`` (:func:`scene3D.exif.read_camera_prior`: one camera is checked)."""
     if calib_path is None:
-        from ..exif import read_camera_prior
-
-        prior = read_camera_prior(images)
+        prior = read_camera_prior(list(images))
         return _Camera(prior.K, np.zeros(5), prior.image_size, prior)
     if calib_path == DEFAULT_CALIB and not calib_path.is_file():
         # An installed copy without the repository's data/ folder: the same K from the dataset.

@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from ..engines import Engine, LocalEngine, Progress
 from ..errors import (
@@ -24,6 +24,9 @@ from ..errors import (
     ReconstructionError,
     first_line,
 )
+
+if TYPE_CHECKING:
+    from ..intrinsics_prior import FocalPrior
 
 EXIT_OK = 0
 EXIT_FAILED = 1  # valid input, but the reconstruction / calibration failed
@@ -127,6 +130,20 @@ def focal_sigma_text(focal_px: float, sigma_px: float) -> str:
     sigma_log = sigma_px / focal_px
     return (f"+-{sigma_px:.1f}" if sigma_log <= 0.25
             else f"(1 sigma: a factor of {math.exp(sigma_log):.1f})")
+
+
+def read_camera_prior(paths: list[Path]) -> FocalPrior:
+    """:func:`scene3D.exif.read_camera_prior` for a command run without ``--calib``: photos
+    of two cameras or zoom settings (:class:`~scene3D.intrinsics_prior.CameraMismatchError`)
+    are a :class:`UsageError` that names ``--calib``, not the library's ``K``."""
+    from ..exif import read_camera_prior as read_prior
+    from ..intrinsics_prior import CameraMismatchError
+
+    try:
+        return read_prior(paths)
+    except CameraMismatchError as exc:
+        raise UsageError(f"{exc.problem}; or, if one calibration holds for them all, give it "
+                         "with --calib FILE") from None
 
 
 def check_image_paths(paths: list[Path]) -> None:

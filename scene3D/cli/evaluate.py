@@ -174,7 +174,8 @@ def _load_view(path: Path, camera: StrechaCamera, max_width: int | None,
     """
     size = read_image_size(path)
     try:
-        K = adapt_intrinsics_to_size(camera.K, camera.image_size, size)
+        K = adapt_intrinsics_to_size(camera.K, camera.image_size, size,
+                                     what="its camera file")
     except ValueError as exc:
         raise ValueError(f"'{path}': {exc}") from None
     dist = camera.dist  # in normalised coordinates: the same at any size
@@ -252,7 +253,7 @@ def _evaluate_pair_no_calib(name: str, view_a: _View, view_b: _View,
     from its photos' EXIF or the default prior (:mod:`scene3D.selfcalibration`), and
     ``focal_scale`` is the focal length found over the camera file's (a task: see
     :func:`evaluate_pairs`)."""
-    from ..intrinsics_prior import camera_prior
+    from ..intrinsics_prior import CameraMismatchError, camera_prior
     from ..selfcalibration import self_calibrate_pair
 
     t0 = time.perf_counter()
@@ -261,8 +262,9 @@ def _evaluate_pair_no_calib(name: str, view_a: _View, view_b: _View,
     try:
         try:
             prior = camera_prior([view_a.photo, view_b.photo])
-        except ValueError as exc:
-            row["note"] = f"refused: {exc}"
+        except ValueError as exc:  # two sizes, cameras or zoom settings
+            problem = exc.problem if isinstance(exc, CameraMismatchError) else exc
+            row["note"] = f"refused: {problem}"  # without --no-calib, the camera files serve
             return row
         for message in prior.warnings:
             logger.warning("%s", message)
@@ -404,7 +406,7 @@ def run(args: argparse.Namespace) -> int:
           f"< 5 deg {stats['within_5deg']:.0%}, AUC@5deg {stats['auc_5deg']:.1f}, "
           f"flagged {int(stats['flagged'])}, wrong and unflagged {int(stats['wrong_unflagged'])}"
           + (f"; the matches' focal length: median {float(np.median(fitted)):.3f} times the "
-             "calibration's" if fitted else ""))
+             "camera files'" if fitted else ""))
     print(_trust_line(stats))
     if calibration["pairs"]:
         print(f"Sigma calibration: {calibration['rotation_within90']:.0%} of the rotation errors "

@@ -51,6 +51,7 @@ from .common import (
     open_engine,
     path_arg,
     positive_int,
+    read_camera_prior,
     run_command,
 )
 from .outputs import FILES_KEY, SUMMARY_FILE, OutputFolder
@@ -412,8 +413,6 @@ def run(args: argparse.Namespace) -> int:
     check_out_folder(args.out, paths)
     prior = None
     if args.calib is None:
-        from ..exif import read_camera_prior
-
         prior = read_camera_prior(paths)  # one camera, or a one-line error (exit code 2)
     else:
         camera = load_calibration(args.calib)

@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike
 from ..bundle import Observations
 from ..camera import (
     check_intrinsics_for_native_size,
+    different_sizes_message,
     scale_intrinsics_halved,
     validate_distortion,
     validate_intrinsics,
@@ -239,12 +240,11 @@ def reconstruct_views(
                             [(src, K_native, dist, max_width, name, feature)
                              for src, name in zip(images, names)], label="features"))
     first = found[0][1]
-    for (_, size, _, _), src, name in zip(found, images, names):
+    labels = [os.fspath(src) if isinstance(src, (str, os.PathLike)) else name
+              for src, name in zip(images, names)]
+    for (_, size, _, _), label in zip(found, labels):
         if size != first:
-            label = src if isinstance(src, (str, os.PathLike)) else name
-            raise ValueError(f"'{label}' is {size[0]}x{size[1]}, not {first[0]}x{first[1]} "
-                             "like the first image: the images must have the same size "
-                             "(one camera, one size)")
+            raise ValueError(different_sizes_message(label, size, labels[0], first))
     _check_K_for_size(K_native, first, focal_prior)
     working_size, levels = found[0][2], found[0][3]
     K_work = scale_intrinsics_halved(K_native, levels)
