@@ -239,24 +239,14 @@ def read_ground_truth(folder: Path, paths: list[Path]) -> list[StrechaCamera]:
             raise UsageError(f"--ground-truth '{folder}' has no camera file for "
                              f"'{photo.name}' (expected '{path}')")
         camera = read_strecha_camera(path)
-        (w, h), size = camera.image_size, read_image_size(photo)
-        if not _fits(camera.K, (w, h), size):
-            turned = ", turned by 90 degrees" if _fits(camera.K, (h, w), size) else ""
-            raise UsageError(f"--ground-truth '{path}' is for {w}x{h} images, but '{photo}' "
-                             f"is {size[0]}x{size[1]}{turned}: not the photo it describes"
-                             ) from None
+        try:
+            adapt_intrinsics_to_size(camera.K, camera.image_size, read_image_size(photo),
+                                     what="its camera file")
+        except ValueError as exc:
+            raise UsageError(f"--ground-truth '{path}' does not describe '{photo}': "
+                             f"{exc}") from None
         cameras.append(camera)
     return cameras
-
-
-def _fits(K: np.ndarray, calib_size: tuple[int, int], size: tuple[int, int]) -> bool:
-    """Whether ``K`` of ``calib_size`` images describes images of ``size`` (the same
-    aspect ratio: :func:`~scene3D.camera.adapt_intrinsics_to_size`)."""
-    try:
-        adapt_intrinsics_to_size(K, calib_size, size)
-    except ValueError:
-        return False
-    return True
 
 
 def evaluate_against(cameras: list[StrechaCamera], names: list[str], model: SfMModel,
