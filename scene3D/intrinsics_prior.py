@@ -267,7 +267,7 @@ def focal_from_exif(exif: ExifCamera, image_size: tuple[int, int]) -> ExifFocal:
     f35 = focal_35mm_from_px(focal_px, image_size)
     low, high = PLAUSIBLE_FOCAL_35MM
     if not low <= f35 <= high:
-        return ExifFocal(None, f"{how} is implausible (a 35 mm equivalent of {f35:.3g} mm, "
+        return ExifFocal(None, f"{how} is implausible (a 35 mm equivalent of {f35:.1f} mm, "
                                f"outside {low:g}-{high:g} mm)", True)
     return ExifFocal(focal_px, how)
 

@@ -85,7 +85,7 @@ def test_a_cropped_photo_uses_the_recorded_frame_and_says_so():
     (ExifCamera(focal_length_35mm=0), "0 (unknown)", True),
     (ExifCamera(focal_length_mm=0.0, focal_plane_x_resolution=100.0,
                 focal_plane_resolution_unit=4), "0 (unknown)", True),
-    (ExifCamera(focal_length_35mm=5000), "implausible", True),
+    (ExifCamera(focal_length_35mm=5000), "implausible (a 35 mm equivalent of 5000.0 mm", True),
     (ExifCamera(focal_length_mm=5000.0, focal_plane_x_resolution=156.25,
                 focal_plane_resolution_unit=4), "implausible", True),
     (ExifCamera(focal_length_35mm=2), "implausible", True),
