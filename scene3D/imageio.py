@@ -342,7 +342,8 @@ def _check_header(head: bytes | np.ndarray, file_bytes: int, path: str | os.Path
 
 
 def read_image_size(path: str | os.PathLike) -> tuple[int, int]:
-    """``(width, height)`` of an image file: from its header for JPEG and PNG, else by decoding.
+    """``(width, height)`` of an image file as stored: from its header (JPEG and PNG here,
+    TIFF, WebP and others through Pillow), else by decoding it.
 
     Raises ``FileNotFoundError`` / ``ValueError`` like :func:`read_image`.
     """
@@ -353,10 +354,22 @@ def read_image_size(path: str | os.PathLike) -> tuple[int, int]:
             _check_header(head, os.fstat(f.fileno()).st_size, path)  # JPEG only
         if is_heif(head):  # read from its header, without decoding
             return _heif_size(path)
-        size = header_size(head)
+        size = header_size(head) or _pillow_size(path)
         if size is not None:
             return size
     return image_size(read_image(path))
+
+
+def _pillow_size(path: Path) -> tuple[int, int] | None:
+    """``(width, height)`` from the header Pillow reads (a 16-bit TIFF is not decoded for
+    its size), or None when Pillow cannot tell: then decoding says what is wrong."""
+    from PIL import Image
+
+    try:
+        with Image.open(path) as img:
+            return int(img.width), int(img.height)
+    except Exception:  # noqa: BLE001 - unknown format, damaged, a decompression bomb: decode
+        return None
 
 
 def to_bgr8(img: np.ndarray, name: str = "image") -> np.ndarray:
@@ -380,7 +393,9 @@ def to_bgr8(img: np.ndarray, name: str = "image") -> np.ndarray:
         raise ValueError(f"`{name}` must be an (H, W) or (H, W, C) image, got shape {img.shape}")
     if img.dtype == np.uint16:
         bits = max(8, int(img.max()).bit_length())
-        img = (img.astype(np.float32) * (255.0 / (2**bits - 1)) + 0.5).astype(np.uint8)
+        # Rounded to the nearest level, with no float copy (a 24-megapixel colour image's
+        # would take 290 MB); no value lies half-way between two levels.
+        img = cv2.convertScaleAbs(img, alpha=255.0 / (2**bits - 1))
     elif img.dtype != np.uint8:
         raise ValueError(f"`{name}` must be uint8 or uint16, got {img.dtype}")
     if img.ndim == 2 or img.shape[2] == 1:

@@ -2,6 +2,7 @@ import cv2
 import numpy as np
 import pytest
 
+from scene3D import imageio
 from scene3D.camera import scale_intrinsics_halved
 from scene3D.imageio import (
     glob_files,
@@ -56,6 +57,12 @@ def test_16_bit_images_are_scaled_by_the_bits_their_values_use():
     assert full.tolist() == [0, 255, round(40000 / 257)]
     eight = np.array([[0, 17, 255]], np.uint16)
     assert to_bgr8(eight)[0, :, 0].tolist() == [0, 17, 255]
+    # Every value rounded to the nearest level (computed here in float64).
+    for bits in (16, 12, 10):
+        deep = np.random.default_rng(bits).integers(0, 2**bits, (64, 80, 3), dtype=np.uint16)
+        deep[0, 0, 0] = 2**bits - 1
+        nearest = np.floor(deep * (255.0 / (2**bits - 1)) + 0.5).astype(np.uint8)
+        np.testing.assert_array_equal(to_bgr8(deep), nearest)
 
 
 def test_bad_files(tmp_path):
@@ -101,12 +108,21 @@ def _textured(width, height, seed=0):
     return np.clip(img * 255, 0, 255).astype(np.uint8)
 
 
-def test_header_sizes_without_decoding(tmp_path):
+def test_header_sizes_without_decoding(tmp_path, monkeypatch):
     img = _textured(301, 203)
-    for ext in (".jpg", ".png", ".bmp"):
+    for ext in (".jpg", ".png", ".bmp", ".tif", ".webp"):
         path = tmp_path / f"x{ext}"
         cv2.imwrite(str(path), img)
-        assert read_image_size(path) == (301, 203)  # BMP: by decoding
+        assert read_image_size(path) == (301, 203)
+    cv2.imwrite(str(tmp_path / "deep.tif"), np.zeros((203, 301, 3), np.uint16))
+
+    def decoded(path):
+        raise AssertionError(f"'{path}' decoded for its size")
+
+    monkeypatch.setattr(imageio, "read_image", decoded)
+    for ext in (".jpg", ".png", ".bmp", ".tif", ".webp"):  # Pillow reads TIFF, WebP, BMP
+        assert read_image_size(tmp_path / f"x{ext}") == (301, 203)
+    assert read_image_size(tmp_path / "deep.tif") == (301, 203)
     assert header_size((tmp_path / "x.jpg").read_bytes()[:20]) is None  # header cut off
     assert header_size(b"GIF89a") is None
     # A restart marker (no length field) before the frame header; SOF0 for 200x100.
@@ -114,8 +130,6 @@ def test_header_sizes_without_decoding(tmp_path):
 
 
 def test_a_header_that_lies_falls_back_to_full_decoding(tmp_path, monkeypatch):
-    from scene3D import imageio
-
     path = tmp_path / "photo.jpg"
     cv2.imwrite(str(path), _textured(1200, 800))
     monkeypatch.setattr(imageio, "header_size", lambda head: (2400, 1600))
@@ -201,8 +215,6 @@ def _png_claiming(width, height):
 def test_an_image_too_large_for_opencv_is_a_one_line_error(tmp_path, monkeypatch):
     """OpenCV asserts (cv2.error) on a header beyond CV_IO_MAX_IMAGE_PIXELS; that is a ValueError
     naming the file, on every path that decodes: whole, halved, and the size probe."""
-    from scene3D import imageio
-
     big = tmp_path / "big.png"
     big.write_bytes(_png_claiming(100000, 100000))
     message = (r"cannot read image '.*big.png': too large for OpenCV \(its header says "
