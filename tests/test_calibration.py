@@ -376,15 +376,21 @@ def test_cli_on_awkward_udacity_set(tmp_path, chessboards, capsys):
     assert 1100 < camera.K[0, 0] < 1250
 
 
-def test_cli_video_collects_distinct_views(tmp_path, board_views, capsys):
-    video = tmp_path / "board.avi"
-    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (640, 480),
+def _write_video(path, frames):
+    """An MJPG video of the grey 640x480 ``frames``, at ``path``; returns ``path``."""
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, (640, 480),
                              isColor=False)
     assert writer.isOpened()
-    for img in board_views:
-        for _ in range(4):  # near-duplicate frames must be skipped
-            writer.write(img)
+    for img in frames:
+        writer.write(img)
     writer.release()
+    return path
+
+
+def test_cli_video_collects_distinct_views(tmp_path, board_views, capsys):
+    # Each view 4 times: near-duplicate frames must be skipped.
+    video = _write_video(tmp_path / "board.avi",
+                         [img for img in board_views for _ in range(4)])
     out = tmp_path / "video.yaml"
     code = main(["--video", str(video), "--frames", "6", "--out", str(out),
                  "--save-undistorted", str(tmp_path / "und")])
@@ -663,13 +669,25 @@ def test_cli_refuses_a_photo_given_twice(tmp_path, chessboards, capsys, how):
     assert not (tmp_path / "c.yaml").exists()
 
 
+def test_cli_video_progress_is_silent_with_quiet(tmp_path, board_views, capsys):
+    """-q: only errors on stderr, so no "view 1/4 from frame 0" lines either."""
+    video = _write_video(tmp_path / "board.avi", board_views)
+    out = tmp_path / "v.yaml"
+    code = main(["--video", str(video), "--frames", "4", "--out", str(out), "-q"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert captured.err == ""
+    assert captured.out.splitlines()[0] == f"Wrote '{out}'"
+    assert len(load_calibration(out).K) == 3
+    # Without -q the progress is there, one line a view.
+    code = main(["--video", str(video), "--frames", "4", "--out", str(out), "--force"])
+    progress = [line for line in capsys.readouterr().err.splitlines()
+                if line.startswith("view ")]
+    assert code == 0 and progress[-1].startswith("view 4/4 from frame ")
+
+
 def test_cli_says_views_were_dropped_as_not_distinct(tmp_path, board_views, capsys):
-    video = tmp_path / "board.avi"
-    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (640, 480),
-                             isColor=False)
-    for img in board_views[:4]:
-        writer.write(img)
-    writer.release()
+    video = _write_video(tmp_path / "board.avi", board_views[:4])
     argv = ["--video", str(video), "--out", str(tmp_path / "v.yaml"), "--min-motion", "5"]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()

@@ -321,7 +321,8 @@ def collect_views(args: argparse.Namespace, board: BoardSpec, keep_images: bool 
             if not _is_distinct(det, views, min_motion):
                 not_distinct += 1
                 continue
-            print(f"view {len(views) + 1}/{args.frames} from {name}", file=sys.stderr)
+            if not args.quiet:  # -q: only errors on stderr
+                print(f"view {len(views) + 1}/{args.frames} from {name}", file=sys.stderr)
         else:
             logger.info("%s: %d corners (%s)", name, len(det.image_points), det.method)
         views.append(det)
