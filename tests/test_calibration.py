@@ -610,6 +610,40 @@ def test_cli_refuses_unwritable_outputs_before_any_work(tmp_path, chessboards, c
     assert sorted(p.name for p in tmp_path.iterdir()) == ["photos", "ro"]
 
 
+def test_cli_no_report_with_force_removes_the_earlier_report(tmp_path, chessboards, capsys):
+    """A report left from an earlier run would describe another calibration than the new
+    --out: --force --no-report removes it (and says so); without --force it is refused."""
+    photos = _photos(tmp_path / "photos", FOUR, chessboards)
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    out, report = out_dir / "cam.yaml", out_dir / "cam_report.html"
+    (out_dir / "cam_notes.html").write_text("mine")  # not a name calibrate writes
+    assert main(["--images", str(photos), "--out", str(out), "-q"]) == 0
+    assert "px over 4 views" in report.read_text()
+    capsys.readouterr()
+    argv = ["--images", f"{photos}/left0[123].jpg", "--out", str(out), "--no-report", "-q"]
+    assert main(argv + ["--force"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-1] == f"Removed '{report}' (an earlier run's, not written again)"
+    assert f"Wrote '{out}'" in lines and not report.exists()
+    fs = cv2.FileStorage(str(out), cv2.FILE_STORAGE_READ)
+    assert fs.getNode("per_view_errors").mat().shape == (1, 3)  # the new run's
+    fs.release()
+    assert sorted(p.name for p in out_dir.iterdir()) == [
+        "cam.yaml", "cam_coverage.png", "cam_notes.html", "cam_uncertainty.png",
+        "cam_view_errors.png"]
+    # Without --force: refused before any work, the report kept.
+    for name in ("cam.yaml", "cam_coverage.png", "cam_uncertainty.png", "cam_view_errors.png"):
+        (out_dir / name).unlink()
+    report.write_text("an earlier run's report")
+    assert main(argv) == 2
+    assert capsys.readouterr().err == (
+        f"error: '{report}' exists (an earlier run's) and would describe another "
+        "calibration than the new one; use --force to remove it\n")
+    assert report.read_text() == "an earlier run's report"
+    assert sorted(p.name for p in out_dir.iterdir()) == ["cam_notes.html", "cam_report.html"]
+
+
 def test_cli_says_when_the_output_folder_goes_away_during_the_work(tmp_path, chessboards,
                                                                    capsys, monkeypatch):
     import scene3D.cli.calibrate as command

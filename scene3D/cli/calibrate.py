@@ -153,7 +153,9 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
                         help="warn when the projection uncertainty (1 sigma) at an image corner "
                              "or at the centre exceeds this (default "
                              f"{CORNER_LIMIT_PX:g} px)")
-    parser.add_argument("--no-report", action="store_true", help="skip NAME_report.html")
+    parser.add_argument("--no-report", action="store_true",
+                        help="skip NAME_report.html (with --force, an earlier run's is "
+                             "removed: it would describe another calibration)")
     parser.add_argument("--save-undistorted", type=Path, metavar="DIR",
                         help="also write the undistorted views into DIR")
     parser.add_argument("--show", action="store_true",
@@ -396,14 +398,27 @@ def _png(fig) -> bytes:
     return buffer.getvalue()
 
 
+def _report_path(args: argparse.Namespace) -> Path:
+    """``NAME_report.html`` beside ``--out``."""
+    return Path(f"{args.out.with_suffix('')}_report.html")
+
+
 def _outputs(args: argparse.Namespace) -> list[Path]:
     """The calibration, its three figures and (unless --no-report) its report."""
     stem = args.out.with_suffix("")
     outputs = [args.out] + [Path(f"{stem}_{name}.png")
                             for name in ("coverage", "view_errors", "uncertainty")]
     if not args.no_report:
-        outputs.append(Path(f"{stem}_report.html"))
+        outputs.append(_report_path(args))
     return outputs
+
+
+def _not_written_again(args: argparse.Namespace) -> list[Path]:
+    """The files of the same NAME an earlier run wrote that this one does not write
+    (its report, after ``--no-report``): they would describe another calibration than
+    the new ``--out``, so a run with ``--force`` removes them (without, it refuses)."""
+    report = _report_path(args)
+    return [report] if args.no_report and report.is_file() else []
 
 
 def _read_as_photo(path: Path, spec: str) -> bool:
@@ -432,6 +447,10 @@ def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:
     existing = [p for p in outputs if p.exists()]
     if existing and not args.force:
         raise UsageError(f"'{existing[0]}' exists; use --force to overwrite it")
+    earlier = _not_written_again(args)
+    if earlier and not args.force:
+        raise UsageError(f"'{earlier[0]}' exists (an earlier run's) and would describe "
+                         "another calibration than the new one; use --force to remove it")
     require_parent_folder(out, "--out")
     require_writable_folder(out.parent, f"--out '{out}': cannot write in '{out.parent}'")
     if args.images is not None:
@@ -497,6 +516,23 @@ def _too_few_views(args: argparse.Namespace, board: BoardSpec, found: CollectedV
             "chance in a view or two)") if n < seen / 2 else ""
     return (f"the board was found in only {n} of {seen} views; calibration needs at least 3"
             + hint)
+
+
+def _remove_earlier(paths: list[Path]) -> list[Path]:
+    """Remove ``paths`` (:func:`_not_written_again`) once the new files are in place;
+    return those removed. One that cannot be removed is named in a warning."""
+    removed = []
+    for path in paths:
+        try:
+            path.unlink()
+        except FileNotFoundError:
+            continue
+        except OSError as exc:
+            logger.warning("could not remove '%s' of an earlier run: %s", path,
+                           exc.strerror or exc)
+            continue
+        removed.append(path)
+    return removed
 
 
 def run(args: argparse.Namespace) -> int:
@@ -587,10 +623,13 @@ def run(args: argparse.Namespace) -> int:
         for target, img in zip(undistorted, images):  # one undistorted image at a time
             png = cv2.imencode(".png", undistort_image(img, result.K, result.dist))[1]
             written.append(atomic_write_bytes(target, png.tobytes()))
+    removed = _remove_earlier(_not_written_again(args))
     if not args.quiet:
         print("\n".join(lines))
     for path in written:
         print(f"Wrote '{path}'")
+    for path in removed:
+        print(f"Removed '{path}' (an earlier run's, not written again)")
     if args.show:
         with _no_glyph_warnings():
             show_images(written[1:4])
