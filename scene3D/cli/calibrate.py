@@ -241,6 +241,9 @@ def _check_distinct_files(files: list[Path]) -> None:
 
 def _frames(args: argparse.Namespace) -> Iterator[tuple[str, np.ndarray]]:
     if args.video is not None:
+        if args.video.is_dir():
+            raise UsageError(f"--video '{args.video}' is a folder, not a video file "
+                             "(--images takes a folder of photos)")
         if not args.video.is_file():
             raise FileNotFoundError(f"video not found: '{args.video}'")
         capture, what = cv2.VideoCapture(str(args.video)), f"video '{args.video}'"
