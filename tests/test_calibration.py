@@ -304,6 +304,10 @@ def test_board_spec_validation():
         BoardSpec("circles", (2, 2))
     with pytest.raises(ValueError, match="4 inner corners"):
         BoardSpec("charuco", (3, 3))
+    with pytest.raises(ValueError, match="the board has 1 inner corner; a view needs at "
+                                         r"least 6 \(such as 3x4 or 2x7\)"):
+        BoardSpec("charuco", (2, 2))
+    assert BoardSpec("charuco", (3, 4)).size == (3, 4)
     assert BoardSpec("circles", (2, 3)).size == (2, 3)
 
 
@@ -427,7 +431,17 @@ def test_cli_video_collects_distinct_views(tmp_path, board_views, capsys):
     ("out_folder_missing", "does not exist"),
     ("out_under_a_file", "is a file, not a folder"),
     ("board_side_of_two", "--board 4x2: a chessboard needs at least 3 inner corners a side"),
-    ("circles_too_few", "--board 2x2: the board has 4 points; a view needs at least 6"),
+    ("circles_too_few", "--board 2x2: the board has 4 points; a view needs at least 6 "
+                        "(such as 2x3)"),
+    # The smallest board of the pattern, not a 2x2 that is refused in turn.
+    ("board_of_zero", "--board 0x0: a chessboard needs at least 3 inner corners a side, "
+                      "3x3 or larger"),
+    ("circles_side_of_one", "--board 1x9: a grid of circles needs at least 2 circles a "
+                            "side and 6 in all: 2x3 or larger"),
+    ("charuco_too_few", "--board 2x2: the board has 1 inner corner; a view needs at least "
+                        "6 (such as 3x4 or 2x7)"),
+    ("marker_too_large", "error: --marker-size 2 must be smaller than --square-size 1: a "
+                         "marker sits inside a square"),
     ("out_among_the_photos", "where --images finds the photos: the next run would take "
                              "them for photos"),
     ("out_among_bracketed_photos", "where --images finds the photos"),
@@ -469,6 +483,12 @@ def test_cli_bad_inputs(tmp_path, chessboards, capsys, case, message):
                              str(bad / "left01.jpg" / "c.yaml")],
         "board_side_of_two": ["--images", str(left), "--board", "4x2"],
         "circles_too_few": ["--images", str(left), "--pattern", "circles", "--board", "2x2"],
+        "board_of_zero": ["--images", str(left), "--board", "0x0"],
+        "circles_side_of_one": ["--images", str(left), "--pattern", "circles", "--board",
+                                "1x9"],
+        "charuco_too_few": ["--images", str(left), "--pattern", "charuco", "--board", "2x2"],
+        "marker_too_large": ["--images", str(left), "--pattern", "charuco", "--marker-size",
+                             "2"],
         "out_among_the_photos": ["--images", str(two), "--out", str(two / "c.yaml")],
         "out_among_bracketed_photos": ["--images", f"{bracketed}/*", "--out",
                                        str(bracketed / "c.yaml")],

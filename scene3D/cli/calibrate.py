@@ -75,12 +75,12 @@ logger = logging.getLogger("scene3D.cli")
 
 
 def _board_size(text: str) -> tuple[int, int]:
+    """argparse type: ``COLSxROWS``. The smallest size depends on ``--pattern``
+    (:func:`~scene3D.calibration.board_size_problem`, checked once it is known)."""
     try:
         cols, rows = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise argparse.ArgumentTypeError(f"board size must look like 9x6, got {text!r}") from None
-    if cols < 2 or rows < 2:
-        raise argparse.ArgumentTypeError(f"board size must be at least 2x2, got {text!r}")
     return cols, rows
 
 
@@ -116,7 +116,8 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
                             "grid of circles, acircles an asymmetric one (rows offset by half "
                             "a column, as OpenCV's acircles_pattern.png)")
     board.add_argument("--board", type=_board_size, default=None, metavar="COLSxROWS",
-                       help="chessboard: inner corners (default 9x6, the book's); "
+                       help="chessboard: inner corners, 3x3 or more (default 9x6, the "
+                            "book's); "
                             "charuco: squares (default 5x7); circles, acircles: circles per "
                             "row x rows (acircles default 4x11, OpenCV's pattern; circles "
                             "has no default)")
@@ -126,7 +127,8 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
                             "i.e. results in those units; K and the distortion do not "
                             "depend on it)")
     board.add_argument("--marker-size", type=finite_positive_float, default=None, metavar="M",
-                       help="charuco: side of a marker in metres (default: half a square)")
+                       help="charuco: side of a marker in metres, smaller than "
+                            "--square-size (default: half a square)")
     board.add_argument("--dictionary", default="DICT_6X6_250",
                        help="charuco: ArUco dictionary (default DICT_6X6_250)")
     parser.add_argument("--frames", type=int, default=20, metavar="N",
@@ -179,7 +181,11 @@ def _board_from_args(args: argparse.Namespace) -> BoardSpec:
                              "rows)")
         return BoardSpec("circles", args.board, args.square_size)
     marker = args.marker_size if args.marker_size is not None else args.square_size / 2
-    return BoardSpec("charuco", args.board or (5, 7), args.square_size, marker, args.dictionary)
+    if marker >= args.square_size:  # BoardSpec says so too, in its parameters' names
+        raise UsageError(f"--marker-size {marker:g} must be smaller than --square-size "
+                         f"{args.square_size:g}: a marker sits inside a square")
+    return BoardSpec("charuco", args.board or (5, 7), args.square_size, marker,
+                     args.dictionary)
 
 
 def _image_files(spec: str) -> list[Path]:
