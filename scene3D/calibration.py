@@ -480,7 +480,7 @@ def calibrate(
         raise CalibrationError(
             f"the corners do not fit one camera: RMS reprojection error {rms:.2f} px over "
             f"{len(views)} views, above the limit of {max_rms_px:g} px",
-            reason="corners_do_not_fit",
+            reason="corners_do_not_fit", rms_px=float(rms),
         )
     try:  # what load_calibration will check: a file it would refuse is not written
         check_intrinsics_for_size(K, image_size)

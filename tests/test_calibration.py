@@ -585,6 +585,21 @@ def test_cli_refuses_bad_numbers_and_names(tmp_path, chessboards, capsys, option
         BoardSpec(square_size_m=float("inf"))
 
 
+def test_cli_max_rms_advice_depends_on_the_error(tmp_path, chessboards, capsys):
+    """0.18 px refused by --max-rms 0.1 is the right board; only errors beyond the default
+    limit point at --board (test_cli_refuses_a_wrong_board_size: 14.8 px)."""
+    photos = _photos(tmp_path / "photos", FOUR, chessboards)
+    assert main(["--images", str(photos), "--out", str(tmp_path / "c.yaml"),
+                 "--max-rms", "0.1"]) == 1
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert error.startswith("error: the corners do not fit one camera: RMS reprojection "
+                            "error 0.1")
+    assert error.endswith("above the limit of 0.1 px (--max-rms); an error below the default "
+                          "limit of 2 px is what the right board gives: raise --max-rms to "
+                          "accept it (a wrong --board gives several px)")
+    assert list(tmp_path.iterdir()) == [photos]
+
+
 @pytest.mark.parametrize("case, message", [
     ("suffix", "--out must end in .yaml, .yml, .xml or .json, got '{tmp}/c.txt'"),
     ("folder", "--out '{tmp}/photos' is a folder; name a file in it"),

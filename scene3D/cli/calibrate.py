@@ -544,6 +544,21 @@ def _remove_earlier(paths: list[Path]) -> list[Path]:
     return removed
 
 
+def _max_rms_hint(board: BoardSpec, rms_px: float | None) -> str:
+    """What to check when the RMS error ``rms_px`` is above ``--max-rms``: up to
+    :data:`MAX_RMS_PX` (the default limit) it is what the right board gives, and only a
+    stricter ``--max-rms`` refused it; beyond, typically a wrong board (6-13 px on
+    OpenCV's left*.jpg), though blurred photos can give a few px too."""
+    if rms_px is not None and rms_px <= MAX_RMS_PX:
+        return (f"an error below the default limit of {MAX_RMS_PX:g} px is what the right "
+                "board gives: raise --max-rms to accept it (a wrong --board gives several "
+                "px)")
+    check = {"chessboard": "check --board: it counts inner corners",
+             "charuco": "check --board, --marker-size and --dictionary"}.get(
+                 board.pattern, "check --board and --pattern")
+    return f"{check} (blurred photos can also give a few px)"
+
+
 def run(args: argparse.Namespace) -> int:
     board = _board_from_args(args)
     if args.frames < 3:
@@ -561,10 +576,8 @@ def run(args: argparse.Namespace) -> int:
     except CalibrationError as exc:
         if exc.reason != "corners_do_not_fit":
             raise
-        hint = {"chessboard": "check --board: it counts inner corners",
-                "charuco": "check --board, --marker-size and --dictionary"}.get(
-                    board.pattern, "check --board and --pattern")
-        raise CalibrationError(f"{exc} (--max-rms); {hint}", exc.reason) from None
+        raise CalibrationError(f"{exc} (--max-rms); {_max_rms_hint(board, exc.rms_px)}",
+                               exc.reason, exc.rms_px) from None
     kept = [v for v in views if v.name in result.per_view_errors_px]
     counts = corner_coverage([v.image_points for v in kept], size)
     if result.covariance is None:
