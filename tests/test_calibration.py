@@ -19,7 +19,7 @@ from scene3D.calibration import (
     load_calibration,
     save_calibration,
 )
-from scene3D.cli.calibrate import main
+from scene3D.cli.calibrate import build_parser, main
 from scene3D.synthetic import render_board, render_circles_board
 
 from .conftest import REPO
@@ -583,6 +583,28 @@ def test_cli_refuses_bad_numbers_and_names(tmp_path, chessboards, capsys, option
     assert list(tmp_path.iterdir()) == []
     with pytest.raises(ValueError, match="finite positive"):
         BoardSpec(square_size_m=float("inf"))
+
+
+def test_cli_frames_are_checked_only_where_they_are_used(tmp_path, chessboards, capsys):
+    """--frames (at least 3) counts views of a video or webcam: with photos it is left
+    out with a warning, as the charuco-only --marker-size and --dictionary are with a
+    chessboard, rather than refused."""
+    photos = _photos(tmp_path / "photos", FOUR, chessboards)
+    out = tmp_path / "c.yaml"
+    with pytest.raises(SystemExit) as exc:
+        main(["--video", str(tmp_path / "board.avi"), "--frames", "2", "--out", str(out)])
+    assert exc.value.code == 2
+    assert capsys.readouterr().err == ("error: argument --frames: must be at least 3, got 2 "
+                                       "(see calibrate.py --help)\n")
+    assert main(["--images", str(photos), "--out", str(out), "--frames", "2",
+                 "--marker-size", "0.1", "--dictionary", "DICT_4X4_50"]) == 0
+    captured = capsys.readouterr()
+    assert "px over 4 views (640x480, chessboard 9x6" in captured.out
+    assert captured.err.splitlines()[:3] == [
+        "WARNING: --frames is for --video and --camera; ignored with --images",
+        "WARNING: --marker-size is for --pattern charuco; ignored with --pattern chessboard",
+        "WARNING: --dictionary is for --pattern charuco; ignored with --pattern chessboard"]
+    assert "at least 3 (default 20" in " ".join(build_parser().format_help().split())
 
 
 def test_cli_max_rms_advice_depends_on_the_error(tmp_path, chessboards, capsys):

@@ -74,6 +74,14 @@ from .common import (
 logger = logging.getLogger("scene3D.cli")
 
 
+#: Defaults of the options that only a source or a pattern uses (None in the parser, so
+#: that :func:`_ignored_options` can tell a value that was given).
+FRAMES = 20
+MIN_FRAMES = 3
+MIN_MOTION = 0.05
+DICTIONARY = "DICT_6X6_250"
+
+
 def _board_size(text: str) -> tuple[int, int]:
     """argparse type: ``COLSxROWS``. The smallest size depends on ``--pattern``
     (:func:`~scene3D.calibration.board_size_problem`, checked once it is known)."""
@@ -129,14 +137,15 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
     board.add_argument("--marker-size", type=finite_positive_float, default=None, metavar="M",
                        help="charuco: side of a marker in metres, smaller than "
                             "--square-size (default: half a square)")
-    board.add_argument("--dictionary", default="DICT_6X6_250",
-                       help="charuco: ArUco dictionary (default DICT_6X6_250)")
-    parser.add_argument("--frames", type=int, default=20, metavar="N",
-                        help="video/webcam: distinct views to collect (default 20, the book's)")
-    parser.add_argument("--min-motion", type=finite_non_negative_float, default=0.05,
+    board.add_argument("--dictionary", default=None,
+                       help=f"charuco: ArUco dictionary (default {DICTIONARY})")
+    parser.add_argument("--frames", type=int, default=None, metavar="N",
+                        help=f"video/webcam: distinct views to collect, at least {MIN_FRAMES} "
+                             f"(default {FRAMES}, the book's)")
+    parser.add_argument("--min-motion", type=finite_non_negative_float, default=None,
                         metavar="FRACTION",
                         help="video/webcam: a view counts as distinct when its corners moved by "
-                             "this fraction of the image diagonal (default 0.05)")
+                             f"this fraction of the image diagonal (default {MIN_MOTION:g})")
     parser.add_argument("--skip-other-sizes", action="store_true",
                         help="with photos of mixed sizes, keep the most common size and skip "
                              "the others (default: refuse)")
@@ -185,7 +194,27 @@ def _board_from_args(args: argparse.Namespace) -> BoardSpec:
         raise UsageError(f"--marker-size {marker:g} must be smaller than --square-size "
                          f"{args.square_size:g}: a marker sits inside a square")
     return BoardSpec("charuco", args.board or (5, 7), args.square_size, marker,
-                     args.dictionary)
+                     args.dictionary or DICTIONARY)
+
+
+def _ignored_options(args: argparse.Namespace) -> list[str]:
+    """Warnings for the options given that the source or the pattern does not use (they
+    are left out, as ``--show`` without a display is, rather than refused)."""
+    notes = []
+    if args.images is not None:
+        notes += [f"{option} is for --video and --camera; ignored with --images"
+                  for option, value in (("--frames", args.frames),
+                                        ("--min-motion", args.min_motion))
+                  if value is not None]
+    elif args.skip_other_sizes:
+        notes.append("--skip-other-sizes is for --images; ignored with "
+                     + ("--video" if args.video is not None else "--camera"))
+    if args.pattern != "charuco":
+        notes += [f"{option} is for --pattern charuco; ignored with --pattern {args.pattern}"
+                  for option, value in (("--marker-size", args.marker_size),
+                                        ("--dictionary", args.dictionary))
+                  if value is not None]
+    return notes
 
 
 def _image_files(spec: str) -> list[Path]:
@@ -560,9 +589,11 @@ def _max_rms_hint(board: BoardSpec, rms_px: float | None) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    for note in _ignored_options(args):
+        logger.warning("%s", note)
+    args.frames = FRAMES if args.frames is None else args.frames
+    args.min_motion = MIN_MOTION if args.min_motion is None else args.min_motion
     board = _board_from_args(args)
-    if args.frames < 3:
-        raise UsageError(f"--frames must be at least 3, got {args.frames}")
     outputs = _outputs(args)
     _check_outputs(args, outputs)
 
@@ -660,5 +691,8 @@ def run(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None, prog: str = "calibrate.py") -> int:
     """Entry point of ``calibrate.py``; returns the exit code."""
-    args = build_parser(prog).parse_args(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(prog)
+    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    if args.images is None and args.frames is not None and args.frames < MIN_FRAMES:
+        parser.error(f"argument --frames: must be at least {MIN_FRAMES}, got {args.frames}")
     return run_command(args, run)
