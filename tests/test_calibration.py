@@ -442,6 +442,9 @@ def test_cli_video_collects_distinct_views(tmp_path, board_views, capsys):
                         "6 (such as 3x4 or 2x7)"),
     ("marker_too_large", "error: --marker-size 2 must be smaller than --square-size 1: a "
                          "marker sits inside a square"),
+    ("images_a_video", "is a video, not photos; use --video '"),
+    ("images_finds_a_video", "a video, not a photo: narrow the pattern to the photos "
+                             "(--video reads a video)"),
     ("out_among_the_photos", "where --images finds the photos: the next run would take "
                              "them for photos"),
     ("out_among_bracketed_photos", "where --images finds the photos"),
@@ -468,6 +471,8 @@ def test_cli_bad_inputs(tmp_path, chessboards, capsys, case, message):
                 cv2.rotate(cv2.imread(str(left / "left03.jpg")), cv2.ROTATE_90_CLOCKWISE))
     bracketed = tmp_path / "set [1]"
     shutil.copytree(two, bracketed)
+    video = two / "board.avi"  # its ending tells: never read as a photo
+    video.write_bytes(b"RIFF")
     out = ["--out", str(tmp_path / "c.yaml")]
     argv = {
         "no_images": ["--images", str(tmp_path / "empty")],
@@ -489,6 +494,8 @@ def test_cli_bad_inputs(tmp_path, chessboards, capsys, case, message):
         "charuco_too_few": ["--images", str(left), "--pattern", "charuco", "--board", "2x2"],
         "marker_too_large": ["--images", str(left), "--pattern", "charuco", "--marker-size",
                              "2"],
+        "images_a_video": ["--images", str(video)],
+        "images_finds_a_video": ["--images", f"{two}/*"],
         "out_among_the_photos": ["--images", str(two), "--out", str(two / "c.yaml")],
         "out_among_bracketed_photos": ["--images", f"{bracketed}/*", "--out",
                                        str(bracketed / "c.yaml")],
@@ -619,6 +626,25 @@ def test_cli_max_rms_advice_depends_on_the_error(tmp_path, chessboards, capsys):
     assert error.endswith("above the limit of 0.1 px (--max-rms); an error below the default "
                           "limit of 2 px is what the right board gives: raise --max-rms to "
                           "accept it (a wrong --board gives several px)")
+    assert list(tmp_path.iterdir()) == [photos]
+
+
+def test_cli_hints_at_an_unquoted_images_pattern(tmp_path, chessboards, capsys):
+    """--images photos/*.jpg unquoted: the shell passes the photos' names, and argparse
+    finds all but the first unrecognized."""
+    photos = _photos(tmp_path / "photos", FOUR, chessboards)
+    names = [str(photos / name) for name in FOUR]
+    with pytest.raises(SystemExit) as exc:
+        main(["--images", *names, "--out", str(tmp_path / "c.yaml")])
+    assert exc.value.code == 2
+    assert capsys.readouterr().err == (
+        f"error: unrecognized arguments: {' '.join(names[1:])}: --images takes one folder or "
+        f"one pattern; quote a pattern, as in --images '{photos}/*.jpg', or the shell "
+        "expands it into file names (see calibrate.py --help)\n")
+    with pytest.raises(SystemExit):
+        main(["--images", str(photos), "--bogus", "3"])
+    assert capsys.readouterr().err == ("error: unrecognized arguments: --bogus 3 (see "
+                                       "calibrate.py --help)\n")
     assert list(tmp_path.iterdir()) == [photos]
 
 

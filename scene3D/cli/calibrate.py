@@ -45,6 +45,7 @@ from ..camera import undistort_image
 from ..errors import CalibrationError
 from ..export import all_or_nothing, atomic_write_bytes, atomic_write_pieces
 from ..imageio import (
+    IMAGE_SUFFIXES,
     folder_images,
     glob_files,
     glob_patterns,
@@ -80,6 +81,9 @@ FRAMES = 20
 MIN_FRAMES = 3
 MIN_MOTION = 0.05
 DICTIONARY = "DICT_6X6_250"
+#: Endings of video files, which --images cannot read (--video does).
+VIDEO_SUFFIXES = frozenset({".avi", ".mp4", ".m4v", ".mov", ".mkv", ".webm", ".wmv",
+                            ".mpg", ".mpeg", ".flv", ".3gp", ".mts", ".m2ts"})
 
 
 def _board_size(text: str) -> tuple[int, int]:
@@ -225,6 +229,12 @@ def _image_files(spec: str) -> list[Path]:
         files = glob_files(spec)
     if not files:
         raise UsageError(f"no images found in '{spec}'")
+    videos = [p for p in files if p.suffix.lower() in VIDEO_SUFFIXES]
+    if videos and Path(spec).is_file():  # named, not matched by a pattern
+        raise UsageError(f"--images '{spec}' is a video, not photos; use --video '{spec}'")
+    if videos:
+        raise UsageError(f"--images '{spec}' finds '{videos[0]}', a video, not a photo: "
+                         "narrow the pattern to the photos (--video reads a video)")
     for path in files:
         require_utf8(path)
     return files
@@ -689,10 +699,28 @@ def run(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _unrecognized(args: argparse.Namespace, extra: list[str]) -> str:
+    """argparse's error for the arguments ``extra`` it did not recognize, with a hint when
+    they are photos: typically the shell expanded an unquoted ``--images`` glob into its
+    files (the first one became ``--images``'s value)."""
+    message = f"unrecognized arguments: {' '.join(extra)}"
+    if args.images is None or not all(Path(a).suffix.lower() in IMAGE_SUFFIXES
+                                      for a in extra):
+        return message
+    shown = " ".join(extra[:3]) + (f" ... ({len(extra)} in all)" if len(extra) > 3 else "")
+    first = Path(args.images)
+    example = first.parent / f"*{first.suffix}" if first.suffix else first.parent / "*"
+    return (f"unrecognized arguments: {shown}: --images takes one folder or one pattern; "
+            f"quote a pattern, as in --images '{example}', or the shell expands it into "
+            "file names")
+
+
 def main(argv: list[str] | None = None, prog: str = "calibrate.py") -> int:
     """Entry point of ``calibrate.py``; returns the exit code."""
     parser = build_parser(prog)
-    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    args, extra = parser.parse_known_args(sys.argv[1:] if argv is None else argv)
+    if extra:
+        parser.error(_unrecognized(args, extra))
     if args.images is None and args.frames is not None and args.frames < MIN_FRAMES:
         parser.error(f"argument --frames: must be at least {MIN_FRAMES}, got {args.frames}")
     return run_command(args, run)
