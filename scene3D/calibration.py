@@ -58,16 +58,28 @@ def _is_real(value: object) -> bool:
 
 def board_size_problem(pattern: str, size: tuple[int, int]) -> str:
     """Why a board of ``size`` (columns, rows, as :class:`BoardSpec` counts them) cannot
-    calibrate, or ``""``. A view needs :data:`MIN_POINTS_PER_VIEW` points, and OpenCV's
-    chessboard detector at least 3 inner corners a side."""
+    calibrate, or ``""``, naming the smallest board that can. A view needs
+    :data:`MIN_POINTS_PER_VIEW` points; OpenCV's chessboard detector needs at least 3
+    inner corners a side (3x3 is the smallest chessboard), the other targets 2 squares
+    or circles a side (ChArUco 3x4 or 2x7 squares, circle grids 2x3)."""
     cols, rows = size
-    if pattern == "chessboard" and min(cols, rows) < 3:
-        return "a chessboard needs at least 3 inner corners a side (OpenCV's detector)"
+    if pattern == "chessboard":
+        if min(cols, rows) < 3:
+            return ("a chessboard needs at least 3 inner corners a side, 3x3 or larger "
+                    "(OpenCV's detector)")
+        return ""
+    if min(cols, rows) < 2:
+        if pattern == "charuco":
+            return (f"a ChArUco board needs at least 2 squares a side and "
+                    f"{MIN_POINTS_PER_VIEW} inner corners: 3x4, 2x7 or larger")
+        return (f"a grid of circles needs at least 2 circles a side and "
+                f"{MIN_POINTS_PER_VIEW} in all: 2x3 or larger")
+    smallest = "3x4 or 2x7" if pattern == "charuco" else "2x3"
     points = (cols - 1) * (rows - 1) if pattern == "charuco" else cols * rows
     if points < MIN_POINTS_PER_VIEW:
-        what = "inner corners" if pattern == "charuco" else "points"
+        what = ("inner corner" if pattern == "charuco" else "point") + "s" * (points != 1)
         return (f"the board has {points} {what}; a view needs at least "
-                f"{MIN_POINTS_PER_VIEW}")
+                f"{MIN_POINTS_PER_VIEW} (such as {smallest})")
     return ""
 
 
@@ -468,7 +480,7 @@ def calibrate(
         raise CalibrationError(
             f"the corners do not fit one camera: RMS reprojection error {rms:.2f} px over "
             f"{len(views)} views, above the limit of {max_rms_px:g} px",
-            reason="corners_do_not_fit",
+            reason="corners_do_not_fit", rms_px=float(rms),
         )
     try:  # what load_calibration will check: a file it would refuse is not written
         check_intrinsics_for_size(K, image_size)

@@ -60,14 +60,18 @@ class CalibrationError(RuntimeError):
     reason : str
         Short machine-readable cause: ``"failed"``, or ``"corners_do_not_fit"`` when
         the result's RMS error is above the accepted limit (typically a wrong board).
+    rms_px : float or None
+        With ``"corners_do_not_fit"``: the RMS reprojection error that was refused.
     """
 
-    def __init__(self, message: str, reason: str = "failed") -> None:
+    def __init__(self, message: str, reason: str = "failed",
+                 rms_px: float | None = None) -> None:
         self.reason = reason
+        self.rms_px = rms_px
         super().__init__(message)
 
     def __reduce__(self) -> tuple:
-        return type(self), (self.args[0], self.reason)
+        return type(self), (self.args[0], self.reason, self.rms_px)
 
 
 class DatasetError(RuntimeError):

@@ -19,7 +19,7 @@ from scene3D.calibration import (
     load_calibration,
     save_calibration,
 )
-from scene3D.cli.calibrate import main
+from scene3D.cli.calibrate import build_parser, main
 from scene3D.synthetic import render_board, render_circles_board
 
 from .conftest import REPO
@@ -304,6 +304,10 @@ def test_board_spec_validation():
         BoardSpec("circles", (2, 2))
     with pytest.raises(ValueError, match="4 inner corners"):
         BoardSpec("charuco", (3, 3))
+    with pytest.raises(ValueError, match="the board has 1 inner corner; a view needs at "
+                                         r"least 6 \(such as 3x4 or 2x7\)"):
+        BoardSpec("charuco", (2, 2))
+    assert BoardSpec("charuco", (3, 4)).size == (3, 4)
     assert BoardSpec("circles", (2, 3)).size == (2, 3)
 
 
@@ -376,15 +380,21 @@ def test_cli_on_awkward_udacity_set(tmp_path, chessboards, capsys):
     assert 1100 < camera.K[0, 0] < 1250
 
 
-def test_cli_video_collects_distinct_views(tmp_path, board_views, capsys):
-    video = tmp_path / "board.avi"
-    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (640, 480),
+def _write_video(path, frames):
+    """An MJPG video of the grey 640x480 ``frames``, at ``path``; returns ``path``."""
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, (640, 480),
                              isColor=False)
     assert writer.isOpened()
-    for img in board_views:
-        for _ in range(4):  # near-duplicate frames must be skipped
-            writer.write(img)
+    for img in frames:
+        writer.write(img)
     writer.release()
+    return path
+
+
+def test_cli_video_collects_distinct_views(tmp_path, board_views, capsys):
+    # Each view 4 times: near-duplicate frames must be skipped.
+    video = _write_video(tmp_path / "board.avi",
+                         [img for img in board_views for _ in range(4)])
     out = tmp_path / "video.yaml"
     code = main(["--video", str(video), "--frames", "6", "--out", str(out),
                  "--save-undistorted", str(tmp_path / "und")])
@@ -417,10 +427,24 @@ def test_cli_video_collects_distinct_views(tmp_path, board_views, capsys):
     ("camera", "cannot open camera 99"),
     ("camera_beyond_int", "cannot open camera 2147483648: no such camera index"),
     ("video_missing", "video not found"),
+    ("video_folder", "is a folder, not a video file (--images takes a folder of photos)"),
     ("out_folder_missing", "does not exist"),
     ("out_under_a_file", "is a file, not a folder"),
     ("board_side_of_two", "--board 4x2: a chessboard needs at least 3 inner corners a side"),
-    ("circles_too_few", "--board 2x2: the board has 4 points; a view needs at least 6"),
+    ("circles_too_few", "--board 2x2: the board has 4 points; a view needs at least 6 "
+                        "(such as 2x3)"),
+    # The smallest board of the pattern, not a 2x2 that is refused in turn.
+    ("board_of_zero", "--board 0x0: a chessboard needs at least 3 inner corners a side, "
+                      "3x3 or larger"),
+    ("circles_side_of_one", "--board 1x9: a grid of circles needs at least 2 circles a "
+                            "side and 6 in all: 2x3 or larger"),
+    ("charuco_too_few", "--board 2x2: the board has 1 inner corner; a view needs at least "
+                        "6 (such as 3x4 or 2x7)"),
+    ("marker_too_large", "error: --marker-size 2 must be smaller than --square-size 1: a "
+                         "marker sits inside a square"),
+    ("images_a_video", "is a video, not photos; use --video '"),
+    ("images_finds_a_video", "a video, not a photo: narrow the pattern to the photos "
+                             "(--video reads a video)"),
     ("out_among_the_photos", "where --images finds the photos: the next run would take "
                              "them for photos"),
     ("out_among_bracketed_photos", "where --images finds the photos"),
@@ -447,6 +471,8 @@ def test_cli_bad_inputs(tmp_path, chessboards, capsys, case, message):
                 cv2.rotate(cv2.imread(str(left / "left03.jpg")), cv2.ROTATE_90_CLOCKWISE))
     bracketed = tmp_path / "set [1]"
     shutil.copytree(two, bracketed)
+    video = two / "board.avi"  # its ending tells: never read as a photo
+    video.write_bytes(b"RIFF")
     out = ["--out", str(tmp_path / "c.yaml")]
     argv = {
         "no_images": ["--images", str(tmp_path / "empty")],
@@ -456,11 +482,20 @@ def test_cli_bad_inputs(tmp_path, chessboards, capsys, case, message):
         "camera": ["--camera", "99"],
         "camera_beyond_int": ["--camera", "2147483648"],
         "video_missing": ["--video", str(tmp_path / "none.avi")],
+        "video_folder": ["--video", str(two)],
         "out_folder_missing": ["--images", str(left), "--out", str(tmp_path / "x" / "c.yaml")],
         "out_under_a_file": ["--images", str(left), "--out",
                              str(bad / "left01.jpg" / "c.yaml")],
         "board_side_of_two": ["--images", str(left), "--board", "4x2"],
         "circles_too_few": ["--images", str(left), "--pattern", "circles", "--board", "2x2"],
+        "board_of_zero": ["--images", str(left), "--board", "0x0"],
+        "circles_side_of_one": ["--images", str(left), "--pattern", "circles", "--board",
+                                "1x9"],
+        "charuco_too_few": ["--images", str(left), "--pattern", "charuco", "--board", "2x2"],
+        "marker_too_large": ["--images", str(left), "--pattern", "charuco", "--marker-size",
+                             "2"],
+        "images_a_video": ["--images", str(video)],
+        "images_finds_a_video": ["--images", f"{two}/*"],
         "out_among_the_photos": ["--images", str(two), "--out", str(two / "c.yaml")],
         "out_among_bracketed_photos": ["--images", f"{bracketed}/*", "--out",
                                        str(bracketed / "c.yaml")],
@@ -557,6 +592,62 @@ def test_cli_refuses_bad_numbers_and_names(tmp_path, chessboards, capsys, option
         BoardSpec(square_size_m=float("inf"))
 
 
+def test_cli_frames_are_checked_only_where_they_are_used(tmp_path, chessboards, capsys):
+    """--frames (at least 3) counts views of a video or webcam: with photos it is left
+    out with a warning, as the charuco-only --marker-size and --dictionary are with a
+    chessboard, rather than refused."""
+    photos = _photos(tmp_path / "photos", FOUR, chessboards)
+    out = tmp_path / "c.yaml"
+    with pytest.raises(SystemExit) as exc:
+        main(["--video", str(tmp_path / "board.avi"), "--frames", "2", "--out", str(out)])
+    assert exc.value.code == 2
+    assert capsys.readouterr().err == ("error: argument --frames: must be at least 3, got 2 "
+                                       "(see calibrate.py --help)\n")
+    assert main(["--images", str(photos), "--out", str(out), "--frames", "2",
+                 "--marker-size", "0.1", "--dictionary", "DICT_4X4_50"]) == 0
+    captured = capsys.readouterr()
+    assert "px over 4 views (640x480, chessboard 9x6" in captured.out
+    assert captured.err.splitlines()[:3] == [
+        "WARNING: --frames is for --video and --camera; ignored with --images",
+        "WARNING: --marker-size is for --pattern charuco; ignored with --pattern chessboard",
+        "WARNING: --dictionary is for --pattern charuco; ignored with --pattern chessboard"]
+    assert "at least 3 (default 20" in " ".join(build_parser().format_help().split())
+
+
+def test_cli_max_rms_advice_depends_on_the_error(tmp_path, chessboards, capsys):
+    """0.18 px refused by --max-rms 0.1 is the right board; only errors beyond the default
+    limit point at --board (test_cli_refuses_a_wrong_board_size: 14.8 px)."""
+    photos = _photos(tmp_path / "photos", FOUR, chessboards)
+    assert main(["--images", str(photos), "--out", str(tmp_path / "c.yaml"),
+                 "--max-rms", "0.1"]) == 1
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert error.startswith("error: the corners do not fit one camera: RMS reprojection "
+                            "error 0.1")
+    assert error.endswith("above the limit of 0.1 px (--max-rms); an error below the default "
+                          "limit of 2 px is what the right board gives: raise --max-rms to "
+                          "accept it (a wrong --board gives several px)")
+    assert list(tmp_path.iterdir()) == [photos]
+
+
+def test_cli_hints_at_an_unquoted_images_pattern(tmp_path, chessboards, capsys):
+    """--images photos/*.jpg unquoted: the shell passes the photos' names, and argparse
+    finds all but the first unrecognized."""
+    photos = _photos(tmp_path / "photos", FOUR, chessboards)
+    names = [str(photos / name) for name in FOUR]
+    with pytest.raises(SystemExit) as exc:
+        main(["--images", *names, "--out", str(tmp_path / "c.yaml")])
+    assert exc.value.code == 2
+    assert capsys.readouterr().err == (
+        f"error: unrecognized arguments: {' '.join(names[1:])}: --images takes one folder or "
+        f"one pattern; quote a pattern, as in --images '{photos}/*.jpg', or the shell "
+        "expands it into file names (see calibrate.py --help)\n")
+    with pytest.raises(SystemExit):
+        main(["--images", str(photos), "--bogus", "3"])
+    assert capsys.readouterr().err == ("error: unrecognized arguments: --bogus 3 (see "
+                                       "calibrate.py --help)\n")
+    assert list(tmp_path.iterdir()) == [photos]
+
+
 @pytest.mark.parametrize("case, message", [
     ("suffix", "--out must end in .yaml, .yml, .xml or .json, got '{tmp}/c.txt'"),
     ("folder", "--out '{tmp}/photos' is a folder; name a file in it"),
@@ -602,6 +693,40 @@ def test_cli_refuses_unwritable_outputs_before_any_work(tmp_path, chessboards, c
     assert err.startswith(f"error: {message.format(tmp=tmp_path)}")
     assert len(err.strip().splitlines()) == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["photos", "ro"]
+
+
+def test_cli_no_report_with_force_removes_the_earlier_report(tmp_path, chessboards, capsys):
+    """A report left from an earlier run would describe another calibration than the new
+    --out: --force --no-report removes it (and says so); without --force it is refused."""
+    photos = _photos(tmp_path / "photos", FOUR, chessboards)
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    out, report = out_dir / "cam.yaml", out_dir / "cam_report.html"
+    (out_dir / "cam_notes.html").write_text("mine")  # not a name calibrate writes
+    assert main(["--images", str(photos), "--out", str(out), "-q"]) == 0
+    assert "px over 4 views" in report.read_text()
+    capsys.readouterr()
+    argv = ["--images", f"{photos}/left0[123].jpg", "--out", str(out), "--no-report", "-q"]
+    assert main(argv + ["--force"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-1] == f"Removed '{report}' (an earlier run's, not written again)"
+    assert f"Wrote '{out}'" in lines and not report.exists()
+    fs = cv2.FileStorage(str(out), cv2.FILE_STORAGE_READ)
+    assert fs.getNode("per_view_errors").mat().shape == (1, 3)  # the new run's
+    fs.release()
+    assert sorted(p.name for p in out_dir.iterdir()) == [
+        "cam.yaml", "cam_coverage.png", "cam_notes.html", "cam_uncertainty.png",
+        "cam_view_errors.png"]
+    # Without --force: refused before any work, the report kept.
+    for name in ("cam.yaml", "cam_coverage.png", "cam_uncertainty.png", "cam_view_errors.png"):
+        (out_dir / name).unlink()
+    report.write_text("an earlier run's report")
+    assert main(argv) == 2
+    assert capsys.readouterr().err == (
+        f"error: '{report}' exists (an earlier run's) and would describe another "
+        "calibration than the new one; use --force to remove it\n")
+    assert report.read_text() == "an earlier run's report"
+    assert sorted(p.name for p in out_dir.iterdir()) == ["cam_notes.html", "cam_report.html"]
 
 
 def test_cli_says_when_the_output_folder_goes_away_during_the_work(tmp_path, chessboards,
@@ -663,13 +788,25 @@ def test_cli_refuses_a_photo_given_twice(tmp_path, chessboards, capsys, how):
     assert not (tmp_path / "c.yaml").exists()
 
 
+def test_cli_video_progress_is_silent_with_quiet(tmp_path, board_views, capsys):
+    """-q: only errors on stderr, so no "view 1/4 from frame 0" lines either."""
+    video = _write_video(tmp_path / "board.avi", board_views)
+    out = tmp_path / "v.yaml"
+    code = main(["--video", str(video), "--frames", "4", "--out", str(out), "-q"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert captured.err == ""
+    assert captured.out.splitlines()[0] == f"Wrote '{out}'"
+    assert len(load_calibration(out).K) == 3
+    # Without -q the progress is there, one line a view.
+    code = main(["--video", str(video), "--frames", "4", "--out", str(out), "--force"])
+    progress = [line for line in capsys.readouterr().err.splitlines()
+                if line.startswith("view ")]
+    assert code == 0 and progress[-1].startswith("view 4/4 from frame ")
+
+
 def test_cli_says_views_were_dropped_as_not_distinct(tmp_path, board_views, capsys):
-    video = tmp_path / "board.avi"
-    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (640, 480),
-                             isColor=False)
-    for img in board_views[:4]:
-        writer.write(img)
-    writer.release()
+    video = _write_video(tmp_path / "board.avi", board_views[:4])
     argv = ["--video", str(video), "--out", str(tmp_path / "v.yaml"), "--min-motion", "5"]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()

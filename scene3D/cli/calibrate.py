@@ -45,6 +45,7 @@ from ..camera import undistort_image
 from ..errors import CalibrationError
 from ..export import all_or_nothing, atomic_write_bytes, atomic_write_pieces
 from ..imageio import (
+    IMAGE_SUFFIXES,
     folder_images,
     glob_files,
     glob_patterns,
@@ -74,13 +75,24 @@ from .common import (
 logger = logging.getLogger("scene3D.cli")
 
 
+#: Defaults of the options that only a source or a pattern uses (None in the parser, so
+#: that :func:`_ignored_options` can tell a value that was given).
+FRAMES = 20
+MIN_FRAMES = 3
+MIN_MOTION = 0.05
+DICTIONARY = "DICT_6X6_250"
+#: Endings of video files, which --images cannot read (--video does).
+VIDEO_SUFFIXES = frozenset({".avi", ".mp4", ".m4v", ".mov", ".mkv", ".webm", ".wmv",
+                            ".mpg", ".mpeg", ".flv", ".3gp", ".mts", ".m2ts"})
+
+
 def _board_size(text: str) -> tuple[int, int]:
+    """argparse type: ``COLSxROWS``. The smallest size depends on ``--pattern``
+    (:func:`~scene3D.calibration.board_size_problem`, checked once it is known)."""
     try:
         cols, rows = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise argparse.ArgumentTypeError(f"board size must look like 9x6, got {text!r}") from None
-    if cols < 2 or rows < 2:
-        raise argparse.ArgumentTypeError(f"board size must be at least 2x2, got {text!r}")
     return cols, rows
 
 
@@ -116,7 +128,8 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
                             "grid of circles, acircles an asymmetric one (rows offset by half "
                             "a column, as OpenCV's acircles_pattern.png)")
     board.add_argument("--board", type=_board_size, default=None, metavar="COLSxROWS",
-                       help="chessboard: inner corners (default 9x6, the book's); "
+                       help="chessboard: inner corners, 3x3 or more (default 9x6, the "
+                            "book's); "
                             "charuco: squares (default 5x7); circles, acircles: circles per "
                             "row x rows (acircles default 4x11, OpenCV's pattern; circles "
                             "has no default)")
@@ -126,15 +139,17 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
                             "i.e. results in those units; K and the distortion do not "
                             "depend on it)")
     board.add_argument("--marker-size", type=finite_positive_float, default=None, metavar="M",
-                       help="charuco: side of a marker in metres (default: half a square)")
-    board.add_argument("--dictionary", default="DICT_6X6_250",
-                       help="charuco: ArUco dictionary (default DICT_6X6_250)")
-    parser.add_argument("--frames", type=int, default=20, metavar="N",
-                        help="video/webcam: distinct views to collect (default 20, the book's)")
-    parser.add_argument("--min-motion", type=finite_non_negative_float, default=0.05,
+                       help="charuco: side of a marker in metres, smaller than "
+                            "--square-size (default: half a square)")
+    board.add_argument("--dictionary", default=None,
+                       help=f"charuco: ArUco dictionary (default {DICTIONARY})")
+    parser.add_argument("--frames", type=int, default=None, metavar="N",
+                        help=f"video/webcam: distinct views to collect, at least {MIN_FRAMES} "
+                             f"(default {FRAMES}, the book's)")
+    parser.add_argument("--min-motion", type=finite_non_negative_float, default=None,
                         metavar="FRACTION",
                         help="video/webcam: a view counts as distinct when its corners moved by "
-                             "this fraction of the image diagonal (default 0.05)")
+                             f"this fraction of the image diagonal (default {MIN_MOTION:g})")
     parser.add_argument("--skip-other-sizes", action="store_true",
                         help="with photos of mixed sizes, keep the most common size and skip "
                              "the others (default: refuse)")
@@ -153,7 +168,9 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
                         help="warn when the projection uncertainty (1 sigma) at an image corner "
                              "or at the centre exceeds this (default "
                              f"{CORNER_LIMIT_PX:g} px)")
-    parser.add_argument("--no-report", action="store_true", help="skip NAME_report.html")
+    parser.add_argument("--no-report", action="store_true",
+                        help="skip NAME_report.html (with --force, an earlier run's is "
+                             "removed: it would describe another calibration)")
     parser.add_argument("--save-undistorted", type=Path, metavar="DIR",
                         help="also write the undistorted views into DIR")
     parser.add_argument("--show", action="store_true",
@@ -177,7 +194,31 @@ def _board_from_args(args: argparse.Namespace) -> BoardSpec:
                              "rows)")
         return BoardSpec("circles", args.board, args.square_size)
     marker = args.marker_size if args.marker_size is not None else args.square_size / 2
-    return BoardSpec("charuco", args.board or (5, 7), args.square_size, marker, args.dictionary)
+    if marker >= args.square_size:  # BoardSpec says so too, in its parameters' names
+        raise UsageError(f"--marker-size {marker:g} must be smaller than --square-size "
+                         f"{args.square_size:g}: a marker sits inside a square")
+    return BoardSpec("charuco", args.board or (5, 7), args.square_size, marker,
+                     args.dictionary or DICTIONARY)
+
+
+def _ignored_options(args: argparse.Namespace) -> list[str]:
+    """Warnings for the options given that the source or the pattern does not use (they
+    are left out, as ``--show`` without a display is, rather than refused)."""
+    notes = []
+    if args.images is not None:
+        notes += [f"{option} is for --video and --camera; ignored with --images"
+                  for option, value in (("--frames", args.frames),
+                                        ("--min-motion", args.min_motion))
+                  if value is not None]
+    elif args.skip_other_sizes:
+        notes.append("--skip-other-sizes is for --images; ignored with "
+                     + ("--video" if args.video is not None else "--camera"))
+    if args.pattern != "charuco":
+        notes += [f"{option} is for --pattern charuco; ignored with --pattern {args.pattern}"
+                  for option, value in (("--marker-size", args.marker_size),
+                                        ("--dictionary", args.dictionary))
+                  if value is not None]
+    return notes
 
 
 def _image_files(spec: str) -> list[Path]:
@@ -188,6 +229,12 @@ def _image_files(spec: str) -> list[Path]:
         files = glob_files(spec)
     if not files:
         raise UsageError(f"no images found in '{spec}'")
+    videos = [p for p in files if p.suffix.lower() in VIDEO_SUFFIXES]
+    if videos and Path(spec).is_file():  # named, not matched by a pattern
+        raise UsageError(f"--images '{spec}' is a video, not photos; use --video '{spec}'")
+    if videos:
+        raise UsageError(f"--images '{spec}' finds '{videos[0]}', a video, not a photo: "
+                         "narrow the pattern to the photos (--video reads a video)")
     for path in files:
         require_utf8(path)
     return files
@@ -239,6 +286,9 @@ def _check_distinct_files(files: list[Path]) -> None:
 
 def _frames(args: argparse.Namespace) -> Iterator[tuple[str, np.ndarray]]:
     if args.video is not None:
+        if args.video.is_dir():
+            raise UsageError(f"--video '{args.video}' is a folder, not a video file "
+                             "(--images takes a folder of photos)")
         if not args.video.is_file():
             raise FileNotFoundError(f"video not found: '{args.video}'")
         capture, what = cv2.VideoCapture(str(args.video)), f"video '{args.video}'"
@@ -321,7 +371,8 @@ def collect_views(args: argparse.Namespace, board: BoardSpec, keep_images: bool 
             if not _is_distinct(det, views, min_motion):
                 not_distinct += 1
                 continue
-            print(f"view {len(views) + 1}/{args.frames} from {name}", file=sys.stderr)
+            if not args.quiet:  # -q: only errors on stderr
+                print(f"view {len(views) + 1}/{args.frames} from {name}", file=sys.stderr)
         else:
             logger.info("%s: %d corners (%s)", name, len(det.image_points), det.method)
         views.append(det)
@@ -395,14 +446,27 @@ def _png(fig) -> bytes:
     return buffer.getvalue()
 
 
+def _report_path(args: argparse.Namespace) -> Path:
+    """``NAME_report.html`` beside ``--out``."""
+    return Path(f"{args.out.with_suffix('')}_report.html")
+
+
 def _outputs(args: argparse.Namespace) -> list[Path]:
     """The calibration, its three figures and (unless --no-report) its report."""
     stem = args.out.with_suffix("")
     outputs = [args.out] + [Path(f"{stem}_{name}.png")
                             for name in ("coverage", "view_errors", "uncertainty")]
     if not args.no_report:
-        outputs.append(Path(f"{stem}_report.html"))
+        outputs.append(_report_path(args))
     return outputs
+
+
+def _not_written_again(args: argparse.Namespace) -> list[Path]:
+    """The files of the same NAME an earlier run wrote that this one does not write
+    (its report, after ``--no-report``): they would describe another calibration than
+    the new ``--out``, so a run with ``--force`` removes them (without, it refuses)."""
+    report = _report_path(args)
+    return [report] if args.no_report and report.is_file() else []
 
 
 def _read_as_photo(path: Path, spec: str) -> bool:
@@ -431,6 +495,10 @@ def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:
     existing = [p for p in outputs if p.exists()]
     if existing and not args.force:
         raise UsageError(f"'{existing[0]}' exists; use --force to overwrite it")
+    earlier = _not_written_again(args)
+    if earlier and not args.force:
+        raise UsageError(f"'{earlier[0]}' exists (an earlier run's) and would describe "
+                         "another calibration than the new one; use --force to remove it")
     require_parent_folder(out, "--out")
     require_writable_folder(out.parent, f"--out '{out}': cannot write in '{out.parent}'")
     if args.images is not None:
@@ -498,10 +566,44 @@ def _too_few_views(args: argparse.Namespace, board: BoardSpec, found: CollectedV
             + hint)
 
 
+def _remove_earlier(paths: list[Path]) -> list[Path]:
+    """Remove ``paths`` (:func:`_not_written_again`) once the new files are in place;
+    return those removed. One that cannot be removed is named in a warning."""
+    removed = []
+    for path in paths:
+        try:
+            path.unlink()
+        except FileNotFoundError:
+            continue
+        except OSError as exc:
+            logger.warning("could not remove '%s' of an earlier run: %s", path,
+                           exc.strerror or exc)
+            continue
+        removed.append(path)
+    return removed
+
+
+def _max_rms_hint(board: BoardSpec, rms_px: float | None) -> str:
+    """What to check when the RMS error ``rms_px`` is above ``--max-rms``: up to
+    :data:`MAX_RMS_PX` (the default limit) it is what the right board gives, and only a
+    stricter ``--max-rms`` refused it; beyond, typically a wrong board (6-13 px on
+    OpenCV's left*.jpg), though blurred photos can give a few px too."""
+    if rms_px is not None and rms_px <= MAX_RMS_PX:
+        return (f"an error below the default limit of {MAX_RMS_PX:g} px is what the right "
+                "board gives: raise --max-rms to accept it (a wrong --board gives several "
+                "px)")
+    check = {"chessboard": "check --board: it counts inner corners",
+             "charuco": "check --board, --marker-size and --dictionary"}.get(
+                 board.pattern, "check --board and --pattern")
+    return f"{check} (blurred photos can also give a few px)"
+
+
 def run(args: argparse.Namespace) -> int:
+    for note in _ignored_options(args):
+        logger.warning("%s", note)
+    args.frames = FRAMES if args.frames is None else args.frames
+    args.min_motion = MIN_MOTION if args.min_motion is None else args.min_motion
     board = _board_from_args(args)
-    if args.frames < 3:
-        raise UsageError(f"--frames must be at least 3, got {args.frames}")
     outputs = _outputs(args)
     _check_outputs(args, outputs)
 
@@ -515,10 +617,8 @@ def run(args: argparse.Namespace) -> int:
     except CalibrationError as exc:
         if exc.reason != "corners_do_not_fit":
             raise
-        hint = {"chessboard": "check --board: it counts inner corners",
-                "charuco": "check --board, --marker-size and --dictionary"}.get(
-                    board.pattern, "check --board and --pattern")
-        raise CalibrationError(f"{exc} (--max-rms); {hint}", exc.reason) from None
+        raise CalibrationError(f"{exc} (--max-rms); {_max_rms_hint(board, exc.rms_px)}",
+                               exc.reason, exc.rms_px) from None
     kept = [v for v in views if v.name in result.per_view_errors_px]
     counts = corner_coverage([v.image_points for v in kept], size)
     if result.covariance is None:
@@ -586,17 +686,41 @@ def run(args: argparse.Namespace) -> int:
         for target, img in zip(undistorted, images):  # one undistorted image at a time
             png = cv2.imencode(".png", undistort_image(img, result.K, result.dist))[1]
             written.append(atomic_write_bytes(target, png.tobytes()))
+    removed = _remove_earlier(_not_written_again(args))
     if not args.quiet:
         print("\n".join(lines))
     for path in written:
         print(f"Wrote '{path}'")
+    for path in removed:
+        print(f"Removed '{path}' (an earlier run's, not written again)")
     if args.show:
         with _no_glyph_warnings():
             show_images(written[1:4])
     return EXIT_OK
 
 
+def _unrecognized(args: argparse.Namespace, extra: list[str]) -> str:
+    """argparse's error for the arguments ``extra`` it did not recognize, with a hint when
+    they are photos: typically the shell expanded an unquoted ``--images`` glob into its
+    files (the first one became ``--images``'s value)."""
+    message = f"unrecognized arguments: {' '.join(extra)}"
+    if args.images is None or not all(Path(a).suffix.lower() in IMAGE_SUFFIXES
+                                      for a in extra):
+        return message
+    shown = " ".join(extra[:3]) + (f" ... ({len(extra)} in all)" if len(extra) > 3 else "")
+    first = Path(args.images)
+    example = first.parent / f"*{first.suffix}" if first.suffix else first.parent / "*"
+    return (f"unrecognized arguments: {shown}: --images takes one folder or one pattern; "
+            f"quote a pattern, as in --images '{example}', or the shell expands it into "
+            "file names")
+
+
 def main(argv: list[str] | None = None, prog: str = "calibrate.py") -> int:
     """Entry point of ``calibrate.py``; returns the exit code."""
-    args = build_parser(prog).parse_args(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(prog)
+    args, extra = parser.parse_known_args(sys.argv[1:] if argv is None else argv)
+    if extra:
+        parser.error(_unrecognized(args, extra))
+    if args.images is None and args.frames is not None and args.frames < MIN_FRAMES:
+        parser.error(f"argument --frames: must be at least {MIN_FRAMES}, got {args.frames}")
     return run_command(args, run)
