@@ -89,7 +89,7 @@ def test_pure_rotation_raises(rotated_pair):
 
 
 def test_bad_inputs(tmp_path, rendered_pair):
-    img1, _, K, _, _ = rendered_pair
+    img1, img2, K, _, _ = rendered_pair
     with pytest.raises(ValueError, match=r"`K` must have shape \(3, 3\)"):
         SceneReconstruction3D(np.eye(4))
     with pytest.raises(ValueError, match="coefficients, got 2"):
@@ -101,7 +101,7 @@ def test_bad_inputs(tmp_path, rendered_pair):
                                          "one camera at one size are needed"):
         s.load_image_pair(img1, img1[:200])
     with pytest.raises(ValueError, match="unknown feature mode 'HOG'"):
-        s.load_image_pair(img1, img1)
+        s.load_image_pair(img1, img2)
         s.reconstruct("HOG")
     with pytest.raises(RuntimeError, match="load_image_pair"):
         SceneReconstruction3D(K).reconstruct()
