@@ -323,7 +323,24 @@ class StderrProgress:
         print(f"{label}: {done} of {total} done", file=sys.stderr, flush=True)
 
 
-def configure_logging(args: argparse.Namespace) -> None:
+class _StderrHandler(logging.StreamHandler):
+    """Writes to ``sys.stderr`` as it is when a record comes (a test's capture, a
+    notebook's stream), not as it was when the command started."""
+
+    @property
+    def stream(self):  # noqa: D102 - logging.StreamHandler's attribute
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value) -> None:
+        pass
+
+
+@contextmanager
+def command_logging(args: argparse.Namespace) -> Iterator[None]:
+    """The command's logging (``-q``, ``-v``, ``--debug``) on stderr while it runs; the
+    root logger's handlers and level as they were afterwards (a command run in-process,
+    from a notebook or a test, leaves the caller's logging alone)."""
     if args.quiet:
         level = logging.ERROR
     elif args.verbose >= 2 or args.debug:
@@ -332,11 +349,19 @@ def configure_logging(args: argparse.Namespace) -> None:
         level = logging.INFO
     else:
         level = logging.WARNING
-    logging.basicConfig(level=level, format="%(levelname)s: %(message)s", stream=sys.stderr,
-                        force=True)
-    for handler in logging.getLogger().handlers:
-        # The commands print a result's warnings with the result (stdout, the table).
-        handler.addFilter(lambda record: not getattr(record, RESULT_WARNING, False))
+    handler = _StderrHandler()
+    handler.setFormatter(logging.Formatter("%(levelname)s: %(message)s"))
+    # The commands print a result's warnings with the result (stdout, the table).
+    handler.addFilter(lambda record: not getattr(record, RESULT_WARNING, False))
+    root = logging.getLogger()
+    saved_handlers, saved_level = root.handlers[:], root.level
+    root.handlers[:] = [handler]
+    root.setLevel(level)
+    try:
+        yield
+    finally:
+        root.handlers[:] = saved_handlers
+        root.setLevel(saved_level)
 
 
 def require_parent_folder(path: Path, option: str) -> None:
@@ -376,12 +401,12 @@ def note_created_folders(folders: Iterable[Path]) -> None:
 
 def run_command(args: argparse.Namespace, body: Callable[[argparse.Namespace], int]) -> int:
     """Run ``body(args)`` and turn exceptions into one-line errors and exit codes."""
-    configure_logging(args)
     created: list[Path] = []
     token = _created_folders.set(created)
     code = EXIT_FAILED  # an exception that escapes (a bug: its traceback shows) too
     try:
-        code = _exit_code(args, body)
+        with command_logging(args):
+            code = _exit_code(args, body)
     finally:
         _created_folders.reset(token)
         if code != EXIT_OK:
