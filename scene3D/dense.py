@@ -63,10 +63,13 @@ class DenseReconstruction:
     disparity : (H, W) float32
         Disparity ``x1 - x2`` of rectified image 1 in pixels (``y1 - y2`` when the
         baseline is mostly vertical: :func:`~scene3D.rectification.baseline_axis`), zero
-        at infinity, NaN where invalid. ``cv2.reprojectImageTo3D(disparity, Q)`` gives
+        at infinity, NaN where invalid. Signed: negative throughout when image 2 is the
+        left view (the book pair: -286 to -190 px), so select valid pixels with
+        ``np.isfinite``, not ``> 0``. ``cv2.reprojectImageTo3D(disparity, Q)`` gives
         the points in the rectified camera-1 frame (:attr:`Q`).
     disparity_range : tuple[int, int]
-        The searched range ``[min, max)`` (pixels, in the matcher's orientation).
+        The searched range ``[min, max)`` of ``|disparity|`` (pixels; the matcher runs
+        on the pair mirrored when image 2 is the left view).
     rectified : RectifiedPair
         The rectified pair; image 2 shifted along the baseline by the start of the
         search range (its ``P2`` says by how much), so the disparities between the two

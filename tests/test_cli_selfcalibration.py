@@ -134,6 +134,13 @@ def test_photos_of_two_cameras_are_refused(tmp_path, synthetic_jpegs, exif_a, ex
     assert not (tmp_path / "out" / "reconstruction.json").exists()
 
 
+def _one_focal_length_quoted(stdout: str, summary: dict) -> None:
+    """The focal length the warning quotes is the one printed first and used (K)."""
+    focal = f"{summary['K'][0][0]:.1f} px"
+    assert f"the focal length ({focal}) is known only to" in stdout
+    assert f"\nfocal length {focal} " in stdout
+
+
 def test_a_focal_length_the_pair_cannot_tell_is_printed_as_a_factor_and_untrusted(tmp_path,
                                                                                     castle):
     # castle-P19 0004/0005 at 768 px: the matches fit 549 px about as well as 1470 px (the
@@ -151,5 +158,12 @@ def test_a_focal_length_the_pair_cannot_tell_is_printed_as_a_factor_and_untruste
     assert abs(math.log(summary["K"][0][0] / true_focal)) < 2 * sigma_log
     assert f"a factor of {math.exp(sigma_log):.1f}" in proc.stdout
     assert "may not be trustworthy" in proc.stdout
+    _one_focal_length_quoted(proc.stdout, summary)
+    # 0005/0006: the best run's K stands within the tolerance of the combined estimate;
+    # the warning quoted the latter (870.4 px against K's 869.9 px on the first line).
+    proc = run([images / "0005.jpg", images / "0006.jpg", "--no-plots", "--no-report",
+                "--out", tmp_path / "out56"], cwd=tmp_path)
+    _one_focal_length_quoted(
+        proc.stdout, json.loads((tmp_path / "out56" / "reconstruction.json").read_text()))
     # Said once, with the result: not repeated as log lines on stderr.
     assert summary["warnings"] and not any(w in proc.stderr for w in summary["warnings"])

@@ -151,6 +151,12 @@ def test_dense_agrees_with_sparse(fountain, pair, min_ratio, min_compared):
     z_dense = np.linalg.norm(dense.points3d[d_idx], axis=1)
     # Stated bound: median relative range difference below 1 %.
     assert np.median(np.abs(z_dense - z_sparse) / z_sparse) < 0.01
+    # The disparities are signed (x1 - x2), one sign over the pair, their sizes within
+    # the range searched.
+    d = dense.disparity[np.isfinite(dense.disparity)]
+    assert len(d) == dense.num_points and (np.all(d > 0) or np.all(d < 0))
+    lo, hi = dense.disparity_range
+    assert lo - 1 <= np.abs(d).min() and np.abs(d).max() <= hi
 
 
 def test_dense_refuses_images_it_cannot_use(rendered_pair):

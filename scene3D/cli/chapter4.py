@@ -242,8 +242,8 @@ def _result_lines(scene: SceneReconstruction3D, result, paths: tuple[Path, Path]
              f"{result.num_points} points, reprojection RMSE "
              f"{result.reprojection_rmse_px:.3f} px"]
     if dense is not None:
-        lines.append(f"dense: {dense.num_points} points from disparities in "
-                     f"[{dense.disparity_range[0]}, {dense.disparity_range[1]}) px")
+        lines.append(f"dense: {dense.num_points} points from disparities of "
+                     f"{dense.disparity_range[0]} to {dense.disparity_range[1]} px (in size)")
     center = camera_centers(result.R[None], result.t[None])[0]  # camera 2 in camera 1's frame
     lines.append(f"camera 2: rotated {rotation_angle_deg(result.R):.2f} deg, centre at "
                  f"({center[0]:+.3f}, {center[1]:+.3f}, {center[2]:+.3f}) in camera 1's frame "

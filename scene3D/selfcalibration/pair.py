@@ -338,9 +338,15 @@ def self_calibrate_pair(
     if determined and rivals:
         # The focal lengths the matches do not tell apart bound what is known of it.
         sigma = max(sigma, max(abs(math.log(r.focal_px / f_data)) for r in rivals))
+    # The pose under the focal length found (the best run's, when that is within the
+    # tolerance: its K is the one reported, and quoted below).
+    geometry = best
+    if abs(math.log(focal / best.K[0, 0])) >= s.tolerance_log:
+        geometry = reconstruct_from_matches(p1, p2, with_focal(K0, focal), tv)
+        iterations += 1
     if sigma > s.max_trusted_sigma_log:
         known = (f"+-{sigma:.0%}" if sigma < 0.5 else f"a factor of {math.exp(sigma):.1f}")
-        warnings.append(f"the focal length ({focal:.1f} px) is known only to {known}: "
+        warnings.append(f"the focal length ({geometry.K[0, 0]:.1f} px) is known only to {known}: "
                         "the pose may be off by degrees")
     if ambiguous:
         other = ", ".join(f"{g.K[0, 0]:.1f} px" for g in ambiguous)
@@ -355,10 +361,6 @@ def self_calibrate_pair(
             f"{worst_rival.pose_difference_deg:.1f} deg: the focal length, and the pose, may "
             "be wrong" + (f" ({len(pose_rivals)} such focal lengths)"
                           if len(pose_rivals) > 1 else ""))
-    geometry = best
-    if abs(math.log(focal / best.K[0, 0])) >= s.tolerance_log:
-        geometry = reconstruct_from_matches(p1, p2, with_focal(K0, focal), tv)
-        iterations += 1
     # The pose's uncertainty with the focal length's and the principal point's added.
     weight = (0.0 if not determined or not math.isfinite(sigma_data)
               else min(1.0, (sigma / sigma_data) ** 2))
