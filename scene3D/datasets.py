@@ -194,8 +194,8 @@ def _missing_message(name: str, cache: Path, exc: Exception | None) -> str:
     why = f"cannot download it ({getattr(exc, 'reason', exc)})" if exc else "downloads are off"
     return (
         f"fountain-P11 file '{name}' is not available and {why}; set SCENE3D_DATA to a folder "
-        f"that holds fountain-P11/, put the files in '{cache}', or use your own images "
-        "with their calibration `K` (--calib on the command line)"
+        f"that holds fountain-P11/, put the files in '{cache}', or use two photos of your "
+        "own (a calibration is optional)"
     )
 
 

@@ -304,7 +304,7 @@ def test_offline_without_data_is_one_clear_error(tmp_path):
            "SCENE3D_DATA_URL": "http://127.0.0.1:9/offline"}
     proc = run(["--out", tmp_path / "out"], cwd=tmp_path, env=env)
     assert proc.returncode == 2
-    assert "SCENE3D_DATA" in proc.stderr and "--calib" in proc.stderr
+    assert "SCENE3D_DATA" in proc.stderr and "two photos of your own" in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
 
 

@@ -81,7 +81,7 @@ def test_offline_error_says_what_to_do(tmp_path):
     with pytest.raises(DatasetError, match="SCENE3D_DATA") as info:
         fetch_fountain_p11(("images/K.txt",), data_root=tmp_path, cache_dir=tmp_path,
                            base_url="http://127.0.0.1:9/nothing", timeout_s=2)
-    assert "--calib" in str(info.value)
+    assert "two photos of your own" in str(info.value)
 
 
 def test_unknown_file_is_refused(tmp_path):
