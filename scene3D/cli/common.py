@@ -328,7 +328,7 @@ class _StderrHandler(logging.StreamHandler):
     notebook's stream), not as it was when the command started."""
 
     @property
-    def stream(self):  # noqa: D102 - logging.StreamHandler's attribute
+    def stream(self):
         return sys.stderr
 
     @stream.setter
