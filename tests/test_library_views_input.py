@@ -131,8 +131,10 @@ def test_two_cameras_are_told_how_to_give_a_calibration_in_python_or_the_shell(p
                               "all, give it with --calib FILE")
 
 
-def test_missing_dataset_message_names_K_and_calib(tmp_path):
+def test_missing_dataset_message_offers_ones_own_photos(tmp_path):
+    """Own photos need no calibration (self-calibration): the message asks for none."""
     with pytest.raises(DatasetError, match="SCENE3D_DATA") as info:
         fetch_fountain_p11(("images/K.txt",), data_root=tmp_path, cache_dir=tmp_path,
                            download=False)
-    assert "with their calibration `K` (--calib on the command line)" in str(info.value)
+    assert str(info.value).endswith("or use two photos of your own (a calibration is "
+                                    "optional)")
