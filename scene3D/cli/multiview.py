@@ -393,6 +393,7 @@ def focal_summary(recon: MultiViewReconstruction, model: SfMModel, camera: str |
         "photos_focal_px": f.data_focal_px, "photos_sigma_log": f.data_sigma_log,
         "adjustment_sigma_log": f.adjustment_sigma_log,
         "principal_point_sigma_log": f.principal_point_sigma_log,
+        "jackknife_sigma_log": f.jackknife_sigma_log,
         "determined": f.determined, "trusted": f.trusted, "warnings": list(f.warnings),
     }
 

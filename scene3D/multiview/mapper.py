@@ -247,7 +247,10 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
         timings["checks"] += time.perf_counter() - t0
     estimate = focal_start
     if focal is not None and focal_start is not None and model.focal_adjustment is not None:
-        estimate = focal_estimate(model.focal_adjustment, focal, focal_start)
+        t0 = time.perf_counter()
+        spread = model.focal_jackknife_sigma_log()
+        timings["bundle_adjustment"] += time.perf_counter() - t0
+        estimate = focal_estimate(model.focal_adjustment, focal, focal_start, spread)
         if not estimate.determined:  # keep the prior's focal length, adjusted under it
             say(estimate.warnings[0])
             model.focal, model.K = None, prior_intrinsics(model.K, focal)

@@ -247,8 +247,8 @@ class FocalEstimate:
         The focal length of the model's ``K`` (working images).
     sigma_px : float
         Its standard deviation: the adjustment's (the noise, cameras and points
-        marginalised, the prior included) and the guessed principal point's share
-        combined; the prior's when the views did not determine it.
+        marginalised, the prior included), the guessed principal point's share and the
+        spread over the views combined; the prior's when the views did not determine it.
     source : str
         ``"exif+refined"`` / ``"prior+refined"`` (the views determined it), or
         ``"exif"`` / ``"prior"`` (they did not: the start's value was kept).
@@ -259,6 +259,11 @@ class FocalEstimate:
     principal_point_sigma_log : float
         How far ``log f`` moves with the principal point off by
         ``FocalSettings.principal_point_sigma`` of the longer side.
+    jackknife_sigma_log : float
+        How far ``log f`` spreads over the views: the grouped jackknife of the model
+        adjusted again without each quarter of its views
+        (:meth:`scene3D.multiview.state.GrowingModel.focal_jackknife_sigma_log`; 0 for a
+        model of fewer than four views).
     data_focal_px, data_sigma_log : float
         What the views call for (the adjusted value) and how well they alone know it
         (the prior's share taken out, the principal point's added; inf: not at all).
@@ -288,6 +293,7 @@ class FocalEstimate:
     start_pair: tuple[int, int] | None = None
     warnings: tuple[str, ...] = ()
     trusted: bool = True
+    jackknife_sigma_log: float = 0.0
 
 
 @dataclass(frozen=True)
