@@ -383,7 +383,8 @@ class GrowingModel:
 
         The adjustment's covariance sees the noise of the observations only; views that
         call for different focal lengths (a principal point or a distortion that the
-        model lacks, seen differently from each) show here."""
+        model lacks, seen differently from each) show here. A group whose refit fails
+        (a singular system) is left out of the spread."""
         views = np.flatnonzero(self.registered)
         groups = min(groups, len(views) // 2)
         nodes = np.flatnonzero(self.node_point >= 0)
@@ -400,13 +401,18 @@ class GrowingModel:
             fixed = self._fixed_view()
             if fixed in views[g::groups]:
                 fixed = int(np.setdiff1d(views, views[g::groups])[0])
-            fa = bundle_adjust_focal(self.R, self.t, self.X[point_ids], obs, self.K,
-                                     np.array([fixed]), self.focal.prior_focal_px,
-                                     self.focal.prior_sigma_log,
-                                     max_iterations=max_iterations)
+            try:
+                fa = bundle_adjust_focal(self.R, self.t, self.X[point_ids], obs, self.K,
+                                         np.array([fixed]), self.focal.prior_focal_px,
+                                         self.focal.prior_sigma_log,
+                                         max_iterations=max_iterations)
+            except (ValueError, np.linalg.LinAlgError):  # as in focal_test: no refit
+                continue
             logs.append(np.log(fa.focal_px))
+        if len(logs) < 2:
+            return 0.0
         spread = np.asarray(logs) - np.mean(logs)
-        return float(np.sqrt((groups - 1) / groups * np.sum(spread**2)))
+        return float(np.sqrt((len(logs) - 1) / len(logs) * np.sum(spread**2)))
 
     def focal_test(self, check: ModelCheck) -> ModelCheck:
         """``check`` with the focal length the model's observations call for, for a model
