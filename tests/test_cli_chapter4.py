@@ -513,6 +513,25 @@ def test_a_reconstruction_json_of_someone_else_is_not_replaced(tmp_path, synthet
     assert sorted(p.name for p in tmp_path.iterdir()) == ["reconstruction.json"]
 
 
+def test_an_out_folder_from_before_the_file_list_keeps_working(tmp_path, synthetic_files):
+    """A reconstruction.json without "files" (scene3D before 2026-12-03): its figures and
+    report are taken as that run's, so a run without them removes them, and the next run
+    with them is not refused."""
+    f = synthetic_files
+    out = tmp_path / "out"
+    args = [f / "a.png", f / "b.png", "--calib", f / "camera.yaml", "--out", out, "-q"]
+    assert run(args, cwd=tmp_path).returncode == 0
+    summary = json.loads((out / "reconstruction.json").read_text())
+    del summary["files"]
+    (out / "reconstruction.json").write_text(json.dumps(summary))
+    proc = run(args + ["--no-plots", "--no-report"], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert f"Removed '{out / 'report.html'}'" in proc.stdout
+    assert sorted(p.name for p in out.iterdir()) == ["point_cloud.ply", "reconstruction.json"]
+    proc = run(args, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+
+
 def test_a_file_of_the_users_named_like_an_output_is_not_replaced(tmp_path, synthetic_files):
     """--out holding the user's point_cloud.ply (no earlier run wrote it), or being the
     photos' folder where a photo is named like a figure: exit 2 before any work, every

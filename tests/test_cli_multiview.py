@@ -167,6 +167,14 @@ def test_a_file_of_the_users_named_like_an_output_is_refused(tmp_path, capsys,
         f"error: --out '{out}' holds '{out / 'points.ply'}', which no earlier scene3D run "
         "there wrote, and the run would replace it; move it or choose another --out\n")
     assert (out / "points.ply").read_text() == "the user's"
+    # A further model's file too, before the work (how many models come out is known
+    # only at the end).
+    (out / "points.ply").unlink()
+    (out / "model-1").mkdir()
+    (out / "model-1" / "points.ply").write_text("the user's")
+    assert multiview.main([*map(str, photos), "--out", str(out)]) == 2
+    assert f"holds '{out / 'model-1' / 'points.ply'}', which no earlier" in \
+        capsys.readouterr().err
     earlier = tmp_path / "earlier"
     _earlier_run(earlier)
     assert multiview.main([*map(str, photos), "--out", str(earlier)]) == 1

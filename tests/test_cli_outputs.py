@@ -150,14 +150,23 @@ def test_a_file_the_run_would_replace_must_be_an_earlier_runs(tmp_path):
 
 
 def test_a_summary_from_before_the_file_list_owns_the_output_names(tmp_path):
-    """Its run's files were not listed: files named like outputs are taken to be its
-    (replaced, as they were then), but an input is still never written over."""
+    """Its run's files were not listed: the files named like the command's outputs are
+    taken to be its (replaced, or removed when not written again, so that the next run's
+    list holds them no more), but an input is still never written over."""
+    (tmp_path / "model-1").mkdir()
+    for name in ("point_cloud.ply", "optic_flow.png", "model-1/points.ply", "notes.txt"):
+        (tmp_path / name).write_text("an earlier run's")
     (tmp_path / "reconstruction.json").write_text('{"conventions": "x"}')
-    (tmp_path / "point_cloud.ply").write_text("an earlier run's")
-    folder = OutputFolder(tmp_path, inputs=[tmp_path / "reconstruction.json"])
-    folder.check_free([tmp_path / "point_cloud.ply"])
+    names = ("point_cloud.ply", "optic_flow.png", "model-*/points.ply", "reconstruction.json")
+    folder = OutputFolder(tmp_path, inputs=[tmp_path / "reconstruction.json"], names=names)
+    folder.check_free([tmp_path / "point_cloud.ply", tmp_path / "model-1" / "points.ply"])
     with pytest.raises(UsageError, match="one of its inputs"):
         folder.check_free([tmp_path / "reconstruction.json"])
+    written = [tmp_path / "point_cloud.ply", tmp_path / "reconstruction.json"]
+    assert sorted(folder.remove_stale(written)) == [tmp_path / "model-1" / "points.ply",
+                                                    tmp_path / "optic_flow.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt", "point_cloud.ply",
+                                                          "reconstruction.json"]
 
 
 def test_a_workers_task_counts_say_task_for_one():

@@ -331,6 +331,11 @@ def _figures_and_view(scene: SceneReconstruction3D, result, dense, plots: bool, 
         return {name: future.result() for name, future in futures.items()}, view
 
 
+#: Every file a run may write in ``--out``.
+OUTPUT_NAMES = (*PLOT_FILES, "disparity.png", "point_cloud.ply", "dense.ply", SUMMARY_FILE,
+                REPORT_FILE)
+
+
 def _planned_outputs(args: argparse.Namespace) -> list[str]:
     """The names of the files a successful run writes in ``--out``."""
     figures = [] if args.no_plots else [*PLOT_FILES, *(["disparity.png"] if args.dense else [])]
@@ -343,7 +348,8 @@ def run(args: argparse.Namespace) -> int:
     mode = normalize_feature_mode(args.feature)
     path1, path2, calib_path = _resolve_inputs(args)
     camera = _load_camera(calib_path, (path1, path2))
-    out_folder = OutputFolder(args.out, inputs=[path1, path2, *filter(None, [calib_path])])
+    out_folder = OutputFolder(args.out, inputs=[path1, path2, *filter(None, [calib_path])],
+                              names=OUTPUT_NAMES)
     out = out_folder.path
     out_folder.check_free(out / name for name in _planned_outputs(args))
     if not args.no_report:

@@ -409,12 +409,17 @@ def run(args: argparse.Namespace) -> int:
         camera = load_calibration(args.calib)
     names = [p.name for p in paths]
     truth = None if args.ground_truth is None else read_ground_truth(args.ground_truth, paths)
-    out_folder = OutputFolder(args.out, inputs=[*paths, *filter(None, [args.calib])])
+    model_names = (*MODEL_FILES, MODEL_FIGURE)
+    out_folder = OutputFolder(args.out, inputs=[*paths, *filter(None, [args.calib])],
+                              names=(*model_names, *(f"model-*/{n}" for n in model_names),
+                                     SUMMARY_FILE, REPORT_FILE))
     out = out_folder.path
-    # The first model's files, known before the work (the others' are checked as written).
-    out_folder.check_free(out / name for name in (
+    # Before the work: the first model's files, and those of further models already there
+    # (how many models come out is known only at the end, when all are checked again).
+    out_folder.check_free([*(out / name for name in (
         *MODEL_FILES, *([] if args.no_plots else [MODEL_FIGURE]), SUMMARY_FILE,
-        *([] if args.no_report else [REPORT_FILE])))
+        *([] if args.no_report else [REPORT_FILE]))),
+        *(p for p in out_folder.matching() if p.relative_to(out).parts[0].startswith("model-"))])
     if not args.no_report:
         check_report_viewer()
 

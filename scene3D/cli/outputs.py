@@ -141,15 +141,24 @@ class OutputFolder:
     :func:`previous_outputs`); :meth:`check_free` refuses to replace a file that is not
     the previous run's, :meth:`record` lists the run's files for its summary (checking
     them so) and :meth:`remove_stale` clears what the previous run left that this one did
-    not write. ``inputs`` are the run's photos and calibration: never written over."""
+    not write. ``inputs`` are the run's photos and calibration: never written over.
+    ``names`` are glob patterns, relative to the folder, of every file the command may
+    write (``model-*/points.ply``): with a summary from before the file list (2026-12-03),
+    the files that match them are taken to be that run's."""
 
-    def __init__(self, path: Path, inputs: Iterable[Path] = ()) -> None:
+    def __init__(self, path: Path, inputs: Iterable[Path] = (), names: Iterable[str] = ()
+                 ) -> None:
         self.path = prepare_output_dir(path)
+        self.names = tuple(names)
         self.previous = previous_outputs(self.path)
-        # A summary from before the file list: that run's files are not known, and files
-        # named like outputs are taken to be its own (as they were before the list).
-        self.lists_files = bool(self.previous) or not (self.path / SUMMARY_FILE).is_file()
+        if not self.previous and (self.path / SUMMARY_FILE).is_file():
+            self.previous = self.matching()  # scene3D's summary, without the file list
         self.inputs = {_file_id(p) for p in inputs} - {None}
+
+    def matching(self) -> list[Path]:
+        """The files in the folder that ``names`` match: those the command may write."""
+        return sorted({found for pattern in self.names for found in self.path.glob(pattern)
+                       if found.is_file()})
 
     def check_free(self, paths: Iterable[Path]) -> None:
         """Raise :class:`UsageError` when one of ``paths`` (files this run is to write)
@@ -163,7 +172,7 @@ class OutputFolder:
             if found in self.inputs:
                 raise UsageError(f"--out '{self.path}': the run would write '{path}', one "
                                  "of its inputs; choose another folder for the outputs")
-            if self.lists_files and found not in previous:
+            if found not in previous:
                 raise UsageError(f"--out '{self.path}' holds '{path}', which no earlier "
                                  "scene3D run there wrote, and the run would replace it; "
                                  "move it or choose another --out")
