@@ -363,11 +363,15 @@ def read_image_size(path: str | os.PathLike) -> tuple[int, int]:
 def _pillow_size(path: Path) -> tuple[int, int] | None:
     """``(width, height)`` from the header Pillow reads (a 16-bit TIFF is not decoded for
     its size), or None when Pillow cannot tell: then decoding says what is wrong."""
+    import warnings
+
     from PIL import Image
 
     try:
-        with Image.open(path) as img:
-            return int(img.width), int(img.height)
+        with warnings.catch_warnings():  # a large photo is no decompression bomb here
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(path) as img:
+                return int(img.width), int(img.height)
     except Exception:  # noqa: BLE001 - unknown format, damaged, a decompression bomb: decode
         return None
 

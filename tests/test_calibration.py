@@ -391,6 +391,21 @@ def _write_video(path, frames):
     return path
 
 
+def test_collect_views_from_the_parsers_namespace(tmp_path, board_views):
+    """The parser leaves --frames and --min-motion None when not given (to tell a value
+    given for photos from the default); collect_views, public, fills in the defaults."""
+    from scene3D.cli.calibrate import FRAMES, build_parser, collect_views
+
+    video = _write_video(tmp_path / "board.avi", board_views)
+    args = build_parser().parse_args(["--video", str(video), "-q"])
+    assert args.frames is None and args.min_motion is None
+    found = collect_views(args, BoardSpec())
+    # Every frame seen (fewer than the default 20 views), the default --min-motion applied.
+    assert found.seen == len(board_views) < FRAMES
+    assert len(found.views) + found.not_distinct == found.seen and len(found.views) >= 3
+    assert args.frames is None  # the caller's namespace is left as it was
+
+
 def test_cli_video_collects_distinct_views(tmp_path, board_views, capsys):
     # Each view 4 times: near-duplicate frames must be skipped.
     video = _write_video(tmp_path / "board.avi",
@@ -630,8 +645,9 @@ def test_cli_max_rms_advice_depends_on_the_error(tmp_path, chessboards, capsys):
 
 
 def test_cli_hints_at_an_unquoted_images_pattern(tmp_path, chessboards, capsys):
-    """--images photos/*.jpg unquoted: the shell passes the photos' names, and argparse
-    finds all but the first unrecognized."""
+    """--images photos/left0*.jpg unquoted: the shell passes the photos' names, and
+    argparse finds all but the first unrecognized; the hint rebuilds the pattern from
+    the names' common start."""
     photos = _photos(tmp_path / "photos", FOUR, chessboards)
     names = [str(photos / name) for name in FOUR]
     with pytest.raises(SystemExit) as exc:
@@ -639,7 +655,7 @@ def test_cli_hints_at_an_unquoted_images_pattern(tmp_path, chessboards, capsys):
     assert exc.value.code == 2
     assert capsys.readouterr().err == (
         f"error: unrecognized arguments: {' '.join(names[1:])}: --images takes one folder or "
-        f"one pattern; quote a pattern, as in --images '{photos}/*.jpg', or the shell "
+        f"one pattern; quote a pattern, as in --images '{photos}/left0*.jpg', or the shell "
         "expands it into file names (see calibrate.py --help)\n")
     with pytest.raises(SystemExit):
         main(["--images", str(photos), "--bogus", "3"])

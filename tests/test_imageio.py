@@ -1,3 +1,5 @@
+import warnings
+
 import cv2
 import numpy as np
 import pytest
@@ -123,6 +125,14 @@ def test_header_sizes_without_decoding(tmp_path, monkeypatch):
     for ext in (".jpg", ".png", ".bmp", ".tif", ".webp"):  # Pillow reads TIFF, WebP, BMP
         assert read_image_size(tmp_path / f"x{ext}") == (301, 203)
     assert read_image_size(tmp_path / "deep.tif") == (301, 203)
+    # A photo beyond Pillow's decompression-bomb warning (89.5 MP): no warning.
+    from PIL import Image
+
+    Image.fromarray(np.zeros((9000, 10000), np.uint8)).save(tmp_path / "large.tif",
+                                                            compression="tiff_lzw")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert read_image_size(tmp_path / "large.tif") == (10000, 9000)
     assert header_size((tmp_path / "x.jpg").read_bytes()[:20]) is None  # header cut off
     assert header_size(b"GIF89a") is None
     # A restart marker (no length field) before the frame header; SOF0 for 200x100.

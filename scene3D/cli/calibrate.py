@@ -344,12 +344,23 @@ class CollectedViews:
     not_distinct: int = 0
 
 
+def with_stream_defaults(args: argparse.Namespace) -> argparse.Namespace:
+    """A copy of ``args`` with ``--frames`` and ``--min-motion`` at their defaults when not
+    given (the parser leaves them None, to tell a value given for photos, which is
+    ignored with a warning, from the default)."""
+    filled = argparse.Namespace(**vars(args))
+    filled.frames = FRAMES if args.frames is None else args.frames
+    filled.min_motion = MIN_MOTION if args.min_motion is None else args.min_motion
+    return filled
+
+
 def collect_views(args: argparse.Namespace, board: BoardSpec, keep_images: bool = False
                   ) -> CollectedViews:
     """Detect the board in every photo, or in video frames until ``--frames`` distinct views.
 
     Only one image at a time is in memory unless ``keep_images``.
     """
+    args = with_stream_defaults(args)
     from_stream = args.images is None
     source = _frames(args) if from_stream else _photos(args)
     views: list[Detection] = []
@@ -601,8 +612,7 @@ def _max_rms_hint(board: BoardSpec, rms_px: float | None) -> str:
 def run(args: argparse.Namespace) -> int:
     for note in _ignored_options(args):
         logger.warning("%s", note)
-    args.frames = FRAMES if args.frames is None else args.frames
-    args.min_motion = MIN_MOTION if args.min_motion is None else args.min_motion
+    args = with_stream_defaults(args)
     board = _board_from_args(args)
     outputs = _outputs(args)
     _check_outputs(args, outputs)
@@ -708,8 +718,11 @@ def _unrecognized(args: argparse.Namespace, extra: list[str]) -> str:
                                       for a in extra):
         return message
     shown = " ".join(extra[:3]) + (f" ... ({len(extra)} in all)" if len(extra) > 3 else "")
-    first = Path(args.images)
-    example = first.parent / f"*{first.suffix}" if first.suffix else first.parent / "*"
+    # The names' common start and their suffix: left01.jpg left02.jpg -> left*.jpg.
+    names = [Path(args.images), *map(Path, extra)]
+    start = os.path.commonprefix([n.stem for n in names])
+    suffix = names[0].suffix if len({n.suffix for n in names}) == 1 else ""
+    example = names[0].parent / f"{start}*{suffix}"
     return (f"unrecognized arguments: {shown}: --images takes one folder or one pattern; "
             f"quote a pattern, as in --images '{example}', or the shell expands it into "
             "file names")

@@ -27,7 +27,7 @@ and points marginalised, describes the noise of the observations; the guessed
 principal point adds a share (the estimate's response to the principal point moved by
 :attr:`FocalSettings.principal_point_sigma` of the longer side), as for a pair, and so
 does the spread of the focal length over the views (a grouped jackknife: the model
-adjusted again without each quarter of its views), which sees what the noise does not:
+adjusted again without each quarter, or half, of its views), which sees what the noise does not:
 views that call for different focal lengths (castle-P19's views 0004-0011 alone: a
 sigma of 0.02 % without it against an error of 0.14 %). When
 the views alone know the focal length less well than the prior (views that hardly

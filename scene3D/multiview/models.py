@@ -261,7 +261,7 @@ class FocalEstimate:
         ``FocalSettings.principal_point_sigma`` of the longer side.
     jackknife_sigma_log : float
         How far ``log f`` spreads over the views: the grouped jackknife of the model
-        adjusted again without each quarter of its views
+        adjusted again without each quarter of its views (each half below eight)
         (:meth:`scene3D.multiview.state.GrowingModel.focal_jackknife_sigma_log`; 0 for a
         model of fewer than four views).
     data_focal_px, data_sigma_log : float
