@@ -845,3 +845,16 @@ def test_cli_draws_unicode_names_without_font_warnings(tmp_path, chessboards, ca
     assert code == 0, capsys.readouterr().err
     assert [str(w.message) for w in caught if "Glyph" in str(w.message)] == []
     assert (tmp_path / "c_view_errors.png").exists()
+
+
+def test_a_pattern_finds_photos_at_its_own_depth_only(tmp_path):
+    """The check that --out's figures would not land among the photos --images finds
+    reads a pattern as glob does: '*' does not reach across a '/' (fnmatch on the whole
+    path let 'photos/*' claim 'photos/sub/c_coverage.png' and refused a valid --out)."""
+    from scene3D.cli.calibrate import _read_as_photo
+
+    photos = tmp_path / "photos"
+    assert _read_as_photo(photos / "c_coverage.png", f"{photos}/*")
+    assert not _read_as_photo(photos / "sub" / "c_coverage.png", f"{photos}/*")
+    assert not _read_as_photo(tmp_path / "c_coverage.png", f"{photos}*/*")
+    assert _read_as_photo(photos / "a.png", f"{tmp_path}/p*/*.png")

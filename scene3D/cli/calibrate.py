@@ -484,11 +484,19 @@ def _read_as_photo(path: Path, spec: str) -> bool:
     """Would ``--images spec`` (a folder or a glob) list the file ``path``?"""
     if Path(spec).is_dir():
         return path.parent.resolve() == Path(spec).resolve() and is_folder_image(path)
-    return any(fnmatch.fnmatch(name, pattern)
+    return any(_glob_matches(name, pattern)
                for glob_pattern in glob_patterns(spec)
                for name, pattern in (
                    (os.path.normpath(path), os.path.normpath(glob_pattern)),
                    (os.path.abspath(path), os.path.abspath(glob_pattern))))
+
+
+def _glob_matches(name: str, pattern: str) -> bool:
+    """Whether glob ``pattern`` matches the path ``name``, component by component (as
+    ``glob`` does: ``*`` does not reach across a '/', unlike ``fnmatch`` on whole paths)."""
+    names, patterns = Path(name).parts, Path(pattern).parts
+    return len(names) == len(patterns) and all(
+        fnmatch.fnmatch(n, q) for n, q in zip(names, patterns))
 
 
 def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:
