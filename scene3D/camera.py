@@ -222,6 +222,14 @@ def scale_intrinsics_resize(
     return scale_intrinsics(K, to_size[0] / from_size[0], to_size[1] / from_size[1])
 
 
+def _same_aspect(image_size: tuple[int, int], calib_size: tuple[int, int],
+                 tolerance: float) -> bool:
+    """Whether images of ``image_size`` have the aspect ratio of ``calib_size`` (width,
+    height) within ``tolerance``, relative."""
+    (w, h), (cw, ch) = image_size, calib_size
+    return abs(cw * h / (ch * w) - 1.0) <= tolerance
+
+
 def different_sizes_message(name: str, size: tuple[int, int], first_name: str,
                             first_size: tuple[int, int]) -> str:
     """The one-line error for photo ``name`` of ``size`` next to ``first_name`` of
@@ -234,7 +242,7 @@ def different_sizes_message(name: str, size: tuple[int, int], first_name: str,
     if (w, h) == (h0, w0):
         return f"{head}: one was rotated; store both the same way round"
     head += ": photos of one camera at one size are needed"
-    if abs(w * h0 / (h * w0) - 1.0) <= 0.01:
+    if _same_aspect(first_size, size, 0.01):
         small = min((w, h), (w0, h0))
         return (f"{head}; one was resized: use the camera's originals, or resize the larger "
                 f"to {small[0]}x{small[1]}")
@@ -263,9 +271,9 @@ def adapt_intrinsics_to_size(
     if tuple(calib_size) == tuple(image_size):
         return K.copy()
     (w, h), (cw, ch) = image_size, calib_size
-    if abs(cw * h / (ch * w) - 1.0) > aspect_tolerance:
+    if not _same_aspect(image_size, calib_size, aspect_tolerance):
         head = f"images are {w}x{h} but {what} is for {cw}x{ch}"
-        if abs(cw * w / (ch * h) - 1.0) <= aspect_tolerance:
+        if _same_aspect((h, w), calib_size, aspect_tolerance):
             def shape(width: int, height: int) -> str:
                 return "portrait" if height > width else "landscape"
             raise ValueError(f"{head}: the images are turned by 90 degrees from it "

@@ -497,7 +497,7 @@ def load_working_image(
         img = to_bgr8(source, name=name)
     native = image_size(img)
     levels = halving_levels(native[0], max_width)
-    _check_halvable(native, levels, source if isinstance(source, (str, os.PathLike)) else name)
+    _check_halvable(native, levels, source_label(source, name))
     if has_distortion(dist):
         img = undistort_image(img, K, dist)
     return halve(img, levels), native, levels
@@ -525,7 +525,7 @@ def iter_working_images(
                 ) -> tuple[np.ndarray, tuple[int, int], int]:
         nonlocal first
         img, size, levels = job.result()
-        label = os.fspath(src) if isinstance(src, (str, os.PathLike)) else name
+        label = source_label(src, name)
         first = first or (label, size)
         if size != first[1]:
             raise ValueError(different_sizes_message(label, size, *first))
@@ -555,6 +555,11 @@ def load_working_images(
     if not loaded:
         return [], None, 0
     return [img for img, _, _ in loaded], loaded[0][1], loaded[0][2]
+
+
+def source_label(source: ImageSource, name: str) -> str:
+    """How messages name an image: a path as given, an array by ``name``."""
+    return os.fspath(source) if isinstance(source, (str, os.PathLike)) else name
 
 
 def image_size(img: np.ndarray) -> tuple[int, int]:

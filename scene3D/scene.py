@@ -15,7 +15,6 @@ reconstruction are computed once per feature mode and reused by every plot.
 from __future__ import annotations
 
 import logging
-import os
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
@@ -32,7 +31,7 @@ from .camera import (
 from .errors import log_result_warnings
 from .features import Matches, find_matches, normalize_feature_mode
 from .geometry import distinct_correspondences
-from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, load_working_images
+from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, load_working_images, source_label
 from .rectification import RectifiedPair, rectify_pair
 from .twoview import (
     TwoViewReconstruction,
@@ -127,8 +126,7 @@ class SceneReconstruction3D:
             ("img1", "img2"))
         check_intrinsics_for_native_size(self.K_native, size)
         if np.array_equal(a, b):
-            first, second = (src if isinstance(src, (str, os.PathLike)) else name
-                             for src, name in ((img1, "img1"), (img2, "img2")))
+            first, second = source_label(img1, "img1"), source_label(img2, "img2")
             raise ValueError(f"'{first}' and '{second}' are the same photo (the same pixels): "
                              "a pair needs two views of the scene")
         self.img1, self.img2 = a, b

@@ -422,14 +422,14 @@ def run(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _poses(count: float) -> str:
-    """``"1 pose"``, ``"2 poses"``."""
-    return f"{int(count)} pose{'s' * (int(count) != 1)}"
+def _poses(count: float, what: str = "pose") -> str:
+    """``"1 pose"``, ``"2 poses"`` (``what`` in place of "pose")."""
+    return f"{int(count)} {what}{'s' * (int(count) != 1)}"
 
 
 def _trust_line(stats: dict[str, float]) -> str:
     """The summary's line on the flags: right poses flagged, poses off and flagged."""
-    return (f"Trust: {_poses(stats['right_flagged']).replace(' pose', ' right pose')} "
+    return (f"Trust: {_poses(stats['right_flagged'], 'right pose')} "
             f"(< 1 deg) flagged; {int(stats['off2_flagged'])} of {_poses(stats['off2'])} "
             f"more than 2 deg off (or refused) flagged; {int(stats['wrong_unflagged'])} more "
             "than 5 deg off not flagged.")

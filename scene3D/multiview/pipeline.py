@@ -33,7 +33,7 @@ from ..camera import (
 )
 from ..engines import Engine, LocalEngine
 from ..errors import ReconstructionError
-from ..imageio import BOOK_MAX_WIDTH_PX, ImageSource, refuse_single_path
+from ..imageio import BOOK_MAX_WIDTH_PX, ImageSource, refuse_single_path, source_label
 from ..intrinsics_prior import FocalPrior, camera_prior
 from .features import content_key, view_features
 from .focal import FocalSettings
@@ -240,8 +240,7 @@ def reconstruct_views(
                             [(src, K_native, dist, max_width, name, feature)
                              for src, name in zip(images, names)], label="features"))
     first = found[0][1]
-    labels = [os.fspath(src) if isinstance(src, (str, os.PathLike)) else name
-              for src, name in zip(images, names)]
+    labels = [source_label(src, name) for src, name in zip(images, names)]
     for (_, size, _, _), label in zip(found, labels):
         if size != first:
             raise ValueError(different_sizes_message(label, size, labels[0], first))

@@ -288,10 +288,9 @@ class GrowingModel:
             taking[fixed] = False
             taking[anchors] = True
             admitted &= taking[self.node_view[nodes]]
-            # A point needs two observations in the adjustment; else it follows.
-            counts = np.bincount(self.node_point[nodes[admitted]], minlength=len(self.X))
-            admitted &= counts[self.node_point[nodes]] >= 2
         inside = nodes[admitted]
+        if anchors is not None:
+            inside = self._observed_twice(inside)  # else the point follows
         point_ids, obs = self._adjustment_observations(inside)
         if len(inside):
             if refine_focal and self.focal is not None:
@@ -322,6 +321,12 @@ class GrowingModel:
                                         self.xy[nodes], self.K)
         self._remove_observations(nodes[~(err <= self.s.max_reprojection_px) | (depth <= 0)])
         self.timings["bundle_adjustment"] += time.perf_counter() - t0
+
+    def _observed_twice(self, nodes: np.ndarray) -> np.ndarray:
+        """Those of the observations ``nodes`` whose point they observe twice or more: a
+        point needs two observations in an adjustment."""
+        counts = np.bincount(self.node_point[nodes], minlength=len(self.X))
+        return nodes[counts[self.node_point[nodes]] >= 2]
 
     def _adjustment_observations(self, nodes: np.ndarray) -> tuple[np.ndarray, Observations]:
         """The points ``(P',)`` that ``nodes`` observe, and those observations with the
@@ -393,10 +398,7 @@ class GrowingModel:
         nodes = nodes[self.adjustment_nodes(nodes)]
         logs = []
         for g in range(groups):
-            kept = nodes[~np.isin(self.node_view[nodes], views[g::groups])]
-            # A point needs two observations in the adjustment.
-            counts = np.bincount(self.node_point[kept], minlength=len(self.X))
-            kept = kept[counts[self.node_point[kept]] >= 2]
+            kept = self._observed_twice(nodes[~np.isin(self.node_view[nodes], views[g::groups])])
             point_ids, obs = self._adjustment_observations(kept)
             fixed = self._fixed_view()
             if fixed in views[g::groups]:
