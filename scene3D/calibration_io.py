@@ -45,6 +45,20 @@ class CameraCalibration:
     image_size: tuple[int, int]
 
 
+def _not_file_storage(path: Path) -> str:
+    """What a file that OpenCV's FileStorage cannot read is: a bare 3x3 matrix (such as
+    the Strecha scenes' K.txt) is told what the file must add."""
+    try:
+        bare = path.stat().st_size < 4096 and np.loadtxt(path, ndmin=2).shape == (3, 3)
+    except (ValueError, OSError, UnicodeDecodeError):
+        bare = False
+    if bare:
+        return ("it holds a bare 3x3 matrix, without the image size it is for: write it as "
+                "OpenCV YAML with camera_matrix, distortion_coefficients, image_width and "
+                "image_height (as calibrate.py does)")
+    return "not OpenCV YAML/XML"
+
+
 def load_calibration(path: str | os.PathLike) -> CameraCalibration:
     """Read a calibration file.
 
@@ -63,7 +77,8 @@ def load_calibration(path: str | os.PathLike) -> CameraCalibration:
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     except (cv2.error, SystemError) as exc:
-        raise ValueError(f"cannot parse calibration file '{path}': not OpenCV YAML/XML") from exc
+        raise ValueError(f"cannot parse calibration file '{path}': "
+                         f"{_not_file_storage(path)}") from exc
     try:
         if not fs.isOpened():
             raise ValueError(f"cannot open calibration file '{path}'")

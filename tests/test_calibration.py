@@ -858,3 +858,18 @@ def test_a_pattern_finds_photos_at_its_own_depth_only(tmp_path):
     assert not _read_as_photo(photos / "sub" / "c_coverage.png", f"{photos}/*")
     assert not _read_as_photo(tmp_path / "c_coverage.png", f"{photos}*/*")
     assert _read_as_photo(photos / "a.png", f"{tmp_path}/p*/*.png")
+
+
+def test_a_bare_matrix_is_told_what_a_calibration_file_needs(tmp_path):
+    """A 3x3 matrix as text (the Strecha scenes' K.txt) says nothing of the image size it
+    is for: refused with what to write instead; other unreadable files as not YAML/XML."""
+    bare = tmp_path / "K.txt"
+    np.savetxt(bare, np.array([[2759.48, 0, 1520.69], [0, 2764.16, 1006.81], [0, 0, 1]]))
+    with pytest.raises(ValueError, match="bare 3x3 matrix, without the image size it is for: "
+                       "write it as OpenCV YAML with camera_matrix, distortion_coefficients, "
+                       "image_width and image_height"):
+        load_calibration(bare)
+    other = tmp_path / "notes.txt"
+    other.write_text("fx 2759.48\n")
+    with pytest.raises(ValueError, match="not OpenCV YAML/XML$"):
+        load_calibration(other)

@@ -387,8 +387,11 @@ def test_an_unrelated_or_blank_image_is_reported_not_registered(fountain, chessb
     assert sorted(summary["unregistered"]) == ["0005b_board.jpg", "0006b_blank.jpg"]
     assert all(summary["unregistered_reasons"][name] for name in summary["unregistered"])
     assert summary["registered"] == 4 and len(summary["models"]) == 1
-    assert "view '0005b_board.jpg' could not be registered" in proc.stderr
-    assert "view '0006b_blank.jpg' could not be registered" in proc.stderr
+    # Neither shares a verified pair with another view: that is the reason, said once.
+    assert {summary["unregistered_reasons"][name] for name in summary["unregistered"]} == {
+        "no verified pair with any other view: does it overlap the others?"}
+    assert ("views '0005b_board.jpg', '0006b_blank.jpg' could not be registered: no verified "
+            "pair with any other view") in proc.stderr
 
 
 def test_reconstruct_views_bad_input(tmp_path, fountain):
@@ -519,6 +522,15 @@ def test_unconnected_scenes_become_two_models(fountain, data_root, tmp_path):
     assert json.loads((out / "model-1" / "cameras.json").read_text()).keys() == {
         f"h{i}.jpg" for i in range(4)}
     assert "model 1 (model-1/): 4 more views" in proc.stdout
+    assert proc.stdout.startswith("9 of 9 views registered in 2 models; the largest, 5 views")
+    assert "the largest model: f2.jpg, f3.jpg, f4.jpg, f5.jpg, f6.jpg" in proc.stdout
+    # The report tells the same: every view in a model (it said the further model's views
+    # "could not be registered"), and no warning.
+    page = (out / "report.html").read_text()
+    assert ('<div class="verdict ok" id="verdict"><strong>9 of 9 views registered in 2 '
+            "models</strong></div>") in page
+    assert page.count("<td>in model 1 (model-1/)</td>") == 4
+    assert "<td>not registered" not in page
     assert sorted(summary["files"]) == _files_in(out)
     # Again on the fountain alone into the same folder, without the report: the earlier
     # run's model-1/ and report.html go; a file of the user's there stays.
@@ -536,6 +548,32 @@ def test_unconnected_scenes_become_two_models(fountain, data_root, tmp_path):
 
 def _files_in(folder):
     return sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file())
+
+
+def test_views_that_cannot_start_a_further_model_are_told_why(fountain, data_root, tmp_path):
+    """Five fountain views and four Herz-Jesus views zoomed 1.25 times (cropped and resized
+    back): under the fountain's calibration no pair of the zoomed views is trusted, so they
+    form no model. Each is told that, and why (the focal length their matches call for),
+    not a reason left over from the fountain model's registration."""
+    from scene3D.datasets import read_strecha_camera
+    from scene3D.multiview import reconstruct_views
+
+    paths = [fountain / "images" / f"{i:04d}.jpg" for i in range(2, 7)]
+    for i in range(4):
+        image = cv2.imread(str(data_root / "Herz-Jesus-P8" / "images" / f"{i:04d}.jpg"))
+        h, w = image.shape[:2]
+        ch, cw = round(h / 1.25), round(w / 1.25)
+        crop = image[(h - ch) // 2:(h - ch) // 2 + ch, (w - cw) // 2:(w - cw) // 2 + cw]
+        paths.append(tmp_path / f"h{i}.jpg")
+        cv2.imwrite(str(paths[-1]), cv2.resize(crop, (w, h), interpolation=cv2.INTER_AREA))
+    K = read_strecha_camera(fountain / "gt_dense_cameras" / "0004.jpg.camera").K
+    r = reconstruct_views(paths, K, max_width=800)
+    assert len(r.models) == 1 and sorted(r.unregistered) == [f"h{i}.jpg" for i in range(4)]
+    for i in range(4):
+        why = r.unregistered_reasons[f"h{i}.jpg"]
+        assert why.startswith("not in a model, and no further one could start from the "
+                              "4 views left: no pair of views gives a trustworthy"), why
+        assert "fit a focal length 1.2" in why and "does the calibration fit" in why
 
 
 def test_a_broken_reconstruction_is_reported_not_written_as_a_success(fountain, tmp_path,
@@ -660,7 +698,8 @@ def test_a_view_that_fails_at_first_is_registered_with_further_candidates(founta
                               engine=engine)
     assert "more pairs" not in engine.labels
     assert stuck.unregistered == ("0005.jpg",)
-    assert stuck.unregistered_reasons["0005.jpg"].startswith("too few 2D-3D matches")
+    # Its pairs withheld and no retry: no verified pair at all, which is what it is told.
+    assert stuck.unregistered_reasons["0005.jpg"].startswith("no verified pair with any other")
 
 
 def test_ground_truth_is_read_and_checked_before_the_reconstruction(fountain, tmp_path, capsys,

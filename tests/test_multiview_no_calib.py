@@ -75,6 +75,27 @@ def test_synthetic_views_find_the_focal_length_from_30_percent_off(start):
     assert model.reprojection_rmse_px < 0.8
 
 
+def test_a_further_model_too_small_to_refine_inherits_the_focal_length():
+    """Six views of one scene and two of another, unconnected: the second model, of two
+    views (fewer than ``FocalSettings.min_views``), keeps the first's focal length and
+    says so (source ``inherited``, no start pair), not "prior+refined" as if its own
+    views had refined it."""
+    features, pairs, _, _ = _orbit_views(0.5, seed=0, views=6)
+    more, more_pairs, _, _ = _orbit_views(0.5, seed=1, views=2)
+    features += more
+    pairs += [PairMatches(p.i + 6, p.j + 6, p.idx_i, p.idx_j, p.num_inliers) for p in more_pairs]
+    focal = FocalSettings(520.0 * 1.2, 0.5, "prior")
+    K0 = np.array([[focal.prior_focal_px, 0, 319.5], [0, focal.prior_focal_px, 239.5],
+                   [0, 0, 1]])
+    models, reasons, _ = reconstruct_models(features, pairs, K0, SfMSettings(), focal=focal)
+    assert [int(m.registered.sum()) for m in models] == [6, 2] and reasons == {}
+    first, second = models
+    assert first.focal.source == "prior+refined" and first.focal.start_pair is not None
+    assert second.focal.source == "inherited" and second.focal.start_pair is None
+    assert second.K[0, 0] == first.K[0, 0] == second.focal.start_focal_px
+    assert second.focal.trusted and second.focal.warnings == ()
+
+
 def test_views_that_cannot_tell_keep_the_prior_and_say_so():
     """Views that translate sideways without turning, looking the same way: the
     focal length and the depths trade off exactly (H&Z section 19.5), so the prior's

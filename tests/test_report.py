@@ -119,9 +119,33 @@ def test_multi_view_layers_skip_unregistered_views():
                                         np.array([[0.0, 0, 5], [1, 0, 6]]), None)
     assert np.all(np.isfinite(cameras.corners[:2])) and np.all(np.isnan(cameras.corners[2]))
     np.testing.assert_allclose(cameras.corners[1, 0], [1, 0, 0])  # centre -R^T t
-    page = multi_view_report(("a", "b", "c"), [True, True, False], {"points": 2}, ["2 of 3"],
+    page = multi_view_report(("a", "b", "c"), ["the largest model"] * 2 + [None],
+                             {"points": 2, "unregistered_reasons": {"c": "no verified pair"}},
+                             ["2 of 3"], ["view 'c' could not be registered: no verified pair"],
                              {}, prepare_view(layers, cameras)).text()
-    assert "view &#x27;c&#x27; could not be registered" in page
+    assert '<div class="verdict warn" id="verdict"><strong>2 of 3 views registered' in page
+    assert "<li>view &#x27;c&#x27; could not be registered: no verified pair</li>" in page
+    assert "<td>c</td><td>not registered: no verified pair</td>" in page
+
+
+def test_multi_view_views_of_further_models_are_registered():
+    """Views in a further model are registered (the page said "could not be registered"
+    of every view outside the largest model); the verdict is the warnings'."""
+    layers, cameras = multi_view_layers(("a", "b", "c"), np.diag([500.0, 500, 1]), (640, 480),
+                                        [True, True, False], np.stack([np.eye(3)] * 3),
+                                        np.array([[0.0, 0, 0], [-1, 0, 0], [0, 0, 0]]),
+                                        np.array([[0.0, 0, 5], [1, 0, 6]]), None)
+    placed = ["the largest model", "the largest model", "model 1 (model-1/)"]
+    page = multi_view_report(("a", "b", "c"), placed, {"points": 2}, ["3 of 3"], [], {},
+                             prepare_view(layers, cameras)).text()
+    assert ('<div class="verdict ok" id="verdict"><strong>3 of 3 views registered in 2 '
+            "models</strong></div>") in page
+    assert "<td>c</td><td>in model 1 (model-1/)</td>" in page
+    assert "<td>not registered" not in page
+    warned = multi_view_report(("a", "b", "c"), placed, {"points": 2}, ["3 of 3"],
+                               ["focal length: known only to +-9%"], {},
+                               prepare_view(layers, cameras)).text()
+    assert '<div class="verdict warn"' in warned and "known only to +-9%" in warned
 
 
 def test_multi_view_models_are_a_table_of_their_own():
@@ -133,8 +157,9 @@ def test_multi_view_models_are_a_table_of_their_own():
                                         np.array([[0.0, 0, 5], [1, 0, 6]]), None)
     models = [{"folder": ".", "status": "ok", "registered": 2, "points": 2,
                "focal_scale": 1.0004, "center_error_fraction_of_extent": np.array([1e-3, 2e-3])}]
-    page = multi_view_report(("a", "b"), [True, True], {"points": 2, "models": models},
-                             ["2 of 2"], {}, prepare_view(layers, cameras)).text()
+    page = multi_view_report(("a", "b"), ["the largest model"] * 2,
+                             {"points": 2, "models": models}, ["2 of 2"], [], {},
+                             prepare_view(layers, cameras)).text()
     assert ("<table id=\"models\"><tr><th>folder</th><th>status</th><th>registered</th>"
             "<th>points</th><th>focal_scale</th></tr><tr><td>.</td><td>ok</td>"
             "<td class=num>2</td><td class=num>2</td><td class=num>1</td></tr></table>") in page

@@ -29,6 +29,7 @@ from ..features import FEATURE_MODES, resolve_feature_mode
 from ..imageio import BOOK_MAX_WIDTH_PX, folder_images, glob_files, read_image_size
 from ..multiview import (
     PAIR_MODES,
+    FocalEstimate,
     MultiViewReconstruction,
     SfMModel,
     SfMSettings,
@@ -324,26 +325,100 @@ def check_summary(model: SfMModel, names: list[str]) -> dict:
 
 
 def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, summary: dict,
-                  plots: bool) -> Path:
-    """report.html: the summary, cameras.png and the interactive 3D view (scene3D.report)
-    of the largest model."""
+                  lines: list[str], warnings: list[str], plots: bool) -> Path:
+    """report.html: the summary, the command's lines and warnings, cameras.png and the
+    interactive 3D view (scene3D.report) of the largest model."""
     from ..export import atomic_write_pieces
     from ..report import multi_view_layers, multi_view_report, prepare_view
 
-    lines = [f"{summary['registered']} of {len(names)} views registered, "
-             f"{summary['points']} points, mean track length {recon.mean_track_length:.2f}, "
-             f"reprojection RMSE {recon.reprojection_rmse_px:.3f} px"]
-    if recon.focal is not None:
-        sigma = focal_sigma_text(recon.focal.focal_px, recon.focal.sigma_px)
-        lines.append(f"focal length {recon.K[0, 0]:.1f} px {sigma} "
-                     f"({recon.calibration_source}; {recon.prior_description})")
     figures = {}
     if plots:
         figures["cameras.png"] = written_bytes(out / "cameras.png")
     view = prepare_view(*multi_view_layers(names, recon.K, recon.image_size, recon.registered,
                                            recon.R, recon.t, recon.points3d, recon.colors))
-    page = multi_view_report(names, recon.registered, summary, lines, figures, view)
+    page = multi_view_report(names, _placed(names, recon), summary, lines, warnings, figures,
+                             view)
     return atomic_write_pieces(out / REPORT_FILE, page.encoded())
+
+
+def _model_name(m: int, folder: str) -> str:
+    """'the largest model', 'model 1 (model-1/)'."""
+    return "the largest model" if m == 0 else f"model {m} ({folder}/)"
+
+
+def _placed(names: list[str], recon: MultiViewReconstruction) -> list[str | None]:
+    """For each view the model it is in (:func:`_model_name`), None when in none."""
+    placed: list[str | None] = [None] * len(names)
+    for m, model in enumerate(recon.models):
+        for v in model.views:
+            placed[v] = _model_name(m, f"model-{m}")
+    return placed
+
+
+def _focal_text(K: np.ndarray, focal: FocalEstimate) -> str:
+    """'690.7 px +-1.1 px (0.16 %) (prior+refined)', '...; untrusted)'."""
+    return (f"{K[0, 0]:.1f} px {focal_sigma_text(focal.focal_px, focal.sigma_px)} "
+            f"({focal.source}" + ("" if focal.trusted else "; untrusted") + ")")
+
+
+def _result_lines(names: list[str], recon: MultiViewReconstruction, models: list[dict]
+                  ) -> list[str]:
+    """What the command prints of its result (the report shows the same lines)."""
+    main = models[0]
+    numbers = (f"{main['points']} points, mean track length {recon.mean_track_length:.2f}, "
+               f"reprojection RMSE {recon.reprojection_rmse_px:.3f} px")
+    if len(models) == 1:
+        lines = [f"{main['registered']} of {len(names)} views registered, {numbers}"]
+    else:
+        placed = sum(entry["registered"] for entry in models)
+        lines = [f"{placed} of {len(names)} views registered in {len(models)} models; the "
+                 f"largest, {main['registered']} views: {numbers}"]
+    if recon.focal is not None:
+        how = "refined by the photos" if recon.focal.determined else \
+            "kept: the photos could not refine it"
+        sigma = focal_sigma_text(recon.focal.focal_px, recon.focal.sigma_px)
+        lines.append(f"focal length {recon.K[0, 0]:.1f} px {sigma} at the working size "
+                     f"({recon.prior_description}; {how}"
+                     + ("" if recon.focal.trusted else "; untrusted") + ")")
+    if recon.focal_refits:
+        lines.append(f"focal length {recon.K[0, 0]:.1f} px at the working size, "
+                     f"{recon.focal_refit_scale:.3f} times the calibration's (the views "
+                     "refuted it)")
+    if len(models) > 1:
+        lines.append(f"the largest model: {', '.join(main['views'])}")
+    for m, (entry, model) in enumerate(zip(models[1:], recon.models[1:]), start=1):
+        focal = ("" if model.focal is None else
+                 f"; focal length {_focal_text(recon.model_K(model), model.focal)}")
+        lines.append(f"model {m} ({entry['folder']}/): {entry['registered']} more views: "
+                     f"{', '.join(entry['views'])}{focal}")
+    for m, entry in enumerate(models):
+        gt = entry.get("ground_truth")
+        if gt is None:
+            continue
+        whose = "" if len(models) == 1 else f" ({_model_name(m, entry['folder'])})"
+        lines.append(f"against ground truth{whose}: camera centres within "
+                     f"{100 * gt['max_center_error_fraction']:.3f} % of the scene extent, "
+                     f"rotations within {gt['max_rotation_error_deg']:.3f} deg"
+                     + (f", focal length {100 * gt['focal_error_fraction']:+.2f} %"
+                        if "focal_error_fraction" in gt else ""))
+    return lines
+
+
+def _run_warnings(recon: MultiViewReconstruction, models: list[dict], summary: dict
+                  ) -> list[str]:
+    """What the command warns of (stderr and the report): views in no model, doubts about
+    each model's focal length, a calibration the views refuted."""
+    by_reason: dict[str, list[str]] = {}  # views left out for one reason: one line
+    for name in recon.unregistered:
+        by_reason.setdefault(recon.unregistered_reasons.get(name, "unknown"), []).append(name)
+    warnings = [f"{'view' if len(names) == 1 else 'views'} "
+                f"{', '.join(repr(n) for n in names)} could not be registered: {reason}"
+                for reason, names in by_reason.items()]
+    for m, (entry, model) in enumerate(zip(models, recon.models)):
+        whose = "" if m == 0 else f"{_model_name(m, entry['folder'])}: "
+        if model.focal is not None:
+            warnings += [f"{whose}focal length: {message}" for message in model.focal.warnings]
+    return warnings + list(summary["warnings"])
 
 
 #: The files of a model in its folder (--out for the first), and its figure.
@@ -462,6 +537,7 @@ def run(args: argparse.Namespace) -> int:
                 entry["K"] = recon.model_K(model)
                 entry["focal_px_sigma"] = model.focal.sigma_px
                 entry["calibration_source"] = model.focal.source
+                entry["self_calibration"] = focal_summary(recon, model, prior.camera_name)
             if truth is not None:
                 entry["ground_truth"] = evaluate_against(
                     truth, names, model,
@@ -500,8 +576,11 @@ def run(args: argparse.Namespace) -> int:
         summary[FILES_KEY] = out_folder.record([
             *written, out / SUMMARY_FILE, *([] if args.no_report else [out / REPORT_FILE])])
         written.append(write_json(out / SUMMARY_FILE, summary))
+        lines = _result_lines(names, recon, models)
+        warnings = _run_warnings(recon, models, summary)
         if not args.no_report:
-            written.append(_write_report(out, names, recon, summary, not args.no_plots))
+            written.append(_write_report(out, names, recon, summary, lines, warnings,
+                                         not args.no_plots))
     removed = out_folder.remove_stale(written)
 
     in_colmap = {names[v] for model in recon.models for v in model.views}
@@ -512,47 +591,18 @@ def run(args: argparse.Namespace) -> int:
                        "colmap/images.txt has '%s' for '%s'%s, '_' for each space, so those "
                        "names do not match the files; rename the photos for tools that open "
                        "them", colmap_image_name(renamed[0]), renamed[0], more)
-    for name in recon.unregistered:
-        logger.warning("view '%s' could not be registered: %s", name,
-                       recon.unregistered_reasons.get(name, "unknown"))
-    if recon.focal is not None:
-        for message in recon.focal.warnings:
-            logger.warning("focal length: %s", message)
-    for message in summary["warnings"]:
+    for message in warnings:
         logger.warning("%s", message)
     if not args.quiet:
-        print(f"{summary['registered']} of {len(names)} views registered, "
-              f"{summary['points']} points, mean track length "
-              f"{recon.mean_track_length:.2f}, reprojection RMSE "
-              f"{recon.reprojection_rmse_px:.3f} px, {timings['total']:.1f} s")
-        if recon.focal is not None:
-            how = "refined by the photos" if recon.focal.determined else \
-                "kept: the photos could not refine it"
-            sigma = focal_sigma_text(recon.focal.focal_px, recon.focal.sigma_px)
-            print(f"focal length {recon.K[0, 0]:.1f} px {sigma} at the "
-                  f"working size ({recon.prior_description}; {how}"
-                  + ("" if recon.focal.trusted else "; untrusted") + ")")
-        if recon.focal_refits:
-            print(f"focal length {recon.K[0, 0]:.1f} px at the working size, "
-                  f"{recon.focal_refit_scale:.3f} times the calibration's (the views "
-                  "refuted it)")
-        for m, entry in enumerate(models[1:], start=1):
-            print(f"model {m} ({entry['folder']}/): {entry['registered']} more views: "
-                  f"{', '.join(entry['views'])}")
-        if "ground_truth" in summary:
-            gt = summary["ground_truth"]
-            print(f"against ground truth: camera centres within "
-                  f"{100 * gt['max_center_error_fraction']:.3f} % of the scene extent, "
-                  f"rotations within {gt['max_rotation_error_deg']:.3f} deg"
-                  + (f", focal length {100 * gt['focal_error_fraction']:+.2f} %"
-                     if "focal_error_fraction" in gt else ""))
+        lines[0] += f", {timings['total']:.1f} s"
+        print("\n".join(lines))
     for path in written:
         print(f"Wrote '{path}'")
     for path in removed:
         print(f"Removed '{path}' (an earlier run's, not written again)")
     for m, entry in thin:
-        which = "the largest model" if m == 0 else f"model {m} ({entry['folder']}/)"
-        print(f"error: {which} has {entry['points']} point{'s' * (entry['points'] != 1)} "
+        print(f"error: {_model_name(m, entry['folder'])} has {entry['points']} "
+              f"point{'s' * (entry['points'] != 1)} "
               f"for its {entry['registered']} views, fewer than {MIN_MODEL_POINTS}: its "
               "cameras rest on nothing (does the calibration fit these photos?); see "
               "reconstruction.json, the files are written for inspection only",

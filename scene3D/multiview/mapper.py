@@ -88,6 +88,16 @@ def _first_model_lost(model: SfMModel, start: PairMatches, left_out: dict[int, s
             f"{s.min_model_views} a model needs{taken}; {_input_hint(calibrated)}")
 
 
+def _inherited_focal(previous: FocalEstimate, focal_px: float) -> FocalEstimate:
+    """Where a further model's focal length starts: the model built before it (photos of
+    one camera). Kept as it is, with source ``"inherited"``, when the model has too few
+    views to refine it (``FocalSettings.min_views``)."""
+    warnings = () if previous.trusted else (
+        "it is the focal length of the model built before this one, which is untrusted",)
+    return dataclasses.replace(previous, start_focal_px=focal_px, start_pair=None,
+                               source="inherited", warnings=warnings)
+
+
 def _input_hint(calibrated: bool) -> str:
     """What to check in the input when the views give no model."""
     return ("does the calibration fit these photos?" if calibrated else
@@ -314,17 +324,20 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
                     f"{names[start[0].i]} and {names[start[0].j]}")
         elif focal is not None and inside:
             K = models[-1].K if models[-1].K is not None else K
-            focal_start = dataclasses.replace(models[-1].focal, start_focal_px=float(K[0, 0]),
-                                              start_pair=None)
+            focal_start = _inherited_focal(models[-1].focal, float(K[0, 0]))
             start = initial_pair(features, inside, K)
         else:
             start = (initial_pair(features, inside, K, calibrated=focal is None) if inside
                      else _no_pair_left(s))
         timings["initialisation"] += time.perf_counter() - t0
         if isinstance(start, str):
+            why = f"{start}; {_input_hint(focal is None)}" if inside else start
             if not models:
-                why = f"{start}; {_input_hint(focal is None)}" if inside else start
                 raise ReconstructionError("no_initial_pair", why, verified_pairs=len(pairs))
+            no_start = (f"not in a model, and no further one could start from the "
+                        f"{_views(int(remaining.sum()))} left: {why}")
+            reasons = {int(v): reasons[v] if reasons.get(v) == _CONTRADICTED else no_start
+                       for v in np.flatnonzero(remaining)}
             break
         model, left_out = grow_model(features, pairs, K, s, remaining.copy(), start,
                                      more_pairs if not models else None, say, timings, names,
@@ -342,7 +355,13 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
         if remaining.any():
             say(f"a model of {_views(int(model.registered.sum()))} is done; "
                 f"{_views(int(remaining.sum()))} left for another model")
+    paired = np.zeros(V, dtype=bool)
+    for p in pairs:
+        paired[[p.i, p.j]] = True
     for v in np.flatnonzero(remaining):
+        if not paired[v]:  # whatever else was said, this is why
+            reasons[int(v)] = ("no verified pair with any other view: does it overlap the "
+                               "others?")
         reasons.setdefault(int(v), "no verified pair with the views left")
     models.sort(key=lambda m: -int(m.registered.sum()))
     return models, reasons, timings

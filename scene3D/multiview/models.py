@@ -251,7 +251,9 @@ class FocalEstimate:
         spread over the views combined; the prior's when the views did not determine it.
     source : str
         ``"exif+refined"`` / ``"prior+refined"`` (the views determined it), or
-        ``"exif"`` / ``"prior"`` (they did not: the start's value was kept).
+        ``"exif"`` / ``"prior"`` (they did not: the start's value was kept), or
+        ``"inherited"``: a further model of fewer than ``FocalSettings.min_views`` views,
+        which keeps the focal length of the model built before it.
     determined : bool
         The views alone know ``log f`` at least as well as the prior does.
     adjustment_sigma_log : float

@@ -249,9 +249,10 @@ def multi_view_layers(
 
 def multi_view_report(
     names: Sequence[str],
-    registered: ArrayLike,
+    placed: Sequence[str | None],
     summary: Mapping[str, Any],
     lines: Sequence[str],
+    warnings: Sequence[str],
     figures: Mapping[str, bytes],
     view: PreparedView,
 ) -> Html:
@@ -260,24 +261,27 @@ def multi_view_report(
     Parameters
     ----------
     names : sequence of str
-        One per view; ``registered`` (V,) bool says which have a pose.
+        One per view.
+    placed : sequence of str or None
+        One per view: the model it is in (e.g. ``"the largest model"``, ``"model-1/"``), or
+        None when it is in none (``summary["unregistered_reasons"]`` says why).
     summary : mapping
         What ``reconstruction.json`` holds.
     lines : sequence of str
         The command's result lines.
+    warnings : sequence of str
+        The command's warnings (views in no model among them); none gives the "ok" verdict.
     figures : mapping of str to bytes
         File name to PNG or JPEG bytes.
     view : PreparedView
-        ``prepare_view(*multi_view_layers(...))``.
+        ``prepare_view(*multi_view_layers(...))``: the largest model.
     """
-    registered = np.asarray(registered, dtype=bool)
     page = Page(f"scene3D reconstruction of {len(names)} views")
     page.lines(lines)
-    warnings = [f"view '{n}' could not be registered" for n, ok in zip(names, registered)
-                if not ok]
-    warnings += list(summary.get("warnings", []))
-    page.verdict(not warnings, f"{int(registered.sum())} of {len(names)} views registered",
-                 warnings)
+    in_models = [label for label in placed if label is not None]
+    models = len(set(in_models))
+    page.verdict(not warnings, f"{len(in_models)} of {len(names)} views registered"
+                 + (f" in {models} models" if models > 1 else ""), warnings)
     result, trust = _scalars(summary)
     page.heading("Result")
     page.key_values({**result, **trust}, "numbers")
@@ -285,14 +289,18 @@ def multi_view_report(
         page.heading("Models")
         _records_table(page, summary["models"], "models")
     if isinstance(summary.get("ground_truth"), dict):
-        page.heading("Against the ground truth")
+        page.heading("Against the ground truth (the largest model)")
         page.key_values({k: v for k, v in summary["ground_truth"].items()
                          if not isinstance(v, (list, tuple, np.ndarray))}, "ground-truth")
-    _view_section(page, view, "Frame: the camera frame of the first view of the initial pair "
-                  "(x right, y down, z forward), shown with -y up; the scale is arbitrary.")
+    _view_section(page, view, "The largest model. Frame: the camera frame of the first view "
+                  "of its initial pair (x right, y down, z forward), shown with -y up; the "
+                  "scale is arbitrary.")
     page.heading("Views")
-    page.table(((n, "registered" if ok else "not registered") for n, ok in
-                zip(names, registered)), header=("view", "status"), table_id="views")
+    reasons = summary.get("unregistered_reasons") or {}
+    page.table(((n, f"in {label}" if label is not None else
+                 f"not registered: {reasons.get(n, 'unknown')}")
+                for n, label in zip(names, placed)), header=("view", "status"),
+               table_id="views")
     _figures(page, figures)
     _timings(page, summary.get("timings_s"))
     page.raw_json(_jsonable(dict(summary)))
