@@ -42,7 +42,7 @@ from ..calibration_uncertainty import (
     uncertainty_map,
 )
 from ..camera import undistort_image
-from ..errors import CalibrationError
+from ..errors import CalibrationError, plural
 from ..export import all_or_nothing, atomic_write_bytes, atomic_write_pieces
 from ..imageio import (
     IMAGE_SUFFIXES,
@@ -558,9 +558,8 @@ def _too_few_views(args: argparse.Namespace, board: BoardSpec, found: CollectedV
     """Why ``found`` holds fewer than 3 views, for the error."""
     seen, n = found.seen, len(found.views)
     if found.not_distinct:
-        return (f"only {n} distinct view{'s' * (n != 1)} of the board in {seen} "
-                f"frame{'s' * (seen != 1)} of the "
-                f"{_stream_kind(args)}: "
+        return (f"only {plural(n, 'distinct view')} of the board in {plural(seen, 'frame')} "
+                f"of the {_stream_kind(args)}: "
                 f"{found.not_distinct} more with the board "
                 f"{'was' if found.not_distinct == 1 else 'were'} dropped as not distinct "
                 f"(its corners moved less than --min-motion {args.min_motion:g} of the image "

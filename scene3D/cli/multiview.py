@@ -14,6 +14,7 @@ import numpy as np
 from ..calibration_io import load_calibration
 from ..camera import adapt_intrinsics_to_size
 from ..datasets import StrechaCamera, read_strecha_camera
+from ..errors import plural
 from ..evaluation import camera_set_error
 from ..export import (
     all_or_nothing,
@@ -289,7 +290,7 @@ def _failure_message(recon: MultiViewReconstruction, names: list[str]) -> str:
     if refuting:
         check, refits = refuting[0], len(recon.focal_refits)
         scale = check.focal_scale * recon.focal_refit_scale  # over the calibration's
-        after = (f", still after {refits} reconstruction{'s' * (refits > 1)} with the focal "
+        after = (f", still after {plural(refits, 'reconstruction')} with the focal "
                  "length they called for" if refits else "")
         why.append(f"the views fit a focal length {scale:.3f} times the calibration's "
                    f"(+-{scale * check.focal_scale_sigma_log:.2g}){after}: "
@@ -552,7 +553,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"Removed '{path}' (an earlier run's, not written again)")
     for m, entry in thin:
         which = "the largest model" if m == 0 else f"model {m} ({entry['folder']}/)"
-        print(f"error: {which} has {entry['points']} point{'s' * (entry['points'] != 1)} "
+        print(f"error: {which} has {plural(entry['points'], 'point')} "
               f"for its {entry['registered']} views, fewer than {MIN_MODEL_POINTS}: its "
               "cameras rest on nothing (does the calibration fit these photos?); see "
               "reconstruction.json, the files are written for inspection only",
