@@ -745,6 +745,37 @@ def test_cli_no_report_with_force_removes_the_earlier_report(tmp_path, chessboar
     assert sorted(p.name for p in out_dir.iterdir()) == ["cam_notes.html", "cam_report.html"]
 
 
+@pytest.mark.parametrize("force", [False, True])
+def test_cli_refuses_an_out_that_shares_its_name_with_another_calibration(tmp_path, chessboards,
+                                                                         capsys, force):
+    """cam.yaml and cam.json beside it would share cam_coverage.png and the others: the
+    second calibration's would replace the first's (with --force) or be refused with a
+    hint to --force that does just that. Refused either way, naming the other file; the
+    first calibration's files are left as they were."""
+    photos = _photos(tmp_path / "photos", FOUR, chessboards)
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    assert main(["--images", str(photos), "--out", str(out_dir / "cam.yaml"), "-q"]) == 0
+    before = {p.name: p.read_bytes() for p in out_dir.iterdir()}
+    capsys.readouterr()
+    out = out_dir / "cam.json"
+    argv = ["--images", f"{photos}/left0[123].jpg", "--out", str(out), "-q"]
+    assert main(argv + (["--force"] if force else [])) == 2
+    assert capsys.readouterr().err == (
+        f"error: --out '{out}' has the NAME of '{out_dir / 'cam.yaml'}' beside it, whose "
+        f"figures and report ('{out_dir / 'cam_coverage.png'}', ...) are named after NAME "
+        f"only: this calibration's would replace them; name --out otherwise (such as "
+        f"'{out_dir / 'cam-2.json'}'), or remove '{out_dir / 'cam.yaml'}' and its files "
+        "first\n")
+    assert {p.name: p.read_bytes() for p in out_dir.iterdir()} == before
+    # Another NAME is fine; so is cam.json once cam.yaml and its files are gone.
+    assert main(["--images", str(photos), "--out", str(out_dir / "cam-2.json"), "-q"]) == 0
+    for name in before:
+        (out_dir / name).unlink()
+    (out_dir / "cam.yaml").write_text("%YAML:1.0\n")  # a file of the user's, alone
+    assert main(argv) == 0 and (out_dir / "cam_report.html").is_file()
+
+
 def test_cli_says_when_the_output_folder_goes_away_during_the_work(tmp_path, chessboards,
                                                                    capsys, monkeypatch):
     import scene3D.cli.calibrate as command

@@ -111,7 +111,9 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
             "NAME_view_errors.png, NAME_uncertainty.png (the projection-uncertainty map) and "
             "NAME_report.html (one self-contained page with the numbers and the figures) are "
             "written beside it (NAME: --out without its suffix). "
-            "Nothing is overwritten without --force. "
+            "Nothing is overwritten without --force. An --out with the NAME of another "
+            "calibration file beside it (cam.json next to cam.yaml) is refused, --force or "
+            "not, while that NAME's figures or report are there: they are the other file's. "
             + exit_codes_help("the calibration failed (it diverged, or its RMS error is "
                               "above --max-rms)") + "."
         ),
@@ -462,14 +464,37 @@ def _report_path(args: argparse.Namespace) -> Path:
     return Path(f"{args.out.with_suffix('')}_report.html")
 
 
+def _figure_paths(args: argparse.Namespace) -> list[Path]:
+    """``NAME_coverage.png``, ``NAME_view_errors.png``, ``NAME_uncertainty.png``."""
+    stem = args.out.with_suffix("")
+    return [Path(f"{stem}_{name}.png") for name in ("coverage", "view_errors", "uncertainty")]
+
+
 def _outputs(args: argparse.Namespace) -> list[Path]:
     """The calibration, its three figures and (unless --no-report) its report."""
-    stem = args.out.with_suffix("")
-    outputs = [args.out] + [Path(f"{stem}_{name}.png")
-                            for name in ("coverage", "view_errors", "uncertainty")]
-    if not args.no_report:
-        outputs.append(_report_path(args))
-    return outputs
+    return [args.out, *_figure_paths(args), *([] if args.no_report else [_report_path(args)])]
+
+
+def _same_name_calibration(args: argparse.Namespace) -> str:
+    """Why ``--out`` cannot share its NAME with another calibration file beside it
+    (``cam.json`` next to ``cam.yaml``), or '': the figures and the report are named after
+    NAME alone, so those already there (the other file's) would be replaced by this
+    calibration's and describe it, not the file they were written with. Refused whatever
+    ``--force`` says: it allows replacing ``--out``'s own outputs, not another file's."""
+    out = args.out
+    named = [p for p in (*_figure_paths(args), _report_path(args)) if p.is_file()]
+    if not named or not out.parent.is_dir():
+        return ""
+    others = sorted(p for p in out.parent.iterdir()
+                    if p.stem == out.stem and p.suffix.lower() in CALIBRATION_SUFFIXES
+                    and p.is_file() and not (out.exists() and p.samefile(out)))
+    if not others:
+        return ""
+    return (f"--out '{out}' has the NAME of '{others[0]}' beside it, whose figures and "
+            f"report ('{named[0]}', ...) are named after NAME only: this calibration's would "
+            f"replace them; name --out otherwise (such as "
+            f"'{out.with_name(f'{out.stem}-2{out.suffix}')}'), or remove '{others[0]}' and "
+            "its files first")
 
 
 def _not_written_again(args: argparse.Namespace) -> list[Path]:
@@ -511,6 +536,9 @@ def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:
     folders = [p for p in outputs if p.is_dir()]
     if folders:
         raise UsageError(f"'{folders[0]}' is a folder; it stands where an output goes")
+    shared = _same_name_calibration(args)
+    if shared:
+        raise UsageError(shared)
     existing = [p for p in outputs if p.exists()]
     if existing and not args.force:
         raise UsageError(f"'{existing[0]}' exists; use --force to overwrite it")
