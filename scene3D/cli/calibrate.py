@@ -7,6 +7,7 @@ import datetime as dt
 import fnmatch
 import hashlib
 import io
+import json
 import logging
 import os
 import sys
@@ -71,6 +72,7 @@ from .common import (
     run_command,
     show_images,
 )
+from .outputs import FILES_KEY, previous_outputs, recorded_files, remove_stale_outputs
 
 logger = logging.getLogger("scene3D.cli")
 
@@ -81,6 +83,11 @@ FRAMES = 20
 MIN_FRAMES = 3
 MIN_MOTION = 0.05
 DICTIONARY = "DICT_6X6_250"
+#: The record of the undistorted copies a run wrote into --save-undistorted: a JSON object
+#: naming the calibration (``UNDISTORTED_KEY``) and the copies (``FILES_KEY``), so that the
+#: next run into that folder removes those it does not write again, and no file of the user's.
+UNDISTORTED_RECORD = "undistorted.json"
+UNDISTORTED_KEY = "undistorted_with"
 #: Endings of video files, which --images cannot read (--video does).
 VIDEO_SUFFIXES = frozenset({".avi", ".mp4", ".m4v", ".mov", ".mkv", ".webm", ".wmv",
                             ".mpg", ".mpeg", ".flv", ".3gp", ".mts", ".m2ts"})
@@ -174,7 +181,11 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
                         help="skip NAME_report.html (with --force, an earlier run's is "
                              "removed: it would describe another calibration)")
     parser.add_argument("--save-undistorted", type=Path, metavar="DIR",
-                        help="also write the undistorted views into DIR")
+                        help="also write the undistorted views into DIR (NAME.png each, "
+                             f"listed in DIR/{UNDISTORTED_RECORD}); a run with --force "
+                             "replaces an earlier run's copies there and removes those it "
+                             "does not write again (other files are kept); without --force "
+                             "an earlier run's copies are refused")
     parser.add_argument("--show", action="store_true",
                         help="open the coverage and error plots in windows when a display exists")
     add_common_args(parser)
@@ -505,6 +516,16 @@ def _not_written_again(args: argparse.Namespace) -> list[Path]:
     return [report] if args.no_report and report.is_file() else []
 
 
+def _earlier_copies(args: argparse.Namespace) -> list[Path]:
+    """The undistorted copies an earlier run recorded in ``--save-undistorted``'s
+    :data:`UNDISTORTED_RECORD` (none without one); :class:`UsageError` when a file of that
+    name there is not such a record (it would be replaced)."""
+    target = args.save_undistorted
+    if target is None or not target.is_dir():
+        return []
+    return previous_outputs(target, UNDISTORTED_RECORD, UNDISTORTED_KEY, "--save-undistorted")
+
+
 def _read_as_photo(path: Path, spec: str) -> bool:
     """Would ``--images spec`` (a folder or a glob) list the file ``path``?"""
     if Path(spec).is_dir():
@@ -564,6 +585,14 @@ def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:
                              "not a folder")
         require_writable_folder(existing_folder, f"--save-undistorted '{target}': cannot "
                                 f"write in '{existing_folder}'")
+        if (target / UNDISTORTED_RECORD).resolve() == out.resolve():
+            raise UsageError(f"--out '{out}' is where --save-undistorted '{target}' lists its "
+                             "copies; name --out otherwise")
+        earlier = [p for p in _earlier_copies(args) if p.is_file()]
+        if (earlier or (target / UNDISTORTED_RECORD).is_file()) and not args.force:
+            raise UsageError(f"--save-undistorted '{target}' holds the undistorted copies of "
+                             f"an earlier run (as its {UNDISTORTED_RECORD} lists them); use "
+                             "--force to replace them (those not written again are removed)")
         if args.images is not None and target.is_dir() and any(
                 photo.parent.resolve() == target.resolve()
                 for photo in _image_files(args.images)):
@@ -689,7 +718,7 @@ def run(args: argparse.Namespace) -> int:
         "square_size_m": board.square_size_m,
         "calibration_date": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
     }
-    undistorted = []
+    undistorted, earlier_copies = [], _earlier_copies(args)
     if args.save_undistorted is not None:
         names = [Path(v.name).stem for v in views]
         if len(set(names)) < len(names):  # a.jpg and a.png: keep both
@@ -731,7 +760,14 @@ def run(args: argparse.Namespace) -> int:
         for target, img in zip(undistorted, images):  # one undistorted image at a time
             png = cv2.imencode(".png", undistort_image(img, result.K, result.dist))[1]
             written.append(atomic_write_bytes(target, png.tobytes()))
+        if args.save_undistorted is not None:
+            record = {UNDISTORTED_KEY: str(args.out),
+                      FILES_KEY: recorded_files(args.save_undistorted, undistorted)}
+            written.append(atomic_write_bytes(args.save_undistorted / UNDISTORTED_RECORD,
+                                              json.dumps(record, indent=2).encode()))
     removed = _remove_earlier(_not_written_again(args))
+    if args.save_undistorted is not None:  # an earlier run's copies not written again
+        removed += remove_stale_outputs(args.save_undistorted, earlier_copies, written)
     if not args.quiet:
         print("\n".join(lines))
     for path in written:
