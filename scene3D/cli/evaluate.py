@@ -224,7 +224,8 @@ def _evaluate_pair(name: str, view_a: _View, view_b: _View,
         matches = _matches(view_a, view_b)
         row["feature"] = matches.feature
         try:
-            result = reconstruct_from_matches(matches.pts1, matches.pts2, view_a.K, settings)
+            result = reconstruct_from_matches(matches.pts1, matches.pts2, view_a.K, settings,
+                                              K_source="camera files")
         except ReconstructionError as exc:
             row["note"] = f"refused: {exc.reason}"
             return row
