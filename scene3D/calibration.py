@@ -28,7 +28,7 @@ import numpy as np
 from .calibration_io import CameraCalibration, load_calibration, save_calibration
 from .calibration_uncertainty import IntrinsicsCovariance, intrinsics_covariance
 from .camera import DISTORTION_NAMES, check_intrinsics_for_size
-from .errors import CalibrationError
+from .errors import CalibrationError, plural
 from .features import check_image
 from .geometry import FloatArray, is_real_number, is_whole_number
 
@@ -77,8 +77,8 @@ def board_size_problem(pattern: str, size: tuple[int, int]) -> str:
     smallest = "3x4 or 2x7" if pattern == "charuco" else "2x3"
     points = (cols - 1) * (rows - 1) if pattern == "charuco" else cols * rows
     if points < MIN_POINTS_PER_VIEW:
-        what = ("inner corner" if pattern == "charuco" else "point") + "s" * (points != 1)
-        return (f"the board has {points} {what}; a view needs at least "
+        what = plural(points, "inner corner" if pattern == "charuco" else "point")
+        return (f"the board has {what}; a view needs at least "
                 f"{MIN_POINTS_PER_VIEW} (such as {smallest})")
     return ""
 

@@ -1,4 +1,4 @@
-"""Exceptions raised by scene3D.
+"""Exceptions raised by scene3D, and the helpers their messages share.
 
 Bad input raises the built-in ``ValueError`` / ``FileNotFoundError`` with a
 message naming the argument. A computation that ran on valid input but could not
@@ -13,6 +13,12 @@ import logging
 #: (a pose that may not be trustworthy, and why): a command that prints the result with
 #: its warnings drops these records rather than say the same thing twice.
 RESULT_WARNING = "scene3d_result_warning"
+
+
+def plural(count: int, noun: str) -> str:
+    """``count`` and ``noun`` for messages: ``"1 pose"``, ``"0 poses"``, ``"2 inner corners"``
+    (the last word takes an ``s``; the nouns of scene3D's messages are all regular)."""
+    return f"{count} {noun}{'s' * (count != 1)}"
 
 
 def first_line(exc: BaseException) -> str:

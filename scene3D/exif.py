@@ -14,13 +14,13 @@ import math
 import os
 import warnings
 from collections.abc import Sequence
-from pathlib import Path
 
 from .imageio import (
     check_image_file,
     read_image_size,
     refuse_single_path,
     register_heif_opener,
+    source_label,
 )
 from .intrinsics_prior import ExifCamera, FocalPrior, camera_prior
 
@@ -128,7 +128,8 @@ def read_camera_prior(paths: Sequence[str | os.PathLike]) -> FocalPrior:
     :func:`scene3D.intrinsics_prior.camera_prior`: one camera is checked (one
     size, make and model, EXIF focal length) and the focal length taken from EXIF,
     or the default ``1.2 * max(w, h)``. The prior's ``warnings`` name the photos
-    whose EXIF could not be used.
+    whose EXIF could not be used, and errors the photos that differ, by their paths as
+    given (:func:`scene3D.imageio.source_label`).
 
     Parameters
     ----------
@@ -148,7 +149,7 @@ def read_camera_prior(paths: Sequence[str | os.PathLike]) -> FocalPrior:
     refuse_single_path(paths, "paths")
     # The size first: a damaged header is refused before Pillow warns about it.
     sizes = [read_image_size(p) for p in paths]
-    photos = [(Path(p).name, read_exif(p), size) for p, size in zip(paths, sizes)]
+    photos = [(source_label(p, ""), read_exif(p), size) for p, size in zip(paths, sizes)]
     prior = camera_prior(photos)
     for message in prior.warnings:
         logger.warning("%s", message)

@@ -1,6 +1,7 @@
 """Calibration against published references and rendered boards with known intrinsics."""
 
 import functools
+import json
 import shutil
 import subprocess
 import sys
@@ -743,6 +744,81 @@ def test_cli_no_report_with_force_removes_the_earlier_report(tmp_path, chessboar
         "calibration than the new one; use --force to remove it\n")
     assert report.read_text() == "an earlier run's report"
     assert sorted(p.name for p in out_dir.iterdir()) == ["cam_notes.html", "cam_report.html"]
+
+
+def test_cli_removes_the_undistorted_copies_it_wrote_before_and_not_again(tmp_path,
+                                                                          chessboards, capsys):
+    """A re-run into one --save-undistorted folder that writes fewer copies removes the
+    earlier run's others (as its undistorted.json lists them), never a file of the user's."""
+    photos = _photos(tmp_path / "photos", FOUR, chessboards)
+    und, out = tmp_path / "und", tmp_path / "cam.yaml"
+    argv = ["--out", str(out), "--no-report", "--save-undistorted", str(und), "-q"]
+    assert main(["--images", str(photos), *argv]) == 0
+    assert sorted(p.name for p in und.iterdir()) == [
+        "left01.png", "left02.png", "left03.png", "left04.png", "undistorted.json"]
+    (und / "mine.png").write_bytes(b"the user's")  # not a copy a run wrote
+    capsys.readouterr()
+    three = ["--images", f"{photos}/left0[123].jpg", *argv]
+    # Without --force: refused before any work, the earlier copies kept.
+    assert main(three) == 2
+    assert capsys.readouterr().err == f"error: '{out}' exists; use --force to overwrite it\n"
+    for path in tmp_path.glob("cam*"):  # the calibration and its figures
+        path.unlink()
+    assert main(three) == 2
+    assert capsys.readouterr().err == (
+        f"error: --save-undistorted '{und}' holds the undistorted copies of an earlier run (as "
+        "its undistorted.json lists them); use --force to replace them (those not written "
+        "again are removed)\n")
+    assert (und / "left04.png").is_file()
+    # With --force: left04.png, the earlier run's and not written again, is removed.
+    assert main([*three, "--force"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-1] == f"Removed '{und / 'left04.png'}' (an earlier run's, not written again)"
+    assert f"Wrote '{und / 'undistorted.json'}'" in lines
+    assert sorted(p.name for p in und.iterdir()) == [
+        "left01.png", "left02.png", "left03.png", "mine.png", "undistorted.json"]
+    assert (und / "mine.png").read_bytes() == b"the user's"
+    record = json.loads((und / "undistorted.json").read_text())
+    assert record == {"undistorted_with": str(out),
+                      "files": ["left01.png", "left02.png", "left03.png"]}
+    # An undistorted.json that is not calibrate's record is not replaced.
+    (und / "undistorted.json").write_text('{"files": ["mine.png"]}')
+    assert main([*three, "--force"]) == 2
+    assert capsys.readouterr().err == (
+        f"error: '{und / 'undistorted.json'}' was not written by scene3D and would be "
+        "replaced; choose another --save-undistorted\n")
+    assert (und / "mine.png").is_file()
+
+
+@pytest.mark.parametrize("force", [False, True])
+def test_cli_refuses_an_out_that_shares_its_name_with_another_calibration(tmp_path, chessboards,
+                                                                         capsys, force):
+    """cam.yaml and cam.json beside it would share cam_coverage.png and the others: the
+    second calibration's would replace the first's (with --force) or be refused with a
+    hint to --force that does just that. Refused either way, naming the other file; the
+    first calibration's files are left as they were."""
+    photos = _photos(tmp_path / "photos", FOUR, chessboards)
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    assert main(["--images", str(photos), "--out", str(out_dir / "cam.yaml"), "-q"]) == 0
+    before = {p.name: p.read_bytes() for p in out_dir.iterdir()}
+    capsys.readouterr()
+    out = out_dir / "cam.json"
+    argv = ["--images", f"{photos}/left0[123].jpg", "--out", str(out), "-q"]
+    assert main(argv + (["--force"] if force else [])) == 2
+    assert capsys.readouterr().err == (
+        f"error: --out '{out}' has the NAME of '{out_dir / 'cam.yaml'}' beside it, whose "
+        f"figures and report ('{out_dir / 'cam_coverage.png'}', ...) are named after NAME "
+        f"only: this calibration's would replace them; name --out otherwise (such as "
+        f"'{out_dir / 'cam-2.json'}'), or remove '{out_dir / 'cam.yaml'}' and its files "
+        "first\n")
+    assert {p.name: p.read_bytes() for p in out_dir.iterdir()} == before
+    # Another NAME is fine; so is cam.json once cam.yaml and its files are gone.
+    assert main(["--images", str(photos), "--out", str(out_dir / "cam-2.json"), "-q"]) == 0
+    for name in before:
+        (out_dir / name).unlink()
+    (out_dir / "cam.yaml").write_text("%YAML:1.0\n")  # a file of the user's, alone
+    assert main(argv) == 0 and (out_dir / "cam_report.html").is_file()
 
 
 def test_cli_says_when_the_output_folder_goes_away_during_the_work(tmp_path, chessboards,

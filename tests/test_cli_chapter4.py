@@ -210,9 +210,10 @@ def test_a_closed_stdout_ends_the_command_quietly(tmp_path, synthetic_files, arg
                   "turned by 90 degrees from it (landscape against portrait); turn them back "
                   "to portrait"),
     ("out_is_file", 2, "is not a folder"),
-    ("sizes_no_calib", 2, "error: 'small.png' is 320x240 but 'a.png' is 640x480: photos of "
-                          "one camera at one size are needed; one was resized: use the "
-                          "camera's originals, or resize the larger to 320x240\n"),
+    ("sizes_no_calib", 2, "error: '" + "...small.png' is 320x240 but '" + "...a.png' is "
+                          "640x480: photos of one camera at one size are needed; one was "
+                          "resized: use the camera's originals, or resize the larger to "
+                          "320x240\n"),
     ("one_image", 2, "exactly two images"),
     ("same_image", 2, "image given twice"),
     ("hard_link", 2, "image given twice"),

@@ -2,6 +2,7 @@
 
 import dataclasses
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -451,9 +452,10 @@ def test_one_photo_twice_stops_with_what_to_check(fountain, tmp_path):
     K = read_strecha_camera(fountain / "gt_dense_cameras" / "0004.jpg.camera").K
     copy = tmp_path / "copy.jpg"
     copy.write_bytes((fountain / "images" / "0004.jpg").read_bytes())
-    with pytest.raises(ValueError, match="'copy.jpg' and '0004.jpg' are the same photo"):
-        reconstruct_views([fountain / "images" / "0004.jpg", copy], K, np.zeros(5),
-                          max_width=800)
+    original = fountain / "images" / "0004.jpg"
+    with pytest.raises(ValueError, match=re.escape(f"'{copy}' and '{original}' are the same "
+                                                   "photo")):  # by path, as the sizes' error
+        reconstruct_views([original, copy], K, np.zeros(5), max_width=800)
     # Saved again (other pixels, the same view): no start from a pair without a baseline.
     img = cv2.imread(str(fountain / "images" / "0004.jpg"))
     cv2.imwrite(str(copy), img, [cv2.IMWRITE_JPEG_QUALITY, 80])
@@ -574,6 +576,17 @@ def test_views_that_cannot_start_a_further_model_are_told_why(fountain, data_roo
         assert why.startswith("not in a model, and no further one could start from the "
                               "4 views left: no pair of views gives a trustworthy"), why
         assert "fit a focal length 1.2" in why and "does the calibration fit" in why
+    # Without a calibration the views left start from the fountain model's focal length,
+    # and their reason names it as such, not as a calibration's.
+    from scene3D.intrinsics_prior import focal_prior
+
+    r = reconstruct_views(paths, None, max_width=800,
+                          focal_prior=focal_prior(None, (3072, 2048)))
+    assert len(r.models) == 1 and sorted(r.unregistered) == [f"h{i}.jpg" for i in range(4)]
+    why = r.unregistered_reasons["h0.jpg"]
+    assert "times the one the other photos gave" in why and "calibration" not in why, why
+    assert why.endswith("are the photos of one still scene, from one camera at one zoom "
+                        "setting?"), why
 
 
 def test_a_broken_reconstruction_is_reported_not_written_as_a_success(fountain, tmp_path,
@@ -753,7 +766,7 @@ def test_images_without_keypoints_end_with_the_reason(fountain, tmp_path, capsys
         extra = []
     assert main([*images, *extra, "--no-plots", "--out", str(tmp_path / "out"), "-q"]) == 1
     err = capsys.readouterr().err
-    assert err.startswith("error: too few keypoints to match: 0 in ")
+    assert err.startswith(f"error: too few keypoints to match: 0 in '{images[0]}', ")
     assert "where a pair needs 30; are the images blank, blurred or tiny?" in err
     assert len(err.strip().splitlines()) == 1
 
@@ -802,6 +815,6 @@ def test_a_copy_of_a_photo_under_another_name_is_refused(fountain, tmp_path):
         timeout=300)
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines()[-1] == (
-        "error: '0004.jpg' and '0004 copy.jpg' are the same photo (the same keypoints): a "
-        "view cannot pair with itself")
+        f"error: '{folder / '0004.jpg'}' and '{folder / '0004 copy.jpg'}' are the same photo "
+        "(the same keypoints): a view cannot pair with itself")
     assert "Traceback" not in proc.stderr

@@ -23,7 +23,7 @@ from scene3D.report import (
     two_view_layers,
     two_view_report,
 )
-from scene3D.report.page import image_data_url
+from scene3D.report.page import format_value, image_data_url
 from scene3D.report.viewer import hex_colors_json, plotly_js_path, scene_figure_json
 
 from .browser import changed_fraction, visit
@@ -148,6 +148,28 @@ def test_multi_view_views_of_further_models_are_registered():
     assert '<div class="verdict warn"' in warned and "known only to +-9%" in warned
 
 
+@pytest.mark.parametrize("value, shown", [
+    (0.99998, "1.000"), (2.0, "2.000"), (1.0004, "1.000"), (0.5, "0.5000"), (0.0, "0.000"),
+    (-0.31234, "-0.3123"), (100.0, "100.0"), (1234.56, "1235"), (1e-5, "1.000e-05"),
+    (float("nan"), "-"), (3, "3"), (True, "yes"), (None, "-"),
+])
+def test_floats_keep_their_trailing_zeros(value, shown):
+    """4 significant digits read as such: a ratio of 0.99998 is not shown as an exact 1."""
+    assert format_value(value) == shown
+
+
+def test_report_tables_show_four_digits_and_the_json_all_of_them():
+    layers, cameras = two_view_layers(np.array([[0.0, 0, 5], [1, 1, 6]]), None, np.eye(3),
+                                      np.array([-1.0, 0, 0]), np.diag([500.0, 500, 1]),
+                                      (640, 480))
+    summary = {"focal_scale": 0.99998, "median_parallax_deg": 2.0, "trusted": True}
+    page = two_view_report(summary, [], {}, prepare_view(layers, cameras)).text()
+    tables = page.split("<details>")[0]
+    assert "<td>focal_scale</td><td class=num>1.000</td>" in tables
+    assert "<td>median_parallax_deg</td><td class=num>2.000</td>" in tables
+    assert "&quot;focal_scale&quot;: 0.99998," in page.split("<details>")[1]  # in full
+
+
 def test_multi_view_models_are_a_table_of_their_own():
     """The summary's ``models`` (a list of dicts, ground-truth arrays among their fields)
     is a table of its scalar fields, not a Python repr in one cell."""
@@ -162,7 +184,7 @@ def test_multi_view_models_are_a_table_of_their_own():
                              prepare_view(layers, cameras)).text()
     assert ("<table id=\"models\"><tr><th>folder</th><th>status</th><th>registered</th>"
             "<th>points</th><th>focal_scale</th></tr><tr><td>.</td><td>ok</td>"
-            "<td class=num>2</td><td class=num>2</td><td class=num>1</td></tr></table>") in page
+            "<td class=num>2</td><td class=num>2</td><td class=num>1.000</td></tr></table>") in page
     assert "{&#x27;" not in page and "array(" not in page.split("<details>")[0]
 
 
@@ -242,4 +264,4 @@ def test_calibration_report_lists_views_and_uncertainty():
     page = calibration_report(["RMS 0.2"], {"fx (px)": "500 +- 1"}, {"a.jpg": 0.2},
                               {"b.jpg": 3.0}, umap.warnings, umap, {}).text()
     assert "dropped as an outlier" in page and "b.jpg" in page
-    assert f"{umap.median_px:.4g}" in page
+    assert format_value(umap.median_px) in page

@@ -380,6 +380,34 @@ def test_a_near_miss_of_the_focal_length_is_not_flagged(camera, true_pose):
     assert r.focal_scale == pytest.approx(1 / 1.1, rel=0.03) and r.trusted
 
 
+def test_warnings_name_where_K_came_from():
+    """A focal length or a rotation under another focal length that the matches call for
+    is quoted against the calibration's by default, and against the camera files' when K
+    came from them (scene3d evaluate): not "the calibration's" where there is none."""
+    from scene3D.focal_fit import FocalFit
+    from scene3D.twoview.trust import trust_warnings
+    from scene3D.uncertainty import PoseUncertainty, tangent_basis
+
+    s, t = TwoViewSettings(), np.array([1.0, 0.0, 0.0])
+    sure = PoseUncertainty(np.diag(np.radians([0.01] * 3 + [0.02] * 2)) ** 2, tangent_basis(t))
+    args = (sure, 1000, 900, 10.0, 0.5, s)
+    kwargs = dict(focal=FocalFit(1.25, 0.01, np.eye(3), t), rotation_share=0.9,
+                  rotation_focal_scale=1.25)
+    focal, rotation = sorted(trust_warnings(*args, **kwargs))
+    assert "a focal length 1.25 times the calibration's (+-0.01): is the calibration for " \
+           "this camera, lens and zoom?" in rotation + focal
+    assert "times the calibration's: a camera that only turned, with a calibration for " \
+           "another zoom?" in rotation + focal
+    files = " ".join(trust_warnings(*args, **kwargs, K_source="camera files"))
+    assert "a focal length 1.25 times the camera files' (+-0.01): are the camera files for " \
+           "these photos and this zoom?" in files
+    assert "with camera files for another zoom?" in files and "calibration" not in files
+    with pytest.raises(ValueError, match="`K_source` must be one of 'calibration', "
+                                         "'camera files', got 'exif'"):
+        reconstruct_from_matches(np.zeros((10, 2)), np.zeros((10, 2)), np.eye(3),
+                                 K_source="exif")
+
+
 def test_trust_follows_the_uncertainty_and_what_it_cannot_see():
     """trust_warnings on constructed cases: the sigma limit, explanations attached to a
     large sigma and never verdicts of their own, and the guards."""

@@ -7,6 +7,7 @@ import datetime as dt
 import fnmatch
 import hashlib
 import io
+import json
 import logging
 import os
 import sys
@@ -42,7 +43,7 @@ from ..calibration_uncertainty import (
     uncertainty_map,
 )
 from ..camera import undistort_image
-from ..errors import CalibrationError
+from ..errors import CalibrationError, plural
 from ..export import all_or_nothing, atomic_write_bytes, atomic_write_pieces
 from ..imageio import (
     IMAGE_SUFFIXES,
@@ -71,6 +72,7 @@ from .common import (
     run_command,
     show_images,
 )
+from .outputs import FILES_KEY, previous_outputs, recorded_files, remove_stale_outputs
 
 logger = logging.getLogger("scene3D.cli")
 
@@ -81,6 +83,11 @@ FRAMES = 20
 MIN_FRAMES = 3
 MIN_MOTION = 0.05
 DICTIONARY = "DICT_6X6_250"
+#: The record of the undistorted copies a run wrote into --save-undistorted: a JSON object
+#: naming the calibration (``UNDISTORTED_KEY``) and the copies (``FILES_KEY``), so that the
+#: next run into that folder removes those it does not write again, and no file of the user's.
+UNDISTORTED_RECORD = "undistorted.json"
+UNDISTORTED_KEY = "undistorted_with"
 #: Endings of video files, which --images cannot read (--video does).
 VIDEO_SUFFIXES = frozenset({".avi", ".mp4", ".m4v", ".mov", ".mkv", ".webm", ".wmv",
                             ".mpg", ".mpeg", ".flv", ".3gp", ".mts", ".m2ts"})
@@ -111,7 +118,9 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
             "NAME_view_errors.png, NAME_uncertainty.png (the projection-uncertainty map) and "
             "NAME_report.html (one self-contained page with the numbers and the figures) are "
             "written beside it (NAME: --out without its suffix). "
-            "Nothing is overwritten without --force. "
+            "Nothing is overwritten without --force. An --out with the NAME of another "
+            "calibration file beside it (cam.json next to cam.yaml) is refused, --force or "
+            "not, while that NAME's figures or report are there: they are the other file's. "
             + exit_codes_help("the calibration failed (it diverged, or its RMS error is "
                               "above --max-rms)") + "."
         ),
@@ -172,7 +181,11 @@ def build_parser(prog: str = "calibrate.py") -> argparse.ArgumentParser:
                         help="skip NAME_report.html (with --force, an earlier run's is "
                              "removed: it would describe another calibration)")
     parser.add_argument("--save-undistorted", type=Path, metavar="DIR",
-                        help="also write the undistorted views into DIR")
+                        help="also write the undistorted views into DIR (NAME.png each, "
+                             f"listed in DIR/{UNDISTORTED_RECORD}); a run with --force "
+                             "replaces an earlier run's copies there and removes those it "
+                             "does not write again (other files are kept); without --force "
+                             "an earlier run's copies are refused")
     parser.add_argument("--show", action="store_true",
                         help="open the coverage and error plots in windows when a display exists")
     add_common_args(parser)
@@ -462,14 +475,37 @@ def _report_path(args: argparse.Namespace) -> Path:
     return Path(f"{args.out.with_suffix('')}_report.html")
 
 
+def _figure_paths(args: argparse.Namespace) -> list[Path]:
+    """``NAME_coverage.png``, ``NAME_view_errors.png``, ``NAME_uncertainty.png``."""
+    stem = args.out.with_suffix("")
+    return [Path(f"{stem}_{name}.png") for name in ("coverage", "view_errors", "uncertainty")]
+
+
 def _outputs(args: argparse.Namespace) -> list[Path]:
     """The calibration, its three figures and (unless --no-report) its report."""
-    stem = args.out.with_suffix("")
-    outputs = [args.out] + [Path(f"{stem}_{name}.png")
-                            for name in ("coverage", "view_errors", "uncertainty")]
-    if not args.no_report:
-        outputs.append(_report_path(args))
-    return outputs
+    return [args.out, *_figure_paths(args), *([] if args.no_report else [_report_path(args)])]
+
+
+def _same_name_calibration(args: argparse.Namespace) -> str:
+    """Why ``--out`` cannot share its NAME with another calibration file beside it
+    (``cam.json`` next to ``cam.yaml``), or '': the figures and the report are named after
+    NAME alone, so those already there (the other file's) would be replaced by this
+    calibration's and describe it, not the file they were written with. Refused whatever
+    ``--force`` says: it allows replacing ``--out``'s own outputs, not another file's."""
+    out = args.out
+    named = [p for p in (*_figure_paths(args), _report_path(args)) if p.is_file()]
+    if not named or not out.parent.is_dir():
+        return ""
+    others = sorted(p for p in out.parent.iterdir()
+                    if p.stem == out.stem and p.suffix.lower() in CALIBRATION_SUFFIXES
+                    and p.is_file() and not (out.exists() and p.samefile(out)))
+    if not others:
+        return ""
+    return (f"--out '{out}' has the NAME of '{others[0]}' beside it, whose figures and "
+            f"report ('{named[0]}', ...) are named after NAME only: this calibration's would "
+            f"replace them; name --out otherwise (such as "
+            f"'{out.with_name(f'{out.stem}-2{out.suffix}')}'), or remove '{others[0]}' and "
+            "its files first")
 
 
 def _not_written_again(args: argparse.Namespace) -> list[Path]:
@@ -478,6 +514,16 @@ def _not_written_again(args: argparse.Namespace) -> list[Path]:
     the new ``--out``, so a run with ``--force`` removes them (without, it refuses)."""
     report = _report_path(args)
     return [report] if args.no_report and report.is_file() else []
+
+
+def _earlier_copies(args: argparse.Namespace) -> list[Path]:
+    """The undistorted copies an earlier run recorded in ``--save-undistorted``'s
+    :data:`UNDISTORTED_RECORD` (none without one); :class:`UsageError` when a file of that
+    name there is not such a record (it would be replaced)."""
+    target = args.save_undistorted
+    if target is None or not target.is_dir():
+        return []
+    return previous_outputs(target, UNDISTORTED_RECORD, UNDISTORTED_KEY, "--save-undistorted")
 
 
 def _read_as_photo(path: Path, spec: str) -> bool:
@@ -511,6 +557,9 @@ def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:
     folders = [p for p in outputs if p.is_dir()]
     if folders:
         raise UsageError(f"'{folders[0]}' is a folder; it stands where an output goes")
+    shared = _same_name_calibration(args)
+    if shared:
+        raise UsageError(shared)
     existing = [p for p in outputs if p.exists()]
     if existing and not args.force:
         raise UsageError(f"'{existing[0]}' exists; use --force to overwrite it")
@@ -536,6 +585,14 @@ def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:
                              "not a folder")
         require_writable_folder(existing_folder, f"--save-undistorted '{target}': cannot "
                                 f"write in '{existing_folder}'")
+        if (target / UNDISTORTED_RECORD).resolve() == out.resolve():
+            raise UsageError(f"--out '{out}' is where --save-undistorted '{target}' lists its "
+                             "copies; name --out otherwise")
+        earlier = [p for p in _earlier_copies(args) if p.is_file()]
+        if (earlier or (target / UNDISTORTED_RECORD).is_file()) and not args.force:
+            raise UsageError(f"--save-undistorted '{target}' holds the undistorted copies of "
+                             f"an earlier run (as its {UNDISTORTED_RECORD} lists them); use "
+                             "--force to replace them (those not written again are removed)")
         if args.images is not None and target.is_dir() and any(
                 photo.parent.resolve() == target.resolve()
                 for photo in _image_files(args.images)):
@@ -558,9 +615,8 @@ def _too_few_views(args: argparse.Namespace, board: BoardSpec, found: CollectedV
     """Why ``found`` holds fewer than 3 views, for the error."""
     seen, n = found.seen, len(found.views)
     if found.not_distinct:
-        return (f"only {n} distinct view{'s' * (n != 1)} of the board in {seen} "
-                f"frame{'s' * (seen != 1)} of the "
-                f"{_stream_kind(args)}: "
+        return (f"only {plural(n, 'distinct view')} of the board in {plural(seen, 'frame')} "
+                f"of the {_stream_kind(args)}: "
                 f"{found.not_distinct} more with the board "
                 f"{'was' if found.not_distinct == 1 else 'were'} dropped as not distinct "
                 f"(its corners moved less than --min-motion {args.min_motion:g} of the image "
@@ -662,7 +718,7 @@ def run(args: argparse.Namespace) -> int:
         "square_size_m": board.square_size_m,
         "calibration_date": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
     }
-    undistorted = []
+    undistorted, earlier_copies = [], _earlier_copies(args)
     if args.save_undistorted is not None:
         names = [Path(v.name).stem for v in views]
         if len(set(names)) < len(names):  # a.jpg and a.png: keep both
@@ -704,7 +760,14 @@ def run(args: argparse.Namespace) -> int:
         for target, img in zip(undistorted, images):  # one undistorted image at a time
             png = cv2.imencode(".png", undistort_image(img, result.K, result.dist))[1]
             written.append(atomic_write_bytes(target, png.tobytes()))
+        if args.save_undistorted is not None:
+            record = {UNDISTORTED_KEY: str(args.out),
+                      FILES_KEY: recorded_files(args.save_undistorted, undistorted)}
+            written.append(atomic_write_bytes(args.save_undistorted / UNDISTORTED_RECORD,
+                                              json.dumps(record, indent=2).encode()))
     removed = _remove_earlier(_not_written_again(args))
+    if args.save_undistorted is not None:  # an earlier run's copies not written again
+        removed += remove_stale_outputs(args.save_undistorted, earlier_copies, written)
     if not args.quiet:
         print("\n".join(lines))
     for path in written:

@@ -23,6 +23,7 @@ from ..errors import (
     EngineError,
     ReconstructionError,
     first_line,
+    plural,
 )
 
 if TYPE_CHECKING:
@@ -299,8 +300,8 @@ def open_engine(args: argparse.Namespace) -> Iterator[Engine]:
             log.info("worker %s ran %s", worker, ran_tasks(counts))
         gone = engine.submitted.total() - sum(sum(c.values()) for c in task_counts.values())
         if gone > 0:
-            log.info("%d task%s finished on workers that have since left (their counts went "
-                     "with them)", gone, "s" * (gone != 1))
+            log.info("%s finished on workers that have since left (their counts went "
+                     "with them)", plural(gone, "task"))
     finally:
         engine.close()
 
@@ -417,7 +418,7 @@ def run_command(args: argparse.Namespace, body: Callable[[argparse.Namespace], i
 def ran_tasks(counts: dict[str, int]) -> str:
     """What a worker ran, for ``-v``: ``"1 features task, 43 pairs tasks"`` (by label),
     or ``"no tasks"``."""
-    return ", ".join(f"{n} {label} task{'s' * (n != 1)}"
+    return ", ".join(plural(n, f"{label} task")
                      for label, n in sorted(counts.items())) or "no tasks"
 
 

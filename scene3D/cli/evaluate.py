@@ -19,7 +19,7 @@ import numpy as np
 from ..camera import adapt_intrinsics_to_size, scale_intrinsics_halved
 from ..datasets import StrechaCamera, read_strecha_camera, relative_pose, strecha_views
 from ..engines import Engine, Progress
-from ..errors import ReconstructionError
+from ..errors import ReconstructionError, plural
 from ..evaluation import relative_pose_error, sigma_calibration, summarize_pose_errors
 from ..export import atomic_write_bytes
 from ..features import (
@@ -224,7 +224,8 @@ def _evaluate_pair(name: str, view_a: _View, view_b: _View,
         matches = _matches(view_a, view_b)
         row["feature"] = matches.feature
         try:
-            result = reconstruct_from_matches(matches.pts1, matches.pts2, view_a.K, settings)
+            result = reconstruct_from_matches(matches.pts1, matches.pts2, view_a.K, settings,
+                                              K_source="camera files")
         except ReconstructionError as exc:
             row["note"] = f"refused: {exc.reason}"
             return row
@@ -334,7 +335,7 @@ def _focal_summary(rows: list[dict]) -> str:
         return "without a calibration: no pair gave a focal length"
     return (f"without a calibration: focal length within {np.median(errors):.2%} of the camera "
             f"files' (median; p90 {np.percentile(errors, 90):.2%}, max {errors.max():.2%}) "
-            f"on {len(errors)} pair{'s' * (len(errors) != 1)}; "
+            f"on {plural(len(errors), 'pair')}; "
             + ", ".join(f"{n} {k}" for k, n in sorted(sources.items())))
 
 
@@ -399,7 +400,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"| {r['pair']} | {r['rotation_deg']:.3f} | {r['translation_deg']:.3f} | "
               f"{sigmas[0]} | {sigmas[1]} | {r['inliers']} | {r['points']} | {focal} | "
               f"{'no' if r['flagged'] else 'yes'} | {r['seconds']:.2f} | {r['note']} |")
-    print(f"\n{len(rows)} pair{'s' * (len(rows) != 1)} at {widths} px, {feature}: median rotation "
+    print(f"\n{plural(len(rows), 'pair')} at {widths} px, {feature}: median rotation "
           f"{stats['median_rotation_deg']:.3f} deg (p90 {stats['p90_rotation_deg']:.3f}), "
           f"median t-dir {stats['median_translation_deg']:.3f} deg "
           f"(p90 {stats['p90_translation_deg']:.3f}), both < 2 deg {stats['within_2deg']:.0%}, "
@@ -411,7 +412,8 @@ def run(args: argparse.Namespace) -> int:
     if calibration["pairs"]:
         print(f"Sigma calibration: {calibration['rotation_within90']:.0%} of the rotation errors "
               f"and {calibration['translation_within90']:.0%} of the translation-direction "
-              f"errors within their predicted 90 % bounds ({_poses(calibration['pairs'])}; "
+              "errors within their predicted 90 % bounds "
+              f"({plural(int(calibration['pairs']), 'pose')}; "
               "about 90 % when the sigmas are right, less when the camera files' own error "
               "is comparable to them)")
     if args.no_calib:
@@ -422,15 +424,11 @@ def run(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _poses(count: float, what: str = "pose") -> str:
-    """``"1 pose"``, ``"2 poses"`` (``what`` in place of "pose")."""
-    return f"{int(count)} {what}{'s' * (int(count) != 1)}"
-
-
 def _trust_line(stats: dict[str, float]) -> str:
     """The summary's line on the flags: right poses flagged, poses off and flagged."""
-    return (f"Trust: {_poses(stats['right_flagged'], 'right pose')} "
-            f"(< 1 deg) flagged; {int(stats['off2_flagged'])} of {_poses(stats['off2'])} "
+    return (f"Trust: {plural(int(stats['right_flagged']), 'right pose')} "
+            f"(< 1 deg) flagged; {int(stats['off2_flagged'])} of "
+            f"{plural(int(stats['off2']), 'pose')} "
             f"more than 2 deg off (or refused) flagged; {int(stats['wrong_unflagged'])} more "
             "than 5 deg off not flagged.")
 

@@ -14,6 +14,7 @@ import numpy as np
 from ..calibration_io import load_calibration
 from ..camera import adapt_intrinsics_to_size
 from ..datasets import StrechaCamera, read_strecha_camera
+from ..errors import plural
 from ..evaluation import camera_set_error
 from ..export import (
     all_or_nothing,
@@ -290,7 +291,7 @@ def _failure_message(recon: MultiViewReconstruction, names: list[str]) -> str:
     if refuting:
         check, refits = refuting[0], len(recon.focal_refits)
         scale = check.focal_scale * recon.focal_refit_scale  # over the calibration's
-        after = (f", still after {refits} reconstruction{'s' * (refits > 1)} with the focal "
+        after = (f", still after {plural(refits, 'reconstruction')} with the focal "
                  "length they called for" if refits else "")
         why.append(f"the views fit a focal length {scale:.3f} times the calibration's "
                    f"(+-{scale * check.focal_scale_sigma_log:.2g}){after}: "
@@ -601,8 +602,7 @@ def run(args: argparse.Namespace) -> int:
     for path in removed:
         print(f"Removed '{path}' (an earlier run's, not written again)")
     for m, entry in thin:
-        print(f"error: {_model_name(m, entry['folder'])} has {entry['points']} "
-              f"point{'s' * (entry['points'] != 1)} "
+        print(f"error: {_model_name(m, entry['folder'])} has {plural(entry['points'], 'point')} "
               f"for its {entry['registered']} views, fewer than {MIN_MODEL_POINTS}: its "
               "cameras rest on nothing (does the calibration fit these photos?); see "
               "reconstruction.json, the files are written for inspection only",

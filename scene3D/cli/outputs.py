@@ -1,4 +1,5 @@
-"""The ``--out`` folder of ``reconstruct`` and ``reconstruct-views``.
+"""The ``--out`` folder of ``reconstruct`` and ``reconstruct-views`` (and the record
+of calibrate's ``--save-undistorted`` folder, :func:`previous_outputs`).
 
 A run creates the folder (removed again if the run fails and leaves it empty), refuses
 a ``reconstruction.json`` there that scene3D did not write, lists the files it writes
@@ -62,13 +63,15 @@ def prepare_output_dir(path: Path) -> Path:
     return path
 
 
-def previous_outputs(out: Path) -> list[Path]:
-    """The files the previous run in ``out`` recorded in its summary (none without one).
+def previous_outputs(out: Path, summary_file: str = SUMMARY_FILE,
+                     own_key: str = _OWN_SUMMARY_KEY, option: str = "--out") -> list[Path]:
+    """The files the previous run in ``out`` recorded in its summary (none without one):
+    the ``FILES_KEY`` list of ``out / summary_file``, a JSON object that holds ``own_key``.
 
-    Raises ``UsageError`` when ``out`` holds a ``reconstruction.json`` that scene3D did not
-    write: it would be replaced.
+    Raises ``UsageError`` when ``out`` holds a ``summary_file`` that scene3D did not
+    write (the error names the command's ``option``): it would be replaced.
     """
-    summary = out / SUMMARY_FILE
+    summary = out / summary_file
     if not summary.is_file():
         return []
     try:
@@ -80,9 +83,9 @@ def previous_outputs(out: Path) -> list[Path]:
         recorded = json.loads(text.decode("utf-8"))
     except (UnicodeDecodeError, ValueError):
         recorded = None
-    if not isinstance(recorded, dict) or _OWN_SUMMARY_KEY not in recorded:
+    if not isinstance(recorded, dict) or own_key not in recorded:
         raise UsageError(f"'{summary}' was not written by scene3D and would be replaced; "
-                         "choose another --out")
+                         f"choose another {option}")
     files = recorded.get(FILES_KEY)
     if not isinstance(files, list):
         return []

@@ -59,7 +59,7 @@ from dataclasses import dataclass
 from pathlib import Path, PurePath
 from typing import Any, Literal, TypeVar
 
-from ..errors import EngineError, first_line
+from ..errors import EngineError, first_line, plural
 from ..memory import worker_environment
 from . import Progress
 
@@ -414,8 +414,8 @@ class DaskEngine:
     def describe(self) -> str:
         """The engine's name with its workers and threads."""
         workers = self.workers()
-        return (f"{self.name}: {len(workers)} worker{'s' * (len(workers) != 1)}, "
-                f"{sum(workers.values())} thread{'s' * (sum(workers.values()) != 1)}")
+        return (f"{self.name}: {plural(len(workers), 'worker')}, "
+                f"{plural(sum(workers.values()), 'thread')}")
 
     def task_counts(self) -> dict[str, dict[str, int]]:
         """Tasks of this engine finished by each connected worker process, by label:
@@ -543,7 +543,7 @@ class DaskEngine:
         except distributed.KilledWorker as exc:
             deaths = exc.allowed_failures + 1
             raise EngineError(f"{label} task {index} was given up: the worker running it died "
-                              f"{deaths} time{'s' * (deaths > 1)} (the last: "
+                              f"{plural(deaths, 'time')} (the last: "
                               f"{exc.last_worker.address})") from None
         except CancelledError as exc:  # distributed's FutureCancelledError and older ones
             raise EngineError(f"{label} task {index} was cancelled: {exc}") from None

@@ -31,7 +31,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..errors import ReconstructionError
+from ..errors import ReconstructionError, plural
 from ..geometry import FloatArray, median
 from ..twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
 from ..twoview.trust import focal_mismatch
@@ -60,11 +60,6 @@ _START_SOURCE = {"exif": "the EXIF value (the pair could not refine it)",
 MorePairs = Callable[[int, Sequence[int]], list[PairMatches]]
 
 
-def _views(count: int) -> str:
-    """'1 view', '3 views'."""
-    return f"{count} view" + ("" if count == 1 else "s")
-
-
 def _no_pair_left(s: SfMSettings) -> str:
     """Why no model can start when no pair of the views left was verified."""
     return (f"no two views share {s.min_pair_inliers} or more matches that one essential "
@@ -81,10 +76,10 @@ def _first_model_lost(model: SfMModel, start: PairMatches, left_out: dict[int, s
     taken = ""
     if out:
         whose = "its pose" if len(out) == 1 else "their poses"
-        taken = (f"; {_views(len(out))} taken out because {whose} contradicted the pair "
+        taken = (f"; {plural(len(out), 'view')} taken out because {whose} contradicted the pair "
                  f"geometry ({', '.join(names[v] for v in out)})")
     return (f"no model could be kept: the one started from views {names[start.i]} and "
-            f"{names[start.j]} ended with {_views(kept)}, fewer than the "
+            f"{names[start.j]} ended with {plural(kept, 'view')}, fewer than the "
             f"{s.min_model_views} a model needs{taken}; {_input_hint(calibrated)}")
 
 
@@ -105,7 +100,7 @@ def _input_hint(calibrated: bool) -> str:
 
 
 def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches], K: FloatArray,
-                 candidates: int = 6, calibrated: bool = False
+                 candidates: int = 6, calibrated: bool = False, K_source: str = "calibration"
                  ) -> tuple[PairMatches, TwoViewGeometry] | str:
     """The verified pair (among those with most inliers) giving most reliable points.
 
@@ -116,6 +111,8 @@ def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches],
     (:func:`scene3D.twoview.trust.focal_mismatch`): a pair whose own focal check passed
     may then sit in a wrong pose's valley (fountain-P11 4-8 under a focal length a third
     of the truth: a trusted start 14 deg off, and a model 10-12 deg off with status ok).
+    ``K_source`` names where ``K`` came from in the pairs' warnings
+    (:data:`scene3D.twoview.trust.K_SOURCES`).
     """
     ranked = sorted(pairs, key=lambda p: (-p.num_inliers, p.i, p.j))
     best, best_score = None, -1.0
@@ -125,7 +122,8 @@ def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches],
     for pair in ranked[:candidates]:
         try:
             r = reconstruct_from_matches(features[pair.i].keypoints[pair.idx_i],
-                                         features[pair.j].keypoints[pair.idx_j], K, settings)
+                                         features[pair.j].keypoints[pair.idx_j], K, settings,
+                                         K_source=K_source)
         except ReconstructionError:
             continue
         answered.append(r)
@@ -188,7 +186,7 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
                 found = [p for v in open_views for p in more_pairs(int(v), np.flatnonzero(
                     model.registered).tolist())]
                 timings["matching"] += time.perf_counter() - t0
-                say(f"{_views(len(open_views))} not registered yet: {len(found)} further "
+                say(f"{plural(len(open_views), 'view')} not registered yet: {len(found)} further "
                     f"pairs verified (round {rounds})")
                 if found:
                     model.add_pairs(found)
@@ -228,7 +226,7 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
                 say(f"view {names[v]}: taken out, its pose contradicts its pair geometry")
             last_views = int(model.registered.sum())
             if last_views < 2:  # no pair left, so no point: nothing more can register
-                say(f"model given up: the check left {_views(last_views)} in it")
+                say(f"model given up: the check left {plural(last_views, 'view')} in it")
                 for v in np.flatnonzero(allowed & ~model.registered & ~model.blocked):
                     reasons[int(v)] = ("the model it could join was given up: the check "
                                        "took the other views out")
@@ -325,7 +323,7 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
         elif focal is not None and inside:
             K = models[-1].K if models[-1].K is not None else K
             focal_start = _inherited_focal(models[-1].focal, float(K[0, 0]))
-            start = initial_pair(features, inside, K)
+            start = initial_pair(features, inside, K, K_source="other photos")
         else:
             start = (initial_pair(features, inside, K, calibrated=focal is None) if inside
                      else _no_pair_left(s))
@@ -335,7 +333,7 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
             if not models:
                 raise ReconstructionError("no_initial_pair", why, verified_pairs=len(pairs))
             no_start = (f"not in a model, and no further one could start from the "
-                        f"{_views(int(remaining.sum()))} left: {why}")
+                        f"{plural(int(remaining.sum()), 'view')} left: {why}")
             reasons = {int(v): reasons[v] if reasons.get(v) == _CONTRADICTED else no_start
                        for v in np.flatnonzero(remaining)}
             break
@@ -353,8 +351,8 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
         remaining &= ~model.registered
         reasons = {v: why for v, why in {**reasons, **left_out}.items() if remaining[v]}
         if remaining.any():
-            say(f"a model of {_views(int(model.registered.sum()))} is done; "
-                f"{_views(int(remaining.sum()))} left for another model")
+            say(f"a model of {plural(int(model.registered.sum()), 'view')} is done; "
+                f"{plural(int(remaining.sum()), 'view')} left for another model")
     paired = np.zeros(V, dtype=bool)
     for p in pairs:
         paired[[p.i, p.j]] = True

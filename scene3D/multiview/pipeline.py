@@ -96,14 +96,15 @@ def _check_K_for_size(K: np.ndarray, size: tuple[int, int], prior: FocalPrior | 
     check_intrinsics_for_native_size(K, size, "`K`" if prior is None else "`focal_prior.K`")
 
 
-def _too_few_keypoints(found: Sequence[tuple], names: Sequence[str], needed: int,
+def _too_few_keypoints(found: Sequence[tuple], labels: Sequence[str], needed: int,
                        working_size: tuple[int, int]) -> str | None:
     """Why no pair could start when fewer than two views have the ``needed`` keypoints a
-    verified pair needs (blank, tiny or too far downscaled images); else None."""
+    verified pair needs (blank, tiny or too far downscaled images), naming the images by
+    their ``labels`` (:func:`~scene3D.imageio.source_label`); else None."""
     counts = [len(f[0].keypoints) for f in found]
     if sum(n >= needed for n in counts) >= 2:
         return None
-    shown = ", ".join(f"{n} in '{name}'" for name, n in list(zip(names, counts))[:4])
+    shown = ", ".join(f"{n} in '{label}'" for label, n in list(zip(labels, counts))[:4])
     more = f", ... ({len(counts)} images)" if len(counts) > 4 else ""
     return (f"too few keypoints to match: {shown}{more}, where a pair needs {needed}; are "
             f"the images blank, blurred or tiny? (working size {working_size[0]}x"
@@ -111,14 +112,15 @@ def _too_few_keypoints(found: Sequence[tuple], names: Sequence[str], needed: int
 
 
 def _check_distinct_photos(keys: Sequence[bytes], keypoints: Sequence[int],
-                           names: Sequence[str]) -> None:
+                           labels: Sequence[str]) -> None:
     """Raise ``ValueError`` when two views are one photo (the same keypoints and
-    descriptors: a copy under another name); views without keypoints are left to the
+    descriptors: a copy under another name), naming the images by their ``labels``
+    (:func:`~scene3D.imageio.source_label`); views without keypoints are left to the
     reconstruction, which says they have too few."""
     first: dict[bytes, int] = {}
     for v, key in enumerate(keys):
         if keypoints[v] and first.setdefault(key, v) != v:
-            raise ValueError(f"'{names[v]}' and '{names[first[key]]}' are the same photo (the "
+            raise ValueError(f"'{labels[v]}' and '{labels[first[key]]}' are the same photo (the "
                              "same keypoints): a view cannot pair with itself")
 
 
@@ -254,7 +256,7 @@ def reconstruct_views(
 
     # Canonical order: by content, so that names and input order change nothing.
     keys = [content_key(f[0]) for f in found]
-    _check_distinct_photos(keys, [len(f[0].keypoints) for f in found], names)
+    _check_distinct_photos(keys, [len(f[0].keypoints) for f in found], labels)
     order = np.array(sorted(range(len(found)), key=lambda v: (keys[v], v)), dtype=int)
     position = np.empty_like(order)
     position[order] = np.arange(len(order))
@@ -310,7 +312,7 @@ def reconstruct_views(
             models, reasons, sfm_timings = reconstruct_models(
                 features, verified, K_work, s, more_pairs, say, canonical_names, focal)
         except ReconstructionError as exc:
-            few = _too_few_keypoints(found, names, s.min_pair_inliers, working_size)
+            few = _too_few_keypoints(found, labels, s.min_pair_inliers, working_size)
             if exc.reason != "no_initial_pair" or few is None:
                 raise
             raise ReconstructionError(exc.reason, few, **exc.counts) from None

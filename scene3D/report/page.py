@@ -51,7 +51,9 @@ def esc(text: Any) -> str:
 
 
 def format_value(value: Any) -> str:
-    """A number or value as the report prints it (4 significant digits for floats)."""
+    """A number or value as the report prints it: floats to 4 significant digits with their
+    trailing zeros, so that a ratio of 0.99998 reads ``1.000`` (not ``1``, an exact or whole
+    value), 2.0 ``2.000`` and 1234.56 ``1235``; ints as they are."""
     if value is None:
         return "-"
     if isinstance(value, bool):
@@ -59,7 +61,7 @@ def format_value(value: Any) -> str:
     if isinstance(value, float):
         if not math.isfinite(value):
             return "-"
-        return f"{value:.4g}"
+        return f"{value:#.4g}".removesuffix(".")  # '#' keeps the zeros ('1235.': no dot)
     if isinstance(value, (list, tuple)):
         return ", ".join(format_value(v) for v in value)
     return str(value)

@@ -58,6 +58,7 @@ from .trust import (
     check_focal_length,
     distortion_warning,
     flow_warning,
+    k_words,
     principal_point_warning,
     rival_chi2,
     trust_warnings,
@@ -140,6 +141,8 @@ def reconstruct_from_matches(
     K: ArrayLike,
     settings: TwoViewSettings | None = None,
     image_size: tuple[int, int] | None = None,
+    *,
+    K_source: str = "calibration",
 ) -> TwoViewGeometry:
     """Estimate pose and structure from correspondences (the geometric core).
 
@@ -160,6 +163,13 @@ def reconstruct_from_matches(
         (:func:`scene3D.camera.check_intrinsics_for_native_size`), and a principal
         point far from its centre marks the pose untrusted; without it, one far outside
         the matches does (:func:`scene3D.twoview.trust.principal_point_warning`).
+    K_source : str, optional
+        Where ``K`` came from, for the warnings' words
+        (:data:`scene3D.twoview.trust.K_SOURCES`): ``"calibration"`` (the default: "a
+        focal length 1.05 times the calibration's"), ``"camera files"`` (ground-truth
+        cameras, as ``scene3d evaluate`` gives: "... times the camera files'") or
+        ``"other photos"`` (the focal length other photos gave, as for a further model of
+        ``reconstruct-views`` without a calibration).
 
     Returns
     -------
@@ -168,7 +178,8 @@ def reconstruct_from_matches(
     Raises
     ------
     ValueError
-        Bad points, or a ``K`` that cannot be for images of ``image_size``.
+        Bad points, a ``K`` that cannot be for images of ``image_size``, or a
+        ``K_source`` not in ``K_SOURCES``.
     ReconstructionError
         Too few matches / inliers / points, a pure rotation (``"no_parallax"``), a
         planar scene, or no cheirality winner.
@@ -184,6 +195,7 @@ def reconstruct_from_matches(
     K = validate_intrinsics(K)
     if image_size is not None:
         check_intrinsics_for_native_size(K, image_size)
+    k_words(K_source)  # a ValueError now, not after the work
     distinct = distinct_correspondences(p1, p2)
     n = len(distinct)
     if n < s.min_matches:
@@ -332,7 +344,7 @@ def reconstruct_from_matches(
     warnings = trust_warnings(uncertainty, n, num_inliers, median_kept_parallax, h_ratio, s,
                               fit, focal, rotation_share,
                               rival_chi2(fit, R, t, uncertainty.covariance),
-                              rotation_focal_scale, focal_ratio, behind_share)
+                              rotation_focal_scale, focal_ratio, behind_share, K_source)
     # A K for larger photos or turned ones gave trusted poses 11-40 deg off.
     if (misplaced := principal_point_warning(K, p1, p2, image_size)) is not None:
         warnings.append(misplaced)
@@ -342,7 +354,8 @@ def reconstruct_from_matches(
         distortion = check_distortion(R, t, p1, p2, inliers, K, check_px, loss_scale)
         refine_s += time.perf_counter() - t_distortion
         far, where = _farthest_pixel(K, image_size, np.vstack([p1, p2]))
-        if (doubt := distortion_warning(R, t, distortion, K, far, where, s, uncertainty)):
+        if (doubt := distortion_warning(R, t, distortion, K, far, where, s, uncertainty,
+                                        K_source)):
             warnings.append(doubt)
     F = fundamental_from_essential(E, K)  # the epipolar geometry the final pose obeys
     return TwoViewGeometry(

@@ -4,7 +4,7 @@ what the uncertainty cannot see (see :mod:`scene3D.twoview`)."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TypeVar
+from typing import NamedTuple, TypeVar
 
 import numpy as np
 
@@ -20,6 +20,48 @@ from .results import TwoViewSettings
 
 #: The fits that :func:`_reselected_fit` repeats.
 FitT = TypeVar("FitT", FocalFit, DistortionFit)
+
+
+class _KWords(NamedTuple):
+    """How the warnings name where ``K`` came from."""
+
+    whose: str  # "a focal length 1.05 times {whose}"
+    question: str  # after a focal length the matches refute
+    zoom: str  # "a camera that only turned, {zoom}?"
+    leaves_out: str  # "a distortion ... that {leaves_out}"
+    distortion_question: str  # "{...}, and are the photos as the camera took them?"
+
+
+#: Where ``K`` can come from (``K_source`` of :func:`scene3D.twoview.reconstruct_from_matches`),
+#: as the warnings name it: a calibration (the default; also a ``K`` given in Python),
+#: the camera files of a dataset's ground truth (``scene3d evaluate``), or the focal length
+#: that other photos of the collection gave (a further model of ``reconstruct-views``
+#: without a calibration).
+K_SOURCES: dict[str, _KWords] = {
+    "calibration": _KWords(
+        "the calibration's", "is the calibration for this camera, lens and zoom?",
+        "with a calibration for another zoom", "the calibration leaves out",
+        "Is the calibration for this camera and lens, with its distortion (calibrate.py "
+        "fits it)"),
+    "camera files": _KWords(
+        "the camera files'", "are the camera files for these photos and this zoom?",
+        "with camera files for another zoom", "the camera files leave out",
+        "Are the camera files for this camera and lens, with its distortion"),
+    "other photos": _KWords(
+        "the one the other photos gave", "are these photos from the same camera and zoom "
+        "as the others?", "at another zoom than the other photos",
+        "the camera found from the other photos leaves out",
+        "Are these photos from the same camera and lens as the others"),
+}
+
+
+def k_words(K_source: str) -> _KWords:
+    """The words for ``K_source`` (a key of :data:`K_SOURCES`); ``ValueError`` naming the
+    argument for another."""
+    if K_source not in K_SOURCES:
+        raise ValueError(f"`K_source` must be one of {', '.join(map(repr, K_SOURCES))}, "
+                         f"got {K_source!r}")
+    return K_SOURCES[K_source]
 
 
 def _deg(angle: float) -> str:
@@ -64,8 +106,11 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
                    rotation_share: float = 0.0, rivals_chi2: float = float("inf"),
                    rotation_focal_scale: float = 1.0,
                    focal_ratio: FocalFit | None = None,
-                   behind_share: float = 0.0) -> list[str]:
+                   behind_share: float = 0.0, K_source: str = "calibration") -> list[str]:
     """Reasons to doubt a pose that passed every hard check (empty: trusted).
+
+    ``K_source`` (:data:`K_SOURCES`) says where ``K`` came from, for the warnings' words:
+    "the calibration's" focal length, or "the camera files'".
 
     The verdicts:
 
@@ -102,6 +147,7 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
 
     Every warning quotes the uncertainty.
     """
+    words = k_words(K_source)
     sigmas = sigmas_text(uncertainty.rotation_sigma_deg, uncertainty.translation_sigma_deg)
     warnings = []
     if beyond_uncertainty_limit(uncertainty.rotation_sigma_deg,
@@ -138,8 +184,8 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
                         f"{sigmas} cannot show")
     if rotation_share > s.max_rotation_share:
         under = ("" if rotation_focal_scale == 1.0 else
-                 f" (under a focal length {rotation_focal_scale:.2f} times the calibration's: "
-                 "a camera that only turned, with a calibration for another zoom?)")
+                 f" (under a focal length {rotation_focal_scale:.2f} times {words.whose}: "
+                 f"a camera that only turned, {words.zoom}?)")
         warnings.append(f"a rotation alone explains {rotation_share:.0%} of the inliers{under}: "
                         f"the translation rests on the other {1 - rotation_share:.0%}, which a "
                         "moving object would explain as well as a camera that moved (the "
@@ -155,9 +201,9 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
                             f"be off by that much, which its {sigmas} cannot show")
     if focal is not None and focal_mismatch(focal.scale, focal.sigma_log, s):
         warnings.append(
-            f"the matches fit a focal length {focal.scale:.2f} times the calibration's "
-            f"(+-{focal.scale * focal.sigma_log:.2f}): is the calibration for this camera, "
-            f"lens and zoom? The pose may be off by degrees, beyond its {sigmas}")
+            f"the matches fit a focal length {focal.scale:.2f} times {words.whose} "
+            f"(+-{focal.scale * focal.sigma_log:.2f}): {words.question} The pose may be off "
+            f"by degrees, beyond its {sigmas}")
     if focal_ratio is not None and focal_mismatch(focal_ratio.scale, focal_ratio.sigma_log,
                                                        s):
         warnings.append(
@@ -254,7 +300,8 @@ DISTORTION_SIGMAS = 3.0
 
 def distortion_warning(R: FloatArray, t: FloatArray, fit: DistortionFit, K: FloatArray,
                        far_pixel: FloatArray, where: str, s: TwoViewSettings,
-                       uncertainty: PoseUncertainty | None = None) -> str | None:
+                       uncertainty: PoseUncertainty | None = None,
+                       K_source: str = "calibration") -> str | None:
     """Why a lens distortion that the calibration ``K`` leaves out may have put the pose
     ``R, t`` off, or None.
 
@@ -270,8 +317,10 @@ def distortion_warning(R: FloatArray, t: FloatArray, fit: DistortionFit, K: Floa
     others stay within 3.3 deg of their wrong pose (docs/benchmarks.md).
     ``far_pixel`` ``(2,)`` is where the distortion's shift is quoted, as ``where`` (the
     image corner farthest from the principal point: "the image's corners"); the pose's
-    ``uncertainty``, when given, is quoted too.
+    ``uncertainty``, when given, is quoted too; ``K_source`` (:data:`K_SOURCES`) names
+    where ``K`` came from.
     """
+    words = k_words(K_source)
     apart = pose_angle_deg(fit.R, fit.t, R, t)
     if apart <= 2 * s.uncertainty_limit_deg or not abs(fit.k) > DISTORTION_SIGMAS * fit.sigma:
         return None
@@ -280,10 +329,9 @@ def distortion_warning(R: FloatArray, t: FloatArray, fit: DistortionFit, K: Floa
         uncertainty.rotation_sigma_deg, uncertainty.translation_sigma_deg))
     return (f"the matches fit a pose {_deg(apart)} deg from this one with a {kind} lens "
             f"distortion that moves {where} by {fit.shift_px(K, far_pixel):.0f} px "
-            f"and that the calibration leaves out: the pose may be off by degrees{beyond}. "
-            "Is the calibration for this camera and lens, with its distortion (calibrate.py "
-            "fits it), and are the photos as the camera took them? (Wrong matches that "
-            "agree, on repeated texture, can do the same.)")
+            f"and that {words.leaves_out}: the pose may be off by degrees{beyond}. "
+            f"{words.distortion_question}, and are the photos as the camera took them? "
+            "(Wrong matches that agree, on repeated texture, can do the same.)")
 
 
 #: Why the flow may doubt a pose that every sparse check passed.
