@@ -6,13 +6,15 @@ ratio test, essential matrix (USAC MAGSAC), recoverPose, triangulate. Usage:
     python benchmarks/plain_opencv.py IMG1 IMG2 K.txt
 """
 
+import argparse
 import sys
 
 import cv2
 import numpy as np
 
 
-def main(path1: str, path2: str, k_path: str) -> None:
+def reconstruct(path1: str, path2: str, k_path: str) -> None:
+    """The script's work: prints R, t and the number of triangulated points."""
     img1 = cv2.imread(path1, cv2.IMREAD_COLOR)
     img2 = cv2.imread(path2, cv2.IMREAD_COLOR)
     K = np.loadtxt(k_path)
@@ -34,5 +36,17 @@ def main(path1: str, path2: str, k_path: str) -> None:
     print(R, t.ravel(), X.shape[1])
 
 
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("image1", metavar="IMG1", help="the first photo")
+    parser.add_argument("image2", metavar="IMG2", help="the second photo")
+    parser.add_argument("k_path", metavar="K.txt",
+                        help="the camera matrix at the photos' size, 3 rows of 3 numbers "
+                             "(numpy.loadtxt)")
+    args = parser.parse_args(argv)
+    reconstruct(args.image1, args.image2, args.k_path)
+    return 0
+
+
 if __name__ == "__main__":
-    main(*sys.argv[1:4])
+    sys.exit(main())

@@ -368,8 +368,11 @@ def _pillow_size(path: Path) -> tuple[int, int] | None:
     from PIL import Image
 
     try:
-        with warnings.catch_warnings():  # a large photo is no decompression bomb here
-            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+        # Pillow's warnings are not the user's: a large photo is no decompression bomb here,
+        # and a damaged file (a truncated TIFF: "Corrupt EXIF data") is reported in one
+        # line when decoding it, not also in Pillow's two.
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
             with Image.open(path) as img:
                 return int(img.width), int(img.height)
     except Exception:  # noqa: BLE001 - unknown format, damaged, a decompression bomb: decode

@@ -2,6 +2,9 @@
 prints its own lines on stderr or fills the lost pixels with grey."""
 
 import logging
+import re
+import subprocess
+import sys
 import time
 
 import cv2
@@ -11,6 +14,8 @@ from PIL import Image
 
 from scene3D.image_integrity import intact_image_data
 from scene3D.imageio import load_working_image, read_image
+
+from .conftest import REPO
 
 
 def _photo(width=640, height=480, seed=0):
@@ -188,3 +193,34 @@ def test_the_command_refuses_a_damaged_photo_in_one_line(tmp_path, capfd):
     assert err.startswith(f"error: cannot read image '{bad}': a damaged JPEG file (an invalid "
                           "marker 0x3f at byte ")
     assert len(err.splitlines()) == 1
+
+
+@pytest.mark.parametrize("command", ["chapter4", "chapter4 --calib", "reconstruct-views"])
+def test_the_commands_refuse_a_truncated_tiff_in_one_line(tmp_path, command):
+    """`chapter4.py trunc.tif b.jpg` (a TIFF written by OpenCV, cut in half): exit code 2
+    and scene3D's line only, where Pillow warned 'Corrupt EXIF data. Expecting to read 2
+    bytes but only got 0.' in two lines of its own while the size was read. A subprocess,
+    as a user runs it: pytest would catch the warning in process."""
+    from scene3D.calibration_io import CameraCalibration, save_calibration
+
+    data = _encoded(".tif")
+    trunc = tmp_path / "trunc.tif"
+    trunc.write_bytes(data[:len(data) // 2])
+    good = [tmp_path / "a.jpg", tmp_path / "b.jpg"]
+    for path, seed in zip(good, (1, 2)):
+        cv2.imwrite(str(path), _photo(seed=seed))
+    calib = tmp_path / "camera.yaml"
+    save_calibration(calib, CameraCalibration(np.array([[500.0, 0, 319.5], [0, 520.0, 239.5],
+                                                        [0, 0, 1]]), np.zeros(5), (640, 480)))
+    out = ["--out", str(tmp_path / "out")]
+    script = {"chapter4": [str(REPO / "chapter4.py"), str(trunc), str(good[1]), *out],
+              "chapter4 --calib": [str(REPO / "chapter4.py"), str(trunc), str(good[1]),
+                                   "--calib", str(calib), *out],
+              "reconstruct-views": ["-m", "scene3D", "reconstruct-views", str(trunc),
+                                    *map(str, good), *out]}[command]
+    proc = subprocess.run([sys.executable, *script], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 2
+    assert re.fullmatch(rf"error: cannot read image '{re.escape(str(trunc))}': a truncated "
+                        r"TIFF file \(its directory at byte \d+ lies past its end\)\n",
+                        proc.stderr), proc.stderr  # one line: no 'Corrupt EXIF data'
