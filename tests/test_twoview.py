@@ -402,8 +402,12 @@ def test_warnings_name_where_K_came_from():
     assert "a focal length 1.25 times the camera files' (+-0.01): are the camera files for " \
            "these photos and this zoom?" in files
     assert "with camera files for another zoom?" in files and "calibration" not in files
+    photos = " ".join(trust_warnings(*args, **kwargs, K_source="other photos"))
+    assert "a focal length 1.25 times the one the other photos gave (+-0.01): are these " \
+           "photos from the same camera and zoom as the others?" in photos
+    assert "calibration" not in photos
     with pytest.raises(ValueError, match="`K_source` must be one of 'calibration', "
-                                         "'camera files', got 'exif'"):
+                                         "'camera files', 'other photos', got 'exif'"):
         reconstruct_from_matches(np.zeros((10, 2)), np.zeros((10, 2)), np.eye(3),
                                  K_source="exif")
 
