@@ -131,7 +131,7 @@ def fit_essential(
     threshold_px: float = 1.0,
     confidence: float = 0.999,
     max_iters: int = 10000,
-    max_starts: int = 8,
+    max_starts: int = 16,
     shift_test_min_inliers: int = 50,
 ) -> EssentialFit:
     """Robust essential matrix with local optimisation, restarted until the best fit repeats.

@@ -200,19 +200,20 @@ def test_restarts_escape_a_poor_optimum_on_a_wide_pair(fountain):
 
 
 def test_restarts_that_end_close_together_leave_the_pose_trusted(fountain):
-    """Pair 0-4 at 1536 px: in eight starts no optimum is reached twice.
+    """Pair 0-4 at 1536 px: in eight starts no optimum is reached twice (the default
+    sixteen meet one at the eleventh).
 
     But the optima lie within 0.1 deg of each other, well inside 0.5 deg
     (TwoViewSettings.restart_agreement_deg): the pose is known to that accuracy,
     so the result is trusted, and it is accurate.
     """
     cams = _cameras(fountain)
-    scene = SceneReconstruction3D(cams[0].K, cams[0].dist)
+    scene = SceneReconstruction3D(cams[0].K, cams[0].dist, settings=TwoViewSettings(max_starts=8))
     scene.load_image_pair(fountain / "images" / "0000.jpg", fountain / "images" / "0004.jpg",
                           max_width=1536)
     result = scene.reconstruct("SIFT")
     matches = scene.matches("SIFT")
-    fit = fit_essential(matches.pts1, matches.pts2, scene.K)
+    fit = fit_essential(matches.pts1, matches.pts2, scene.K, max_starts=8)
     assert fit.starts == 8 and not fit.confirmed
     assert 0.01 < fit.spread_deg < 0.1 < TwoViewSettings().restart_agreement_deg
     assert result.trusted, result.warnings

@@ -159,7 +159,7 @@ class TwoViewSettings:
     """
 
     threshold_px: float = 1.0
-    max_starts: int = 8
+    max_starts: int = 16
     restart_agreement_deg: float = 0.5
     min_matches: int = 20
     min_inliers: int = 15
