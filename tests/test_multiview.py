@@ -513,7 +513,14 @@ def test_unconnected_scenes_become_two_models(fountain, data_root, tmp_path):
         (folder / f"f{i}.jpg").symlink_to(fountain / "images" / f"{i:04d}.jpg")
     for i in range(0, 4):
         (folder / f"h{i}.jpg").symlink_to(data_root / "Herz-Jesus-P8" / "images" / f"{i:04d}.jpg")
-    proc, out = _cli([str(folder)], tmp_path)
+    truth = tmp_path / "truth"
+    truth.mkdir()
+    for link in folder.iterdir():
+        scene, i = ("fountain-P11", link.stem[1:]) if link.stem[0] == "f" else \
+            ("Herz-Jesus-P8", link.stem[1:])
+        (truth / f"{link.name}.camera").symlink_to(
+            data_root / scene / "gt_dense_cameras" / f"{int(i):04d}.jpg.camera")
+    proc, out = _cli([str(folder), "--ground-truth", str(truth)], tmp_path)
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((out / "reconstruction.json").read_text())
     assert len(summary["models"]) == 2 and summary["unregistered"] == []
@@ -526,6 +533,12 @@ def test_unconnected_scenes_become_two_models(fountain, data_root, tmp_path):
     assert "model 1 (model-1/): 4 more views" in proc.stdout
     assert proc.stdout.startswith("9 of 9 views registered in 2 models; the largest, 5 views")
     assert "the largest model: f2.jpg, f3.jpg, f4.jpg, f5.jpg, f6.jpg" in proc.stdout
+    # Each model against its truth, in a line of its own, and close to it.
+    for m, entry in enumerate(summary["models"]):
+        who = "the largest model" if m == 0 else "model 1 (model-1/)"
+        assert f"{who} against ground truth: camera centres within" in proc.stdout
+        assert entry["ground_truth"]["max_rotation_error_deg"] < 0.2
+        assert entry["ground_truth"]["max_center_error_fraction"] < 0.005
     # The report tells the same: every view in a model (it said the further model's views
     # "could not be registered"), and no warning.
     page = (out / "report.html").read_text()

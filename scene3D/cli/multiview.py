@@ -396,8 +396,8 @@ def _result_lines(names: list[str], recon: MultiViewReconstruction, models: list
         gt = entry.get("ground_truth")
         if gt is None:
             continue
-        whose = "" if len(models) == 1 else f" ({_model_name(m, entry['folder'])})"
-        lines.append(f"against ground truth{whose}: camera centres within "
+        whose = "" if len(models) == 1 else f"{_model_name(m, entry['folder'])} "
+        lines.append(f"{whose}against ground truth: camera centres within "
                      f"{100 * gt['max_center_error_fraction']:.3f} % of the scene extent, "
                      f"rotations within {gt['max_rotation_error_deg']:.3f} deg"
                      + (f", focal length {100 * gt['focal_error_fraction']:+.2f} %"
