@@ -337,8 +337,8 @@ def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, s
         figures["cameras.png"] = written_bytes(out / "cameras.png")
     view = prepare_view(*multi_view_layers(names, recon.K, recon.image_size, recon.registered,
                                            recon.R, recon.t, recon.points3d, recon.colors))
-    page = multi_view_report(names, _placed(names, recon), summary, lines, warnings, figures,
-                             view)
+    page = multi_view_report(names, _placed(names, summary["models"]), summary, lines,
+                             warnings, figures, view)
     return atomic_write_pieces(out / REPORT_FILE, page.encoded())
 
 
@@ -347,13 +347,12 @@ def _model_name(m: int, folder: str) -> str:
     return "the largest model" if m == 0 else f"model {m} ({folder}/)"
 
 
-def _placed(names: list[str], recon: MultiViewReconstruction) -> list[str | None]:
-    """For each view the model it is in (:func:`_model_name`), None when in none."""
-    placed: list[str | None] = [None] * len(names)
-    for m, model in enumerate(recon.models):
-        for v in model.views:
-            placed[v] = _model_name(m, f"model-{m}")
-    return placed
+def _placed(names: list[str], models: list[dict]) -> list[str | None]:
+    """For each view the model it is in (:func:`_model_name`; ``models``: the summary's
+    entries), None when in none."""
+    label = {view: _model_name(m, entry["folder"])
+             for m, entry in enumerate(models) for view in entry["views"]}
+    return [label.get(name) for name in names]
 
 
 def _focal_text(K: np.ndarray, focal: FocalEstimate) -> str:
@@ -412,9 +411,9 @@ def _run_warnings(recon: MultiViewReconstruction, models: list[dict], summary: d
     by_reason: dict[str, list[str]] = {}  # views left out for one reason: one line
     for name in recon.unregistered:
         by_reason.setdefault(recon.unregistered_reasons.get(name, "unknown"), []).append(name)
-    warnings = [f"{'view' if len(names) == 1 else 'views'} "
-                f"{', '.join(repr(n) for n in names)} could not be registered: {reason}"
-                for reason, names in by_reason.items()]
+    warnings = [f"{'view' if len(views) == 1 else 'views'} "
+                f"{', '.join(repr(n) for n in views)} could not be registered: {reason}"
+                for reason, views in by_reason.items()]
     for m, (entry, model) in enumerate(zip(models, recon.models)):
         whose = "" if m == 0 else f"{_model_name(m, entry['folder'])}: "
         if model.focal is not None:
@@ -564,7 +563,7 @@ def run(args: argparse.Namespace) -> int:
             "focal_refits": list(recon.focal_refits),
             "warnings": _refit_warnings(recon),
             "focal_px_sigma": recon.focal_px_sigma,
-            "self_calibration": focal_summary(recon, recon.main, prior.camera_name)
+            "self_calibration": main_model.get("self_calibration", {})
             if prior is not None else None,
             "feature": resolve_feature_mode(args.feature), "feature_requested": args.feature,
             "conventions": "each model: world = camera frame of the first view of its initial "

@@ -110,7 +110,8 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
     """Reasons to doubt a pose that passed every hard check (empty: trusted).
 
     ``K_source`` (:data:`K_SOURCES`) says where ``K`` came from, for the warnings' words:
-    "the calibration's" focal length, or "the camera files'".
+    "the calibration's" focal length, "the camera files'", or "the one the other photos
+    gave".
 
     The verdicts:
 
