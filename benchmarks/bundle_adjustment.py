@@ -4,10 +4,10 @@
 
 On the fountain-P11 pairs (i, i+1) and (i, i+2), each pair's default
 reconstruction (pose, points, inlier pixels) is adjusted by
-:func:`scene3D.bundle_two_view.bundle_adjust_two_view` and by scipy's
+:func:`scene3D.optim.bundle_two_view.bundle_adjust_two_view` and by scipy's
 ``least_squares`` (sparse Jacobian, trust region; the reference the tests use,
 needs the dev extra) with the same residuals and Cauchy loss, at the scale the
-pipeline gives the pair (:func:`scene3D.essential_fit.loss_scale_px` of its points'
+pipeline gives the pair (:func:`scene3D.twoview.essential_fit.loss_scale_px` of its points'
 Sampson distances), stopped after each number of evaluations. Prints per solver
 the median and largest time, the smallest and the median robust cost above the
 cost scene3D reaches (negative: scipy found a lower cost), and the largest pose
@@ -29,14 +29,14 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from scene3D import SceneReconstruction3D  # noqa: E402
-from scene3D.bundle import Observations  # noqa: E402
-from scene3D.bundle_two_view import _two_view_residuals, bundle_adjust_two_view  # noqa: E402
 from scene3D.datasets import fetch_fountain_p11, read_strecha_camera  # noqa: E402
-from scene3D.epipolar import essential_distances  # noqa: E402
-from scene3D.essential_fit import loss_scale_px  # noqa: E402
 from scene3D.evaluation import relative_pose_error  # noqa: E402
-from scene3D.refinement import _robust_cost  # noqa: E402
+from scene3D.geometry.epipolar import essential_distances  # noqa: E402
+from scene3D.optim.bundle import Observations  # noqa: E402
+from scene3D.optim.bundle_two_view import _two_view_residuals, bundle_adjust_two_view  # noqa: E402
+from scene3D.optim.refinement import _robust_cost  # noqa: E402
 from scene3D.twoview import TwoViewSettings  # noqa: E402
+from scene3D.twoview.essential_fit import loss_scale_px  # noqa: E402
 from tests.helpers import scipy_bundle_adjust  # noqa: E402
 
 

@@ -55,7 +55,7 @@ SCENES = ("fountain-P11", "Herz-Jesus-P8", "castle-P19")
 def agreement(scene, sparse, dense) -> float | None:
     """Median relative range difference, dense against sparse, at the sparse points'
     rectified pixels of image 1 (None with fewer than 10 such pixels)."""
-    from scene3D.rectification import rectify_points
+    from scene3D.geometry.rectification import rectify_points
 
     rect = dense.rectified
     pixels = np.rint(rectify_points(sparse.pts1, scene.K, rect.R1, rect.P1)).astype(int)

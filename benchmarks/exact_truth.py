@@ -23,7 +23,7 @@ A second table checks scene3D's predicted uncertainty against the exact truth: f
 each noise model and size, the share of poses whose rotation error (3 dof) and
 translation-direction error (2 dof) lie within the predicted 90 % bound (their
 Mahalanobis distance under the pose covariance within the chi-square 90 % quantile;
-``scene3D.uncertainty.pose_error_chi2``). About 90 % means calibrated sigmas.
+``scene3D.optim.uncertainty.pose_error_chi2``). About 90 % means calibrated sigmas.
 
 Noise models (per coordinate, both images): ``g0.1``, ``g0.25``, ``g0.5`` Gaussian of
 that many px; ``mix`` 80 % at 0.07 px and 20 % at 0.35 px (what scene3D's 1536-px
@@ -46,9 +46,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from scene3D import essential_fit
 from scene3D.datasets import FOUNTAIN_P11, default_data_root, strecha_views
-from scene3D.epipolar import essential_distances, essential_from_pose
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import (
     paired_auc_difference,
@@ -58,10 +56,11 @@ from scene3D.evaluation import (
 )
 from scene3D.features import find_matches
 from scene3D.geometry import project
-from scene3D.triangulation import in_front_mask, triangulate_points
+from scene3D.geometry.epipolar import essential_distances, essential_from_pose
+from scene3D.geometry.triangulation import in_front_mask, triangulate_points
+from scene3D.optim.uncertainty import pose_error_chi2
 from scene3D.twoview import core as twoview_core
-from scene3D.twoview import reconstruct_from_matches
-from scene3D.uncertainty import pose_error_chi2
+from scene3D.twoview import essential_fit, reconstruct_from_matches
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from two_view import REPO, _has, load_pair, run_opencv, run_poselib  # noqa: E402

@@ -45,8 +45,8 @@ from scene3D.datasets import strecha_views
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import Matches, find_matches
+from scene3D.optim.uncertainty import pose_error_chi2
 from scene3D.twoview import reconstruct_two_view
-from scene3D.uncertainty import pose_error_chi2
 
 SUBSET_SIZES = (15, 25, 40, 60, 80, 120)
 _SIDE = math.sqrt(0.3)

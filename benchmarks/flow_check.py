@@ -6,14 +6,14 @@ and only those?
 
 Each pair (i, i + gap) is reconstructed from its SIFT matches with the Strecha camera's
 ``K`` (``scene3D.twoview.reconstruct_from_matches``, the sparse checks only), then checked
-against the dense optical flow between its images (``scene3D.flow_check``), on every
+against the dense optical flow between its images (``scene3D.twoview.flow_check``), on every
 pair, including those the sparse checks already flag (the pipeline checks only trusted
 poses). Printed per scene and size: the pairs; the right poses (both errors under 1
 degree) and the largest flow gain among them; the poses more than 2 degrees off and their
 gains; the verdicts the check changes (trusted -> flagged, with the errors of the pose and
 of the flow's pose); the seconds the check takes a pair (median). Then every pair whose
 gain exceeds half of ``TwoViewSettings.max_flow_gain``. The flow is taken at 768 px at
-most (``scene3D.flow_check.MAX_FLOW_WIDTH_PX``). One thread; about 12 minutes for the
+most (``scene3D.twoview.flow_check.MAX_FLOW_WIDTH_PX``). One thread; about 12 minutes for the
 three scenes at both sizes.
 """
 
@@ -26,14 +26,14 @@ import cv2
 import numpy as np
 from bench_cli import add_data_arguments, data_folder
 
-from scene3D.camera import scale_intrinsics_halved
 from scene3D.datasets import read_strecha_camera, relative_pose, strecha_views
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import find_matches, to_gray
-from scene3D.flow_check import check_pose_against_images
+from scene3D.geometry.camera import scale_intrinsics_halved
 from scene3D.imageio import load_working_image
 from scene3D.twoview import TwoViewSettings, check_against_flow, reconstruct_from_matches
+from scene3D.twoview.flow_check import check_pose_against_images
 from scene3D.twoview.trust import flow_warning
 
 

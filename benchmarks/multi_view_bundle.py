@@ -10,8 +10,8 @@ the largest of its adjustments, and the one that moves the cameras most. That pr
 then solved, each solver from the same start, one thread (``OPENBLAS_NUM_THREADS=1``,
 Ceres ``num_threads=1``), by
 
-- scene3D: :func:`scene3D.bundle.bundle_adjust` (Levenberg-Marquardt, points eliminated by
-  the Schur complement, :mod:`scene3D.schur`);
+- scene3D: :func:`scene3D.optim.bundle.bundle_adjust` (Levenberg-Marquardt, points eliminated by
+  the Schur complement, :mod:`scene3D.optim.schur`);
 - Ceres 2 through pyceres: the problem as COLMAP builds it (pycolmap's bundle adjuster:
   C++ auto-differentiated reprojection errors, quaternion manifolds), solved by
   ``pyceres.solve`` with a Schur solver (dense up to 50 cameras, sparse beyond; the
@@ -43,13 +43,13 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.multi_view import ORBIT_VIEWS, render_orbit  # noqa: E402
-from scene3D import bundle  # noqa: E402
-from scene3D.bundle import reprojection_residuals  # noqa: E402
 from scene3D.datasets import default_data_root, read_strecha_scene  # noqa: E402
 from scene3D.evaluation import camera_set_error  # noqa: E402
 from scene3D.export import colmap_text_files  # noqa: E402
 from scene3D.geometry import camera_centers  # noqa: E402
 from scene3D.multiview import reconstruct_views, state  # noqa: E402
+from scene3D.optim import bundle  # noqa: E402
+from scene3D.optim.bundle import reprojection_residuals  # noqa: E402
 
 
 def capture_final_adjustment(case: str, folder: Path) -> dict:

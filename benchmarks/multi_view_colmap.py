@@ -28,9 +28,9 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from scene3D.camera import scale_intrinsics_halved  # noqa: E402
 from scene3D.datasets import default_data_root, read_strecha_scene  # noqa: E402
 from scene3D.evaluation import camera_set_error  # noqa: E402
+from scene3D.geometry.camera import scale_intrinsics_halved  # noqa: E402
 from scene3D.imageio import load_working_image  # noqa: E402
 
 

@@ -7,7 +7,7 @@ For each shared Strecha scene (``$SCENE3D_DATA``), ``reconstruct_views`` with de
 options, then a bootstrap over its points of three views or more, those that hold the
 cameras in the mapper's adjustments (two-view points follow them): the points are drawn
 with replacement (each with all its observations) and the final bundle adjustment is run
-again from the model's cameras (:func:`scene3D.bundle.bundle_adjust`, the mapper's loss,
+again from the model's cameras (:func:`scene3D.optim.bundle.bundle_adjust`, the mapper's loss,
 its first camera held).
 Each draw's cameras are compared with the true ones as ``benchmarks/multi_view.py``
 compares them (max / median centre errors in % of the extent of the true centres, aligned
@@ -28,11 +28,11 @@ import argparse  # noqa: E402
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from scene3D.bundle import Observations, bundle_adjust  # noqa: E402
 from scene3D.datasets import default_data_root, read_strecha_scene  # noqa: E402
 from scene3D.evaluation import camera_set_error  # noqa: E402
 from scene3D.geometry import camera_centers  # noqa: E402
 from scene3D.multiview import reconstruct_views  # noqa: E402
+from scene3D.optim.bundle import Observations, bundle_adjust  # noqa: E402
 
 
 def figures(R, centers, R_true, C_true) -> list[float]:

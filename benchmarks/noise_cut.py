@@ -9,7 +9,7 @@ coordinate of both images (no outliers) and runs ``reconstruct_from_matches`` wi
 default settings (a 1 px inlier threshold, raised to three noise sigmas, at most 2 px).
 For each noise level it prints the share of the draws whose rotation error (3 dof) and
 translation-direction error (2 dof) lie within the predicted 90 % bound, with the
-covariance's allowance for the cut noise (``scene3D.uncertainty.truncated_noise``) and
+covariance's allowance for the cut noise (``scene3D.optim.uncertainty.truncated_noise``) and
 without it (the same draws, the allowance's factor set to 1), the mean chi-squares
 (3 and 2 when calibrated), the median share of the matches the threshold cut off, and
 the share of the draws flagged for it (``TwoViewSettings.max_noise_cut_share``). One
@@ -28,8 +28,8 @@ import numpy as np  # noqa: E402
 
 import scene3D.twoview.core as core  # noqa: E402
 from scene3D.geometry import project, rotations_from_vectors  # noqa: E402
+from scene3D.optim.uncertainty import CHI2_90, pose_error_chi2  # noqa: E402
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches  # noqa: E402
-from scene3D.uncertainty import CHI2_90, pose_error_chi2  # noqa: E402
 
 
 def scene(seed: int = 0):

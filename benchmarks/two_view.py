@@ -42,7 +42,6 @@ import cv2
 import numpy as np
 from bench_cli import REPO, interleaved_times, plain_command
 
-from scene3D.camera import scale_intrinsics_halved
 from scene3D.datasets import (
     BOOK_PAIR,
     FOUNTAIN_P11,
@@ -59,11 +58,12 @@ from scene3D.evaluation import (
     summarize_pose_errors,
 )
 from scene3D.features import find_matches
+from scene3D.geometry.camera import scale_intrinsics_halved
+from scene3D.geometry.pose import choose_pose
 from scene3D.imageio import load_working_image
 from scene3D.memory import malloc_environment
-from scene3D.pose import choose_pose
+from scene3D.optim.uncertainty import pose_error_chi2
 from scene3D.twoview import reconstruct_two_view
-from scene3D.uncertainty import pose_error_chi2
 
 METHODS = ("book", "opencv", "poselib", "pycolmap", "scene3D")
 

@@ -15,7 +15,7 @@ levers:
 
 - ``scene3D``: the pipeline as it is;
 - ``previous``: restarts compared at the 1 px threshold with MAGSAC++ (no noise probe:
-  the essential fit before issue #19, then in ``scene3D.epipolar``);
+  the essential fit before issue #19, then in ``scene3D.geometry.epipolar``);
 - ``previous-0.5px``: the same with a 0.5 px threshold;
 - ``ratio-0.7``: Lowe's ratio 0.7 instead of 0.8;
 - ``rootsift``: RootSIFT descriptors (L1-normalised, square-rooted);
@@ -62,8 +62,6 @@ import cv2
 import numpy as np
 from bench_cli import add_data_arguments, data_folder
 
-from scene3D import essential_fit
-from scene3D.camera import scale_intrinsics_halved
 from scene3D.datasets import read_strecha_camera, relative_pose, strecha_views
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import (
@@ -72,8 +70,9 @@ from scene3D.evaluation import (
     summarize_pose_errors,
 )
 from scene3D.features import match_descriptors, to_gray
+from scene3D.geometry.camera import scale_intrinsics_halved
 from scene3D.imageio import load_working_image
-from scene3D.twoview import TwoViewSettings, reconstruct_from_matches
+from scene3D.twoview import TwoViewSettings, essential_fit, reconstruct_from_matches
 
 LEVERS = ("scene3D", "previous", "previous-0.5px", "ratio-0.7", "rootsift", "symmetric",
           "self-ratio", "contrast-0.02", "guided-1px", "guided-3px", "locality-0.3",

@@ -28,7 +28,7 @@ from scene3D import SceneReconstruction3D
 from scene3D.datasets import read_strecha_camera, relative_pose
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
-from scene3D.intrinsics_prior import ExifCamera, camera_prior
+from scene3D.geometry.intrinsics_prior import ExifCamera, camera_prior
 
 #: cv2.ROTATE_90_CLOCKWISE as a rotation of the camera frame (x right, y down).
 TURN_90 = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])

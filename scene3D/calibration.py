@@ -27,10 +27,10 @@ import numpy as np
 
 from .calibration_io import CameraCalibration, load_calibration, save_calibration
 from .calibration_uncertainty import IntrinsicsCovariance, intrinsics_covariance
-from .camera import DISTORTION_NAMES, check_intrinsics_for_size
 from .errors import CalibrationError, plural
 from .features import check_image
-from .geometry import FloatArray, is_real_number, is_whole_number
+from .geometry.camera import DISTORTION_NAMES, check_intrinsics_for_size
+from .geometry.conventions import FloatArray, is_real_number, is_whole_number
 
 logger = logging.getLogger(__name__)
 
@@ -451,7 +451,7 @@ def calibrate(
         Too few views, the solver fails or diverges, the corners do not fit one
         camera (RMS above ``max_rms_px``: typically a wrong board size, whose
         detections are not the board's corners), or the result is no camera's for
-        ``image_size`` (:func:`scene3D.camera.check_intrinsics_for_size`, which
+        ``image_size`` (:func:`scene3D.geometry.camera.check_intrinsics_for_size`, which
         :func:`load_calibration` applies too).
     """
     image_size = _check_image_size(image_size, detections)

@@ -15,9 +15,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .camera import check_intrinsics_for_size, validate_distortion, validate_intrinsics
 from .export import check_target, place_file
-from .geometry import FloatArray
+from .geometry.camera import check_intrinsics_for_size, validate_distortion, validate_intrinsics
+from .geometry.conventions import FloatArray
 
 #: The suffixes :func:`save_calibration` writes (and :func:`load_calibration` reads).
 CALIBRATION_SUFFIXES = (".yaml", ".yml", ".xml", ".json")

@@ -53,8 +53,8 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .camera import DISTORTION_NAMES
-from .geometry import FloatArray
+from .geometry.camera import DISTORTION_NAMES
+from .geometry.conventions import FloatArray
 
 logger = logging.getLogger(__name__)
 

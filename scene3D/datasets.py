@@ -28,10 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .camera import check_intrinsics_for_size, validate_intrinsics
 from .errors import DatasetError
-from .geometry import FloatArray
-from .geometry import relative_pose as _relative_pose
+from .geometry.camera import check_intrinsics_for_size, validate_intrinsics
+from .geometry.conventions import FloatArray
+from .geometry.conventions import relative_pose as _relative_pose
 from .imageio import IMAGE_SUFFIXES
 
 logger = logging.getLogger(__name__)

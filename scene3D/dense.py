@@ -24,17 +24,17 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .camera import validate_intrinsics
 from .errors import ReconstructionError
-from .geometry import FloatArray, require_whole_number
-from .imageio import image_size
-from .rectification import (
+from .geometry.camera import validate_intrinsics
+from .geometry.conventions import FloatArray, require_whole_number
+from .geometry.rectification import (
     RectifiedPair,
     baseline_axis,
     rectify_pair,
     rectify_points,
     rectifying_transforms,
 )
+from .imageio import image_size
 
 logger = logging.getLogger(__name__)
 
@@ -62,7 +62,7 @@ class DenseReconstruction:
         Where each point is seen in rectified image 1.
     disparity : (H, W) float32
         Disparity ``x1 - x2`` of rectified image 1 in pixels (``y1 - y2`` when the
-        baseline is mostly vertical: :func:`~scene3D.rectification.baseline_axis`), zero
+        baseline is mostly vertical: :func:`~scene3D.geometry.rectification.baseline_axis`), zero
         at infinity, NaN where invalid. Signed: negative throughout when image 2 is the
         left view (the book pair: -286 to -190 px), so select valid pixels with
         ``np.isfinite``, not ``> 0``. ``cv2.reprojectImageTo3D(disparity, Q)`` gives

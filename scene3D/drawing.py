@@ -18,9 +18,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .epipolar import epipolar_lines
-from .geometry import FloatArray, camera_centers, require_whole_number
-from .rectification import RectifiedPair
+from .geometry.conventions import FloatArray, camera_centers, require_whole_number
+from .geometry.epipolar import epipolar_lines
+from .geometry.rectification import RectifiedPair
 
 __all__ = [
     "Raster", "draw_disparity", "draw_epipolar_lines", "draw_optic_flow", "draw_rectified",

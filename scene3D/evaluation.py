@@ -7,8 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .geometry import FloatArray, angle_between_deg, as_matrix, rotation_error_deg
-from .uncertainty import CHI2_90
+from .geometry.conventions import FloatArray, angle_between_deg, as_matrix, rotation_error_deg
+from .optim.uncertainty import CHI2_90
 
 
 @dataclass(frozen=True)
@@ -170,7 +170,7 @@ def sigma_calibration(rotation_chi2: ArrayLike, translation_chi2: ArrayLike) -> 
 
     ``rotation_chi2`` and ``translation_chi2`` ``(N,)`` are the Mahalanobis
     distances (squared) of each pose's rotation and translation-direction errors
-    under its predicted covariance (:func:`scene3D.uncertainty.pose_error_chi2`;
+    under its predicted covariance (:func:`scene3D.optim.uncertainty.pose_error_chi2`;
     NaN where no pose came back, and those pairs are left out). Returns ``pairs``
     (counted) and ``rotation_within90`` / ``translation_within90``, the shares within
     the chi-square 90 % quantiles of 3 and 2 degrees of freedom: about 0.9 when the

@@ -2,7 +2,7 @@
 a set of photos.
 
 I/O only: the values are turned into a focal length and checked by the pure
-functions of :mod:`scene3D.intrinsics_prior`. Pillow (a dependency of matplotlib,
+functions of :mod:`scene3D.geometry.intrinsics_prior`. Pillow (a dependency of matplotlib,
 and of scene3D) is imported on first use. The orientation tag is read and
 recorded, never applied: images are used as stored (see :mod:`scene3D.geometry`).
 """
@@ -15,6 +15,7 @@ import os
 import warnings
 from collections.abc import Sequence
 
+from .geometry.intrinsics_prior import ExifCamera, FocalPrior, camera_prior
 from .imageio import (
     check_image_file,
     read_image_size,
@@ -22,7 +23,6 @@ from .imageio import (
     register_heif_opener,
     source_label,
 )
-from .intrinsics_prior import ExifCamera, FocalPrior, camera_prior
 
 logger = logging.getLogger(__name__)
 
@@ -125,7 +125,7 @@ def read_camera_prior(paths: Sequence[str | os.PathLike]) -> FocalPrior:
 
     Reads each photo's EXIF (:func:`read_exif`) and stored size
     (:func:`scene3D.imageio.read_image_size`) and hands them to
-    :func:`scene3D.intrinsics_prior.camera_prior`: one camera is checked (one
+    :func:`scene3D.geometry.intrinsics_prior.camera_prior`: one camera is checked (one
     size, make and model, EXIF focal length) and the focal length taken from EXIF,
     or the default ``1.2 * max(w, h)``. The prior's ``warnings`` name the photos
     whose EXIF could not be used, and errors the photos that differ, by their paths as

@@ -270,7 +270,7 @@ def colmap_text_files(
     Image names are written as :func:`colmap_image_name` gives them: a space, which
     the format cannot hold, becomes '_' (so such a name no longer matches its file).
     """
-    from .geometry import quaternion_from_rotation
+    from .geometry.conventions import quaternion_from_rotation
 
     fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5
     cameras = ("# Camera list with one line of data per camera:\n"

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from .geometry import FloatArray, require_real_number, require_whole_number
+from .geometry.conventions import FloatArray, require_real_number, require_whole_number
 
 logger = logging.getLogger(__name__)
 

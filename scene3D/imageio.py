@@ -5,7 +5,7 @@ The book halves its 3072 px photos with ``cv2.pyrDown`` while they are wider tha
 mean of a ``2^L x 2^L`` block): for a JPEG file that is what the decoder's scaled
 IDCT already produces, so the full-size image is never decoded or held in memory.
 Pixel centres map as ``x' = (x + 0.5) / 2^L - 0.5`` (see
-:func:`scene3D.camera.scale_intrinsics_halved`).
+:func:`scene3D.geometry.camera.scale_intrinsics_halved`).
 """
 
 from __future__ import annotations
@@ -22,8 +22,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .camera import different_sizes_message, has_distortion, undistort_image
 from .errors import first_line
+from .geometry.camera import different_sizes_message, has_distortion, undistort_image
 from .image_integrity import intact_image_data, jpeg_cut_short
 
 logger = logging.getLogger(__name__)
@@ -437,7 +437,7 @@ def halve(img: np.ndarray, levels: int) -> np.ndarray:
 
     Each output pixel is the mean of a ``2^L`` square block; rows and columns that
     do not fill a block (at the bottom and right) are dropped, so that the
-    scaling is exact (:func:`scene3D.camera.scale_intrinsics_halved`).
+    scaling is exact (:func:`scene3D.geometry.camera.scale_intrinsics_halved`).
     """
     if levels == 0:
         return img
@@ -519,7 +519,7 @@ def iter_working_images(
     ------
     ValueError
         At the first source whose size differs from the first's: one calibration
-        holds for one size (:func:`scene3D.camera.different_sizes_message`).
+        holds for one size (:func:`scene3D.geometry.camera.different_sizes_message`).
     """
     names = list(names) if names is not None else [f"image {i}" for i in range(len(sources))]
     first: tuple[str, tuple[int, int]] | None = None

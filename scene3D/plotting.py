@@ -15,7 +15,6 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from .calibration_uncertainty import UncertaintyMap, format_px
-from .camera import validate_intrinsics
 from .drawing import (
     Raster,
     draw_disparity,
@@ -26,8 +25,9 @@ from .drawing import (
     robust_extent,
     subsample_indices,
 )
-from .geometry import FloatArray
-from .rectification import RectifiedPair
+from .geometry.camera import validate_intrinsics
+from .geometry.conventions import FloatArray
+from .geometry.rectification import RectifiedPair
 
 
 def _axes(ax: Axes | None, ncols: int = 1, figsize: tuple[float, float] = (8, 6),

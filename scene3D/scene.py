@@ -21,25 +21,25 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .camera import (
+from .errors import log_result_warnings
+from .features import Matches, find_matches, normalize_feature_mode
+from .geometry.camera import (
     check_intrinsics_for_native_size,
     scale_intrinsics,
     scale_intrinsics_halved,
     validate_distortion,
     validate_intrinsics,
 )
-from .errors import log_result_warnings
-from .features import Matches, find_matches, normalize_feature_mode
-from .geometry import distinct_correspondences
+from .geometry.conventions import distinct_correspondences
+from .geometry.rectification import RectifiedPair, rectify_pair
 from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, load_working_images, source_label
-from .rectification import RectifiedPair, rectify_pair
+from .optim.uncertainty import depth_sigmas
 from .twoview import (
     TwoViewReconstruction,
     TwoViewSettings,
     reconstruct_two_view,
     require_enough_matches,
 )
-from .uncertainty import depth_sigmas
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -118,7 +118,7 @@ class SceneReconstruction3D:
             A file is not an image, the two images differ in size or are one photo (a
             copy under another name: the same pixels), or ``K`` cannot be a
             camera matrix for their native size (a principal point far outside them, a
-            focal length no lens has: :func:`~scene3D.camera.check_intrinsics_for_size`),
+            focal length no lens has: :func:`~scene3D.geometry.camera.check_intrinsics_for_size`),
             as when ``K`` was calibrated on larger photos than these.
         """
         (a, b), size, levels = load_working_images(
@@ -186,7 +186,7 @@ class SceneReconstruction3D:
 
         For photos without a calibration: ``K`` (given to the constructor) holds the
         EXIF or prior focal length and the principal point at the image centre
-        (:class:`scene3D.intrinsics_prior.FocalPrior`), ``prior_sigma_log`` its
+        (:class:`scene3D.geometry.intrinsics_prior.FocalPrior`), ``prior_sigma_log`` its
         uncertainty and ``prior_source`` (``"exif"`` or ``"prior"``) where it comes
         from. :func:`scene3D.selfcalibration.self_calibrate_pair` refines it on the
         matches of ``feat_mode``; ``K`` (and ``K_native``) become the result's, and

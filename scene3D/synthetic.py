@@ -21,7 +21,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-from .geometry import FloatArray, rotation_about_axis
+from .geometry.conventions import FloatArray, rotation_about_axis
 
 
 def asymmetric_camera(width: int = 640, height: int = 480) -> FloatArray:
@@ -332,7 +332,7 @@ def lens_photo(img: np.ndarray, K: FloatArray, k1: float) -> np.ndarray:
     """The photo ``img`` ``(H, W[, C])`` of a pinhole camera ``K`` ``(3, 3)`` as a lens with
     radial distortion ``k1`` (``r_d = r_u (1 + k1 r_u^2)`` in normalised coordinates
     about the principal point) would have taken it: the distortion the two-view
-    distortion check looks for (:mod:`scene3D.distortion_fit`)."""
+    distortion check looks for (:mod:`scene3D.twoview.distortion_fit`)."""
     h, w = img.shape[:2]
     xs, ys = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
     xd, yd = (xs - K[0, 2]) / K[0, 0], (ys - K[1, 2]) / K[1, 1]

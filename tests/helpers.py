@@ -49,8 +49,8 @@ def scipy_bundle_adjust(R, t, points3d, obs, K, fixed_view, loss, scale_px, max_
     from scipy.optimize import least_squares
     from scipy.sparse import csr_matrix
 
-    from scene3D.bundle import reprojection_residuals
     from scene3D.geometry import rotations_from_vectors
+    from scene3D.optim.bundle import reprojection_residuals
 
     num_views, num_points = len(R), len(points3d)
     free = np.array([v for v in np.unique(obs.view) if v != fixed_view], dtype=int)

@@ -4,16 +4,16 @@ global unknown, convergence from a focal length 30 % off, and its standard devia
 import numpy as np
 import pytest
 
-from scene3D.bundle import (
+from scene3D.geometry import project, rotations_from_vectors
+from scene3D.geometry.camera import with_focal
+from scene3D.optim.bundle import (
     Observations,
     bundle_adjust,
     bundle_adjust_focal,
     reprojection_jacobians,
     reprojection_residuals,
 )
-from scene3D.camera import with_focal
-from scene3D.geometry import project, rotations_from_vectors
-from scene3D.schur import global_information, normal_equations, solve_damped_global
+from scene3D.optim.schur import global_information, normal_equations, solve_damped_global
 from scene3D.synthetic import orbit_poses
 
 #: Square pixels (the model refined), the principal point off the centre of 640 x 480.

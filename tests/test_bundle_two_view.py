@@ -1,14 +1,14 @@
 import numpy as np
 import pytest
 
-from scene3D.bundle_two_view import bundle_adjust_two_view
-from scene3D.epipolar import fundamental_from_essential
 from scene3D.evaluation import relative_pose_error
 from scene3D.geometry import project
-from scene3D.refinement import _robust_cost, _update_pose
-from scene3D.triangulation import reprojection_errors, triangulate_points
+from scene3D.geometry.epipolar import fundamental_from_essential
+from scene3D.geometry.triangulation import reprojection_errors, triangulate_points
+from scene3D.optim.bundle_two_view import bundle_adjust_two_view
+from scene3D.optim.refinement import _robust_cost, _update_pose
+from scene3D.optim.uncertainty import tangent_basis
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches
-from scene3D.uncertainty import tangent_basis
 
 from .helpers import correspondences, perturbed_pose, scipy_bundle_adjust
 
@@ -32,7 +32,7 @@ def test_two_view_bundle_adjustment_reaches_a_minimum_scipy_does_not_beat(camera
     With convex losses both reach the same optimum. Under Cauchy, scipy's clamped
     curvature correction leaves the outliers' points with singular blocks and it stops
     where it started; scene3D's solver must reach a lower cost."""
-    from scene3D.bundle import Observations
+    from scene3D.optim.bundle import Observations
 
     R, t = true_pose
     t = t / np.linalg.norm(t)

@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from scene3D.camera import (
+from scene3D.geometry.camera import (
     adapt_intrinsics_to_size,
     check_intrinsics_for_size,
     principal_point_hint,
@@ -110,7 +110,8 @@ def test_principal_point_hint_names_larger_turned_or_misplaced_calibrations():
     off[0, 2] += 0.15 * 640  # within the limit of 20 % of the width
     assert principal_point_hint(off, (640, 480)) == ""
     assert principal_point_hint(np.diag([2.0, 2.0, 1.0]) @ K, (640, 480)).endswith(
-        "a K for photos about 2 times larger (about 1280x960)? scene3D.camera.scale_intrinsics"
+        "a K for photos about 2 times larger (about 1280x960)? "
+        "scene3D.geometry.camera.scale_intrinsics"
         "(K, 640 / W, 480 / H), W x H the size it was calibrated at, fits it to these")
     wide = np.array([[900.0, 0, 479.5], [0, 900.0, 319.5], [0, 0, 1]])  # for 960x640
     assert "a K for the photos turned by 90 degrees?" in principal_point_hint(wide, (640, 960))

@@ -2,12 +2,11 @@
 
 import pytest
 
-from scene3D import essential_fit
-from scene3D.essential_fit import fit_essential
 from scene3D.evaluation import relative_pose_error
-from scene3D.pose import choose_pose
-from scene3D.twoview import TwoViewSettings
-from scene3D.uncertainty import CHI2_99_POSE
+from scene3D.geometry.pose import choose_pose
+from scene3D.optim.uncertainty import CHI2_99_POSE
+from scene3D.twoview import TwoViewSettings, essential_fit
+from scene3D.twoview.essential_fit import fit_essential
 
 from .helpers import strecha_pair
 
@@ -17,7 +16,7 @@ def test_mismatched_windows_do_not_pull_the_pose(castle, pair):
     """Matches between neighbouring windows fit a pose 1.6 deg (13-14) or 4 deg (12-14)
     off the truth within 1 px, together with the right matches fitted a little
     worse; a single MAGSAC++ start at 1 px takes it. Compared at the noise of the
-    keypoints (scene3D.essential_fit.fit_essential) the true pose wins.
+    keypoints (scene3D.twoview.essential_fit.fit_essential) the true pose wins.
     """
     scene, truth = strecha_pair(castle, *pair, 1536)
     result = scene.reconstruct("SIFT")
@@ -63,7 +62,7 @@ def test_the_refinement_at_the_threshold_may_not_leave_the_fit_at_the_noise(cast
     """Pair 8-9 at 768 px: the restarts, compared at the noise (0.42 px), find a pose
     0.3 deg off; refined again at the 1 px threshold, the matches between the two pull
     it 2.2 deg off. That shift lies far outside the covariance of the fit at the
-    noise, so that fit is kept (scene3D.essential_fit.widening_shift_chi2)."""
+    noise, so that fit is kept (scene3D.twoview.essential_fit.widening_shift_chi2)."""
     scene, truth = strecha_pair(castle, 8, 9, 768)
     result = scene.reconstruct("SIFT")
     assert relative_pose_error(result.R, result.t, *truth).max_deg < 0.5

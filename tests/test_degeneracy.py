@@ -1,17 +1,17 @@
 import numpy as np
 import pytest
 
-from scene3D.degeneracy import (
+from scene3D.geometry import project, rotation_error_deg
+from scene3D.geometry.epipolar import essential_distances, essential_from_pose, estimate_homography
+from scene3D.synthetic import random_points
+from scene3D.twoview.degeneracy import (
     fit_rotation,
     fit_rotation_and_focal,
     gric,
     homography_errors,
     motion_model_choice,
 )
-from scene3D.epipolar import essential_distances, essential_from_pose, estimate_homography
-from scene3D.essential_fit import noise_sigma_px
-from scene3D.geometry import project, rotation_error_deg
-from scene3D.synthetic import random_points
+from scene3D.twoview.essential_fit import noise_sigma_px
 
 from .helpers import correspondences
 

@@ -106,7 +106,7 @@ def test_the_disparities_and_their_Q_give_the_points(synthetic_dense):
     rectified pair's Q takes the disparity between its images, shifted by the offset."""
     import cv2
 
-    from scene3D.rectification import baseline_axis
+    from scene3D.geometry.rectification import baseline_axis
 
     _, dense, *_ = synthetic_dense
     rect = dense.rectified
@@ -139,7 +139,7 @@ def test_dense_agrees_with_sparse(fountain, pair, min_ratio, min_compared):
     dense = scene.dense_point_cloud()
     assert dense.num_points >= min_ratio * sparse.num_points
     # Compare depths where both exist: the dense point at each sparse point's rectified pixel.
-    from scene3D.rectification import rectify_points
+    from scene3D.geometry.rectification import rectify_points
 
     rect = dense.rectified
     r1 = np.rint(rectify_points(sparse.pts1, scene.K, rect.R1, rect.P1)).astype(int)

@@ -1,13 +1,23 @@
 """The distortion check: the pose refined with one radial distortion of the lens
-(scene3D.distortion_fit) and the doubt it raises (scene3D.twoview.trust.distortion_warning)."""
+(scene3D.twoview.distortion_fit) and the doubt it raises
+(scene3D.twoview.trust.distortion_warning)."""
 
 import cv2
 import numpy as np
 import pytest
 
-from scene3D.camera import scale_intrinsics_halved
 from scene3D.datasets import read_strecha_camera, relative_pose
-from scene3D.distortion_fit import (
+from scene3D.evaluation import relative_pose_error
+from scene3D.features import find_matches
+from scene3D.geometry import pose_angle_deg, project, rotation_about_axis, skew, to_homogeneous
+from scene3D.geometry.camera import scale_intrinsics_halved
+from scene3D.imageio import load_working_image
+from scene3D.optim.refinement import _fundamental_derivatives, _update_pose, refine_relative_pose
+from scene3D.optim.uncertainty import tangent_basis
+from scene3D.selfcalibration import self_calibrate_pair
+from scene3D.synthetic import lens_photo
+from scene3D.twoview import TwoViewSettings, reconstruct_from_matches, reconstruct_two_view
+from scene3D.twoview.distortion_fit import (
     DistortionFit,
     _observed_sampson,
     _observed_sampson_jacobian,
@@ -15,16 +25,7 @@ from scene3D.distortion_fit import (
     fit_radial_distortion,
     undistort_division,
 )
-from scene3D.evaluation import relative_pose_error
-from scene3D.features import find_matches
-from scene3D.geometry import pose_angle_deg, project, rotation_about_axis, skew, to_homogeneous
-from scene3D.imageio import load_working_image
-from scene3D.refinement import _fundamental_derivatives, _update_pose, refine_relative_pose
-from scene3D.selfcalibration import self_calibrate_pair
-from scene3D.synthetic import lens_photo
-from scene3D.twoview import TwoViewSettings, reconstruct_from_matches, reconstruct_two_view
 from scene3D.twoview.trust import distortion_warning
-from scene3D.uncertainty import tangent_basis
 
 from .helpers import correspondences, perturbed_pose
 

@@ -1,15 +1,15 @@
 import numpy as np
 import pytest
 
-from scene3D.epipolar import (
+from scene3D.geometry import to_homogeneous
+from scene3D.geometry.epipolar import (
     epipolar_lines,
     epipolar_residuals,
     essential_from_pose,
     estimate_fundamental,
     fundamental_from_essential,
 )
-from scene3D.essential_fit import estimate_essential
-from scene3D.geometry import to_homogeneous
+from scene3D.twoview.essential_fit import estimate_essential
 
 from .helpers import correspondences, same_up_to_sign
 

@@ -1,9 +1,13 @@
 import numpy as np
 import pytest
 
-from scene3D import essential_fit
-from scene3D.epipolar import essential_distances, essential_from_pose
-from scene3D.essential_fit import (
+from scene3D.evaluation import relative_pose_error
+from scene3D.geometry import normalize_points, project, rotation_about_axis, to_homogeneous
+from scene3D.geometry.epipolar import essential_distances, essential_from_pose
+from scene3D.geometry.pose import choose_pose
+from scene3D.optim.uncertainty import CHI2_99_POSE
+from scene3D.twoview import essential_fit
+from scene3D.twoview.essential_fit import (
     NOISE_PROBE_OF_THRESHOLD,
     comparison_threshold_px,
     essential_angle_deg,
@@ -16,10 +20,6 @@ from scene3D.essential_fit import (
     refine_essential,
     rival_spread_deg,
 )
-from scene3D.evaluation import relative_pose_error
-from scene3D.geometry import normalize_points, project, rotation_about_axis, to_homogeneous
-from scene3D.pose import choose_pose
-from scene3D.uncertainty import CHI2_99_POSE
 
 from .helpers import correspondences, same_up_to_sign
 

@@ -8,7 +8,7 @@ import pytest
 from PIL import ExifTags, Image
 
 from scene3D.exif import read_camera_prior, read_exif
-from scene3D.intrinsics_prior import focal_px_from_35mm
+from scene3D.geometry.intrinsics_prior import focal_px_from_35mm
 
 SIZE = (96, 64)
 

@@ -5,12 +5,15 @@ import numpy as np
 import pytest
 
 from scene3D import TwoViewSettings
-from scene3D.camera import scale_intrinsics_halved
 from scene3D.datasets import read_strecha_camera, relative_pose
-from scene3D.epipolar import essential_distances, essential_from_pose
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import find_matches, to_gray
-from scene3D.flow_check import (
+from scene3D.geometry import rotation_about_axis
+from scene3D.geometry.camera import scale_intrinsics_halved
+from scene3D.geometry.epipolar import essential_distances, essential_from_pose
+from scene3D.imageio import load_working_image
+from scene3D.twoview import reconstruct_two_view
+from scene3D.twoview.flow_check import (
     FLOW_BAND_PX,
     MIN_FLOW_POINTS,
     FlowCheck,
@@ -18,9 +21,6 @@ from scene3D.flow_check import (
     check_pose_against_images,
     flow_correspondences,
 )
-from scene3D.geometry import rotation_about_axis
-from scene3D.imageio import load_working_image
-from scene3D.twoview import reconstruct_two_view
 from scene3D.twoview.trust import flow_warning
 
 from .helpers import correspondences, perturbed_pose, strecha_pair

@@ -6,7 +6,11 @@ import pytest
 
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import find_matches
-from scene3D.focal_fit import (
+from scene3D.geometry import to_homogeneous
+from scene3D.optim.refinement import _sampson, _sampson_jacobian, _update_pose, refine_relative_pose
+from scene3D.optim.uncertainty import tangent_basis
+from scene3D.twoview import reconstruct_two_view
+from scene3D.twoview.focal_fit import (
     COMMON,
     MAX_LOG_SCALE,
     RATIO,
@@ -15,10 +19,6 @@ from scene3D.focal_fit import (
     fit_focal_ratio,
     fit_focal_scale,
 )
-from scene3D.geometry import to_homogeneous
-from scene3D.refinement import _sampson, _sampson_jacobian, _update_pose, refine_relative_pose
-from scene3D.twoview import reconstruct_two_view
-from scene3D.uncertainty import tangent_basis
 
 from .helpers import correspondences, perturbed_pose, project, random_points, strecha_pair
 

@@ -61,7 +61,7 @@ def test_a_heic_photo_reads_as_its_pixels(heic_pair, fountain):
 
 
 def test_a_heic_pair_gives_the_true_pose(heic_pair, fountain):
-    from scene3D.camera import scale_intrinsics
+    from scene3D.geometry.camera import scale_intrinsics
 
     cams = [read_strecha_camera(fountain / "gt_dense_cameras" / f"000{i}.jpg.camera")
             for i in (4, 5)]

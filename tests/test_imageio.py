@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from scene3D import imageio
-from scene3D.camera import scale_intrinsics_halved
+from scene3D.geometry.camera import scale_intrinsics_halved
 from scene3D.imageio import (
     glob_files,
     halve,

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from scene3D.camera import scale_intrinsics_halved
-from scene3D.intrinsics_prior import (
+from scene3D.geometry.camera import scale_intrinsics_halved
+from scene3D.geometry.intrinsics_prior import (
     DEFAULT_PRIOR_SIGMA_LOG,
     EXIF_SIGMA_LOG,
     ExifCamera,

@@ -8,20 +8,20 @@ import cv2
 import numpy as np
 import pytest
 
-from scene3D.camera import scale_intrinsics_halved
 from scene3D.cli.common import UsageError
 from scene3D.cli.common import read_camera_prior as cli_read_camera_prior
 from scene3D.datasets import fetch_fountain_p11, read_strecha_camera
 from scene3D.errors import DatasetError
 from scene3D.exif import read_camera_prior
-from scene3D.imageio import load_working_images
-from scene3D.intrinsics_prior import (
+from scene3D.geometry.camera import scale_intrinsics_halved
+from scene3D.geometry.intrinsics_prior import (
     CameraMismatchError,
     ExifCamera,
     camera_prior,
     check_one_camera,
     focal_prior,
 )
+from scene3D.imageio import load_working_images
 from scene3D.multiview import reconstruct_views
 
 VIEWS = ("0004.jpg", "0005.jpg", "0006.jpg")

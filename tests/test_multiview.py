@@ -11,8 +11,6 @@ import cv2
 import numpy as np
 import pytest
 
-from scene3D.bundle import Observations, bundle_adjust, reprojection_residuals
-from scene3D.epipolar import essential_distances, essential_from_pose
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import camera_set_error, similarity_transform
 from scene3D.geometry import (
@@ -21,6 +19,7 @@ from scene3D.geometry import (
     rotation_about_axis,
     rotation_from_quaternion,
 )
+from scene3D.geometry.epipolar import essential_distances, essential_from_pose
 from scene3D.multiview import (
     PairMatches,
     SfMSettings,
@@ -32,7 +31,8 @@ from scene3D.multiview import (
     select_pairs,
     verify_pair,
 )
-from scene3D.schur import _schur_product_dense, _schur_product_sparse
+from scene3D.optim.bundle import Observations, bundle_adjust, reprojection_residuals
+from scene3D.optim.schur import _schur_product_dense, _schur_product_sparse
 
 from .conftest import REPO
 from .helpers import scipy_bundle_adjust
@@ -591,7 +591,7 @@ def test_views_that_cannot_start_a_further_model_are_told_why(fountain, data_roo
         assert "fit a focal length 1.2" in why and "does the calibration fit" in why
     # Without a calibration the views left start from the fountain model's focal length,
     # and their reason names it as such, not as a calibration's.
-    from scene3D.intrinsics_prior import focal_prior
+    from scene3D.geometry.intrinsics_prior import focal_prior
 
     r = reconstruct_views(paths, None, max_width=800,
                           focal_prior=focal_prior(None, (3072, 2048)))

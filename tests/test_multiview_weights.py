@@ -6,7 +6,6 @@ import cv2
 import numpy as np
 import pytest
 
-from scene3D.bundle import Observations, bundle_adjust, reprojection_residuals, whitened_residuals
 from scene3D.evaluation import camera_set_error
 from scene3D.geometry import project
 from scene3D.multiview import (
@@ -16,6 +15,12 @@ from scene3D.multiview import (
     reconstruct_models,
 )
 from scene3D.multiview.weights import keypoint_sigma
+from scene3D.optim.bundle import (
+    Observations,
+    bundle_adjust,
+    reprojection_residuals,
+    whitened_residuals,
+)
 
 from .test_multiview import K, _ring_of_cameras, _ring_views
 

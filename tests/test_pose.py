@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from scene3D.epipolar import essential_from_pose
 from scene3D.errors import ReconstructionError
 from scene3D.geometry import project
-from scene3D.pose import choose_pose, decompose_essential
+from scene3D.geometry.epipolar import essential_from_pose
+from scene3D.geometry.pose import choose_pose, decompose_essential
 
 
 def test_four_candidates_are_proper_rotations_and_unit_translations(true_pose):

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from scene3D.geometry import project
-from scene3D.rectification import rectify_pair, rectify_points
+from scene3D.geometry.rectification import rectify_pair, rectify_points
 
 from .helpers import correspondences
 

@@ -3,7 +3,7 @@ import pytest
 
 from scene3D.evaluation import relative_pose_error
 from scene3D.geometry import rotation_about_axis, skew, to_homogeneous
-from scene3D.refinement import (
+from scene3D.optim.refinement import (
     _fundamental_derivatives,
     _robust_cost,
     _sampson,
@@ -12,7 +12,7 @@ from scene3D.refinement import (
     pose_intrinsics_sensitivity,
     refine_relative_pose,
 )
-from scene3D.uncertainty import rotation_vector, tangent_basis
+from scene3D.optim.uncertainty import rotation_vector, tangent_basis
 
 from .helpers import correspondences, perturbed_pose
 

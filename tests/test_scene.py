@@ -3,8 +3,8 @@ import pytest
 from matplotlib.figure import Figure
 
 from scene3D import ReconstructionError, SceneReconstruction3D
-from scene3D.camera import scale_intrinsics
 from scene3D.evaluation import relative_pose_error
+from scene3D.geometry.camera import scale_intrinsics
 
 
 @pytest.fixture(scope="module")
@@ -125,5 +125,5 @@ def test_a_K_for_larger_photos_is_refused_not_trusted(fountain, tmp_path):
     with pytest.raises(ValueError, match=r"`K` does not fit images of 768x512 px.*principal.*"
                                          r"a K for photos about 4 times larger "
                                          r"\(about 3072x2048\)\? "
-                                         r"scene3D.camera.scale_intrinsics\(K, 768 / W"):
+                                         r"scene3D.geometry.camera.scale_intrinsics\(K, 768 / W"):
         scene.load_image_pair(*paths)

@@ -8,7 +8,7 @@ import pytest
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
 from scene3D.geometry import project, rotation_about_axis
-from scene3D.intrinsics_prior import (
+from scene3D.geometry.intrinsics_prior import (
     DEFAULT_PRIOR_SIGMA_LOG,
     EXIF_SIGMA_LOG,
     default_focal_px,

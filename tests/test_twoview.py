@@ -1,12 +1,11 @@
 import numpy as np
 import pytest
 
-from scene3D.epipolar import estimate_homography
 from scene3D.errors import ReconstructionError
-from scene3D.essential_fit import EssentialFit
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import Matches, find_matches
 from scene3D.geometry import project
+from scene3D.geometry.epipolar import estimate_homography
 from scene3D.synthetic import random_points
 from scene3D.twoview import (
     TwoViewSettings,
@@ -16,6 +15,7 @@ from scene3D.twoview import (
     reconstruct_two_view,
     trust_warnings,
 )
+from scene3D.twoview.essential_fit import EssentialFit
 
 from .helpers import correspondences
 
@@ -95,9 +95,9 @@ def test_too_few_matches_says_whether_keypoints_or_matching_were_short(
 
 def test_photos_of_two_places_are_refused_with_what_to_check(data_root):
     """Herz-Jesus-P8 and castle-P19: SIFT finds chance matches, no motion explains them."""
-    from scene3D.camera import scale_intrinsics_halved
     from scene3D.datasets import read_strecha_camera, strecha_views
     from scene3D.features import image_features, match_features
+    from scene3D.geometry.camera import scale_intrinsics_halved
     from scene3D.imageio import load_working_image
 
     features, K = [], None
@@ -384,9 +384,9 @@ def test_warnings_name_where_K_came_from():
     """A focal length or a rotation under another focal length that the matches call for
     is quoted against the calibration's by default, and against the camera files' when K
     came from them (scene3d evaluate): not "the calibration's" where there is none."""
-    from scene3D.focal_fit import FocalFit
+    from scene3D.optim.uncertainty import PoseUncertainty, tangent_basis
+    from scene3D.twoview.focal_fit import FocalFit
     from scene3D.twoview.trust import trust_warnings
-    from scene3D.uncertainty import PoseUncertainty, tangent_basis
 
     s, t = TwoViewSettings(), np.array([1.0, 0.0, 0.0])
     sure = PoseUncertainty(np.diag(np.radians([0.01] * 3 + [0.02] * 2)) ** 2, tangent_basis(t))
@@ -415,8 +415,8 @@ def test_warnings_name_where_K_came_from():
 def test_trust_follows_the_uncertainty_and_what_it_cannot_see():
     """trust_warnings on constructed cases: the sigma limit, explanations attached to a
     large sigma and never verdicts of their own, and the guards."""
-    from scene3D.focal_fit import FocalFit
-    from scene3D.uncertainty import PoseUncertainty, tangent_basis
+    from scene3D.optim.uncertainty import PoseUncertainty, tangent_basis
+    from scene3D.twoview.focal_fit import FocalFit
 
     s = TwoViewSettings()
     t = np.array([1.0, 0.0, 0.0])
@@ -466,8 +466,8 @@ def test_rivals_are_weighed_against_the_covariance(camera, true_pose):
     """rival_chi2 takes each rival in its decomposition nearest the pose and measures it
     under the pose's covariance: a rotation step of two sigmas about one axis is a
     chi-square of 4; none, or no finite covariance, is 0."""
-    from scene3D.epipolar import essential_from_pose
     from scene3D.geometry import rotations_from_vectors
+    from scene3D.geometry.epipolar import essential_from_pose
     from scene3D.twoview import rival_chi2
 
     R, t = true_pose
@@ -487,7 +487,7 @@ def test_a_backdrop_under_a_slightly_short_focal_length_is_not_taken_for_wrong_m
     matches), rendered and matched with SIFT, given a K whose focal length is 5 % short:
     the backdrop's right matches cross infinity and a third of the inliers triangulate
     behind a camera, but at a parallax far below the scene's, so they are not counted
-    as wrong matches (scene3D.triangulation.behind_at_scene_parallax) and the pose,
+    as wrong matches (scene3D.geometry.triangulation.behind_at_scene_parallax) and the pose,
     0.85 deg off, stays trusted. (Found by a review; before, the pose was flagged for
     its inliers behind the cameras.)"""
     from scene3D.geometry import rotation_about_axis

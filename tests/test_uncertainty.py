@@ -5,14 +5,13 @@ import pytest
 
 from scene3D import synthetic
 from scene3D.geometry import project, rotation_about_axis, rotations_from_vectors
-from scene3D.refinement import (
+from scene3D.geometry.triangulation import triangulate_points
+from scene3D.optim.refinement import (
     pose_intrinsics_sensitivity,
     refine_relative_pose,
     relative_pose_covariance,
 )
-from scene3D.triangulation import triangulate_points
-from scene3D.twoview import reconstruct_from_matches
-from scene3D.uncertainty import (
+from scene3D.optim.uncertainty import (
     CHI2_90,
     PoseUncertainty,
     angular_bound_deg,
@@ -28,6 +27,7 @@ from scene3D.uncertainty import (
     tangent_basis,
     truncated_noise,
 )
+from scene3D.twoview import reconstruct_from_matches
 
 from .helpers import correspondences
 

@@ -42,9 +42,9 @@ from ..calibration_uncertainty import (
     format_px,
     uncertainty_map,
 )
-from ..camera import undistort_image
 from ..errors import CalibrationError, plural
 from ..export import all_or_nothing, atomic_write_bytes, atomic_write_pieces
+from ..geometry.camera import undistort_image
 from ..imageio import (
     IMAGE_SUFFIXES,
     folder_images,

@@ -14,7 +14,6 @@ import numpy as np
 
 from .. import __version__
 from ..calibration_io import load_calibration
-from ..camera import adapt_intrinsics_to_size
 from ..export import (
     all_or_nothing,
     atomic_write_bytes,
@@ -23,7 +22,8 @@ from ..export import (
     write_ply,
 )
 from ..features import FEATURE_MODES, normalize_feature_mode
-from ..geometry import camera_centers, rotation_angle_deg
+from ..geometry.camera import adapt_intrinsics_to_size
+from ..geometry.conventions import camera_centers, rotation_angle_deg
 from ..imageio import BOOK_MAX_WIDTH_PX, image_size, read_image_size
 from ..scene import SceneReconstruction3D
 from ..twoview import TwoViewSettings
@@ -47,7 +47,7 @@ from .common import (
 from .outputs import FILES_KEY, SUMMARY_FILE, OutputFolder, out_help
 
 if TYPE_CHECKING:
-    from ..intrinsics_prior import FocalPrior
+    from ..geometry.intrinsics_prior import FocalPrior
 
 logger = logging.getLogger("scene3D.cli")
 
@@ -276,7 +276,7 @@ def _figure_jobs(scene: SceneReconstruction3D, result, dense) -> dict[str, Calla
         robust_extent,
     )
     from ..features import find_matches
-    from ..rectification import rectify_pair
+    from ..geometry.rectification import rectify_pair
 
     img1, img2, K = scene.img1, scene.img2, scene.K
 

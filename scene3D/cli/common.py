@@ -27,7 +27,7 @@ from ..errors import (
 )
 
 if TYPE_CHECKING:
-    from ..intrinsics_prior import FocalPrior
+    from ..geometry.intrinsics_prior import FocalPrior
 
 EXIT_OK = 0
 EXIT_FAILED = 1  # valid input, but the reconstruction / calibration failed
@@ -135,10 +135,11 @@ def focal_sigma_text(focal_px: float, sigma_px: float) -> str:
 
 def read_camera_prior(paths: list[Path]) -> FocalPrior:
     """:func:`scene3D.exif.read_camera_prior` for a command run without ``--calib``: photos
-    of two cameras or zoom settings (:class:`~scene3D.intrinsics_prior.CameraMismatchError`)
-    are a :class:`UsageError` that names ``--calib``, not the library's ``K``."""
+    of two cameras or zoom settings
+    (:class:`~scene3D.geometry.intrinsics_prior.CameraMismatchError`) are a
+    :class:`UsageError` that names ``--calib``, not the library's ``K``."""
     from ..exif import read_camera_prior as read_prior
-    from ..intrinsics_prior import CameraMismatchError
+    from ..geometry.intrinsics_prior import CameraMismatchError
 
     try:
         return read_prior(paths)

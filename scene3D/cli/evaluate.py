@@ -16,7 +16,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera import adapt_intrinsics_to_size, scale_intrinsics_halved
 from ..datasets import StrechaCamera, read_strecha_camera, relative_pose, strecha_views
 from ..engines import Engine, Progress
 from ..errors import ReconstructionError, plural
@@ -31,9 +30,10 @@ from ..features import (
     match_features,
     normalize_feature_mode,
 )
+from ..geometry.camera import adapt_intrinsics_to_size, scale_intrinsics_halved
 from ..imageio import BOOK_MAX_WIDTH_PX, load_working_image, read_image_size
+from ..optim.uncertainty import pose_error_chi2
 from ..twoview import TwoViewSettings, check_against_flow, reconstruct_from_matches
-from ..uncertainty import pose_error_chi2
 from .common import (
     EXIT_OK,
     ArgumentParser,
@@ -152,7 +152,7 @@ class _View:
         (:func:`scene3D.twoview.check_against_flow`) and ``--feature flow``'s tracks
         need it.
     photo : (name, ExifCamera or None, (width, height)) or None
-        With ``--no-calib``: what :func:`scene3D.intrinsics_prior.camera_prior`
+        With ``--no-calib``: what :func:`scene3D.geometry.intrinsics_prior.camera_prior`
         needs of the photo (its EXIF and stored size).
     """
 
@@ -254,7 +254,7 @@ def _evaluate_pair_no_calib(name: str, view_a: _View, view_b: _View,
     from its photos' EXIF or the default prior (:mod:`scene3D.selfcalibration`), and
     ``focal_scale`` is the focal length found over the camera file's (a task: see
     :func:`evaluate_pairs`)."""
-    from ..intrinsics_prior import CameraMismatchError, camera_prior
+    from ..geometry.intrinsics_prior import CameraMismatchError, camera_prior
     from ..selfcalibration import self_calibrate_pair
 
     t0 = time.perf_counter()

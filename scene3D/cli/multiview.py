@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 
 from ..calibration_io import load_calibration
-from ..camera import adapt_intrinsics_to_size
 from ..datasets import StrechaCamera, read_strecha_camera
 from ..errors import plural
 from ..evaluation import camera_set_error
@@ -27,6 +26,7 @@ from ..export import (
     written_bytes,
 )
 from ..features import FEATURE_MODES, resolve_feature_mode
+from ..geometry.camera import adapt_intrinsics_to_size
 from ..imageio import BOOK_MAX_WIDTH_PX, folder_images, glob_files, read_image_size
 from ..multiview import (
     PAIR_MODES,

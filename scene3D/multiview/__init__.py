@@ -23,7 +23,7 @@ bundle adjustment as the missing step. One module per stage, in pipeline order:
 - :mod:`~scene3D.multiview.models`: the data (settings, features, pairs, results);
 - :mod:`~scene3D.multiview.pipeline`: :func:`reconstruct_views`, the stages in order.
 
-The bundle adjustment itself is :mod:`scene3D.bundle` (on :mod:`scene3D.schur`).
+The bundle adjustment itself is :mod:`scene3D.optim.bundle` (on :mod:`scene3D.optim.schur`).
 
 Frames: each model's world is the camera frame of the first view of its initial
 pair, poses world-to-camera ``x_cam = R X + t``; the scale is that of the initial

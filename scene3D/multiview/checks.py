@@ -21,8 +21,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..epipolar import essential_distances
-from ..geometry import FloatArray, median, skew
+from ..geometry.conventions import FloatArray, median, skew
+from ..geometry.epipolar import essential_distances
 from .models import ModelCheck, PairMatches, ViewFeatures
 from .tracks import connected_components
 

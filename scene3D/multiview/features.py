@@ -12,7 +12,7 @@ import hashlib
 import numpy as np
 
 from ..features import create_detector, detect_keypoints, to_gray
-from ..geometry import FloatArray
+from ..geometry.conventions import FloatArray
 from ..imageio import ImageSource, load_working_image
 from ..twoview import sample_colors
 from .models import ViewFeatures

@@ -1,6 +1,6 @@
 """One focal length for a collection of photos without a calibration file.
 
-The camera model is that of :mod:`scene3D.intrinsics_prior`: one focal length
+The camera model is that of :mod:`scene3D.geometry.intrinsics_prior`: one focal length
 (square pixels), the principal point at the image centre, no distortion. The focal
 length is found in two steps:
 
@@ -17,7 +17,7 @@ length is found in two steps:
    own geometry is trusted starts.
 2. **The bundle adjustments.** Every global adjustment of a model of three views or
    more refines one focal length shared by all views
-   (:func:`scene3D.bundle.bundle_adjust_focal`: ``log f`` a global unknown, the
+   (:func:`scene3D.optim.bundle.bundle_adjust_focal`: ``log f`` a global unknown, the
    principal point held), with the prior as a weak term
    ``(log f - log f_prior) / sigma_log``; the local adjustments hold it. Registration,
    triangulation and the checks use the latest value.
@@ -44,10 +44,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..bundle import FocalAdjustment
-from ..camera import with_focal
 from ..errors import ReconstructionError
-from ..geometry import FloatArray
+from ..geometry.camera import with_focal
+from ..geometry.conventions import FloatArray
+from ..optim.bundle import FocalAdjustment
 from ..selfcalibration import SelfCalibration, self_calibrate_pair
 from ..twoview import TwoViewGeometry
 from .models import FocalEstimate, PairMatches, ViewFeatures
@@ -63,7 +63,7 @@ class FocalSettings:
     ----------
     prior_focal_px : float
         The prior's focal length at the working size
-        (:class:`scene3D.intrinsics_prior.FocalPrior`, scaled).
+        (:class:`scene3D.geometry.intrinsics_prior.FocalPrior`, scaled).
     prior_sigma_log : float
         Its standard deviation in ``log f``.
     prior_source : str

@@ -32,7 +32,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..errors import ReconstructionError, plural
-from ..geometry import FloatArray, median
+from ..geometry.conventions import FloatArray, median
 from ..twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
 from ..twoview.trust import focal_mismatch
 from .focal import (

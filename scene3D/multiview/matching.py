@@ -21,9 +21,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from ..epipolar import essential_distances
 from ..features import match_descriptors
-from ..geometry import FloatArray
+from ..geometry.conventions import FloatArray
+from ..geometry.epipolar import essential_distances
 from .models import PairMatches, SfMSettings, ViewFeatures
 
 

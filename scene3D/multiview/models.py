@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ..bundle import Observations, reprojection_residuals
-from ..geometry import FloatArray, camera_centers
+from ..geometry.conventions import FloatArray, camera_centers
+from ..optim.bundle import Observations, reprojection_residuals
 from ..twoview.results import TwoViewSettings
 from ..twoview.trust import focal_mismatch
 
@@ -217,7 +217,7 @@ class ModelCheck:
     focal_scale, focal_scale_sigma_log : float
         With a calibration file, models of three views or more: the focal length the
         model's observations call for (one shared by every view, adjusted with the
-        cameras and points; :func:`scene3D.bundle.bundle_adjust_focal`), as a factor of
+        cameras and points; :func:`scene3D.optim.bundle.bundle_adjust_focal`), as a factor of
         the calibration's, and the standard deviation of its log. 1 and inf when not
         tested.
     focal_mismatch : bool
@@ -391,7 +391,7 @@ class MultiViewReconstruction:
     - ``centers`` : (V, 3) float64, camera centres ``C = -R^T t`` in the world frame;
     - ``points3d`` : (P, 3) float64, points in the world frame;
     - ``colors`` : (P, 3) uint8, RGB colour of each point;
-    - ``observations`` : :class:`scene3D.bundle.Observations`, ``view`` (O,) input-view
+    - ``observations`` : :class:`scene3D.optim.bundle.Observations`, ``view`` (O,) input-view
       indices, ``point`` (O,) indices into ``points3d``, ``xy`` (O, 2) working pixels;
     - ``reprojection_rmse_px`` : float, RMS of the residuals' x and y components over
       the observations, with ``model_K(main)``.

@@ -23,18 +23,18 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..bundle import Observations
-from ..camera import (
+from ..engines import Engine, LocalEngine
+from ..errors import ReconstructionError
+from ..geometry.camera import (
     check_intrinsics_for_native_size,
     different_sizes_message,
     scale_intrinsics_halved,
     validate_distortion,
     validate_intrinsics,
 )
-from ..engines import Engine, LocalEngine
-from ..errors import ReconstructionError
+from ..geometry.intrinsics_prior import FocalPrior, camera_prior
 from ..imageio import BOOK_MAX_WIDTH_PX, ImageSource, refuse_single_path, source_label
-from ..intrinsics_prior import FocalPrior, camera_prior
+from ..optim.bundle import Observations
 from .features import content_key, view_features
 from .focal import FocalSettings
 from .mapper import reconstruct_models
@@ -160,7 +160,7 @@ def reconstruct_views(
         ``sorted(Path(folder).glob("*.jpg"))``).
     K : (3, 3) array_like or None
         Intrinsics of the **native** (stored) images; one that cannot be theirs (a
-        ``K`` for larger photos: :func:`scene3D.camera.check_intrinsics_for_size`)
+        ``K`` for larger photos: :func:`scene3D.geometry.camera.check_intrinsics_for_size`)
         is refused. None for photos without a calibration: one focal length (the
         principal point at the centre, no distortion) starts from ``focal_prior``
         and is refined by the photos

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import FloatArray, project_with_jacobian
-from ..schur import pairs_within_groups
+from ..geometry.conventions import FloatArray, project_with_jacobian
+from ..optim.schur import pairs_within_groups
 
 
 def _sum_rows(group: np.ndarray, values: FloatArray, num_groups: int) -> FloatArray:

@@ -16,8 +16,8 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
-from ..bundle import Observations, bundle_adjust, bundle_adjust_focal, reprojection_residuals
-from ..geometry import FloatArray, camera_centers
+from ..geometry.conventions import FloatArray, camera_centers
+from ..optim.bundle import Observations, bundle_adjust, bundle_adjust_focal, reprojection_residuals
 from .checks import check_model
 from .focal import FocalSettings, longer_side_px
 from .models import (
@@ -44,7 +44,7 @@ class GrowingModel:
                  timings: dict[str, float], focal: FocalSettings | None = None) -> None:
         self.features, self.K, self.s, self.timings = features, K, settings, timings
         self.focal = focal  # photos without a calibration: global adjustments refine f
-        self.focal_adjustment = None  # the last one's scene3D.bundle.FocalAdjustment
+        self.focal_adjustment = None  # the last one's scene3D.optim.bundle.FocalAdjustment
         self.allowed = allowed
         self.pairs = [p for p in pairs if allowed[p.i] and allowed[p.j]]
         V = len(features)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import FloatArray
+from ..geometry.conventions import FloatArray
 
 
 def keypoint_sigma(sizes: FloatArray) -> FloatArray:

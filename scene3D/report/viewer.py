@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..drawing import robust_extent, subsample_indices
-from ..geometry import FloatArray
+from ..geometry.conventions import FloatArray
 
 #: At most this many points are sent to the browser, all layers together; beyond it a
 #: random subset is shown (with a note) so that the view stays responsive.

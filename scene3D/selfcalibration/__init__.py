@@ -1,10 +1,10 @@
 """Self-calibration of one focal length from the matches of a pair of photos.
 
 Photos without a calibration file start from a focal length (EXIF, or a prior: see
-:mod:`scene3D.intrinsics_prior`) with the principal point at the image centre. Two
+:mod:`scene3D.geometry.intrinsics_prior`) with the principal point at the image centre. Two
 views with rotation and depth determine a common focal length (H&Z section 19.5;
 Bougnoux 1998): the pose and the focal length are refined together
-(:func:`scene3D.focal_fit.fit_focal_scale`, through the two-view pipeline's focal
+(:func:`scene3D.twoview.focal_fit.fit_focal_scale`, through the two-view pipeline's focal
 check :func:`scene3D.twoview.check_focal_length`).
 
 What has to be iterated, and why a plain iteration is not enough:
@@ -43,7 +43,7 @@ Two things the local sigma cannot see. The pose's own covariance is conditional 
 ``K``: under a focal length 20 % off it still says hundredths of a degree. So the
 pose covariance reported is marginal over the intrinsics
 (:func:`marginal_pose_covariance`): how the pose moves with ``log f`` and the
-principal point (:func:`scene3D.refinement.pose_intrinsics_sensitivity`) times their
+principal point (:func:`scene3D.optim.refinement.pose_intrinsics_sensitivity`) times their
 covariance (:func:`intrinsics_covariance`) is added, and the two-view trust rule
 (``TwoViewSettings.uncertainty_sigmas`` within ``uncertainty_limit_deg``) is applied
 to it. And a pair can fit two focal lengths about equally well, each with its own

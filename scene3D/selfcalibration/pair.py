@@ -12,8 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import ReconstructionError
-from ..essential_fit import essential_cost
-from ..geometry import (
+from ..geometry.conventions import (
     FloatArray,
     as_matrix,
     as_points2d,
@@ -21,9 +20,10 @@ from ..geometry import (
     distinct_correspondences,
     require_real_number,
 )
+from ..optim.uncertainty import depth_sigmas, largest_sigma_deg
 from ..twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
+from ..twoview.essential_fit import essential_cost
 from ..twoview.trust import beyond_uncertainty_limit, sigmas_text
-from ..uncertainty import depth_sigmas, largest_sigma_deg
 from .search import FocalProfile, combine_log_normal, converge_focal, focal_profile, with_focal
 from .uncertainty import (
     FocalUncertainty,
@@ -74,7 +74,7 @@ class SelfCalibrationSettings:
         of ``log f``) is untrusted: the pose may be off by degrees.
     ambiguity_cost : float
         Another basin whose converged cost is within this of the best one's (in
-        the units of :func:`scene3D.essential_fit.essential_cost`, where an outlier costs
+        the units of :func:`scene3D.twoview.essential_fit.essential_cost`, where an outlier costs
         2.3) and whose focal length differs by more than three standard deviations
         makes the result ambiguous (untrusted).
     pose_principal_point : bool
@@ -220,7 +220,7 @@ def self_calibrate_pair(
         Matched pixels in image 1 and image 2 (working images).
     K_start : (3, 3) array_like
         The starting intrinsics of the working images: the prior's focal length and
-        principal point (:class:`scene3D.intrinsics_prior.FocalPrior`, scaled to the
+        principal point (:class:`scene3D.geometry.intrinsics_prior.FocalPrior`, scaled to the
         working size). Only the focal length changes.
     prior_sigma_log : float
         Standard deviation of the prior's ``log f``.

@@ -8,11 +8,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..camera import with_focal
-from ..epipolar import essential_distances
-from ..essential_fit import essential_cost, fit_essential, noise_sigma_px
-from ..geometry import FloatArray
+from ..geometry.camera import with_focal
+from ..geometry.conventions import FloatArray
+from ..geometry.epipolar import essential_distances
 from ..twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
+from ..twoview.essential_fit import essential_cost, fit_essential, noise_sigma_px
 
 
 @dataclass(frozen=True)
@@ -24,7 +24,7 @@ class FocalProfile:
     focal_px : (n,) float64
         The focal lengths tried, increasing.
     cost : (n,) float64
-        :func:`scene3D.essential_fit.essential_cost` of each one's robust fit over all
+        :func:`scene3D.twoview.essential_fit.essential_cost` of each one's robust fit over all
         matches, at ``threshold_px`` (inf where no fit was found).
     threshold_px : float
         The cost's threshold: three robust standard deviations of the keypoint
@@ -55,9 +55,9 @@ def focal_profile(pts1: FloatArray, pts2: FloatArray, K: FloatArray, factors: Fl
     """The robust cost of the best pose at focal lengths ``K[0, 0] * factors``.
 
     At each focal length one robust estimation of E with local optimisation
-    (:func:`scene3D.essential_fit.fit_essential`, one start: the profile only has to
+    (:func:`scene3D.twoview.essential_fit.fit_essential`, one start: the profile only has to
     find the basins). Each fit is scored over all matches ``pts1, pts2`` ``(N, 2)``
-    by :func:`scene3D.essential_fit.essential_cost` at one threshold for all: three
+    by :func:`scene3D.twoview.essential_fit.essential_cost` at one threshold for all: three
     times the smallest robust noise sigma of their inliers (the fit nearest the
     truth has the least spread), at least ``min_threshold_px`` and at most
     ``threshold_px``. Pixels, and so the costs, are comparable across focal lengths.

@@ -1,6 +1,6 @@
 """How sure a self-calibrated focal length is, which other focal lengths the matches
 do not tell apart, and the pose covariance marginal over the intrinsics (see
-:mod:`scene3D.selfcalibration`; the pose's own covariance is :mod:`scene3D.uncertainty`)."""
+:mod:`scene3D.selfcalibration`; the pose's own covariance is :mod:`scene3D.optim.uncertainty`)."""
 
 from __future__ import annotations
 
@@ -10,14 +10,14 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..epipolar import essential_distances
-from ..essential_fit import essential_costs, loss_scale_px
-from ..focal_fit import fit_focal_scale
-from ..geometry import FloatArray, pose_angle_deg
-from ..pose import choose_pose
-from ..refinement import pose_intrinsics_sensitivity
+from ..geometry.conventions import FloatArray, pose_angle_deg
+from ..geometry.epipolar import essential_distances
+from ..geometry.pose import choose_pose
+from ..optim.refinement import pose_intrinsics_sensitivity
+from ..optim.uncertainty import marginal_covariance
 from ..twoview import TwoViewGeometry, TwoViewSettings
-from ..uncertainty import marginal_covariance
+from ..twoview.essential_fit import essential_costs, loss_scale_px
+from ..twoview.focal_fit import fit_focal_scale
 from .search import with_focal
 
 
@@ -115,7 +115,7 @@ def focal_rivals(pts1: FloatArray, pts2: FloatArray, chosen: TwoViewGeometry,
     known to ``sigma_log`` by the local analysis). A fit is a rival when its focal
     length lies more than three ``sigma_log`` away (so the local sigma does not
     describe it), its cost over all matches ``pts1, pts2`` ``(N, 2)``
-    (:func:`scene3D.essential_fit.essential_costs` at ``threshold_px``) is not
+    (:func:`scene3D.twoview.essential_fit.essential_costs` at ``threshold_px``) is not
     significantly higher (:func:`blocked_difference_z` below ``max_z``, with
     ``cells`` x ``cells`` cells of image 1 as blocks): the local sigma describes only
     one of the answers the pair supports (a facade with repeated windows at 768 px:
@@ -148,7 +148,7 @@ def focal_uncertainty(geometry: TwoViewGeometry, settings: TwoViewSettings,
                       principal_point_shift_px: float, cells: int = 3) -> FocalUncertainty:
     """How well the pair's inliers determine the focal length of ``geometry.K``.
 
-    The focal fit (:func:`scene3D.focal_fit.fit_focal_scale` on the geometry's
+    The focal fit (:func:`scene3D.twoview.focal_fit.fit_focal_scale` on the geometry's
     inliers, from its pose, under the pipeline's noise-adaptive Cauchy loss) is
     repeated (a) without the inliers of each of ``cells`` x ``cells`` cells of
     image 1's bounding box in turn (the delete-a-group jackknife:
@@ -194,7 +194,7 @@ def intrinsics_covariance(focal_sigma_log: float, principal_point_sigma_px: floa
     """Covariance ``(3, 3)`` of the intrinsics a pair's pose was estimated under.
 
     The parameters are ``theta = (log f, c_x, c_y)`` (the principal point in
-    pixels), as in :func:`scene3D.refinement.pose_intrinsics_sensitivity`. The
+    pixels), as in :func:`scene3D.optim.refinement.pose_intrinsics_sensitivity`. The
     principal point is the image centre, assumed within ``principal_point_sigma_px``
     (each axis, independent) of the true one; ``log f`` is known to
     ``focal_sigma_log``. The fitted focal length moves with the principal point
@@ -220,11 +220,11 @@ def marginal_pose_covariance(geometry: TwoViewGeometry, intrinsics_cov: FloatArr
     length and the principal point are estimates and guesses, and a pose estimated
     under a focal length 20 % off is off by degrees while its conditional sigma says
     hundredths. The marginal covariance adds how the pose moves with the intrinsics
-    (:func:`scene3D.refinement.pose_intrinsics_sensitivity`, on the geometry's
+    (:func:`scene3D.optim.refinement.pose_intrinsics_sensitivity`, on the geometry's
     inliers under the loss of its refinement) times their covariance
     ``intrinsics_cov`` ``(3, 3)`` over ``(log f, c_x, c_y)``
-    (:func:`intrinsics_covariance`; :func:`scene3D.uncertainty.marginal_covariance`).
-    Parametrisation and frames of :mod:`scene3D.uncertainty` (rotation vector in the
+    (:func:`intrinsics_covariance`; :func:`scene3D.optim.uncertainty.marginal_covariance`).
+    Parametrisation and frames of :mod:`scene3D.optim.uncertainty` (rotation vector in the
     camera-2 frame, then the direction step along ``tangent_basis(geometry.t)``).
     """
     in1, in2, K = geometry.inlier_pts1, geometry.inlier_pts2, geometry.K

@@ -4,16 +4,17 @@ The pipeline (book chapter 4, done right):
 
 1. essential matrix from calibrated points (5-point, USAC), then a local
    optimisation of the pose on its inliers (robust Sampson refinement),
-   restarted until the best fit is found twice (:func:`scene3D.essential_fit.fit_essential`),
+   restarted until the best fit is found twice
+   (:func:`scene3D.twoview.essential_fit.fit_essential`),
 2. model selection: a pure rotation (no baseline) is refused when a rotation
    homography explains the matches as well as the essential matrix
-   (:func:`scene3D.degeneracy.motion_model_choice`); a planar scene is refused
+   (:func:`scene3D.twoview.degeneracy.motion_model_choice`); a planar scene is refused
    unless matches off the plane rule out the other pose a plane allows,
 3. pose by cheirality over all inliers; ``F = K^-T E K^-1`` for epipolar lines,
 4. triangulation, keeping points in front of both cameras with small
    reprojection error and enough parallax,
-5. the pose's first-order covariance (:func:`scene3D.refinement.relative_pose_covariance`,
-   parametrisation in :mod:`scene3D.uncertainty`), with the pull of the inliers that
+5. the pose's first-order covariance (:func:`scene3D.optim.refinement.relative_pose_covariance`,
+   parametrisation in :mod:`scene3D.optim.uncertainty`), with the pull of the inliers that
    lie behind the cameras (:func:`scene3D.twoview.core.pose_covariance`), and each
    point's depth uncertainty,
 6. trust (:func:`trust_warnings`): a pose is untrusted when its uncertainty is too
@@ -33,7 +34,6 @@ Frames: points are in the camera-1 frame, ``x_cam2 = R x_cam1 + t``, ``|t| = 1``
 (the scale is unknown).
 """
 
-from ..degeneracy import is_rotation_homography, off_plane_evidence, plane_poses
 from .core import (
     check_against_flow,
     reconstruct_from_matches,
@@ -41,10 +41,11 @@ from .core import (
     require_enough_matches,
     sample_colors,
 )
+from .degeneracy import is_rotation_homography, off_plane_evidence, plane_poses
 from .results import TwoViewGeometry, TwoViewReconstruction, TwoViewSettings
 from .trust import check_distortion, check_focal_length, rival_chi2, trust_warnings
 
-__all__ = [  # the plane checks lived here before scene3D.degeneracy
+__all__ = [  # the plane checks lived here before scene3D.twoview.degeneracy
     "TwoViewGeometry", "TwoViewReconstruction", "TwoViewSettings", "check_against_flow",
     "check_distortion", "check_focal_length",
     "is_rotation_homography", "off_plane_evidence", "plane_poses", "reconstruct_from_matches",

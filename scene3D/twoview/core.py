@@ -9,27 +9,10 @@ from dataclasses import fields, replace
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..bundle_two_view import bundle_adjust_two_view
-from ..camera import check_intrinsics_for_native_size, validate_intrinsics
-from ..degeneracy import (
-    MotionModelChoice,
-    lower_cost_plane_pose,
-    motion_model_choice,
-    off_plane_evidence,
-    warped_copy_residual,
-)
-from ..epipolar import (
-    essential_distances,
-    essential_from_pose,
-    estimate_homography,
-    fundamental_from_essential,
-)
 from ..errors import ReconstructionError, log_result_warnings
-from ..essential_fit import fit_essential, inlier_threshold_px, loss_scale_px, noise_sigma_px
 from ..features import Matches, check_image, to_gray
-from ..flow_check import check_pose_against_images
-from ..focal_fit import fit_focal_ratio
-from ..geometry import (
+from ..geometry.camera import check_intrinsics_for_native_size, validate_intrinsics
+from ..geometry.conventions import (
     FloatArray,
     as_points2d,
     check_same_length,
@@ -37,21 +20,38 @@ from ..geometry import (
     median,
     pose_angle_deg,
 )
-from ..pose import choose_pose
-from ..refinement import refine_relative_pose, relative_pose_covariance
-from ..triangulation import (
+from ..geometry.epipolar import (
+    essential_distances,
+    essential_from_pose,
+    estimate_homography,
+    fundamental_from_essential,
+)
+from ..geometry.pose import choose_pose
+from ..geometry.triangulation import (
     behind_at_scene_parallax,
     behind_beyond_noise,
     parallax_angles_deg,
     reprojection_errors,
 )
-from ..uncertainty import (
+from ..optim.bundle_two_view import bundle_adjust_two_view
+from ..optim.refinement import refine_relative_pose, relative_pose_covariance
+from ..optim.uncertainty import (
     PoseUncertainty,
     depth_sigmas,
     pose_error_coordinates,
     tangent_basis,
     truncated_noise,
 )
+from .degeneracy import (
+    MotionModelChoice,
+    lower_cost_plane_pose,
+    motion_model_choice,
+    off_plane_evidence,
+    warped_copy_residual,
+)
+from .essential_fit import fit_essential, inlier_threshold_px, loss_scale_px, noise_sigma_px
+from .flow_check import check_pose_against_images
+from .focal_fit import fit_focal_ratio
 from .results import TwoViewGeometry, TwoViewReconstruction, TwoViewSettings
 from .trust import (
     check_distortion,
@@ -81,10 +81,10 @@ def sample_colors(img_bgr: np.ndarray, points: FloatArray) -> np.ndarray:
 
 def _motion(E: FloatArray, in1: FloatArray, in2: FloatArray, K: FloatArray, H: FloatArray,
             threshold_px: float, free_focal: bool) -> MotionModelChoice:
-    """:func:`scene3D.degeneracy.motion_model_choice` on the inliers of ``E``.
+    """:func:`scene3D.twoview.degeneracy.motion_model_choice` on the inliers of ``E``.
 
     The noise is floored at a thousandth of the threshold (as the loss scale is,
-    :func:`scene3D.essential_fit.loss_scale_px`): exact matches leave a homography fitted
+    :func:`scene3D.twoview.essential_fit.loss_scale_px`): exact matches leave a homography fitted
     in float arithmetic with errors of 1e-6 px that would otherwise count as misfit.
     """
     distances = essential_distances(E, in1, in2, K)
@@ -99,12 +99,12 @@ def pose_covariance(R: FloatArray, t: FloatArray, in1: FloatArray, in2: FloatArr
     and the noise that the inlier threshold cut off.
 
     The sandwich covariance of the robust Sampson fit over the inliers ``in1, in2``
-    ``(N, 2)`` (:func:`scene3D.refinement.relative_pose_covariance`; parametrisation of
-    :mod:`scene3D.uncertainty`) describes the noise of correct matches. A wrong match
+    ``(N, 2)`` (:func:`scene3D.optim.refinement.relative_pose_covariance`; parametrisation of
+    :mod:`scene3D.optim.uncertainty`) describes the noise of correct matches. A wrong match
     that passes the inlier threshold is no such noise: anywhere along its epipolar line,
     its rays meet at a large angle and it pulls the translation direction by more than
     its term in the sandwich says. Those that lie behind a camera beyond the noise
-    (``behind`` ``(N,) bool``, :func:`scene3D.triangulation.behind_beyond_noise`) are
+    (``behind`` ``(N,) bool``, :func:`scene3D.geometry.triangulation.behind_beyond_noise`) are
     known to be wrong, yet they are not dropped from the pose: one that lies on its
     epipolar line still constrains it (a repeated structure along the line, a
     duplicate), and without them the real benchmark's poses are no better (fountain-P11
@@ -116,7 +116,7 @@ def pose_covariance(R: FloatArray, t: FloatArray, in1: FloatArray, in2: FloatArr
 
     The sandwich measures the noise by the inliers' residuals, which the inlier
     threshold cut: their variance is ``variance_factor`` times the noise's
-    (:attr:`scene3D.uncertainty.TruncatedNoise.variance_factor`), so ``C`` is divided
+    (:attr:`scene3D.optim.uncertainty.TruncatedNoise.variance_factor`), so ``C`` is divided
     by it (1 and no change when the threshold lies far out in the noise's tail;
     infinite when the noise is unknown, 0).
 
@@ -160,7 +160,7 @@ def reconstruct_from_matches(
     settings : TwoViewSettings, optional
     image_size : (width, height), optional
         The images' size: ``K`` is then checked against it
-        (:func:`scene3D.camera.check_intrinsics_for_native_size`), and a principal
+        (:func:`scene3D.geometry.camera.check_intrinsics_for_native_size`), and a principal
         point far from its centre marks the pose untrusted; without it, one far outside
         the matches does (:func:`scene3D.twoview.trust.principal_point_warning`).
     K_source : str, optional
@@ -260,12 +260,12 @@ def reconstruct_from_matches(
             exc.reason, f"{exc.message}; a rotation alone{under} explains {share:.0%} of the "
             "inliers (did the camera only turn?)", **exc.counts) from None
     # The noise of these inliers sets the losses of the focal check and the adjustment,
-    # as it does the local optimisation's (scene3D.essential_fit.refine_essential).
+    # as it does the local optimisation's (scene3D.twoview.essential_fit.refine_essential).
     distances = essential_distances(E, in1, in2, K)
     noise = noise_sigma_px(distances)
     behind = behind_beyond_noise(points, R, t, K, noise)
     # Inliers behind at the scene's parallax: wrong matches, not far ones a slightly wrong
-    # K pushed across infinity (scene3D.triangulation.behind_at_scene_parallax).
+    # K pushed across infinity (scene3D.geometry.triangulation.behind_at_scene_parallax).
     angles = parallax_angles_deg(np.nan_to_num(points), R, t)
     behind_share = float(behind_at_scene_parallax(angles, behind, front).sum()) / num_inliers
     if planar:
@@ -332,7 +332,7 @@ def reconstruct_from_matches(
     # The covariance at the final pose: the Sampson cost is the bundle adjustment's with
     # the points eliminated, to first order, so it serves after an adjustment too.
     # The inliers were re-selected at the threshold their noise calls for: how much of
-    # that noise it cut (scene3D.essential_fit.refine_essential).
+    # that noise it cut (scene3D.twoview.essential_fit.refine_essential).
     cut = truncated_noise(distances, inlier_threshold)
     uncertainty = PoseUncertainty(pose_covariance(R, t, in1, in2, K, behind, loss_scale,
                                                   cut.variance_factor),
@@ -395,7 +395,7 @@ def _farthest_pixel(K: FloatArray, image_size: tuple[int, int] | None,
 def check_against_flow(geometry: TwoViewGeometry, img1: np.ndarray, img2: np.ndarray,
                        settings: TwoViewSettings | None = None) -> TwoViewGeometry:
     """A pose found from sparse matches, checked against the dense optical flow between
-    the images (:mod:`scene3D.flow_check`).
+    the images (:mod:`scene3D.twoview.flow_check`).
 
     ``img1, img2`` are the working images ``(H, W, 3)`` BGR or ``(H, W)`` grey ``uint8``
     that ``geometry``'s points were found in. Only a trusted pose is checked (a doubt

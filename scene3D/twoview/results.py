@@ -7,8 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..geometry import FloatArray, is_real_number, is_whole_number
-from ..uncertainty import PoseUncertainty, tangent_basis
+from ..geometry.conventions import FloatArray, is_real_number, is_whole_number
+from ..optim.uncertainty import PoseUncertainty, tangent_basis
 
 
 @dataclass(frozen=True)
@@ -20,10 +20,10 @@ class TwoViewSettings:
     threshold_px : float
         Robust-estimation inlier threshold for F, E and H, in pixels (> 0). The local
         optimisation of E raises it, at most twofold, when the matches are noisier
-        than it assumes (:func:`scene3D.essential_fit.inlier_threshold_px`).
+        than it assumes (:func:`scene3D.twoview.essential_fit.inlier_threshold_px`).
     max_starts : int
         Most robust estimations of E (each locally optimised); the best is kept
-        once two starts agree on it (:func:`scene3D.essential_fit.fit_essential`).
+        once two starts agree on it (:func:`scene3D.twoview.essential_fit.fit_essential`).
         1 gives a single start, as plain OpenCV does (>= 1).
     restart_agreement_deg : float
         When no pose was found twice, the result is still trusted if every start's
@@ -45,7 +45,7 @@ class TwoViewSettings:
         keeps them all).
     planar_ratio : float
         Homography inliers / essential inliers above which the pair is checked for
-        the planar ambiguity (:func:`scene3D.degeneracy.off_plane_evidence`; 0 to 1).
+        the planar ambiguity (:func:`scene3D.twoview.degeneracy.off_plane_evidence`; 0 to 1).
     min_off_plane_matches : int
         A (nearly) planar pair is refused unless at least this many matches off the
         plane rule out the other pose that the plane allows (>= 0).
@@ -61,9 +61,9 @@ class TwoViewSettings:
         doubted.
     max_noise_cut_share : float
         The pose is untrusted when the inlier threshold cuts off more than this share
-        of the matches that fit it (:func:`scene3D.uncertainty.truncated_noise`: the
+        of the matches that fit it (:func:`scene3D.optim.uncertainty.truncated_noise`: the
         matches are noisier than the threshold, at most
-        :data:`scene3D.essential_fit.MAX_THRESHOLD_GROWTH` times ``threshold_px``, can
+        :data:`scene3D.twoview.essential_fit.MAX_THRESHOLD_GROWTH` times ``threshold_px``, can
         hold): the pose then rests on the matches that happen to fit best, which
         biases it, and the covariance's allowance for the cut no longer makes up
         for it. On a synthetic pair with a 1 px threshold (raised to 2 px), 1 px of
@@ -73,7 +73,7 @@ class TwoViewSettings:
     max_rotation_share : float
         The pose is untrusted when a rotation alone explains more than this share of
         the inliers (within three noise standard deviations;
-        :func:`scene3D.degeneracy.motion_model_choice`): most matches show no
+        :func:`scene3D.twoview.degeneracy.motion_model_choice`): most matches show no
         parallax, and the translation rests on the others, which a moving object
         would explain as well as a camera that moved (on OpenCV's ``left*.jpg``, a
         still camera and a chessboard moved by hand, 5 of 78 pairs came back
@@ -84,7 +84,7 @@ class TwoViewSettings:
         matches can agree on a wrong pose by chance (a few dozen of them among a
         few hundred; ``tests/test_twoview.py``). For the same reason the robust fit
         tests its last refinement against its covariance only above this count
-        (``shift_test_min_inliers`` of :func:`scene3D.essential_fit.fit_essential`).
+        (``shift_test_min_inliers`` of :func:`scene3D.twoview.essential_fit.fit_essential`).
         >= 0.
     trusted_inlier_ratio, trusted_parallax_deg, planar_warning_ratio : float
         Not verdicts: when the uncertainty is too large, the warning names the
@@ -96,7 +96,7 @@ class TwoViewSettings:
     max_behind_share : float
         The pose is untrusted when more than this share of its inliers triangulate
         behind a camera, by more than the noise explains and at the scene's parallax
-        (:func:`scene3D.triangulation.behind_at_scene_parallax`; ``behind_share`` of
+        (:func:`scene3D.geometry.triangulation.behind_at_scene_parallax`; ``behind_share`` of
         the result). Each is a wrong match that happens to lie near its epipolar line
         (or a point of an object that moved), and a random match within 1 px of a
         pose's epipolar line lands so 19-44 % of the time (synthetic poses), so a
@@ -110,10 +110,10 @@ class TwoViewSettings:
         The result is marked untrusted when the matches call for a focal length more
         than ``1 + max_focal_mismatch`` times larger or smaller than the
         calibration's, by more than ``focal_mismatch_sigmas`` standard deviations
-        (:func:`scene3D.focal_fit.fit_focal_scale`): the calibration is probably
+        (:func:`scene3D.twoview.focal_fit.fit_focal_scale`): the calibration is probably
         for another camera, lens or zoom, and the pose is off by degrees. The same limits
         hold for image 2's focal length against image 1's
-        (:func:`scene3D.focal_fit.fit_focal_ratio`): two zoom settings, or one photo
+        (:func:`scene3D.twoview.focal_fit.fit_focal_ratio`): two zoom settings, or one photo
         cropped or resized, with one calibration. Three
         standard deviations of the sandwich estimate (five of the optimistic IRLS
         estimate before it): with the true K no right pose of the three Strecha
@@ -124,8 +124,8 @@ class TwoViewSettings:
         (:func:`scene3D.twoview.check_against_flow`), is marked untrusted when the pose
         refined on the dense optical flow between the images puts more than this share
         of the flow's textured pixels more within
-        :data:`scene3D.flow_check.FLOW_BAND_PX` of its epipolar lines
-        (:func:`scene3D.flow_check.check_pose_against_flow`) and lies at least half
+        :data:`scene3D.twoview.flow_check.FLOW_BAND_PX` of its epipolar lines
+        (:func:`scene3D.twoview.flow_check.check_pose_against_flow`) and lies at least half
         ``uncertainty_limit_deg`` away: sparse matches on repeated texture agreed on
         a wrong pose that the flow does not follow. On the three Strecha scenes the
         gain is at most 0.09 on right poses (within 1 deg) but one (0.18, its flow pose
@@ -146,7 +146,7 @@ class TwoViewSettings:
         leaves the check nearly blind there (docs/trust.md).
     bundle_adjust : bool
         Finish with a two-view bundle adjustment of pose and points
-        (:func:`scene3D.bundle_two_view.bundle_adjust_two_view`) with the same Cauchy
+        (:func:`scene3D.optim.bundle_two_view.bundle_adjust_two_view`) with the same Cauchy
         loss as the local optimisation. Off by default: on the fountain-P11
         benchmark pairs it moves the poses by hundredths of a degree at most, closer
         to the truth on some pairs and further on others (at 768 px AUC@5deg 98.2
@@ -274,26 +274,26 @@ class TwoViewGeometry:
     refinement_s : float
         Seconds spent refining the pose (and bundle adjusting, if asked).
     robust_starts : int
-        Robust estimations of E run (:func:`scene3D.essential_fit.fit_essential`); when
+        Robust estimations of E run (:func:`scene3D.twoview.essential_fit.fit_essential`); when
         the best pose was not found twice in ``TwoViewSettings.max_starts`` of them
         and their optima lie more than ``TwoViewSettings.restart_agreement_deg``
         apart (found twice: more than ``TwoViewSettings.uncertainty_limit_deg``), outside
         the covariance's region, the result is untrusted.
     robust_spread_deg : float
         How far the other starts' optima lie from the chosen one
-        (:attr:`scene3D.essential_fit.EssentialFit.spread_deg`; 0 when they all agree).
+        (:attr:`scene3D.twoview.essential_fit.EssentialFit.spread_deg`; 0 when they all agree).
     focal_scale, focal_scale_sigma : float
         The focal length the inliers call for, as a multiple of the calibration's,
-        and its standard deviation (:func:`scene3D.focal_fit.fit_focal_scale`;
+        and its standard deviation (:func:`scene3D.twoview.focal_fit.fit_focal_scale`;
         near 1 when the calibration fits, the sigma infinite when the pair cannot
         tell).
     focal_ratio, focal_ratio_sigma : float
         Image 2's focal length over image 1's that the inliers call for, with the
-        calibration's geometric mean kept (:func:`scene3D.focal_fit.fit_focal_ratio`;
+        calibration's geometric mean kept (:func:`scene3D.twoview.focal_fit.fit_focal_ratio`;
         near 1 when one calibration fits both photos), and its standard deviation.
     pose_covariance : (5, 5) float64
         First-order covariance of the pose (radians^2) in the parametrisation of
-        :mod:`scene3D.uncertainty`: rows 0-2 the rotation vector ``w`` of
+        :mod:`scene3D.optim.uncertainty`: rows 0-2 the rotation vector ``w`` of
         ``R <- exp([w]x) R`` (camera-2 frame), rows 3-4 the step of ``t`` along the
         rows of ``tangent_basis(t)`` (:attr:`pose_uncertainty` has both). Infinite
         when the matches do not determine the pose.
@@ -303,28 +303,28 @@ class TwoViewGeometry:
         rotation and direction blocks), in degrees.
     noise_sigma_px : float
         Robust standard deviation of the keypoint noise, per coordinate, measured on
-        the inliers (:func:`scene3D.essential_fit.noise_sigma_px`).
+        the inliers (:func:`scene3D.twoview.essential_fit.noise_sigma_px`).
     noise_cut_share : float
         Share of the matches that fit the pose which the inlier threshold cut off
-        (:func:`scene3D.uncertainty.truncated_noise`; the covariance allows for it).
+        (:func:`scene3D.optim.uncertainty.truncated_noise`; the covariance allows for it).
     behind_share : float
         Share of the inliers whose point lies behind a camera by more than the noise
         explains, at the scene's parallax
-        (:func:`scene3D.triangulation.behind_at_scene_parallax`): wrong matches near
+        (:func:`scene3D.geometry.triangulation.behind_at_scene_parallax`): wrong matches near
         their epipolar lines (``TwoViewSettings.max_behind_share``).
     flow_gain : float
         How much more of the dense optical flow between the images the pose refined on
-        the flow explains than this pose (:attr:`scene3D.flow_check.FlowCheck.gain`; near
+        the flow explains than this pose (:attr:`scene3D.twoview.flow_check.FlowCheck.gain`; near
         0 when the flow agrees). NaN when the check did not run: no second image
         (:func:`scene3D.twoview.check_against_flow`), a pose already untrusted, or too
         little texture.
     depth_sigmas : (N,) float64
         1-sigma depth of each point in camera 1, in units of the baseline, from the
-        pose covariance and the keypoint noise (:func:`scene3D.uncertainty.depth_sigmas`);
+        pose covariance and the keypoint noise (:func:`scene3D.optim.uncertainty.depth_sigmas`);
         divide by ``points3d[:, 2]`` for a relative uncertainty.
     distortion_k : float
         The radial lens distortion the matches call for, as the coefficient of the
-        division model (:mod:`scene3D.distortion_fit`; 0: none, negative: barrel).
+        division model (:mod:`scene3D.twoview.distortion_fit`; 0: none, negative: barrel).
         NaN when the check did not run: a pose already untrusted, or
         ``check_distortion`` off (as in the self-calibration).
     distortion_pose_shift_deg : float

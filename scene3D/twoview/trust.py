@@ -8,14 +8,14 @@ from typing import NamedTuple, TypeVar
 
 import numpy as np
 
-from ..camera import principal_point_hint
-from ..distortion_fit import DistortionFit, fit_radial_distortion
-from ..essential_fit import EssentialFit
-from ..flow_check import FLOW_BAND_PX, FlowCheck
-from ..focal_fit import FocalFit, fit_focal_scale
-from ..geometry import FloatArray, pose_angle_deg
-from ..pose import nearest_decomposition
-from ..uncertainty import CHI2_99_POSE, PoseUncertainty, pose_difference_chi2
+from ..geometry.camera import principal_point_hint
+from ..geometry.conventions import FloatArray, pose_angle_deg
+from ..geometry.pose import nearest_decomposition
+from ..optim.uncertainty import CHI2_99_POSE, PoseUncertainty, pose_difference_chi2
+from .distortion_fit import DistortionFit, fit_radial_distortion
+from .essential_fit import EssentialFit
+from .flow_check import FLOW_BAND_PX, FlowCheck
+from .focal_fit import FocalFit, fit_focal_scale
 from .results import TwoViewSettings
 
 #: The fits that :func:`_reselected_fit` repeats.
@@ -87,10 +87,10 @@ def beyond_uncertainty_limit(rotation_sigma_deg: float, translation_sigma_deg: f
 def rival_chi2(fit: EssentialFit, R: FloatArray, t: FloatArray, covariance: FloatArray) -> float:
     """How far the restarts' rival optima lie from the pose ``R, t`` under its covariance.
 
-    The largest :func:`scene3D.uncertainty.pose_difference_chi2` (5 degrees of freedom)
-    over ``fit.rivals`` (:attr:`scene3D.essential_fit.EssentialFit.rivals`, each taken in
+    The largest :func:`scene3D.optim.uncertainty.pose_difference_chi2` (5 degrees of freedom)
+    over ``fit.rivals`` (:attr:`scene3D.twoview.essential_fit.EssentialFit.rivals`, each taken in
     its decomposition nearest to ``R, t``); 0 when there are none. Within
-    :data:`scene3D.uncertainty.CHI2_99_POSE` a rival is one the ``(5, 5)``
+    :data:`scene3D.optim.uncertainty.CHI2_99_POSE` a rival is one the ``(5, 5)``
     ``covariance`` allows for: the sigmas already say the pose is known no better.
     """
     worst = 0.0
@@ -115,7 +115,7 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
 
     The verdicts:
 
-    - the uncertainty (``uncertainty``, :class:`scene3D.uncertainty.PoseUncertainty`)
+    - the uncertainty (``uncertainty``, :class:`scene3D.optim.uncertainty.PoseUncertainty`)
       is too large for the purpose: ``s.uncertainty_sigmas`` standard deviations of
       the rotation or the translation direction exceed ``s.uncertainty_limit_deg``.
       The warning names the likely causes among few inliers, a small inlier share of
@@ -126,18 +126,18 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
       best pose twice, their optima lie further apart than
       ``s.restart_agreement_deg``, and one of them lies outside the region the
       covariance allows (``rivals_chi2``, :func:`rival_chi2`, above
-      :data:`scene3D.uncertainty.CHI2_99_POSE`; by default every rival counts): several
+      :data:`scene3D.optim.uncertainty.CHI2_99_POSE`; by default every rival counts): several
       optima; or, found twice, the best has a rival outside that region further away
       than ``s.uncertainty_limit_deg``: the pose may be off by more than the purpose
       allows; the focal length the matches call
-      for (``focal``, :func:`scene3D.focal_fit.fit_focal_scale`) differs from the
+      for (``focal``, :func:`scene3D.twoview.focal_fit.fit_focal_scale`) differs from the
       calibration's by more than ``s.max_focal_mismatch`` and
       ``s.focal_mismatch_sigmas`` standard deviations, or image 2's against image 1's
-      (``focal_ratio``, :func:`scene3D.focal_fit.fit_focal_ratio`) by as much; fewer than
+      (``focal_ratio``, :func:`scene3D.twoview.focal_fit.fit_focal_ratio`) by as much; fewer than
       ``s.trusted_inliers`` inliers, too few to estimate a covariance from and few
       enough for wrong matches to agree by chance; a rotation alone explains more than
       ``s.max_rotation_share`` of the inliers (``rotation_share``,
-      :func:`scene3D.degeneracy.motion_model_choice`; under a focal length
+      :func:`scene3D.twoview.degeneracy.motion_model_choice`; under a focal length
       ``rotation_focal_scale`` times the calibration's when that rotation fitted better),
       so the translation rests on the few that show parallax; the inlier threshold cuts
       off more than ``s.max_noise_cut_share`` of the matches that fit the pose
@@ -217,7 +217,7 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
 
 def focal_mismatch(scale: float, sigma_log: float, s: TwoViewSettings) -> bool:
     """A focal length ``scale`` times the calibration's, ``sigma_log`` the standard deviation
-    of its log (:class:`scene3D.focal_fit.FocalFit`), that refutes the calibration: beyond
+    of its log (:class:`scene3D.twoview.focal_fit.FocalFit`), that refutes the calibration: beyond
     ``1 + s.max_focal_mismatch`` either way, by more than ``s.focal_mismatch_sigmas``
     standard deviations."""
     log_scale = abs(np.log(scale))
@@ -229,7 +229,7 @@ def principal_point_warning(K: FloatArray, pts1: FloatArray, pts2: FloatArray,
                             image_size: tuple[int, int] | None = None) -> str | None:
     """Why ``K``'s principal point may not be these images', or None.
 
-    With their ``image_size`` (width, height): :func:`scene3D.camera.principal_point_hint`
+    With their ``image_size`` (width, height): :func:`scene3D.geometry.camera.principal_point_hint`
     (more than 20 % of a side from the centre: a ``K`` for larger photos, for turned
     ones, or another camera's). Without it, judged from the matches alone: a real
     camera's principal point lies near the image centre, inside the spread of the
@@ -256,14 +256,14 @@ def check_focal_length(R: FloatArray, t: FloatArray, p1: FloatArray, p2: FloatAr
                        inliers: np.ndarray, K: FloatArray, threshold_px: float,
                        scale_px: float, rounds: int = 3,
                        fit: Callable[..., FocalFit] = fit_focal_scale) -> FocalFit:
-    """The focal length the matches call for (:func:`scene3D.focal_fit.fit_focal_scale`,
+    """The focal length the matches call for (:func:`scene3D.twoview.focal_fit.fit_focal_scale`,
     or with ``fit=fit_focal_ratio`` image 2's against image 1's).
 
     ``p1, p2`` are all the correspondences ``(N, 2)``, ``inliers`` the ``(N,) bool``
     inliers of the pose ``R, t`` found with ``K``. Those inliers were chosen under
     ``K``: with a wrong focal length they favour the matches that fit it, so they
     are re-selected under the fitted focal lengths (at ``threshold_px``) and the fit
-    repeated (as :func:`scene3D.essential_fit.refine_essential` does for the pose), under
+    repeated (as :func:`scene3D.twoview.essential_fit.refine_essential` does for the pose), under
     a Cauchy loss of scale ``scale_px``.
     """
     return _reselected_fit(fit, R, t, p1, p2, inliers, K, threshold_px, scale_px, rounds)
@@ -273,7 +273,7 @@ def check_distortion(R: FloatArray, t: FloatArray, p1: FloatArray, p2: FloatArra
                      inliers: np.ndarray, K: FloatArray, threshold_px: float,
                      scale_px: float, rounds: int = 3) -> DistortionFit:
     """The radial lens distortion the matches call for, and the pose with it
-    (:func:`scene3D.distortion_fit.fit_radial_distortion`), the inliers re-selected
+    (:func:`scene3D.twoview.distortion_fit.fit_radial_distortion`), the inliers re-selected
     under it as :func:`check_focal_length` does."""
     return _reselected_fit(fit_radial_distortion, R, t, p1, p2, inliers, K, threshold_px,
                            scale_px, rounds)
@@ -344,7 +344,7 @@ def flow_warning(R: FloatArray, t: FloatArray, flow: FlowCheck | None,
                  s: TwoViewSettings) -> str | None:
     """Why the dense optical flow doubts the pose ``R, t``, or None.
 
-    ``flow`` is :func:`scene3D.flow_check.check_pose_against_flow`'s verdict (None: too
+    ``flow`` is :func:`scene3D.twoview.flow_check.check_pose_against_flow`'s verdict (None: too
     little texture to judge); the pose is doubted when the flow's own pose explains more
     than ``s.max_flow_gain`` of the flow more and lies at least half
     ``s.uncertainty_limit_deg`` away (a pose nearer the flow's than that is near enough

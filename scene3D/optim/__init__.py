@@ -1,0 +1,73 @@
+"""Least squares: Levenberg-Marquardt refinements, bundle adjustment, first-order covariances.
+
+- :mod:`scene3D.optim.uncertainty`: the pose parametrisation, sandwich covariances,
+  chi-square bounds and the depth uncertainty of points;
+- :mod:`scene3D.optim.refinement`: the robust Sampson refinement of a two-view pose and its
+  covariance, and the Levenberg-Marquardt loop and robust losses the other solvers share;
+- :mod:`scene3D.optim.schur`: the sparse normal equations both bundle adjustments solve;
+- :mod:`scene3D.optim.bundle_two_view`: the bundle adjustment of two views;
+- :mod:`scene3D.optim.bundle`: the bundle adjustment of many, optionally with one shared
+  focal length.
+
+Frames as in :mod:`scene3D.geometry`.
+"""
+
+from .bundle import (
+    FocalAdjustment,
+    Observations,
+    bundle_adjust,
+    bundle_adjust_focal,
+    focal_uncertainty,
+    reprojection_jacobians,
+    reprojection_residuals,
+    whitened_residuals,
+)
+from .bundle_two_view import bundle_adjust_two_view
+from .refinement import (
+    pose_intrinsics_sensitivity,
+    refine_relative_pose,
+    relative_pose_covariance,
+    sampson_residuals,
+)
+from .schur import (
+    SPARSE_SCHUR_UNKNOWNS,
+    NormalEquations,
+    global_information,
+    normal_equations,
+    pairs_within_groups,
+    schur_product,
+    solve_damped,
+    solve_damped_global,
+)
+from .uncertainty import (
+    CHI2_90,
+    CHI2_99_POSE,
+    PoseUncertainty,
+    TruncatedNoise,
+    angular_bound_deg,
+    depth_sigmas,
+    largest_sigma_deg,
+    marginal_covariance,
+    nuisance_sensitivity,
+    point_covariances,
+    pose_difference_chi2,
+    pose_error_chi2,
+    pose_error_coordinates,
+    rotation_vector,
+    sandwich_covariance,
+    tangent_basis,
+    truncated_noise,
+)
+
+__all__ = [
+    "CHI2_90", "CHI2_99_POSE", "FocalAdjustment", "NormalEquations", "Observations",
+    "PoseUncertainty", "SPARSE_SCHUR_UNKNOWNS", "TruncatedNoise", "angular_bound_deg",
+    "bundle_adjust", "bundle_adjust_focal", "bundle_adjust_two_view", "depth_sigmas",
+    "focal_uncertainty", "global_information", "largest_sigma_deg", "marginal_covariance",
+    "normal_equations", "nuisance_sensitivity", "pairs_within_groups", "point_covariances",
+    "pose_difference_chi2", "pose_error_chi2", "pose_error_coordinates",
+    "pose_intrinsics_sensitivity", "refine_relative_pose", "relative_pose_covariance",
+    "reprojection_jacobians", "reprojection_residuals", "rotation_vector", "sampson_residuals",
+    "sandwich_covariance", "schur_product", "solve_damped", "solve_damped_global", "tangent_basis",
+    "truncated_noise", "whitened_residuals",
+]

@@ -1,0 +1,343 @@
+"""The damped normal equations of bundle adjustment, solved with the points eliminated.
+
+Every observation ``o`` (a pixel, 2 residual rows) depends on at most one camera,
+``camera[o]`` (``-1``: a fixed camera, no unknowns), and on one point,
+``point[o]``. With the Jacobian blocks ``J_cam[o]`` ``(2, c)`` and ``J_point[o]``
+``(2, 3)`` the normal equations are
+
+    [ U   W ] [dc]     [g_c]
+    [ W^T V ] [dp] = - [g_p]
+
+with ``U`` block-diagonal over cameras and ``V`` block-diagonal over points
+(3x3 each). Eliminating the points (Schur complement, Triggs et al. 2000,
+section 6.1) leaves one ``(C c) x (C c)`` system for the cameras, then each
+point's step is a 3x3 solve: the cost grows linearly with the points (times the
+square of the cameras), not with the cube of all unknowns as a dense solve would.
+
+Global unknowns (``g`` of them, such as one focal length shared by every view) may
+join: every observation depends on them, fixed cameras' included, through
+``J_global[o]`` ``(2, g)``. They add one block row and column to the reduced system,
+outside the per-point blocks:
+
+    [ U    U_cg  W  ] [dc]     [g_c]
+    [ U_gc U_gg  W_g] [dg] = - [g_g]
+    [ W^T  W_g^T V  ] [dp]     [g_p]
+
+so eliminating the points leaves a ``(C c + g)`` system whose extra blocks are
+``U_cg - sum_p W_p V_p^-1 W_gp^T`` and ``U_gg - sum_p W_gp V_p^-1 W_gp^T``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry.conventions import FloatArray
+
+#: Added to the diagonals so that an unconstrained direction cannot make them singular.
+_TINY = 1e-12
+
+
+@dataclass(frozen=True)
+class NormalEquations:
+    """The blocks of ``J^T J`` and ``J^T r`` (see the module docstring).
+
+    Attributes
+    ----------
+    U : (C, c, c)
+    V : (P, 3, 3)
+    W : (O', c, 3)
+        One block per observation of a free camera (``observed`` selects them).
+    g_camera : (C, c)
+    g_point : (P, 3)
+    camera, point : (O',) int
+        The camera and point of each block of ``W``.
+    U_global : (g, g) or None
+        Global unknowns (see the module docstring); None when there are none.
+    U_camera_global : (C, c, g) or None
+    W_global : (P, g, 3) or None
+    g_global : (g,) or None
+    """
+
+    U: FloatArray
+    V: FloatArray
+    W: FloatArray
+    g_camera: FloatArray
+    g_point: FloatArray
+    camera: np.ndarray
+    point: np.ndarray
+    U_global: FloatArray | None = None
+    U_camera_global: FloatArray | None = None
+    W_global: FloatArray | None = None
+    g_global: FloatArray | None = None
+
+
+def _sum_by(index: np.ndarray, values: FloatArray, count: int) -> FloatArray:
+    """``out[i] = sum of values[k] where index[k] == i``, ``i < count`` (a fast ``np.add.at``)."""
+    flat = values.reshape(len(values), -1)
+    out = np.empty((count, flat.shape[1]))
+    for k in range(flat.shape[1]):
+        out[:, k] = np.bincount(index, weights=flat[:, k], minlength=count)
+    return out.reshape((count,) + values.shape[1:])
+
+
+def _gram(A: FloatArray, B: FloatArray) -> FloatArray:
+    """``A[o]^T B[o]`` for each ``o``: ``(O, k, i), (O, k, j) -> (O, i, j)``."""
+    return A.transpose(0, 2, 1) @ B
+
+
+def normal_equations(
+    J_camera: FloatArray, camera: np.ndarray, J_point: FloatArray, point: np.ndarray,
+    residuals: FloatArray, num_cameras: int, num_points: int,
+    J_global: FloatArray | None = None,
+) -> NormalEquations:
+    """Accumulate the normal equations of row-scaled Jacobians and residuals.
+
+    Parameters
+    ----------
+    J_camera : (O, 2, c)
+        Derivatives by the observing camera's unknowns (ignored where ``camera < 0``).
+    camera, point : (O,) int
+    J_point : (O, 2, 3)
+    residuals : (O, 2)
+    J_global : (O, 2, g), optional
+        Derivatives by the global unknowns (every observation, fixed cameras' too).
+    """
+    free = camera >= 0
+    Jc, cam = J_camera[free], camera[free]
+    r = residuals[:, :, None]
+    U, g_camera = _camera_sums(cam, Jc, residuals[free], num_cameras)
+    ne = NormalEquations(
+        U=U,
+        V=_sum_by(point, _gram(J_point, J_point), num_points),
+        W=_gram(Jc, J_point[free]),
+        g_camera=g_camera,
+        g_point=_sum_by(point, _gram(J_point, r)[:, :, 0], num_points),
+        camera=cam, point=point[free])
+    if J_global is None:
+        return ne
+    Jg = J_global
+    return dataclasses.replace(
+        ne, U_global=_gram(Jg, Jg).sum(axis=0),
+        U_camera_global=_sum_by(cam, _gram(Jc, Jg[free]), num_cameras),
+        W_global=_sum_by(point, _gram(Jg, J_point), num_points),
+        g_global=_gram(Jg, r)[:, :, 0].sum(axis=0))
+
+
+def _camera_sums(camera: np.ndarray, J: FloatArray, residuals: FloatArray, num_cameras: int
+                 ) -> tuple[FloatArray, FloatArray]:
+    """``U = sum J[o]^T J[o]`` ``(C, c, c)`` and ``g = sum J[o]^T r[o]`` ``(C, c)`` by camera:
+    one matrix product per camera over its observations' rows stacked (a few hundred
+    cameras at most, thousands of rows each)."""
+    c = J.shape[2]
+    order = np.argsort(camera, kind="stable")
+    J, residuals = J[order].reshape(-1, c), residuals[order].reshape(-1)
+    bounds = 2 * np.searchsorted(camera[order], np.arange(num_cameras + 1))
+    U, g = np.zeros((num_cameras, c, c)), np.zeros((num_cameras, c))
+    for k in np.flatnonzero(np.diff(bounds)):
+        rows = J[bounds[k]:bounds[k + 1]]
+        U[k] = rows.T @ rows
+        g[k] = rows.T @ residuals[bounds[k]:bounds[k + 1]]
+    return U, g
+
+
+def _schur_product_dense(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
+                         num_cameras: int, chunk_entries: int = 1 << 22) -> FloatArray:
+    """:func:`schur_product` for a few cameras: dense matrix products over chunks of points.
+
+    A chunk of points at a time is laid out densely as ``(C c, 3 points)`` matrices
+    (at most ``chunk_entries`` numbers each), so the sum is one matrix product per
+    chunk; a camera sees a point at most once, so the blocks never collide. The cost
+    grows with the square of the cameras times the points: fast (BLAS) for tens of
+    cameras, slow for hundreds.
+    """
+    c = Y.shape[1]
+    size = num_cameras * c
+    order = np.argsort(point, kind="stable")
+    cam, pt, Y, W = camera[order], point[order], Y[order], W[order]
+    per_chunk = max(1, chunk_entries // (3 * size))
+    rows = (cam * c)[:, None, None] + np.arange(c)[None, :, None]
+    S = np.zeros((size, size))
+    bounds = np.searchsorted(pt, np.arange(0, pt[-1] + per_chunk + 1, per_chunk)) if len(pt) else []
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        if lo == hi:
+            continue
+        first = pt[lo]
+        cols = ((pt[lo:hi] - first) * 3)[:, None, None] + np.arange(3)[None, None, :]
+        width = 3 * (pt[hi - 1] - first + 1)
+        Yd, Wd = np.zeros((size, width)), np.zeros((size, width))
+        Yd[rows[lo:hi], cols] = Y[lo:hi]
+        Wd[rows[lo:hi], cols] = W[lo:hi]
+        S += Yd @ Wd.T
+    return S
+
+
+def pairs_within_groups(starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every ordered pair ``(a, b)`` of members of the same group, ``a == b`` included.
+
+    Groups are consecutive runs ``starts[g] <= k < starts[g + 1]`` of some sorted
+    array; returns the member indices ``a, b`` ``(M,)`` with ``M = sum n_g^2``.
+    """
+    counts = np.diff(starts)
+    squares = counts * counts
+    group = np.repeat(np.arange(len(counts)), squares)
+    k = np.arange(int(squares.sum())) - np.repeat(np.cumsum(squares) - squares, squares)
+    n = counts[group]
+    return starts[group] + k // n, starts[group] + k % n
+
+
+def _schur_product_sparse(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
+                          num_cameras: int, chunk_entries: int = 1 << 22) -> FloatArray:
+    """:func:`schur_product` for many cameras: one matrix product per pair of cameras that
+    share points, over the points they share.
+
+    A table ``(C, points)`` holds each camera's observation of each point (-1: none),
+    for a chunk of points at a time (at most ``chunk_entries`` entries). For camera
+    ``a``, the observations by cameras ``b >= a`` of ``a``'s points are read from it
+    (grouped by ``b``), and the block ``(a, b)`` gains ``sum Y[o_a] W[o_b]^T`` over them,
+    one ``(c, 3k) x (3k, c)`` product. ``Y[o] = W[o] V_p^-1`` with ``V_p`` symmetric (as
+    in the Schur complement), so the block ``(b, a)`` is the transpose of ``(a, b)``.
+    The work grows with the points times the square of their track lengths, not with
+    the square of the cameras; no block per pair of observations is stored.
+    """
+    c = Y.shape[1]
+    size = num_cameras * c
+    if len(point) == 0:
+        return np.zeros((size, size))
+    _, local = np.unique(point, return_inverse=True)
+    per_chunk = max(1, chunk_entries // num_cameras)
+    index_type = np.int32 if len(point) < 2**31 else np.int64
+    by_point = np.argsort(local, kind="stable")
+    bounds = np.searchsorted(local[by_point], np.arange(0, local.max() + per_chunk + 1,
+                                                         per_chunk))
+    Yt = np.ascontiguousarray(Y.transpose(0, 2, 1))  # (O, 3, c): rows of a (3k, c) stack
+    Wt = np.ascontiguousarray(W.transpose(0, 2, 1))
+    S = np.zeros((num_cameras, c, num_cameras, c))
+    for first, (lo, hi) in enumerate(zip(bounds[:-1], bounds[1:])):
+        if lo == hi:
+            continue
+        chunk = by_point[lo:hi]
+        column = local[chunk] - first * per_chunk
+        slot = np.full((num_cameras, per_chunk), -1, dtype=index_type)
+        slot[camera[chunk], column] = chunk
+        by_camera = np.argsort(camera[chunk], kind="stable")
+        starts = np.searchsorted(camera[chunk][by_camera], np.arange(num_cameras + 1))
+        for a in np.flatnonzero(np.diff(starts)):
+            mine = by_camera[starts[a]:starts[a + 1]]
+            theirs = slot[a:, column[mine]]  # (C - a, n): cameras b >= a on a's points
+            rows, cols = np.nonzero(theirs >= 0)  # grouped by b
+            Ya, Wb = Yt[chunk[mine[cols]]], Wt[theirs[rows, cols]]
+            cuts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1], True])
+            for g0, g1 in zip(cuts[:-1], cuts[1:]):
+                S[a, :, a + rows[g0]] += Ya[g0:g1].reshape(-1, c).T @ Wb[g0:g1].reshape(-1, c)
+    diagonal = S[np.arange(num_cameras), :, np.arange(num_cameras)].copy()  # (C, c, c)
+    S += S.transpose(2, 3, 0, 1)
+    S[np.arange(num_cameras), :, np.arange(num_cameras)] -= diagonal
+    return S.reshape(size, size)
+
+
+#: Above this many camera unknowns the Schur product is summed per pair of cameras.
+SPARSE_SCHUR_UNKNOWNS = 180
+
+
+def schur_product(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
+                  num_cameras: int) -> FloatArray:
+    """``sum over points p of Y_p W_p^T``, ``(C c, C c)``, where ``Y_p`` stacks the
+    ``(c, 3)`` blocks ``Y[o]`` of the observations of ``p`` by camera (zero where a camera
+    does not see ``p``), and likewise ``W_p``.
+
+    Dense chunked products for a few cameras (BLAS is fastest there), one product per
+    pair of cameras that share points for many (the dense layout grows with the square
+    of the cameras): both give the same sum.
+    """
+    if num_cameras * Y.shape[1] <= SPARSE_SCHUR_UNKNOWNS:
+        return _schur_product_dense(Y, W, camera, point, num_cameras)
+    return _schur_product_sparse(Y, W, camera, point, num_cameras)
+
+
+def _damped_inverse_points(ne: NormalEquations, damping: float) -> FloatArray:
+    """``(V + damping diag(V))^-1`` per point ``(P, 3, 3)``."""
+    return np.linalg.inv(ne.V + damping * (np.einsum("nii->ni", ne.V) + _TINY)[:, :, None]
+                         * np.eye(3))
+
+
+def _reduced_system(ne: NormalEquations, damping: float, V_inv: FloatArray
+                    ) -> tuple[FloatArray, FloatArray]:
+    """The damped system left once the points are eliminated: the matrix
+    ``(C c + g, C c + g)`` (cameras first, then the global unknowns) and its right-hand
+    side ``(C c + g,)`` (the step solves ``S x = rhs``)."""
+    num_cameras, c = ne.g_camera.shape
+    eye_c = np.eye(c)
+    U = ne.U + damping * (np.einsum("nii->ni", ne.U) + _TINY)[:, :, None] * eye_c
+    Y = ne.W @ V_inv[ne.point]  # (O', c, 3): W V^-1 per observation
+    S = -schur_product(Y, ne.W, ne.camera, ne.point, num_cameras)  # U - W V^-1 W^T
+    for k in range(num_cameras):
+        S[k * c:(k + 1) * c, k * c:(k + 1) * c] += U[k]
+    rhs = _sum_by(ne.camera, (Y @ ne.g_point[ne.point][:, :, None])[:, :, 0],
+                  num_cameras).ravel() - ne.g_camera.ravel()
+    if ne.U_global is None:
+        return S, rhs
+    g = len(ne.U_global)
+    size = num_cameras * c
+    Yg = ne.W_global @ V_inv  # (P, g, 3): W_g V^-1 per point
+    S_cg = ne.U_camera_global - _sum_by(ne.camera, Y @ ne.W_global[ne.point].transpose(0, 2, 1),
+                                        num_cameras)
+    S_gg = (ne.U_global + damping * np.diag(np.diag(ne.U_global) + _TINY)
+            - (Yg @ ne.W_global.transpose(0, 2, 1)).sum(axis=0))
+    full = np.empty((size + g, size + g))
+    full[:size, :size] = S
+    full[:size, size:] = S_cg.reshape(size, g)
+    full[size:, :size] = full[:size, size:].T
+    full[size:, size:] = S_gg
+    rhs_g = (Yg @ ne.g_point[:, :, None])[:, :, 0].sum(axis=0) - ne.g_global
+    return full, np.r_[rhs, rhs_g]
+
+
+def solve_damped_global(ne: NormalEquations, damping: float
+                        ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Steps ``(C, c)`` for the cameras, ``(g,)`` for the global unknowns (empty without
+    them) and ``(P, 3)`` for the points.
+
+    Levenberg-Marquardt's damping scales the diagonals: ``U + damping diag(U)``
+    and likewise ``V`` and ``U_gg``.
+    """
+    num_cameras, c = ne.g_camera.shape
+    V_inv = _damped_inverse_points(ne, damping)
+    S, rhs = _reduced_system(ne, damping, V_inv)
+    x = np.linalg.solve(S, rhs)
+    size = num_cameras * c
+    step_camera, step_global = x[:size].reshape(num_cameras, c), x[size:]
+    back = ne.g_point + _sum_by(
+        ne.point, _gram(ne.W, step_camera[ne.camera][:, :, None])[:, :, 0], len(ne.g_point))
+    if ne.W_global is not None:
+        back = back + (ne.W_global.transpose(0, 2, 1) @ step_global)
+    step_point = -(V_inv @ back[:, :, None])[:, :, 0]
+    return step_camera, step_global, step_point
+
+
+def solve_damped(ne: NormalEquations, damping: float) -> tuple[FloatArray, FloatArray]:
+    """Steps ``(C, c)`` for the cameras and ``(P, 3)`` for the points
+    (:func:`solve_damped_global` without global unknowns)."""
+    step_camera, _, step_point = solve_damped_global(ne, damping)
+    return step_camera, step_point
+
+
+def global_information(ne: NormalEquations) -> FloatArray:
+    """Information ``(g, g)`` of the global unknowns, the cameras and points marginalised:
+    the reduced system's global block after the cameras are eliminated too (undamped;
+    with residuals in units of their standard deviation its inverse is the covariance).
+
+    The cameras' block may be singular along the gauge (the scale a single fixed camera
+    leaves free); a gauge direction moves no residual, so it does not couple to the
+    global unknowns and a pseudo-inverse there gives the same marginal as any gauge fixing.
+    """
+    if ne.U_global is None:
+        raise ValueError("the normal equations have no global unknowns")
+    V_inv = np.linalg.pinv(ne.V, hermitian=True)  # a point without observations: zero
+    S, _ = _reduced_system(ne, 0.0, V_inv)
+    g = len(ne.U_global)
+    size = len(S) - g
+    S_cc, S_cg, S_gg = S[:size, :size], S[:size, size:], S[size:, size:]
+    return S_gg - S_cg.T @ np.linalg.pinv(S_cc, rcond=1e-12, hermitian=True) @ S_cg
