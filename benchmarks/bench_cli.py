@@ -11,7 +11,7 @@ from pathlib import Path
 
 import cv2
 
-from scene3D.datasets import BOOK_PAIR, default_data_root
+from scene3D.io.datasets import BOOK_PAIR, default_data_root
 
 REPO = Path(__file__).resolve().parents[1]
 

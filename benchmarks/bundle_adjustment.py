@@ -29,9 +29,9 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from scene3D import SceneReconstruction3D  # noqa: E402
-from scene3D.datasets import fetch_fountain_p11, read_strecha_camera  # noqa: E402
 from scene3D.evaluation import relative_pose_error  # noqa: E402
 from scene3D.geometry.epipolar import essential_distances  # noqa: E402
+from scene3D.io.datasets import fetch_fountain_p11, read_strecha_camera  # noqa: E402
 from scene3D.optim.bundle import Observations  # noqa: E402
 from scene3D.optim.bundle_two_view import _two_view_residuals, bundle_adjust_two_view  # noqa: E402
 from scene3D.optim.refinement import _robust_cost  # noqa: E402

@@ -110,9 +110,9 @@ def main() -> int:
 
     logging.getLogger("distributed").setLevel(logging.WARNING)
 
-    from scene3D.datasets import default_data_root, read_strecha_camera, strecha_views
     from scene3D.engines import LocalEngine
     from scene3D.engines.dask_engine import DaskEngine
+    from scene3D.io.datasets import default_data_root, read_strecha_camera, strecha_views
 
     root = default_data_root()
     if root is None or not root.is_dir():

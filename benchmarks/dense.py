@@ -26,14 +26,14 @@ import time
 
 import numpy as np
 
-from scene3D.datasets import BOOK_PAIR, fetch_fountain_p11
+from scene3D.io.datasets import BOOK_PAIR, fetch_fountain_p11
 
 SIZES = (768, 1536)
 
 
 def measure(width: int) -> dict:
     from scene3D import SceneReconstruction3D
-    from scene3D.datasets import read_strecha_camera
+    from scene3D.io.datasets import read_strecha_camera
 
     folder = fetch_fountain_p11(BOOK_PAIR + ("gt_dense_cameras/0004.jpg.camera",))
     cam = read_strecha_camera(folder / "gt_dense_cameras" / "0004.jpg.camera")
@@ -71,8 +71,8 @@ def agreement(scene, sparse, dense) -> float | None:
 
 def scenes_table() -> None:
     from scene3D import SceneReconstruction3D
-    from scene3D.datasets import default_data_root, read_strecha_camera, strecha_views
     from scene3D.errors import ReconstructionError
+    from scene3D.io.datasets import default_data_root, read_strecha_camera, strecha_views
 
     root = default_data_root()
     if root is None:

@@ -46,7 +46,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from scene3D.datasets import FOUNTAIN_P11, default_data_root, strecha_views
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import (
     paired_auc_difference,
@@ -58,6 +57,7 @@ from scene3D.features import find_matches
 from scene3D.geometry import project
 from scene3D.geometry.epipolar import essential_distances, essential_from_pose
 from scene3D.geometry.triangulation import in_front_mask, triangulate_points
+from scene3D.io.datasets import FOUNTAIN_P11, default_data_root, strecha_views
 from scene3D.optim.uncertainty import pose_error_chi2
 from scene3D.twoview import core as twoview_core
 from scene3D.twoview import essential_fit, reconstruct_from_matches

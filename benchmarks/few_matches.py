@@ -41,10 +41,10 @@ import numpy as np
 from bench_cli import add_data_arguments, quiet_run
 from two_view import load_pair  # benchmarks/two_view.py, as exact_truth.py does
 
-from scene3D.datasets import strecha_views
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import Matches, find_matches
+from scene3D.io.datasets import strecha_views
 from scene3D.optim.uncertainty import pose_error_chi2
 from scene3D.twoview import reconstruct_two_view
 

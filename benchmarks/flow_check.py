@@ -26,12 +26,12 @@ import cv2
 import numpy as np
 from bench_cli import add_data_arguments, data_folder
 
-from scene3D.datasets import read_strecha_camera, relative_pose, strecha_views
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import find_matches, to_gray
 from scene3D.geometry.camera import scale_intrinsics_halved
-from scene3D.imageio import load_working_image
+from scene3D.io.datasets import read_strecha_camera, relative_pose, strecha_views
+from scene3D.io.images import load_working_image
 from scene3D.twoview import TwoViewSettings, check_against_flow, reconstruct_from_matches
 from scene3D.twoview.flow_check import check_pose_against_images
 from scene3D.twoview.trust import flow_warning

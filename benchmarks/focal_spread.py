@@ -25,8 +25,8 @@ DEFAULT_RUNS = ("castle-P19:0-7", "castle-P19:4-11", "castle-P19:8-15", "castle-
 
 def measure(spec: str) -> str:
     """The table row of one run, ``SCENE`` or ``SCENE:FIRST-LAST``."""
-    from scene3D.datasets import default_data_root, read_strecha_scene
-    from scene3D.exif import read_camera_prior
+    from scene3D.io.datasets import default_data_root, read_strecha_scene
+    from scene3D.io.exif import read_camera_prior
     from scene3D.multiview import reconstruct_views
 
     name, _, window = spec.partition(":")

@@ -42,7 +42,7 @@ from pathlib import Path
 
 from bench_cli import REPO, add_data_arguments, data_folder, interleaved_times, plain_command
 
-from scene3D.datasets import BOOK_PAIR
+from scene3D.io.datasets import BOOK_PAIR
 from scene3D.memory import MMAP_THRESHOLD_BYTES, user_tuned_malloc
 
 CALIB = REPO / "data" / "fountain_P11_intrinsics.yaml"  # the Strecha scenes' camera

@@ -34,12 +34,12 @@ import numpy as np
 from bench_cli import add_data_arguments, quiet_run
 
 import scene3D
-from scene3D.datasets import read_strecha_camera, relative_pose, strecha_views
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import pose_auc, relative_pose_error
 from scene3D.features import image_features, match_features, to_gray
 from scene3D.geometry.camera import scale_intrinsics_halved
-from scene3D.imageio import load_working_image
+from scene3D.io.datasets import read_strecha_camera, relative_pose, strecha_views
+from scene3D.io.images import load_working_image
 from scene3D.optim.uncertainty import CHI2_90, pose_error_chi2
 from scene3D.twoview import reconstruct_from_matches
 

@@ -7,7 +7,7 @@
 Rows: each shared Strecha scene (``$SCENE3D_DATA``, default ../shared/data) under its own
 file names and under random ones (symlinks in a temporary folder, shuffled order), and a
 rendered orbit of 50, 100 and 200 views around a textured courtyard with known cameras
-(``scene3D.synthetic.orbit_scene``, 640x480, rendered once at 200 views; 100 and 50 take
+(``scene3D.evaluation.synthetic.orbit_scene``, 640x480, rendered once at 200 views; 100 and 50 take
 every second and fourth). Each row runs in a fresh process, so that its peak memory
 (max RSS) is its own, with default options (``--pairs auto``). In that process the plain
 OpenCV SIFT extraction of the same images at the same size (``cv2.imread`` with the
@@ -67,12 +67,12 @@ def measure(spec: dict) -> dict:
     if spec.get("one_thread"):
         cv2.setNumThreads(1)
 
-    from scene3D.datasets import default_data_root, read_strecha_scene
     from scene3D.evaluation import camera_set_error
+    from scene3D.io.datasets import default_data_root, read_strecha_scene
     from scene3D.multiview import reconstruct_views
 
     if spec["kind"] == "orbit":
-        from scene3D.synthetic import asymmetric_camera, orbit_poses
+        from scene3D.evaluation.synthetic import asymmetric_camera, orbit_poses
 
         folder = Path(spec["folder"])
         step = ORBIT_VIEWS // spec["views"]
@@ -133,7 +133,12 @@ def measure(spec: dict) -> dict:
 def render_orbit(folder: Path) -> None:
     import cv2
 
-    from scene3D.synthetic import asymmetric_camera, orbit_poses, orbit_scene, render_planes
+    from scene3D.evaluation.synthetic import (
+        asymmetric_camera,
+        orbit_poses,
+        orbit_scene,
+        render_planes,
+    )
 
     K = asymmetric_camera(640, 480)
     scene = orbit_scene()

@@ -43,10 +43,10 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.multi_view import ORBIT_VIEWS, render_orbit  # noqa: E402
-from scene3D.datasets import default_data_root, read_strecha_scene  # noqa: E402
 from scene3D.evaluation import camera_set_error  # noqa: E402
-from scene3D.export import colmap_text_files  # noqa: E402
 from scene3D.geometry import camera_centers  # noqa: E402
+from scene3D.io.datasets import default_data_root, read_strecha_scene  # noqa: E402
+from scene3D.io.export import colmap_text_files  # noqa: E402
 from scene3D.multiview import reconstruct_views, state  # noqa: E402
 from scene3D.optim import bundle  # noqa: E402
 from scene3D.optim.bundle import reprojection_residuals  # noqa: E402
@@ -66,7 +66,7 @@ def capture_final_adjustment(case: str, folder: Path) -> dict:
     state.bundle_adjust = keep
     try:
         if case.startswith("orbit"):
-            from scene3D.synthetic import asymmetric_camera, orbit_poses
+            from scene3D.evaluation.synthetic import asymmetric_camera, orbit_poses
 
             n = int(case[5:])
             step = ORBIT_VIEWS // n

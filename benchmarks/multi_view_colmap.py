@@ -28,10 +28,10 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from scene3D.datasets import default_data_root, read_strecha_scene  # noqa: E402
 from scene3D.evaluation import camera_set_error  # noqa: E402
 from scene3D.geometry.camera import scale_intrinsics_halved  # noqa: E402
-from scene3D.imageio import load_working_image  # noqa: E402
+from scene3D.io.datasets import default_data_root, read_strecha_scene  # noqa: E402
+from scene3D.io.images import load_working_image  # noqa: E402
 
 
 def errors(R, C, R_true, C_true, align: str) -> str:
@@ -53,7 +53,7 @@ def run(scene: str, width: int, threads: int, folder: Path) -> str:
         img, _, levels = load_working_image(p, K, np.zeros(5), width)
         cv2.imwrite(str(images / f"{p.stem}.png"), img)
     K_work = scale_intrinsics_halved(K, levels)
-    # COLMAP puts pixel centres at +0.5 (scene3D.export.colmap_text_files).
+    # COLMAP puts pixel centres at +0.5 (scene3D.io.export.colmap_text_files).
     reader = pycolmap.ImageReaderOptions()
     reader.camera_model = "PINHOLE"
     reader.camera_params = (f"{K_work[0, 0]},{K_work[1, 1]},{K_work[0, 2] + 0.5},"

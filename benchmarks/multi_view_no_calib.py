@@ -34,8 +34,8 @@ from pathlib import Path
 def measure(scene: str, mode: str, width: int) -> dict:
     import numpy as np
 
-    from scene3D.datasets import default_data_root, read_strecha_scene
     from scene3D.evaluation import camera_set_error
+    from scene3D.io.datasets import default_data_root, read_strecha_scene
     from scene3D.multiview import reconstruct_views
 
     folder = default_data_root() / scene

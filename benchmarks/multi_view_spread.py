@@ -28,9 +28,9 @@ import argparse  # noqa: E402
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from scene3D.datasets import default_data_root, read_strecha_scene  # noqa: E402
 from scene3D.evaluation import camera_set_error  # noqa: E402
 from scene3D.geometry import camera_centers  # noqa: E402
+from scene3D.io.datasets import default_data_root, read_strecha_scene  # noqa: E402
 from scene3D.multiview import reconstruct_views  # noqa: E402
 from scene3D.optim.bundle import Observations, bundle_adjust  # noqa: E402
 

@@ -27,8 +27,8 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 import scene3D.multiview.pipeline as pipeline  # noqa: E402
-from scene3D.datasets import default_data_root, read_strecha_scene  # noqa: E402
 from scene3D.evaluation import camera_set_error  # noqa: E402
+from scene3D.io.datasets import default_data_root, read_strecha_scene  # noqa: E402
 from scene3D.multiview import SfMSettings, reconstruct_views  # noqa: E402
 from scene3D.optim.bundle import reprojection_residuals  # noqa: E402
 

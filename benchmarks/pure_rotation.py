@@ -21,9 +21,9 @@ import numpy as np
 from bench_cli import add_data_arguments, data_folder, reconstruct_or_refusal, verdict
 
 from scene3D import SceneReconstruction3D
-from scene3D.datasets import read_strecha_camera
 from scene3D.errors import ReconstructionError
 from scene3D.geometry import rotations_from_vectors
+from scene3D.io.datasets import read_strecha_camera
 
 #: (rotation vector in degrees, focal-length factor of the calibration given).
 CASES = [((0, 5, 0), 1.0), ((0, 5, 0), 1.3), ((0, 5, 0), 0.8), ((1, 5, 0), 1.1),

@@ -32,8 +32,8 @@ from pathlib import Path
 from PIL import ExifTags, Image
 
 from scene3D.cli.evaluate import main as evaluate
-from scene3D.datasets import read_strecha_camera, strecha_views
 from scene3D.geometry.intrinsics_prior import focal_35mm_from_px
+from scene3D.io.datasets import read_strecha_camera, strecha_views
 
 
 def exif_segment(focal_35mm: int) -> bytes:

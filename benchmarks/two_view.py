@@ -42,14 +42,6 @@ import cv2
 import numpy as np
 from bench_cli import REPO, interleaved_times, plain_command
 
-from scene3D.datasets import (
-    BOOK_PAIR,
-    FOUNTAIN_P11,
-    default_data_root,
-    read_strecha_camera,
-    relative_pose,
-    strecha_views,
-)
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import (
     paired_auc_difference,
@@ -60,7 +52,15 @@ from scene3D.evaluation import (
 from scene3D.features import find_matches
 from scene3D.geometry.camera import scale_intrinsics_halved
 from scene3D.geometry.pose import choose_pose
-from scene3D.imageio import load_working_image
+from scene3D.io.datasets import (
+    BOOK_PAIR,
+    FOUNTAIN_P11,
+    default_data_root,
+    read_strecha_camera,
+    relative_pose,
+    strecha_views,
+)
+from scene3D.io.images import load_working_image
 from scene3D.memory import malloc_environment
 from scene3D.optim.uncertainty import pose_error_chi2
 from scene3D.twoview import reconstruct_two_view
@@ -160,7 +160,7 @@ def run_pycolmap(img1, img2, K):
 
 
 def load_pair(views: list[tuple[Path, Path]], a: int, b: int, width: int):
-    """Views ``a`` and ``b`` of a scene (:func:`scene3D.datasets.strecha_views`) as scene3D
+    """Views ``a`` and ``b`` of a scene (:func:`scene3D.io.datasets.strecha_views`) as scene3D
     loads them (halved by area averaging); every method gets these same pixels."""
     (path1, camera1), (path2, camera2) = views[a], views[b]
     cam1, cam2 = read_strecha_camera(camera1), read_strecha_camera(camera2)

@@ -62,7 +62,6 @@ import cv2
 import numpy as np
 from bench_cli import add_data_arguments, data_folder
 
-from scene3D.datasets import read_strecha_camera, relative_pose, strecha_views
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import (
     paired_auc_difference,
@@ -71,7 +70,8 @@ from scene3D.evaluation import (
 )
 from scene3D.features import match_descriptors, to_gray
 from scene3D.geometry.camera import scale_intrinsics_halved
-from scene3D.imageio import load_working_image
+from scene3D.io.datasets import read_strecha_camera, relative_pose, strecha_views
+from scene3D.io.images import load_working_image
 from scene3D.twoview import TwoViewSettings, essential_fit, reconstruct_from_matches
 
 LEVERS = ("scene3D", "previous", "previous-0.5px", "ratio-0.7", "rootsift", "symmetric",

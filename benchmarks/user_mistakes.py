@@ -25,10 +25,10 @@ import numpy as np
 from bench_cli import add_data_arguments, data_folder, reconstruct_or_refusal, verdict
 
 from scene3D import SceneReconstruction3D
-from scene3D.datasets import read_strecha_camera, relative_pose
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
 from scene3D.geometry.intrinsics_prior import ExifCamera, camera_prior
+from scene3D.io.datasets import read_strecha_camera, relative_pose
 
 #: cv2.ROTATE_90_CLOCKWISE as a rotation of the camera frame (x right, y down).
 TURN_90 = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])

@@ -5,7 +5,7 @@
 
 Needs fountain-P11 and chessboard/opencv-left where the tests find them
 (``$SCENE3D_DATA``, default ``../shared/data`` beside the checkout). The figures are
-the library's own (``scene3D.plotting``, the book's class), saved at a small size and
+the library's own (``scene3D.viz.plotting``, the book's class), saved at a small size and
 reduced to a 128-colour palette so that each stays well under 300 KB.
 
 Written:
@@ -28,10 +28,11 @@ import cv2
 import numpy as np
 from PIL import Image  # Pillow comes with matplotlib
 
-from scene3D import SceneReconstruction3D, plotting, reconstruct_views
+from scene3D import SceneReconstruction3D, reconstruct_views
 from scene3D.calibration import BoardSpec, calibrate, corner_coverage, detect_board
-from scene3D.calibration_io import load_calibration
-from scene3D.datasets import BOOK_PAIR, default_data_root, fetch_fountain_p11
+from scene3D.io.calibration import load_calibration
+from scene3D.io.datasets import BOOK_PAIR, default_data_root, fetch_fountain_p11
+from scene3D.viz import plotting
 
 REPO = Path(__file__).resolve().parents[1]
 OUT = REPO / "docs" / "images"

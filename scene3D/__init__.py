@@ -28,7 +28,7 @@ _LAZY = {
 
 if TYPE_CHECKING:
     from .dense import DenseReconstruction, dense_point_cloud
-    from .features import FEATURE_MODES, Matches, find_matches
+    from .features.matching import FEATURE_MODES, Matches, find_matches
     from .multiview import MultiViewReconstruction, reconstruct_views
     from .scene import SceneReconstruction3D
     from .twoview import (

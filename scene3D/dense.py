@@ -34,7 +34,7 @@ from .geometry.rectification import (
     rectify_points,
     rectifying_transforms,
 )
-from .imageio import image_size
+from .io.images import image_size
 
 logger = logging.getLogger(__name__)
 

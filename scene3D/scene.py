@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .errors import log_result_warnings
-from .features import Matches, find_matches, normalize_feature_mode
+from .features.matching import Matches, find_matches, normalize_feature_mode
 from .geometry.camera import (
     check_intrinsics_for_native_size,
     scale_intrinsics,
@@ -32,7 +32,7 @@ from .geometry.camera import (
 )
 from .geometry.conventions import distinct_correspondences
 from .geometry.rectification import RectifiedPair, rectify_pair
-from .imageio import BOOK_MAX_WIDTH_PX, ImageSource, load_working_images, source_label
+from .io.images import BOOK_MAX_WIDTH_PX, ImageSource, load_working_images, source_label
 from .optim.uncertainty import depth_sigmas
 from .twoview import (
     TwoViewReconstruction,
@@ -108,7 +108,7 @@ class SceneReconstruction3D:
         While wider than ``max_width`` (the book's 1200 px) the images are halved
         and ``K`` is scaled to match (3072 px -> 768 px). The book halves with
         ``cv2.pyrDown``; we average 2x2 blocks, which a JPEG decoder does for free
-        (see :mod:`scene3D.imageio`). ``use_pyr_down=False`` keeps the native size.
+        (see :mod:`scene3D.io.images`). ``use_pyr_down=False`` keeps the native size.
 
         Raises
         ------
@@ -255,14 +255,14 @@ class SceneReconstruction3D:
     # -- the book's plots ----------------------------------------------------------
     def plot_optic_flow(self) -> Figure:
         """Figure of the optic flow (``"flow"`` mode tracks) over image 1."""
-        from .plotting import plot_optic_flow
+        from .viz.plotting import plot_optic_flow
 
         m = self.matches("flow")
         return plot_optic_flow(self._require_images()[0], m.pts1, m.pts2)
 
     def draw_epipolar_lines(self, feat_mode: str = "SIFT", num_lines: int = 20) -> Figure:
         """Figure of both images with epipolar lines of inlier matches."""
-        from .plotting import plot_epipolar_lines
+        from .viz.plotting import plot_epipolar_lines
 
         result = self.reconstruct(feat_mode)
         img1, img2 = self._require_images()
@@ -271,13 +271,13 @@ class SceneReconstruction3D:
 
     def plot_rectified_images(self, feat_mode: str = "SIFT") -> Figure:
         """Figure of the rectified pair side by side."""
-        from .plotting import plot_rectified
+        from .viz.plotting import plot_rectified
 
         return plot_rectified(self.rectify(feat_mode))
 
     def plot_point_cloud(self, feat_mode: str = "SIFT") -> Figure:
         """Figure of the triangulated, coloured point cloud."""
-        from .plotting import plot_point_cloud
+        from .viz.plotting import plot_point_cloud
 
         result = self.reconstruct(feat_mode)
         return plot_point_cloud(result.points3d, result.colors)

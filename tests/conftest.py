@@ -11,8 +11,8 @@ import pytest
 
 matplotlib.use("Agg")
 
-from scene3D import synthetic  # noqa: E402
-from scene3D.datasets import default_data_root  # noqa: E402
+from scene3D.evaluation import synthetic  # noqa: E402
+from scene3D.io.datasets import default_data_root  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 

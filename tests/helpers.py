@@ -13,9 +13,9 @@ import pytest
 
 from scene3D import SceneReconstruction3D
 from scene3D.calibration import detect_board
-from scene3D.datasets import read_strecha_camera, relative_pose
+from scene3D.evaluation.synthetic import random_points
 from scene3D.geometry import project, rotation_about_axis
-from scene3D.synthetic import random_points
+from scene3D.io.datasets import read_strecha_camera, relative_pose
 
 
 def correspondences(K, R, t, n=200, noise_px=0.0, seed=0):

@@ -4,6 +4,7 @@ global unknown, convergence from a focal length 30 % off, and its standard devia
 import numpy as np
 import pytest
 
+from scene3D.evaluation.synthetic import orbit_poses
 from scene3D.geometry import project, rotations_from_vectors
 from scene3D.geometry.camera import with_focal
 from scene3D.optim.bundle import (
@@ -14,15 +15,14 @@ from scene3D.optim.bundle import (
     reprojection_residuals,
 )
 from scene3D.optim.schur import global_information, normal_equations, solve_damped_global
-from scene3D.synthetic import orbit_poses
 
 #: Square pixels (the model refined), the principal point off the centre of 640 x 480.
 K_TRUE = np.array([[700.0, 0, 333.0], [0, 700.0, 231.0], [0, 0, 1]])
 
 
 def _orbit_observations(noise_px=0.0, seed=0, views=12, points=1500):
-    """Points in the courtyard of :func:`scene3D.synthetic.orbit_poses`, seen by the views
-    that have them in front and inside 640 x 480; points seen once are dropped."""
+    """Points in the courtyard of :func:`scene3D.evaluation.synthetic.orbit_poses`, seen by the
+    views that have them in front and inside 640 x 480; points seen once are dropped."""
     rng = np.random.default_rng(seed)
     Rs, ts = orbit_poses(views)
     X = rng.uniform([-8, -4, -8], [8, 2, 8], (points, 3))

@@ -94,7 +94,7 @@ def test_bundle_adjustment_keeps_the_book_pair_near_the_truth(fountain):
     bias-free SIFT; within 0.01 deg with OpenCV's default SIFT): both stay within 0.1 deg.
     """
     from scene3D import SceneReconstruction3D
-    from scene3D.datasets import read_strecha_camera, relative_pose
+    from scene3D.io.datasets import read_strecha_camera, relative_pose
 
     cams = [read_strecha_camera(fountain / "gt_dense_cameras" / f"000{i}.jpg.camera")
             for i in (4, 5)]

@@ -21,7 +21,7 @@ from scene3D.calibration import (
     save_calibration,
 )
 from scene3D.cli.calibrate import build_parser, main
-from scene3D.synthetic import render_board, render_circles_board
+from scene3D.evaluation.synthetic import render_board, render_circles_board
 
 from .conftest import REPO
 from .helpers import detect_folder

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from scene3D.calibration import BoardSpec, Detection, calibrate
-from scene3D.calibration_uncertainty import (
+from scene3D.calibration.uncertainty import (
     IntrinsicsCovariance,
     intrinsics_covariance,
     projection_covariance,
@@ -15,7 +15,7 @@ from scene3D.calibration_uncertainty import (
     uncertainty_map,
     worst_direction_sigma,
 )
-from scene3D.imageio import read_image_size
+from scene3D.io.images import read_image_size
 
 from .helpers import detect_folder
 

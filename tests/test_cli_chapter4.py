@@ -12,12 +12,12 @@ import cv2
 import numpy as np
 import pytest
 
-from scene3D.calibration_io import CameraCalibration, save_calibration
-from scene3D.datasets import read_strecha_camera, relative_pose
 from scene3D.evaluation import relative_pose_error
-from scene3D.export import read_ply
 from scene3D.geometry import angle_between_deg
 from scene3D.geometry.camera import scale_intrinsics
+from scene3D.io.calibration import CameraCalibration, save_calibration
+from scene3D.io.datasets import read_strecha_camera, relative_pose
+from scene3D.io.export import read_ply
 
 from .conftest import REPO
 from .helpers import ROUNDS, counts_page_faults, run_python

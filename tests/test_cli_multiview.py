@@ -8,11 +8,11 @@ import cv2
 import numpy as np
 import pytest
 
-from scene3D.calibration_io import CameraCalibration, save_calibration
 from scene3D.cli import multiview
-from scene3D.datasets import read_strecha_camera
 from scene3D.errors import ReconstructionError
-from scene3D.export import colmap_text_files
+from scene3D.io.calibration import CameraCalibration, save_calibration
+from scene3D.io.datasets import read_strecha_camera
+from scene3D.io.export import colmap_text_files
 from scene3D.multiview import SfMSettings, mapper, reconstruct_views
 from scene3D.multiview.models import refutes_calibration
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from PIL import ExifTags, Image
 
-from scene3D.datasets import read_strecha_camera, relative_pose
 from scene3D.evaluation import relative_pose_error
+from scene3D.io.datasets import read_strecha_camera, relative_pose
 
 from .test_cli_chapter4 import run
 

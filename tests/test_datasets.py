@@ -9,8 +9,8 @@ import threading
 import numpy as np
 import pytest
 
-from scene3D.datasets import FOUNTAIN_P11_SHA256, fetch_fountain_p11, sha256_of, strecha_views
 from scene3D.errors import DatasetError
+from scene3D.io.datasets import FOUNTAIN_P11_SHA256, fetch_fountain_p11, sha256_of, strecha_views
 
 FILES = ("images/K.txt", "gt_dense_cameras/0004.jpg.camera", "images/0004.jpg")
 
@@ -113,7 +113,7 @@ def test_strecha_views_pair_each_image_with_its_camera_file(tmp_path, caplog):
 
 def test_a_strecha_scene_holds_each_image_with_its_true_camera(data_root):
     """fountain-P11: the images in name order, their cameras' rotations and centres."""
-    from scene3D.datasets import read_strecha_camera, read_strecha_scene
+    from scene3D.io.datasets import read_strecha_camera, read_strecha_scene
 
     root = data_root / "fountain-P11"
     scene = read_strecha_scene(root)
@@ -150,7 +150,7 @@ def camera_text(fountain, lines):
 ])
 def test_an_invalid_camera_file_is_refused_naming_the_file_and_the_field(fountain, tmp_path,
                                                                           lines, message):
-    from scene3D.datasets import read_strecha_camera
+    from scene3D.io.datasets import read_strecha_camera
 
     path = tmp_path / "0004.jpg.camera"
     path.write_text(camera_text(fountain, lines))
@@ -162,7 +162,7 @@ def test_an_invalid_camera_file_is_refused_naming_the_file_and_the_field(fountai
 
 def test_every_shared_camera_file_is_valid(data_root):
     """The tolerance on R leaves the stored six digits of every Strecha scene through."""
-    from scene3D.datasets import read_strecha_camera
+    from scene3D.io.datasets import read_strecha_camera
 
     files = sorted(data_root.glob("*/gt_dense_cameras/*.camera"))
     assert len(files) >= 11

@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
+from scene3D.evaluation.synthetic import random_points
 from scene3D.geometry import project, rotation_error_deg
 from scene3D.geometry.epipolar import essential_distances, essential_from_pose, estimate_homography
-from scene3D.synthetic import random_points
 from scene3D.twoview.degeneracy import (
     fit_rotation,
     fit_rotation_and_focal,

@@ -13,8 +13,8 @@ from scene3D.dense import (
     search_disparity,
 )
 from scene3D.errors import ReconstructionError
+from scene3D.evaluation.synthetic import render_planes
 from scene3D.geometry import project
-from scene3D.synthetic import render_planes
 
 
 def test_disparity_range_covers_the_sparse_disparities_with_margin():
@@ -128,7 +128,7 @@ def test_the_disparities_and_their_Q_give_the_points(synthetic_dense):
     ((1, 3), 100, 50),
 ])
 def test_dense_agrees_with_sparse(fountain, pair, min_ratio, min_compared):
-    from scene3D.datasets import read_strecha_camera
+    from scene3D.io.datasets import read_strecha_camera
 
     i, j = pair
     cam = read_strecha_camera(fountain / "gt_dense_cameras" / f"{i:04d}.jpg.camera")

@@ -6,16 +6,16 @@ import cv2
 import numpy as np
 import pytest
 
-from scene3D.datasets import read_strecha_camera, relative_pose
 from scene3D.evaluation import relative_pose_error
+from scene3D.evaluation.synthetic import lens_photo
 from scene3D.features import find_matches
 from scene3D.geometry import pose_angle_deg, project, rotation_about_axis, skew, to_homogeneous
 from scene3D.geometry.camera import scale_intrinsics_halved
-from scene3D.imageio import load_working_image
+from scene3D.io.datasets import read_strecha_camera, relative_pose
+from scene3D.io.images import load_working_image
 from scene3D.optim.refinement import _fundamental_derivatives, _update_pose, refine_relative_pose
 from scene3D.optim.uncertainty import tangent_basis
 from scene3D.selfcalibration import self_calibrate_pair
-from scene3D.synthetic import lens_photo
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches, reconstruct_two_view
 from scene3D.twoview.distortion_fit import (
     DistortionFit,

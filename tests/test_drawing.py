@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 from matplotlib.figure import Figure
 
-from scene3D.drawing import (
+from scene3D.viz.drawing import (
     draw_epipolar_lines,
     draw_optic_flow,
     encode_png,
@@ -15,7 +15,7 @@ from scene3D.drawing import (
     subsample_indices,
     titled,
 )
-from scene3D.plotting import plot_epipolar_lines, plot_optic_flow
+from scene3D.viz.plotting import plot_epipolar_lines, plot_optic_flow
 
 
 def test_optic_flow_arrow_runs_from_point_to_match():

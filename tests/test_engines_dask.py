@@ -31,10 +31,10 @@ from scene3D.cli import main as scene3d_main  # noqa: E402
 from scene3D.cli.evaluate import evaluate_pairs  # noqa: E402
 from scene3D.cli.evaluate import main as evaluate_main  # noqa: E402
 from scene3D.cli.multiview import main as views_main  # noqa: E402
-from scene3D.datasets import read_strecha_camera, strecha_views  # noqa: E402
 from scene3D.engines import LocalEngine  # noqa: E402
 from scene3D.engines.dask_engine import DaskEngine  # noqa: E402
 from scene3D.errors import EngineError, ReconstructionError  # noqa: E402
+from scene3D.io.datasets import read_strecha_camera, strecha_views  # noqa: E402
 from scene3D.multiview import reconstruct_views  # noqa: E402
 from scene3D.twoview import TwoViewSettings  # noqa: E402
 
@@ -142,7 +142,7 @@ def test_a_task_error_is_raised_with_its_type_and_details(client):
 def test_a_file_a_worker_cannot_read_names_the_file_and_the_worker(client, tmp_path):
     engine = DaskEngine(client, files="shared")
     missing = tmp_path / "gone" / "0007.jpg"
-    from scene3D.imageio import read_image
+    from scene3D.io.images import read_image
 
     with pytest.raises(FileNotFoundError) as info:
         list(engine.map(read_image, [(missing,)]))

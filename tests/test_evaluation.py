@@ -167,8 +167,8 @@ def test_evaluate_refuses_a_pair_of_two_cameras(fountain, tmp_path, capsys):
 
 def test_evaluate_maps_one_task_per_view_and_one_per_pair(fountain):
     from scene3D.cli.evaluate import _views, evaluate_pairs
-    from scene3D.datasets import read_strecha_camera
     from scene3D.engines import LocalEngine
+    from scene3D.io.datasets import read_strecha_camera
     from scene3D.twoview import TwoViewSettings
 
     class Recording(LocalEngine):

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from PIL import ExifTags, Image
 
-from scene3D.exif import read_camera_prior, read_exif
 from scene3D.geometry.intrinsics_prior import focal_px_from_35mm
+from scene3D.io.exif import read_camera_prior, read_exif
 
 SIZE = (96, 64)
 
@@ -107,7 +107,7 @@ def test_absurd_focal_length_is_not_used(tmp_path):
 def test_absurd_focal_length_next_to_a_plausible_one_is_warned_about(tmp_path, caplog):
     a = save(tmp_path / "a.jpg", exif_bytes(focal_35mm=32))
     b = save(tmp_path / "b.jpg", exif_bytes(focal_35mm=5000))
-    with caplog.at_level("WARNING", logger="scene3D.exif"):
+    with caplog.at_level("WARNING", logger="scene3D.io.exif"):
         prior = read_camera_prior([a, b])
     assert prior.source == "exif"
     assert prior.focal_px == pytest.approx(focal_px_from_35mm(32, SIZE))
@@ -133,6 +133,6 @@ def test_a_photo_pillow_will_not_open_has_no_exif_not_a_corrupt_one(tmp_path, ca
     data[16:24] = (100000).to_bytes(4, "big") * 2  # IHDR: 100000x100000
     data[29:33] = zlib.crc32(data[12:29]).to_bytes(4, "big")
     path.write_bytes(bytes(data))
-    with caplog.at_level("WARNING", logger="scene3D.exif"):
+    with caplog.at_level("WARNING", logger="scene3D.io.exif"):
         assert read_exif(path) is None
     assert "'" + str(path) + "': Pillow will not open it" in caplog.text

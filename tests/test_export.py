@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
-from scene3D.export import (
+from scene3D.io.export import (
     all_or_nothing,
     atomic_write_bytes,
     atomic_write_pieces,

@@ -4,7 +4,6 @@ import cv2
 import numpy as np
 import pytest
 
-from scene3D import features
 from scene3D.features import (
     find_matches,
     image_features,
@@ -12,6 +11,7 @@ from scene3D.features import (
     match_features,
     normalize_feature_mode,
 )
+from scene3D.features import matching as features
 
 
 def test_modes_are_case_insensitive_and_unknown_modes_are_listed():

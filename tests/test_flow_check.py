@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 
 from scene3D import TwoViewSettings
-from scene3D.datasets import read_strecha_camera, relative_pose
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import find_matches, to_gray
 from scene3D.geometry import rotation_about_axis
 from scene3D.geometry.camera import scale_intrinsics_halved
 from scene3D.geometry.epipolar import essential_distances, essential_from_pose
-from scene3D.imageio import load_working_image
+from scene3D.io.datasets import read_strecha_camera, relative_pose
+from scene3D.io.images import load_working_image
 from scene3D.twoview import reconstruct_two_view
 from scene3D.twoview.flow_check import (
     FLOW_BAND_PX,

@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 
 from scene3D import SceneReconstruction3D
-from scene3D.datasets import read_strecha_camera, relative_pose
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import Matches, detect_features, match_descriptors, to_gray
 from scene3D.geometry import project, rotations_from_vectors
 from scene3D.geometry.camera import scale_intrinsics
 from scene3D.geometry.pose import choose_pose
+from scene3D.io.datasets import read_strecha_camera, relative_pose
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches
 from scene3D.twoview.essential_fit import essential_cost, fit_essential
 

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from scene3D import SceneReconstruction3D
-from scene3D.datasets import read_strecha_camera, relative_pose
 from scene3D.evaluation import relative_pose_error
-from scene3D.exif import read_camera_prior, read_exif
-from scene3D.imageio import read_image, read_image_size
+from scene3D.io.datasets import read_strecha_camera, relative_pose
+from scene3D.io.exif import read_camera_prior, read_exif
+from scene3D.io.images import read_image, read_image_size
 
 pillow_heif = pytest.importorskip("pillow_heif")
 
@@ -105,7 +105,7 @@ def test_without_pillow_heif_the_message_says_how(heic_pair, monkeypatch):
 def test_an_avif_naming_mif1_first_is_left_to_opencv(tmp_path):
     """AVIF files share HEIF's container; one may name mif1 as its major brand with avif
     among its compatible ones. OpenCV decodes AVIF; libheif here has no AV1 decoder."""
-    from scene3D.imageio import is_heif
+    from scene3D.io.images import is_heif
 
     ftyp = (b"\x00\x00\x00\x1cftyp" + b"mif1" + b"\x00\x00\x00\x00" + b"mif1avifmiaf")
     assert not is_heif(ftyp)

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from scene3D.image_integrity import intact_image_data
-from scene3D.imageio import load_working_image, read_image
+from scene3D.io.image_integrity import intact_image_data
+from scene3D.io.images import load_working_image, read_image
 
 from .conftest import REPO
 
@@ -104,7 +104,7 @@ def test_stray_bytes_among_the_header_segments_are_dropped_with_a_warning(tmp_pa
     sos = jpeg.index(b"\xff\xda")
     path = tmp_path / "stray.jpg"
     path.write_bytes(jpeg[:sos] + b"\x00\x11\x22" + jpeg[sos:])
-    with caplog.at_level(logging.WARNING, logger="scene3D.image_integrity"):
+    with caplog.at_level(logging.WARNING, logger="scene3D.io.image_integrity"):
         img = read_image(path)
     np.testing.assert_array_equal(img, cv2.imdecode(np.frombuffer(jpeg, np.uint8),
                                                     cv2.IMREAD_COLOR))
@@ -201,7 +201,7 @@ def test_the_commands_refuse_a_truncated_tiff_in_one_line(tmp_path, command):
     and scene3D's line only, where Pillow warned 'Corrupt EXIF data. Expecting to read 2
     bytes but only got 0.' in two lines of its own while the size was read. A subprocess,
     as a user runs it: pytest would catch the warning in process."""
-    from scene3D.calibration_io import CameraCalibration, save_calibration
+    from scene3D.io.calibration import CameraCalibration, save_calibration
 
     data = _encoded(".tif")
     trunc = tmp_path / "trunc.tif"

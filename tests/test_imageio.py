@@ -4,9 +4,9 @@ import cv2
 import numpy as np
 import pytest
 
-from scene3D import imageio
 from scene3D.geometry.camera import scale_intrinsics_halved
-from scene3D.imageio import (
+from scene3D.io import images as imageio
+from scene3D.io.images import (
     glob_files,
     halve,
     halving_levels,

@@ -10,15 +10,15 @@ import pytest
 
 from scene3D import SceneReconstruction3D
 from scene3D.calibration import BoardSpec, detect_board
-from scene3D.calibration_io import CameraCalibration, load_calibration, save_calibration
 from scene3D.dense import dense_point_cloud
-from scene3D.drawing import draw_epipolar_lines
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import Matches, find_matches, image_features
 from scene3D.geometry.epipolar import epipolar_lines
-from scene3D.plotting import plot_cameras_and_points, plot_point_cloud
+from scene3D.io.calibration import CameraCalibration, load_calibration, save_calibration
 from scene3D.selfcalibration import self_calibrate_pair
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches, reconstruct_two_view
+from scene3D.viz.drawing import draw_epipolar_lines
+from scene3D.viz.plotting import plot_cameras_and_points, plot_point_cloud
 
 from .helpers import correspondences
 

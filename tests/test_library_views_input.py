@@ -10,9 +10,7 @@ import pytest
 
 from scene3D.cli.common import UsageError
 from scene3D.cli.common import read_camera_prior as cli_read_camera_prior
-from scene3D.datasets import fetch_fountain_p11, read_strecha_camera
 from scene3D.errors import DatasetError
-from scene3D.exif import read_camera_prior
 from scene3D.geometry.camera import scale_intrinsics_halved
 from scene3D.geometry.intrinsics_prior import (
     CameraMismatchError,
@@ -21,7 +19,9 @@ from scene3D.geometry.intrinsics_prior import (
     check_one_camera,
     focal_prior,
 )
-from scene3D.imageio import load_working_images
+from scene3D.io.datasets import fetch_fountain_p11, read_strecha_camera
+from scene3D.io.exif import read_camera_prior
+from scene3D.io.images import load_working_images
 from scene3D.multiview import reconstruct_views
 
 VIEWS = ("0004.jpg", "0005.jpg", "0006.jpg")
@@ -94,7 +94,7 @@ SIZE = (3072, 2048)
 ])
 def test_photos_of_two_sizes_are_not_told_to_give_a_calibration(second, words):
     """A calibration holds for one size too: `K` or --calib would refuse these photos
-    alike (:func:`scene3D.imageio.iter_working_images`), so the message does not offer it."""
+    alike (:func:`scene3D.io.images.iter_working_images`), so the message does not offer it."""
     photos = [("a.jpg", None, SIZE), second]
     with pytest.raises(ValueError, match="photos of one camera at one size are needed") as info:
         check_one_camera(photos)
@@ -120,12 +120,12 @@ def test_two_cameras_are_told_how_to_give_a_calibration_in_python_or_the_shell(p
     with pytest.raises(CameraMismatchError, match=words) as info:
         check_one_camera(photos)
     assert str(info.value) == (f"{info.value.problem}; or, if one calibration holds for them "
-                               "all, use its `K` (scene3D.calibration_io.load_calibration)")
+                               "all, use its `K` (scene3D.io.calibration.load_calibration)")
     assert "--calib" not in str(info.value)
     with pytest.raises(CameraMismatchError, match=words):
         camera_prior(photos)
     with pytest.raises(UsageError) as cli:  # what the commands print without --calib
-        with patch("scene3D.exif.read_camera_prior", side_effect=info.value):
+        with patch("scene3D.io.exif.read_camera_prior", side_effect=info.value):
             cli_read_camera_prior([Path("a.jpg"), Path("b.jpg")])
     assert str(cli.value) == (f"{info.value.problem}; or, if one calibration holds for them "
                               "all, give it with --calib FILE")

@@ -364,7 +364,7 @@ def test_pycolmap_reads_the_model(fountain_views):
 
 def test_an_unrelated_or_blank_image_is_reported_not_registered(fountain, chessboards, tmp_path):
     """Also: the book's SURF asked for, the JSON records the detector that ran."""
-    from scene3D import features
+    from scene3D.features import matching as features
 
     folder = tmp_path / "mixed"
     folder.mkdir()
@@ -414,7 +414,7 @@ def test_reconstruct_views_bad_input(tmp_path, fountain):
 
 def test_sequential_pairs_through_the_api(fountain):
     from scene3D import reconstruct_views
-    from scene3D.datasets import read_strecha_camera
+    from scene3D.io.datasets import read_strecha_camera
 
     cams = [read_strecha_camera(fountain / "gt_dense_cameras" / f"{i:04d}.jpg.camera")
             for i in range(2, 7)]
@@ -434,7 +434,7 @@ def test_sequential_pairs_through_the_api(fountain):
 
 def test_a_calibration_that_does_not_fit_stops_with_the_reason(fountain):
     from scene3D import reconstruct_views
-    from scene3D.datasets import read_strecha_camera
+    from scene3D.io.datasets import read_strecha_camera
 
     K = read_strecha_camera(fountain / "gt_dense_cameras" / "0003.jpg.camera").K.copy()
     K[:2, :2] *= 0.8  # a calibration for another zoom
@@ -447,7 +447,7 @@ def test_a_calibration_that_does_not_fit_stops_with_the_reason(fountain):
 
 def test_one_photo_twice_stops_with_what_to_check(fountain, tmp_path):
     from scene3D import reconstruct_views
-    from scene3D.datasets import read_strecha_camera
+    from scene3D.io.datasets import read_strecha_camera
 
     K = read_strecha_camera(fountain / "gt_dense_cameras" / "0004.jpg.camera").K
     copy = tmp_path / "copy.jpg"
@@ -570,7 +570,7 @@ def test_views_that_cannot_start_a_further_model_are_told_why(fountain, data_roo
     back): under the fountain's calibration no pair of the zoomed views is trusted, so they
     form no model. Each is told that, and why (the focal length their matches call for),
     not a reason left over from the fountain model's registration."""
-    from scene3D.datasets import read_strecha_camera
+    from scene3D.io.datasets import read_strecha_camera
     from scene3D.multiview import reconstruct_views
 
     paths = [fountain / "images" / f"{i:04d}.jpg" for i in range(2, 7)]
@@ -653,8 +653,8 @@ class _PicklingEngine:
 
 
 def test_tasks_run_through_the_engine_and_survive_pickling(fountain):
-    from scene3D.datasets import read_strecha_camera
     from scene3D.engines import LocalEngine
+    from scene3D.io.datasets import read_strecha_camera
     from scene3D.multiview import reconstruct_views
 
     K = read_strecha_camera(fountain / "gt_dense_cameras" / "0003.jpg.camera").K
@@ -699,7 +699,7 @@ def test_a_view_that_fails_at_first_is_registered_with_further_candidates(founta
     withheld: 0005 has no 2D-3D match when the others are registered, is matched with its
     next most similar views of the model, and registers where the truth puts it. Without
     retries it stays out, with the reason."""
-    from scene3D.datasets import read_strecha_camera
+    from scene3D.io.datasets import read_strecha_camera
     from scene3D.multiview import reconstruct_views
 
     paths = [fountain / "images" / f"{i:04d}.jpg" for i in range(1, 10)]

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 from PIL import ExifTags, Image
 
-from scene3D.datasets import read_strecha_camera
 from scene3D.evaluation import camera_set_error
+from scene3D.evaluation.synthetic import orbit_poses
 from scene3D.geometry import project
+from scene3D.io.datasets import read_strecha_camera
 from scene3D.multiview import PairMatches, SfMSettings, ViewFeatures, reconstruct_models
 from scene3D.multiview.focal import FocalSettings
-from scene3D.synthetic import orbit_poses
 
 #: Square pixels, the principal point off the image centre by 1.5 % and 2 % (the model
 #: puts it at the centre: the focal length must still come out close).
@@ -24,7 +24,7 @@ SIZE = (640, 480)
 
 
 def _orbit_views(noise_px, seed=0, views=8):
-    """Points of a courtyard seen from :func:`scene3D.synthetic.orbit_poses` cameras, as
+    """Points of a courtyard seen from :func:`scene3D.evaluation.synthetic.orbit_poses` cameras, as
     keypoints in an order unrelated to the points, and every pair's true matches."""
     rng = np.random.default_rng(seed)
     Rs, ts = orbit_poses(2 * views)

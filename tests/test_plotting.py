@@ -1,11 +1,11 @@
-"""Matplotlib figures (scene3D.plotting): laid out so that nothing covers anything."""
+"""Matplotlib figures (scene3D.viz.plotting): laid out so that nothing covers anything."""
 
 import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-from scene3D.calibration_uncertainty import UncertaintyMap
-from scene3D.plotting import plot_uncertainty_map
+from scene3D.calibration.uncertainty import UncertaintyMap
+from scene3D.viz.plotting import plot_uncertainty_map
 
 
 @pytest.mark.parametrize("size", [(1280, 720), (640, 480), (480, 640)])

@@ -22,7 +22,7 @@ def test_rectified_matches_share_a_row_and_size_is_kept(rendered_pair):
 
 def test_rectified_images_are_consistent_with_the_maps(rendered_pair):
     """A scene point appears on the same row, with the same colour, in both rectified images."""
-    from scene3D.synthetic import render_planes
+    from scene3D.evaluation.synthetic import render_planes
 
     img1, img2, K, R, t = rendered_pair
     rect = rectify_pair(img1, img2, K, R, t, alpha=0.0)

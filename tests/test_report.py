@@ -11,8 +11,8 @@ import sys
 import numpy as np
 import pytest
 
-from scene3D.calibration_uncertainty import IntrinsicsCovariance, uncertainty_map
-from scene3D.export import atomic_write_pieces
+from scene3D.calibration.uncertainty import IntrinsicsCovariance, uncertainty_map
+from scene3D.io.export import atomic_write_pieces
 from scene3D.report import (
     CameraLayer,
     CloudLayer,

@@ -112,7 +112,7 @@ def test_a_K_for_larger_photos_is_refused_not_trusted(fountain, tmp_path):
     (1520, 1007) lies far outside them. It gave a pose 39 deg off, marked trusted."""
     import cv2
 
-    from scene3D.datasets import read_strecha_camera
+    from scene3D.io.datasets import read_strecha_camera
 
     cam = read_strecha_camera(fountain / "gt_dense_cameras" / "0004.jpg.camera")
     paths = []

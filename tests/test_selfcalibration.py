@@ -7,6 +7,7 @@ import pytest
 
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
+from scene3D.evaluation.synthetic import asymmetric_pose, random_points
 from scene3D.geometry import project, rotation_about_axis
 from scene3D.geometry.intrinsics_prior import (
     DEFAULT_PRIOR_SIGMA_LOG,
@@ -23,7 +24,6 @@ from scene3D.selfcalibration import (
     self_calibrate_pair,
     with_focal,
 )
-from scene3D.synthetic import asymmetric_pose, random_points
 from scene3D.twoview import TwoViewSettings
 
 from .helpers import correspondences
@@ -222,9 +222,9 @@ def test_the_profile_keeps_a_facade_pair_out_of_the_prior_basin(data_root):
     (Pair 16-17 did the same, 30 % off, until the robust restarts were compared at the
     keypoints' noise, issue #19; the plain iteration now finds its focal length.)
     """
-    from scene3D.datasets import read_strecha_camera, relative_pose
     from scene3D.features import image_features, match_features
-    from scene3D.imageio import load_working_image
+    from scene3D.io.datasets import read_strecha_camera, relative_pose
+    from scene3D.io.images import load_working_image
 
     scene = data_root / "castle-P19"
     cams = [read_strecha_camera(scene / "gt_dense_cameras" / f"{i:04d}.jpg.camera")
@@ -243,9 +243,9 @@ def test_the_profile_keeps_a_facade_pair_out_of_the_prior_basin(data_root):
 
 
 def _strecha_matches(scene, views, width):
-    from scene3D.datasets import read_strecha_camera
     from scene3D.features import image_features, match_features
-    from scene3D.imageio import load_working_image
+    from scene3D.io.datasets import read_strecha_camera
+    from scene3D.io.images import load_working_image
 
     cams = [read_strecha_camera(scene / "gt_dense_cameras" / f"{i:04d}.jpg.camera")
             for i in views]
@@ -260,7 +260,7 @@ def test_a_focal_length_the_pair_determines_poorly_is_not_trusted(data_root):
     Before, the result was trusted with a rotation sigma of 0.02 deg (conditional on the
     wrong focal length). The pose's sigma is now marginal over the intrinsics, and the
     result is not trusted."""
-    from scene3D.datasets import relative_pose
+    from scene3D.io.datasets import relative_pose
 
     cams, matches = _strecha_matches(data_root / "castle-P19", (4, 5), 768)
     f_true = math.sqrt(cams[0].K[0, 0] * cams[0].K[1, 1]) / 4

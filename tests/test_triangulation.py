@@ -1,6 +1,7 @@
 import numpy as np
 import pytest
 
+from scene3D.evaluation.synthetic import random_points
 from scene3D.geometry import project
 from scene3D.geometry.triangulation import (
     behind_at_scene_parallax,
@@ -10,7 +11,6 @@ from scene3D.geometry.triangulation import (
     reprojection_errors,
     triangulate_points,
 )
-from scene3D.synthetic import random_points
 
 from .helpers import correspondences
 
@@ -62,8 +62,8 @@ def test_random_matches_near_their_epipolar_lines_often_land_behind(camera, angl
     ones, lie behind a camera at the scene's parallax 19-44 % of the time, the right
     ones never: the ground of TwoViewSettings.max_behind_share (a fifth behind: about
     half the inliers or more wrong)."""
+    from scene3D.evaluation.synthetic import asymmetric_pose
     from scene3D.geometry.epipolar import essential_distances, essential_from_pose
-    from scene3D.synthetic import asymmetric_pose
 
     R, t = asymmetric_pose(angle_deg, baseline)
     t = t / np.linalg.norm(t)

@@ -3,10 +3,10 @@ import pytest
 
 from scene3D.errors import ReconstructionError
 from scene3D.evaluation import relative_pose_error
+from scene3D.evaluation.synthetic import random_points
 from scene3D.features import Matches, find_matches
 from scene3D.geometry import project
 from scene3D.geometry.epipolar import estimate_homography
-from scene3D.synthetic import random_points
 from scene3D.twoview import (
     TwoViewSettings,
     off_plane_evidence,
@@ -95,10 +95,10 @@ def test_too_few_matches_says_whether_keypoints_or_matching_were_short(
 
 def test_photos_of_two_places_are_refused_with_what_to_check(data_root):
     """Herz-Jesus-P8 and castle-P19: SIFT finds chance matches, no motion explains them."""
-    from scene3D.datasets import read_strecha_camera, strecha_views
     from scene3D.features import image_features, match_features
     from scene3D.geometry.camera import scale_intrinsics_halved
-    from scene3D.imageio import load_working_image
+    from scene3D.io.datasets import read_strecha_camera, strecha_views
+    from scene3D.io.images import load_working_image
 
     features, K = [], None
     for scene in ("Herz-Jesus-P8", "castle-P19"):
@@ -490,8 +490,8 @@ def test_a_backdrop_under_a_slightly_short_focal_length_is_not_taken_for_wrong_m
     as wrong matches (scene3D.geometry.triangulation.behind_at_scene_parallax) and the pose,
     0.85 deg off, stays trusted. (Found by a review; before, the pose was flagged for
     its inliers behind the cameras.)"""
+    from scene3D.evaluation.synthetic import Rectangle, asymmetric_camera, box_scene, render_planes
     from scene3D.geometry import rotation_about_axis
-    from scene3D.synthetic import Rectangle, asymmetric_camera, box_scene, render_planes
 
     K, size, depth = asymmetric_camera(), (640, 480), 300.0
     width = 2 * depth

@@ -3,7 +3,7 @@ import warnings
 import numpy as np
 import pytest
 
-from scene3D import synthetic
+from scene3D.evaluation import synthetic
 from scene3D.geometry import project, rotation_about_axis, rotations_from_vectors
 from scene3D.geometry.triangulation import triangulate_points
 from scene3D.optim.refinement import (

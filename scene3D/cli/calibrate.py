@@ -21,7 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..calibration import (
+from ..calibration.board import (
     MAX_RMS_PX,
     PATTERNS,
     BoardSpec,
@@ -35,17 +35,17 @@ from ..calibration import (
     min_image_side_px,
     save_calibration,
 )
-from ..calibration_io import CALIBRATION_SUFFIXES
-from ..calibration_uncertainty import (
+from ..calibration.uncertainty import (
     CORNER_LIMIT_PX,
     UncertaintyMap,
     format_px,
     uncertainty_map,
 )
 from ..errors import CalibrationError, plural
-from ..export import all_or_nothing, atomic_write_bytes, atomic_write_pieces
 from ..geometry.camera import undistort_image
-from ..imageio import (
+from ..io.calibration import CALIBRATION_SUFFIXES
+from ..io.export import all_or_nothing, atomic_write_bytes, atomic_write_pieces
+from ..io.images import (
     IMAGE_SUFFIXES,
     folder_images,
     glob_files,
@@ -704,7 +704,7 @@ def run(args: argparse.Namespace) -> int:
     for w in advice:
         logger.warning("%s", w)
 
-    from ..plotting import plot_calibration_coverage, plot_uncertainty_map, plot_view_errors
+    from ..viz.plotting import plot_calibration_coverage, plot_uncertainty_map, plot_view_errors
 
     extras = {
         "rms_px": result.rms_px,

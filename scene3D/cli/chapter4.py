@@ -13,18 +13,18 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 
 from .. import __version__
-from ..calibration_io import load_calibration
-from ..export import (
+from ..features.matching import FEATURE_MODES, normalize_feature_mode
+from ..geometry.camera import adapt_intrinsics_to_size
+from ..geometry.conventions import camera_centers, rotation_angle_deg
+from ..io.calibration import load_calibration
+from ..io.export import (
     all_or_nothing,
     atomic_write_bytes,
     atomic_write_pieces,
     write_json,
     write_ply,
 )
-from ..features import FEATURE_MODES, normalize_feature_mode
-from ..geometry.camera import adapt_intrinsics_to_size
-from ..geometry.conventions import camera_centers, rotation_angle_deg
-from ..imageio import BOOK_MAX_WIDTH_PX, image_size, read_image_size
+from ..io.images import BOOK_MAX_WIDTH_PX, image_size, read_image_size
 from ..scene import SceneReconstruction3D
 from ..twoview import TwoViewSettings
 from .common import (
@@ -122,7 +122,7 @@ def _resolve_inputs(args: argparse.Namespace) -> tuple[Path, Path, Path | None]:
         path1, path2 = Path(args.images[0]), Path(args.images[1])
         check_image_paths([path1, path2])
         return path1, path2, args.calib
-    from ..datasets import BOOK_PAIR, fetch_fountain_p11  # the book's pair: its only use
+    from ..io.datasets import BOOK_PAIR, fetch_fountain_p11  # the book's pair: its only use
 
     folder = fetch_fountain_p11(BOOK_PAIR)
     calib = args.calib if args.calib is not None else DEFAULT_CALIB
@@ -140,13 +140,13 @@ class _Camera(NamedTuple):
 
 def _load_camera(calib_path: Path | None, images: tuple[Path, Path]) -> _Camera:
     """The calibration file's camera, or without one the EXIF/default focal prior of
-    ``images`` (:func:`scene3D.exif.read_camera_prior`: one camera is checked)."""
+    ``images`` (:func:`scene3D.io.exif.read_camera_prior`: one camera is checked)."""
     if calib_path is None:
         prior = read_camera_prior(list(images))
         return _Camera(prior.K, np.zeros(5), prior.image_size, prior)
     if calib_path == DEFAULT_CALIB and not calib_path.is_file():
         # An installed copy without the repository's data/ folder: the same K from the dataset.
-        from ..datasets import fetch_fountain_p11
+        from ..io.datasets import fetch_fountain_p11
 
         K = np.loadtxt(fetch_fountain_p11(("images/K.txt",)) / "images" / "K.txt")
         return _Camera(K, np.zeros(5), (3072, 2048))
@@ -266,7 +266,9 @@ def warning_lines(trusted: bool, warnings: tuple[str, ...]) -> list[str]:
 def _figure_jobs(scene: SceneReconstruction3D, result, dense) -> dict[str, Callable]:
     """The figures to write, each a function drawing it with OpenCV (pure functions of the
     images and the result, so that they can run in threads; cv2 releases the GIL)."""
-    from ..drawing import (
+    from ..features.matching import find_matches
+    from ..geometry.rectification import rectify_pair
+    from ..viz.drawing import (
         draw_disparity,
         draw_epipolar_lines,
         draw_optic_flow,
@@ -275,8 +277,6 @@ def _figure_jobs(scene: SceneReconstruction3D, result, dense) -> dict[str, Calla
         render_point_cloud,
         robust_extent,
     )
-    from ..features import find_matches
-    from ..geometry.rectification import rectify_pair
 
     img1, img2, K = scene.img1, scene.img2, scene.K
 
@@ -306,7 +306,7 @@ def _figure_jobs(scene: SceneReconstruction3D, result, dense) -> dict[str, Calla
 
 def _encode(job: Callable) -> tuple[bytes, bytes]:
     """A figure's PNG (the file) and JPEG (for the report) bytes."""
-    from ..drawing import encode_jpeg, encode_png, titled
+    from ..viz.drawing import encode_jpeg, encode_png, titled
 
     image = titled(job())
     return encode_png(image), encode_jpeg(image)

@@ -134,12 +134,12 @@ def focal_sigma_text(focal_px: float, sigma_px: float) -> str:
 
 
 def read_camera_prior(paths: list[Path]) -> FocalPrior:
-    """:func:`scene3D.exif.read_camera_prior` for a command run without ``--calib``: photos
+    """:func:`scene3D.io.exif.read_camera_prior` for a command run without ``--calib``: photos
     of two cameras or zoom settings
     (:class:`~scene3D.geometry.intrinsics_prior.CameraMismatchError`) are a
     :class:`UsageError` that names ``--calib``, not the library's ``K``."""
-    from ..exif import read_camera_prior as read_prior
     from ..geometry.intrinsics_prior import CameraMismatchError
+    from ..io.exif import read_camera_prior as read_prior
 
     try:
         return read_prior(paths)

@@ -16,12 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..datasets import StrechaCamera, read_strecha_camera, relative_pose, strecha_views
 from ..engines import Engine, Progress
 from ..errors import ReconstructionError, plural
-from ..evaluation import relative_pose_error, sigma_calibration, summarize_pose_errors
-from ..export import atomic_write_bytes
-from ..features import (
+from ..evaluation.poses import relative_pose_error, sigma_calibration, summarize_pose_errors
+from ..features.matching import (
     FEATURE_MODES,
     ImageFeatures,
     Matches,
@@ -31,7 +29,9 @@ from ..features import (
     normalize_feature_mode,
 )
 from ..geometry.camera import adapt_intrinsics_to_size, scale_intrinsics_halved
-from ..imageio import BOOK_MAX_WIDTH_PX, load_working_image, read_image_size
+from ..io.datasets import StrechaCamera, read_strecha_camera, relative_pose, strecha_views
+from ..io.export import atomic_write_bytes
+from ..io.images import BOOK_MAX_WIDTH_PX, load_working_image, read_image_size
 from ..optim.uncertainty import pose_error_chi2
 from ..twoview import TwoViewSettings, check_against_flow, reconstruct_from_matches
 from .common import (
@@ -180,7 +180,7 @@ def _load_view(path: Path, camera: StrechaCamera, max_width: int | None,
         raise ValueError(f"'{path}': {exc}") from None
     dist = camera.dist  # in normalised coordinates: the same at any size
     if no_calib:
-        from ..exif import read_exif
+        from ..io.exif import read_exif
 
         dist = np.zeros(5)
         photo = (path.name, read_exif(path), size)

@@ -11,11 +11,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..calibration_io import load_calibration
-from ..datasets import StrechaCamera, read_strecha_camera
 from ..errors import plural
-from ..evaluation import camera_set_error
-from ..export import (
+from ..evaluation.poses import camera_set_error
+from ..features.matching import FEATURE_MODES, resolve_feature_mode
+from ..geometry.camera import adapt_intrinsics_to_size
+from ..io.calibration import load_calibration
+from ..io.datasets import StrechaCamera, read_strecha_camera
+from ..io.export import (
     all_or_nothing,
     colmap_image_name,
     colmap_text_files,
@@ -25,9 +27,7 @@ from ..export import (
     write_text_files,
     written_bytes,
 )
-from ..features import FEATURE_MODES, resolve_feature_mode
-from ..geometry.camera import adapt_intrinsics_to_size
-from ..imageio import BOOK_MAX_WIDTH_PX, folder_images, glob_files, read_image_size
+from ..io.images import BOOK_MAX_WIDTH_PX, folder_images, glob_files, read_image_size
 from ..multiview import (
     PAIR_MODES,
     FocalEstimate,
@@ -173,7 +173,7 @@ def _nothing_at(spec: str) -> str:
     """Why ``spec`` (neither a file nor a folder) gives no image: a missing folder or image
     named as such (with the first missing folder on the way, as an unset variable in
     ``$DATA/images`` leaves), else a glob that matches nothing."""
-    from ..imageio import IMAGE_SUFFIXES
+    from ..io.images import IMAGE_SUFFIXES
 
     def missing(path: Path) -> str:
         first = next((a for a in reversed(path.parents) if not a.exists()), path)
@@ -194,7 +194,7 @@ def _nothing_at(spec: str) -> str:
 
 def check_view_names(paths: list[Path]) -> None:
     """Raise :class:`UsageError` when two photos share a file name (from two folders), or
-    two would share one in COLMAP's images.txt (:func:`~scene3D.export.colmap_image_name`):
+    two would share one in COLMAP's images.txt (:func:`~scene3D.io.export.colmap_image_name`):
     the outputs name the views by it."""
     seen: dict[str, Path] = {}
     for path in paths:
@@ -329,7 +329,7 @@ def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, s
                   lines: list[str], warnings: list[str], plots: bool) -> Path:
     """report.html: the summary, the command's lines and warnings, cameras.png and the
     interactive 3D view (scene3D.report) of the largest model."""
-    from ..export import atomic_write_pieces
+    from ..io.export import atomic_write_pieces
     from ..report import multi_view_layers, multi_view_report, prepare_view
 
     figures = {}
@@ -446,7 +446,7 @@ def write_model(folder: Path, names: list[str], recon: MultiViewReconstruction,
     written.append(write_json(folder / cameras_file, cameras))
     written += write_text_files(folder / "colmap", colmap)
     if plots:
-        from ..plotting import plot_cameras_and_points
+        from ..viz.plotting import plot_cameras_and_points
 
         figure = plot_cameras_and_points(model.points3d, model.colors, model.R, model.t,
                                          K, recon.image_size)

@@ -268,7 +268,7 @@ class DaskEngine:
 
     Examples
     --------
-    >>> from scene3D.imageio import read_image_size
+    >>> from scene3D.io.images import read_image_size
     >>> with DaskEngine.connect("tcp://10.0.0.5:8786") as engine:   # doctest: +SKIP
     ...     sizes = list(engine.map(read_image_size, [(p,) for p in paths], label="sizes"))
     """

@@ -46,7 +46,7 @@ def validate_intrinsics(K: ArrayLike) -> FloatArray:
     """
     if K is None or isinstance(K, (str, bytes, os.PathLike)):
         raise TypeError(f"`K` must be a 3x3 camera matrix, got {K!r} (a calibration file "
-                        "is read by scene3D.calibration_io.load_calibration)")
+                        "is read by scene3D.io.calibration.load_calibration)")
     if np.iscomplexobj(K):
         raise ValueError("`K` must be real, got complex values")
     arr = np.asarray(K, dtype=np.float64)
@@ -208,7 +208,7 @@ def with_focal(K: ArrayLike, focal_px: float) -> FloatArray:
 def scale_intrinsics_halved(K: FloatArray, levels: int) -> FloatArray:
     """Intrinsics after halving the image ``levels`` times by area averaging.
 
-    See :func:`scene3D.imageio.halve`: one output pixel averages a
+    See :func:`scene3D.io.images.halve`: one output pixel averages a
     ``2^levels`` square of input pixels.
     """
     s = 0.5**levels

@@ -1,7 +1,7 @@
 """A starting camera matrix for photos without a calibration: EXIF focal length or a prior.
 
 Pure functions on already-read EXIF values (:class:`ExifCamera`; reading them is
-:mod:`scene3D.exif`'s job). The result, :class:`FocalPrior`, is what the focal
+:mod:`scene3D.io.exif`'s job). The result, :class:`FocalPrior`, is what the focal
 self-calibration of a pair (:mod:`scene3D.selfcalibration`) starts from, and what a
 multi-view bundle adjustment can use as the prior of its one focal length.
 
@@ -299,7 +299,7 @@ class CameraMismatchError(ValueError):
 
     def __init__(self, problem: str) -> None:
         super().__init__(f"{problem}; or, if one calibration holds for them all, use its "
-                         "`K` (scene3D.calibration_io.load_calibration)")
+                         "`K` (scene3D.io.calibration.load_calibration)")
         self.problem = problem
 
     def __reduce__(self) -> tuple:  # picklable, for tasks run in other processes

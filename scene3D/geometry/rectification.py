@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..imageio import image_size
+from ..io.images import image_size
 from .conventions import FloatArray
 
 

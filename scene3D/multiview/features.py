@@ -11,9 +11,9 @@ import hashlib
 
 import numpy as np
 
-from ..features import create_detector, detect_keypoints, to_gray
+from ..features.matching import create_detector, detect_keypoints, to_gray
 from ..geometry.conventions import FloatArray
-from ..imageio import ImageSource, load_working_image
+from ..io.images import ImageSource, load_working_image
 from ..twoview import sample_colors
 from .models import ViewFeatures
 
@@ -39,7 +39,7 @@ def view_features(source: ImageSource, K: FloatArray, dist: FloatArray,
     K, dist : (3, 3), (k,)
         Native intrinsics and distortion (the image is undistorted first).
     max_width : int or None
-        Halve while wider (:func:`scene3D.imageio.load_working_image`).
+        Halve while wider (:func:`scene3D.io.images.load_working_image`).
 
     Returns
     -------

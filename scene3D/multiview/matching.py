@@ -21,7 +21,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from ..features import match_descriptors
+from ..features.matching import match_descriptors
 from ..geometry.conventions import FloatArray
 from ..geometry.epipolar import essential_distances
 from .models import PairMatches, SfMSettings, ViewFeatures

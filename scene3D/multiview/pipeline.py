@@ -33,7 +33,7 @@ from ..geometry.camera import (
     validate_intrinsics,
 )
 from ..geometry.intrinsics_prior import FocalPrior, camera_prior
-from ..imageio import BOOK_MAX_WIDTH_PX, ImageSource, refuse_single_path, source_label
+from ..io.images import BOOK_MAX_WIDTH_PX, ImageSource, refuse_single_path, source_label
 from ..optim.bundle import Observations
 from .features import content_key, view_features
 from .focal import FocalSettings
@@ -78,9 +78,9 @@ def _to_input_order(model: SfMModel, order: np.ndarray) -> SfMModel:
 
 def _focal_prior(images: Sequence[ImageSource], names: Sequence[str]) -> FocalPrior:
     """The prior of photos without a calibration: from their EXIF when they are files
-    (:func:`scene3D.exif.read_camera_prior`, one camera checked), else the default."""
+    (:func:`scene3D.io.exif.read_camera_prior`, one camera checked), else the default."""
     if all(isinstance(src, (str, os.PathLike)) for src in images):
-        from ..exif import read_camera_prior
+        from ..io.exif import read_camera_prior
 
         return read_camera_prior(images)  # type: ignore[arg-type]
     sizes = [(int(np.shape(src)[1]), int(np.shape(src)[0])) for src in images]
@@ -100,7 +100,7 @@ def _too_few_keypoints(found: Sequence[tuple], labels: Sequence[str], needed: in
                        working_size: tuple[int, int]) -> str | None:
     """Why no pair could start when fewer than two views have the ``needed`` keypoints a
     verified pair needs (blank, tiny or too far downscaled images), naming the images by
-    their ``labels`` (:func:`~scene3D.imageio.source_label`); else None."""
+    their ``labels`` (:func:`~scene3D.io.images.source_label`); else None."""
     counts = [len(f[0].keypoints) for f in found]
     if sum(n >= needed for n in counts) >= 2:
         return None
@@ -115,7 +115,7 @@ def _check_distinct_photos(keys: Sequence[bytes], keypoints: Sequence[int],
                            labels: Sequence[str]) -> None:
     """Raise ``ValueError`` when two views are one photo (the same keypoints and
     descriptors: a copy under another name), naming the images by their ``labels``
-    (:func:`~scene3D.imageio.source_label`); views without keypoints are left to the
+    (:func:`~scene3D.io.images.source_label`); views without keypoints are left to the
     reconstruction, which says they have too few."""
     first: dict[bytes, int] = {}
     for v, key in enumerate(keys):
@@ -188,7 +188,7 @@ def reconstruct_views(
         :class:`scene3D.engines.LocalEngine`).
     focal_prior : FocalPrior, optional
         Without ``K``: the focal length to start from, of the native images (default:
-        :func:`scene3D.exif.read_camera_prior` of the files, the EXIF focal length or
+        :func:`scene3D.io.exif.read_camera_prior` of the files, the EXIF focal length or
         1.2 times the longer side; for arrays the default).
 
     Returns

@@ -5,7 +5,7 @@ write as JSON, figures as the PNG bytes the commands write, and for reconstructi
 interactive 3D view (plotly.js from the installed ``plotly`` package, inlined; see
 :mod:`scene3D.report.viewer`). Each function returns the page as an :class:`Html`
 (``.text()`` is the string); the command writes it with
-:func:`scene3D.export.atomic_write_pieces` (atomically, with the other outputs), which
+:func:`scene3D.io.export.atomic_write_pieces` (atomically, with the other outputs), which
 copies plotly.js from its file.
 
 - :func:`two_view_report`: ``report.html`` of ``chapter4.py`` / ``scene3d reconstruct``;
@@ -22,8 +22,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .. import __version__
-from ..calibration_uncertainty import UncertaintyMap
-from ..drawing import frustum_corners, robust_extent
+from ..calibration.uncertainty import UncertaintyMap
+from ..viz.drawing import frustum_corners, robust_extent
 from .page import Html, Page
 from .viewer import (
     MAX_VIEW_POINTS,

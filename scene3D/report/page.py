@@ -2,7 +2,7 @@
 
 Everything the page shows is inside the file: figures as ``data:`` URLs, plotly.js inline.
 A rendered page is an :class:`Html`: its text with the plotly.js file named where it goes,
-so that writing the page copies that file (:func:`scene3D.export.atomic_write_pieces`)
+so that writing the page copies that file (:func:`scene3D.io.export.atomic_write_pieces`)
 rather than reading it into Python.
 A Content-Security-Policy forbids every fetch (``default-src 'none'``), so a page that
 tried to load anything would fail visibly (a console error) rather than reach the network.
@@ -97,7 +97,7 @@ class Html:
                        for p in self.pieces)
 
     def encoded(self) -> list[bytes | Path]:
-        """The pieces for :func:`scene3D.export.atomic_write_pieces`: text as UTF-8 bytes,
+        """The pieces for :func:`scene3D.io.export.atomic_write_pieces`: text as UTF-8 bytes,
         files as they are."""
         return [p.encode("utf-8") if isinstance(p, str) else p for p in self.pieces]
 

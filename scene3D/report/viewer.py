@@ -7,7 +7,7 @@ milliseconds).
 Point coordinates travel as base64 float32 typed arrays (plotly.js's ``{dtype, bdata}``
 form), colours as ``#rrggbb`` strings.
 
-The view reads results; the camera frusta come from :func:`scene3D.drawing.frustum_corners`.
+The view reads results; the camera frusta come from :func:`scene3D.viz.drawing.frustum_corners`.
 Frames: points and cameras in the reconstruction's frame (a camera frame: ``x`` right,
 ``y`` down, ``z`` forward); the view is set up with ``-y`` up.
 """
@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..drawing import robust_extent, subsample_indices
 from ..geometry.conventions import FloatArray
+from ..viz.drawing import robust_extent, subsample_indices
 
 #: At most this many points are sent to the browser, all layers together; beyond it a
 #: random subset is shown (with a note) so that the view stays responsive.
@@ -64,7 +64,7 @@ class CameraLayer:
     ----------
     names : tuple[str, ...]
     corners : (V, 5, 3) float64
-        From :func:`scene3D.drawing.frustum_corners`; rows with NaN are skipped.
+        From :func:`scene3D.viz.drawing.frustum_corners`; rows with NaN are skipped.
     """
 
     names: tuple[str, ...]

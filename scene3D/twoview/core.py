@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import ReconstructionError, log_result_warnings
-from ..features import Matches, check_image, to_gray
+from ..features.matching import Matches, check_image, to_gray
 from ..geometry.camera import check_intrinsics_for_native_size, validate_intrinsics
 from ..geometry.conventions import (
     FloatArray,

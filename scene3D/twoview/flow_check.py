@@ -33,7 +33,7 @@ import numpy as np
 from ..geometry.camera import scale_intrinsics_halved
 from ..geometry.conventions import FloatArray
 from ..geometry.epipolar import essential_distances, essential_from_pose
-from ..imageio import BOOK_MAX_WIDTH_PX, halve, halving_levels
+from ..io.images import BOOK_MAX_WIDTH_PX, halve, halving_levels
 from ..optim.refinement import refine_relative_pose
 
 #: The flow is taken on images halved while wider than this (the book's rule, 3072 ->

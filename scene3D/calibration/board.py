@@ -10,8 +10,8 @@ The steps, usable one by one from a notebook:
    uncertainties, and can drop outlier views and solve again;
 3. :func:`corner_coverage` tells which parts of the image the corners cover;
 4. :func:`save_calibration` / :func:`load_calibration` (in
-   :mod:`scene3D.calibration_io`) read and write OpenCV FileStorage YAML;
-5. :mod:`scene3D.calibration_uncertainty` gives the full covariance of the intrinsics
+   :mod:`scene3D.io.calibration`) read and write OpenCV FileStorage YAML;
+5. :mod:`scene3D.calibration.uncertainty` gives the full covariance of the intrinsics
    (:attr:`CalibrationResult.covariance`) and the projection-uncertainty map.
 
 Sizes are (width, height) everywhere. Pixel conventions as in :mod:`scene3D.geometry`.
@@ -25,12 +25,12 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from .calibration_io import CameraCalibration, load_calibration, save_calibration
-from .calibration_uncertainty import IntrinsicsCovariance, intrinsics_covariance
-from .errors import CalibrationError, plural
-from .features import check_image
-from .geometry.camera import DISTORTION_NAMES, check_intrinsics_for_size
-from .geometry.conventions import FloatArray, is_real_number, is_whole_number
+from ..errors import CalibrationError, plural
+from ..features.matching import check_image
+from ..geometry.camera import DISTORTION_NAMES, check_intrinsics_for_size
+from ..geometry.conventions import FloatArray, is_real_number, is_whole_number
+from ..io.calibration import CameraCalibration, load_calibration, save_calibration
+from .uncertainty import IntrinsicsCovariance, intrinsics_covariance
 
 logger = logging.getLogger(__name__)
 
@@ -385,7 +385,7 @@ class CalibrationResult:
         Board pose in each kept view (board-to-camera).
     covariance : IntrinsicsCovariance or None
         Full first-order covariance of ``fx, fy, cx, cy`` and the distortion, the board
-        poses marginalised out (:func:`scene3D.calibration_uncertainty.intrinsics_covariance`);
+        poses marginalised out (:func:`scene3D.calibration.uncertainty.intrinsics_covariance`);
         its diagonal gives ``std_intrinsics``.
     """
 

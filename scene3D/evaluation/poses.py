@@ -7,8 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .geometry.conventions import FloatArray, angle_between_deg, as_matrix, rotation_error_deg
-from .optim.uncertainty import CHI2_90
+from ..geometry.conventions import FloatArray, angle_between_deg, as_matrix, rotation_error_deg
+from ..optim.uncertainty import CHI2_90
 
 
 @dataclass(frozen=True)

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from .geometry.conventions import FloatArray, require_real_number, require_whole_number
+from ..geometry.conventions import FloatArray, require_real_number, require_whole_number
 
 logger = logging.getLogger(__name__)
 
@@ -334,7 +334,7 @@ def check_image(img: np.ndarray, name: str = "img") -> np.ndarray:
     ------
     TypeError
         If ``img`` is not a numpy array: a path (read it with
-        :func:`scene3D.imageio.read_image`) or None (what ``cv2.imread`` returns for a
+        :func:`scene3D.io.images.read_image`) or None (what ``cv2.imread`` returns for a
         file it cannot read).
     ValueError
         If the array is empty, not ``uint8``, or not of shape ``(H, W)`` or ``(H, W, 3)``.
@@ -342,17 +342,17 @@ def check_image(img: np.ndarray, name: str = "img") -> np.ndarray:
     expected = f"`{name}` must be a uint8 image array (H, W) or (H, W, 3)"
     if isinstance(img, (str, os.PathLike)):
         raise TypeError(f"{expected}, got the path '{img}': read it with "
-                        "scene3D.imageio.read_image(path)")
+                        "scene3D.io.images.read_image(path)")
     if img is None:
         raise TypeError(f"{expected}, got None (cv2.imread returns None for a file it cannot "
-                        "read; scene3D.imageio.read_image says why)")
+                        "read; scene3D.io.images.read_image says why)")
     if not isinstance(img, np.ndarray):
         raise TypeError(f"{expected}, got {type(img).__name__}")
     if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] != 3) or img.size == 0:
         raise ValueError(f"{expected}, got shape {img.shape}")
     if img.dtype != np.uint8:
         raise ValueError(f"{expected}, got dtype {img.dtype} "
-                         "(scene3D.imageio.to_bgr8 converts 16-bit images)")
+                         "(scene3D.io.images.to_bgr8 converts 16-bit images)")
     return img
 
 

@@ -1,0 +1,95 @@
+"""Input and output: images, their EXIF, calibration files, results and data sets.
+
+- :mod:`scene3D.io.images`: images at the working size (size from the header, reduced
+  JPEG decoding, halving, streaming);
+- :mod:`scene3D.io.image_integrity`: truncated and damaged JPEG, PNG and TIFF files found
+  before decoding;
+- :mod:`scene3D.io.exif`: the EXIF values that describe a photo's camera (Pillow);
+- :mod:`scene3D.io.calibration`: the calibration file (OpenCV FileStorage);
+- :mod:`scene3D.io.export`: atomic writes, PLY point clouds, JSON summaries, COLMAP text;
+- :mod:`scene3D.io.datasets`: the fountain-P11 download and Strecha cameras.
+"""
+
+from .calibration import (
+    CALIBRATION_SUFFIXES,
+    MAX_IMAGE_SIDE_PX,
+    CameraCalibration,
+    load_calibration,
+    save_calibration,
+)
+from .datasets import (
+    BOOK_PAIR,
+    FOUNTAIN_P11,
+    FOUNTAIN_P11_SHA256,
+    FOUNTAIN_P11_URL,
+    ROTATION_TOLERANCE,
+    StrechaCamera,
+    StrechaScene,
+    default_cache_dir,
+    default_data_root,
+    fetch_fountain_p11,
+    read_strecha_camera,
+    read_strecha_scene,
+    relative_pose,
+    sha256_of,
+    strecha_views,
+)
+from .exif import read_camera_prior, read_exif
+from .export import (
+    all_or_nothing,
+    atomic_write_bytes,
+    atomic_write_pieces,
+    check_target,
+    colmap_image_name,
+    colmap_text_files,
+    place_file,
+    ply_bytes,
+    read_ply,
+    save_figure,
+    write_json,
+    write_ply,
+    write_text_files,
+    written_bytes,
+)
+from .image_integrity import intact_image_data, jpeg_cut_short
+from .images import (
+    BOOK_MAX_WIDTH_PX,
+    IMAGE_SUFFIXES,
+    ImageSource,
+    check_image_file,
+    folder_images,
+    glob_files,
+    glob_patterns,
+    halve,
+    halving_levels,
+    header_size,
+    image_size,
+    is_folder_image,
+    is_heif,
+    iter_working_images,
+    load_bgr,
+    load_working_image,
+    load_working_images,
+    read_image,
+    read_image_size,
+    refuse_single_path,
+    register_heif_opener,
+    source_label,
+    to_bgr8,
+)
+
+__all__ = [
+    "BOOK_MAX_WIDTH_PX", "BOOK_PAIR", "CALIBRATION_SUFFIXES", "CameraCalibration", "FOUNTAIN_P11",
+    "FOUNTAIN_P11_SHA256", "FOUNTAIN_P11_URL", "IMAGE_SUFFIXES", "ImageSource", "MAX_IMAGE_SIDE_PX",
+    "ROTATION_TOLERANCE", "StrechaCamera", "StrechaScene", "all_or_nothing", "atomic_write_bytes",
+    "atomic_write_pieces", "check_image_file", "check_target", "colmap_image_name",
+    "colmap_text_files", "default_cache_dir", "default_data_root", "fetch_fountain_p11",
+    "folder_images", "glob_files", "glob_patterns", "halve", "halving_levels", "header_size",
+    "image_size", "intact_image_data", "is_folder_image", "is_heif", "iter_working_images",
+    "jpeg_cut_short", "load_bgr", "load_calibration", "load_working_image", "load_working_images",
+    "place_file", "ply_bytes", "read_camera_prior", "read_exif", "read_image", "read_image_size",
+    "read_ply", "read_strecha_camera", "read_strecha_scene", "refuse_single_path",
+    "register_heif_opener", "relative_pose", "save_calibration", "save_figure", "sha256_of",
+    "source_label", "strecha_views", "to_bgr8", "write_json", "write_ply", "write_text_files",
+    "written_bytes",
+]

@@ -1,0 +1,570 @@
+"""Reading images from paths or arrays into BGR ``uint8``, and the book's size rule.
+
+The book halves its 3072 px photos with ``cv2.pyrDown`` while they are wider than
+1200 px. We keep the rule but halve by area averaging (each output pixel is the
+mean of a ``2^L x 2^L`` block): for a JPEG file that is what the decoder's scaled
+IDCT already produces, so the full-size image is never decoded or held in memory.
+Pixel centres map as ``x' = (x + 0.5) / 2^L - 0.5`` (see
+:func:`scene3D.geometry.camera.scale_intrinsics_halved`).
+"""
+
+from __future__ import annotations
+
+import glob
+import io
+import logging
+import os
+from collections import deque
+from collections.abc import Iterator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..errors import first_line
+from ..geometry.camera import different_sizes_message, has_distortion, undistort_image
+from .image_integrity import intact_image_data, jpeg_cut_short
+
+logger = logging.getLogger(__name__)
+
+ImageSource = str | os.PathLike | np.ndarray
+
+#: File endings taken as images when a folder is given (HEIC/HEIF need ``pillow-heif``).
+IMAGE_SUFFIXES = frozenset({".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm",
+                            ".ppm", ".heic", ".heif"})
+
+def is_folder_image(path: Path) -> bool:
+    """Whether a file found in a folder is taken as an image: its ending is one of
+    :data:`IMAGE_SUFFIXES` and it is not hidden (a name starting with '.', such as the
+    ``._IMG_0001.jpg`` files macOS leaves on other disks)."""
+    return path.suffix.lower() in IMAGE_SUFFIXES and not path.name.startswith(".")
+
+
+def folder_images(folder: Path) -> list[Path]:
+    """The images of ``folder`` (:func:`is_folder_image`), sorted."""
+    return sorted(p for p in Path(folder).iterdir() if is_folder_image(p))
+
+
+def glob_patterns(spec: str) -> list[str]:
+    """The patterns a glob ``spec`` is read as: itself, then, when its folder part exists
+    as written (``'photos [2024]/*.jpg'``, whose brackets a glob reads as a set of
+    characters), the same with that folder taken literally (:func:`glob.escape`)."""
+    head, tail = os.path.split(spec)
+    if head and glob.has_magic(head) and os.path.isdir(head):
+        return [spec, os.path.join(glob.escape(head), tail)]
+    return [spec]
+
+
+def glob_files(spec: str) -> list[Path]:
+    """The files a glob ``spec`` matches, sorted, by the first of :func:`glob_patterns`
+    that matches any."""
+    for pattern in glob_patterns(spec):
+        files = sorted(Path(p) for p in glob.glob(pattern) if Path(p).is_file())
+        if files:
+            return files
+    return []
+
+
+#: The book halves images while they are wider than this.
+BOOK_MAX_WIDTH_PX = 1200
+
+
+#: ``cv2.imdecode`` flags keeping depth (16-bit stays 16-bit) and grey or colour as stored.
+_AS_STORED = cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR
+
+#: Bytes searched for a JPEG/PNG size header (EXIF, ICC etc. come first; 256 KiB is plenty).
+_HEADER_BYTES = 1 << 18
+
+
+def check_image_file(path: str | os.PathLike) -> Path:
+    """``path`` as a :class:`~pathlib.Path`, once it is known to name a file.
+
+    Raises
+    ------
+    FileNotFoundError
+        If nothing is there, or a folder is (saying which).
+    """
+    path = Path(path)
+    if not path.is_file():
+        what = "a folder, not an image file" if path.is_dir() else "image not found"
+        raise FileNotFoundError(f"{what}: '{path}'")
+    return path
+
+
+def refuse_single_path(value: object, name: str, accepted: str = "image paths") -> None:
+    """Raise ``TypeError`` when ``value``, where a list of paths is expected, is one path
+    (a str would otherwise be taken character by character)."""
+    if isinstance(value, (str, bytes, os.PathLike)):
+        raise TypeError(f"`{name}` must be a list of {accepted}, got one path "
+                        f"'{os.fsdecode(value)}'; for a folder list its photos, e.g. "
+                        "sorted(Path(folder).glob('*.jpg'))")
+
+
+def _read_bytes(path: str | os.PathLike) -> np.ndarray:
+    """The bytes of an image file ``(n,) uint8``; checks that it exists and is not empty."""
+    path = check_image_file(path)
+    data = np.fromfile(path, dtype=np.uint8)  # works with non-ASCII paths too
+    if data.size == 0:
+        raise ValueError(f"cannot read image '{path}': the file is empty")
+    return data
+
+
+#: Major brands of the ISO media file box ("ftyp") of HEIC/HEIF photos (as iPhones take
+#: them), which OpenCV cannot decode (AVIF, another brand of that container, it can).
+_HEIF_BRANDS = {b"heic", b"heix", b"heim", b"heis", b"hevc", b"hevx", b"mif1", b"msf1"}
+
+
+#: Brands of that container that mark AV1 images (AVIF), which OpenCV decodes itself.
+_AVIF_BRANDS = {b"avif", b"avis"}
+
+
+def is_heif(head: bytes | np.ndarray) -> bool:
+    """Whether the first bytes of a file are those of a HEIC/HEIF photo: an ISO media
+    ``ftyp`` box naming a HEIF brand and no AVIF one (an AVIF file may name ``mif1``
+    first and ``avif`` among its compatible brands)."""
+    head = bytes(memoryview(head).cast("B")[:64])
+    if head[4:8] != b"ftyp":
+        return False
+    end = min(int.from_bytes(head[:4], "big"), len(head))
+    brands = {head[8:12]} | {head[i:i + 4] for i in range(16, end - 3, 4)}
+    return head[8:12] in _HEIF_BRANDS and not brands & _AVIF_BRANDS
+
+
+def register_heif_opener() -> bool:
+    """Let Pillow open HEIC/HEIF files; False when ``pillow-heif`` is not installed."""
+    try:
+        from pillow_heif import register_heif_opener as register
+    except ImportError:
+        return False
+    register()
+    return True
+
+
+def _require_heif_opener(path: str | os.PathLike) -> None:
+    """:func:`register_heif_opener`, or a ``ValueError`` naming ``path`` and how to get
+    ``pillow-heif``."""
+    if not register_heif_opener():
+        raise ValueError(f"cannot read image '{path}': a HEIC/HEIF photo, which needs "
+                         "pillow-heif (pip install 'scene3D[heic]'), or convert it to JPEG "
+                         "(heif-convert, or export as JPEG from the photo app)")
+
+
+def _damaged_heif(path: str | os.PathLike, exc: Exception) -> ValueError:
+    """The error for a HEIC/HEIF file libheif cannot read, with its reason."""
+    return ValueError(f"cannot read image '{path}': a damaged HEIC/HEIF file "
+                      f"({first_line(exc)})")
+
+
+#: How to undo each EXIF orientation (1-8) on an (H, W, ...) array: what libheif applied
+#: to the stored pixels to show them (2, 4, 5, 7 mirror; 3, 6, 8 turn).
+_UNDO_ORIENTATION = {
+    2: lambda a: a[:, ::-1], 3: lambda a: a[::-1, ::-1], 4: lambda a: a[::-1],
+    5: lambda a: a.swapaxes(0, 1), 6: lambda a: np.rot90(a, 1),
+    7: lambda a: a[::-1, ::-1].swapaxes(0, 1), 8: lambda a: np.rot90(a, -1),
+}
+
+
+def _open_heif(source, path: str | os.PathLike):
+    """The Pillow image of a HEIC/HEIF file (``source``: its path or a file object) and
+    the EXIF orientation libheif applied."""
+    from PIL import Image
+
+    _require_heif_opener(path)
+    try:
+        img = Image.open(source)
+        img.size  # noqa: B018 - the header is read here
+    except Exception as exc:  # noqa: BLE001 - libheif's errors come as several types
+        raise _damaged_heif(path, exc) from None
+    return img, img.info.get("original_orientation") or 1
+
+
+def _decode_heif(data: np.ndarray, path: str | os.PathLike) -> np.ndarray:
+    """A HEIC/HEIF photo's primary image as stored, BGR ``uint8`` (grey ``(H, W)``),
+    alpha dropped. libheif turns the pixels as the file says they are shown; the
+    turn its EXIF orientation records is undone, so that a portrait photo's pixels keep
+    the sensor's layout as a JPEG's do (:func:`read_image`)."""
+    img, orientation = _open_heif(io.BytesIO(data.tobytes()), path)
+    try:
+        with img:
+            grey = img.mode in ("L", "I;16", "I")
+            pixels = np.asarray(img.convert("L" if grey else "RGB"))
+    except Exception as exc:  # noqa: BLE001 - as in _open_heif
+        raise _damaged_heif(path, exc) from None
+    if not grey:
+        pixels = pixels[:, :, ::-1]  # RGB -> BGR
+    undo = _UNDO_ORIENTATION.get(orientation)
+    return np.ascontiguousarray(undo(pixels) if undo else pixels)
+
+
+def _heif_size(path: str | os.PathLike) -> tuple[int, int]:
+    """``(width, height)`` of a HEIC/HEIF photo as stored, from its header."""
+    img, orientation = _open_heif(path, path)
+    with img:
+        w, h = img.size
+    return (h, w) if orientation in (5, 6, 7, 8) else (w, h)
+
+
+def _decode(data: np.ndarray, flags: int, path: str | os.PathLike) -> np.ndarray:
+    head = data[:_HEADER_BYTES]
+    if is_heif(head):
+        return _decode_heif(data, path)
+    _check_header(head, data.size, path)
+    data = intact_image_data(data, path)
+    try:
+        img = cv2.imdecode(data, flags | cv2.IMREAD_IGNORE_ORIENTATION)
+    except cv2.error as exc:  # OpenCV asserts rather than returning None for some files
+        size = header_size(head)
+        claim = f" (its header says {size[0]}x{size[1]} pixels)" if size is not None else ""
+        if "validateInputImageSize" in str(exc):
+            raise ValueError(f"cannot read image '{path}': too large for OpenCV{claim}, or a "
+                             "damaged file") from None
+        raise ValueError(f"cannot read image '{path}': a damaged image file{claim}") from None
+    if img is None or img.size == 0:
+        raise jpeg_cut_short(data, path) or ValueError(
+            f"cannot read image '{path}': not an image file, or a damaged one")
+    return img
+
+
+def read_image(path: str | os.PathLike) -> np.ndarray:
+    """Read an image file as stored: grey or colour, 8 or 16 bits (an alpha channel is dropped).
+
+    The pixels are taken as stored: EXIF orientation is not applied, so that
+    they match the sensor layout a calibration describes. HEIC/HEIF photos (iPhones'
+    default) are read with ``pillow-heif`` when it is installed (``scene3D[heic]``), in
+    8 bits, with the rotation their EXIF orientation records undone likewise.
+
+    Returns
+    -------
+    (H, W) or (H, W, 3) ndarray
+        ``img[y, x]``: ``(H, W)`` for a grey file, ``(H, W, 3)`` in OpenCV's **BGR**
+        channel order for a colour one (alpha dropped); ``uint8``, or ``uint16`` for a
+        16-bit file. :func:`load_working_image` converts to BGR ``uint8``.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    ValueError
+        If the file is empty or not an image OpenCV can decode: damaged, too large
+        for OpenCV, or a JPEG whose header claims more pixels than the file holds; a
+        truncated JPEG, PNG or TIFF file, or a JPEG whose compressed data holds garbage
+        (:func:`scene3D.io.image_integrity.intact_image_data`, before any decoder prints
+        to stderr); or a HEIC/HEIF photo without ``pillow-heif`` installed (the message
+        says how).
+    """
+    return _decode(_read_bytes(path), _AS_STORED, path)
+
+
+def header_size(head: bytes | np.ndarray) -> tuple[int, int] | None:
+    """``(width, height)`` from the first bytes of a JPEG or PNG file, or None.
+
+    Reads the JPEG frame header (SOFn marker) or the PNG IHDR chunk; None for
+    other formats, or when the header is not within ``head``.
+    """
+    head = memoryview(head).cast("B")
+    if bytes(head[:8]) == b"\x89PNG\r\n\x1a\n" and len(head) >= 24:
+        return (int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big"))
+    frame = _jpeg_frame(head)
+    return frame[1] if frame is not None else None
+
+
+def _jpeg_frame(head: memoryview) -> tuple[int, tuple[int, int], list[tuple[int, int]]] | None:
+    """The first JPEG frame header in ``head``: ``(marker, (width, height), sampling)``.
+
+    ``sampling`` holds each component's ``(H, V)`` sampling factors (empty when the
+    header is cut off within them); None when ``head`` is not a JPEG or holds no frame.
+    """
+    if bytes(head[:2]) != b"\xff\xd8":
+        return None
+    i = 2
+    while i + 9 <= len(head):
+        if head[i] != 0xFF:
+            return None
+        marker = head[i + 1]
+        if marker == 0xFF:  # fill byte
+            i += 1
+            continue
+        if marker == 0x01 or 0xD0 <= marker <= 0xD7:  # TEM, RSTn: no length field
+            i += 2
+            continue
+        # Frame headers SOF0..SOF15, except DHT (C4), JPG (C8) and DAC (CC).
+        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+            height = int.from_bytes(head[i + 5:i + 7], "big")
+            width = int.from_bytes(head[i + 7:i + 9], "big")
+            if not (width and height):
+                return None
+            count = head[i + 9] if i + 9 < len(head) else 0
+            end = i + 10 + 3 * count
+            sampling = ([(head[j] >> 4, head[j] & 15) for j in range(i + 11, end, 3)]
+                        if end <= len(head) else [])
+            return marker, (width, height), sampling
+        i += 2 + int.from_bytes(head[i + 2:i + 4], "big")
+    return None
+
+
+#: JPEG frame markers of Huffman coding (the arithmetic-coded ones, C9-CF, can be
+#: smaller than one bit per block).
+_HUFFMAN_FRAMES = frozenset({0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7})
+
+
+def _ceil_div(a: int, b: int) -> int:
+    return -(-a // b)
+
+
+def _jpeg_min_bytes(frame: tuple[int, tuple[int, int], list[tuple[int, int]]]) -> int:
+    """A lower bound on the size of a complete Huffman-coded JPEG with this frame header.
+
+    Every 8x8 block of every component carries at least its DC code, a Huffman code
+    of at least one bit. Halved for safety; 0 when the bound does not apply.
+    """
+    marker, (width, height), sampling = frame
+    if marker not in _HUFFMAN_FRAMES or not sampling or min(min(s) for s in sampling) < 1:
+        return 0
+    h_max = max(h for h, _ in sampling)
+    v_max = max(v for _, v in sampling)
+    blocks = sum(_ceil_div(_ceil_div(width * h, h_max), 8)
+                 * _ceil_div(_ceil_div(height * v, v_max), 8) for h, v in sampling)
+    return blocks // 16
+
+
+def _check_header(head: bytes | np.ndarray, file_bytes: int, path: str | os.PathLike) -> None:
+    """Raise ``ValueError`` when a JPEG's header claims more pixels than its
+    ``file_bytes`` can hold (a damaged or tampered header), naming ``path``.
+
+    ``head`` is the first bytes of the file. Cheap: no pixel is decoded.
+    """
+    frame = _jpeg_frame(memoryview(head).cast("B"))
+    if frame is not None and file_bytes < _jpeg_min_bytes(frame):
+        w, h = frame[1]
+        raise ValueError(f"cannot read image '{path}': a damaged JPEG file (its header says "
+                         f"{w}x{h} pixels, more than its {file_bytes} bytes can hold)")
+
+
+def read_image_size(path: str | os.PathLike) -> tuple[int, int]:
+    """``(width, height)`` of an image file as stored: from its header (JPEG and PNG here,
+    TIFF, WebP and others through Pillow), else by decoding it.
+
+    Raises ``FileNotFoundError`` / ``ValueError`` like :func:`read_image`.
+    """
+    path = Path(path)
+    if path.is_file():
+        with open(path, "rb") as f:
+            head = f.read(_HEADER_BYTES)
+            _check_header(head, os.fstat(f.fileno()).st_size, path)  # JPEG only
+        if is_heif(head):  # read from its header, without decoding
+            return _heif_size(path)
+        size = header_size(head) or _pillow_size(path)
+        if size is not None:
+            return size
+    return image_size(read_image(path))
+
+
+def _pillow_size(path: Path) -> tuple[int, int] | None:
+    """``(width, height)`` from the header Pillow reads (a 16-bit TIFF is not decoded for
+    its size), or None when Pillow cannot tell: then decoding says what is wrong."""
+    import warnings
+
+    from PIL import Image
+
+    try:
+        # Pillow's warnings are not the user's: a large photo is no decompression bomb here,
+        # and a damaged file (a truncated TIFF: "Corrupt EXIF data") is reported in one
+        # line when decoding it, not also in Pillow's two.
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            with Image.open(path) as img:
+                return int(img.width), int(img.height)
+    except Exception:  # noqa: BLE001 - unknown format, damaged, a decompression bomb: decode
+        return None
+
+
+def to_bgr8(img: np.ndarray, name: str = "image") -> np.ndarray:
+    """Convert grey, BGR or BGRA images of ``uint8``/``uint16`` depth to BGR ``uint8``.
+
+    16-bit images are scaled by the bit depth their values use: the fewest of 8 to 16
+    bits that hold the largest value, so that full-range 16-bit data are divided by 257
+    and the 12-bit data of many machine-vision cameras (stored in ``uint16``, at most
+    4095) by 16.06, instead of coming out nearly black.
+
+    Raises
+    ------
+    TypeError
+        When ``img`` is no numpy array (None, a list, bytes).
+    ValueError
+        For other dtypes or channel counts, or an empty image.
+    """
+    if not isinstance(img, np.ndarray):
+        raise TypeError(f"`{name}` must be a path or a numpy array, got {type(img).__name__}")
+    if img.size == 0 or img.ndim not in (2, 3):
+        raise ValueError(f"`{name}` must be an (H, W) or (H, W, C) image, got shape {img.shape}")
+    if img.dtype == np.uint16:
+        bits = max(8, int(img.max()).bit_length())
+        # Rounded to the nearest level, with no float copy (a 24-megapixel colour image's
+        # would take 290 MB); no value lies half-way between two levels.
+        img = cv2.convertScaleAbs(img, alpha=255.0 / (2**bits - 1))
+    elif img.dtype != np.uint8:
+        raise ValueError(f"`{name}` must be uint8 or uint16, got {img.dtype}")
+    if img.ndim == 2 or img.shape[2] == 1:
+        return cv2.cvtColor(img.reshape(img.shape[:2]), cv2.COLOR_GRAY2BGR)
+    if img.shape[2] == 3:
+        return np.ascontiguousarray(img)
+    if img.shape[2] == 4:
+        return cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
+    raise ValueError(f"`{name}` must have 1, 3 or 4 channels, got {img.shape[2]}")
+
+
+def load_bgr(source: ImageSource, name: str = "image") -> np.ndarray:
+    """Load a path or take an array, and return it as BGR ``uint8`` ``(H, W, 3)``."""
+    if isinstance(source, (str, os.PathLike)):
+        return to_bgr8(read_image(source), name=str(source))
+    return to_bgr8(source, name=name)
+
+
+def halving_levels(width: int, max_width: int | None = BOOK_MAX_WIDTH_PX) -> int:
+    """How many halvings bring ``width`` to at most ``max_width`` (the book's rule); None: 0."""
+    if max_width is not None and max_width < 1:
+        raise ValueError(f"max_width must be at least 1 px, got {max_width}")
+    levels = 0
+    while max_width is not None and width > max_width:
+        width //= 2
+        levels += 1
+    return levels
+
+
+def halve(img: np.ndarray, levels: int) -> np.ndarray:
+    """Halve ``img`` ``levels`` times by area averaging: ``(H, W[, C]) -> (H >> L, W >> L[, C])``.
+
+    Each output pixel is the mean of a ``2^L`` square block; rows and columns that
+    do not fill a block (at the bottom and right) are dropped, so that the
+    scaling is exact (:func:`scene3D.geometry.camera.scale_intrinsics_halved`).
+    """
+    if levels == 0:
+        return img
+    k = 1 << levels
+    h, w = img.shape[0] // k, img.shape[1] // k
+    if h == 0 or w == 0:
+        raise ValueError(f"a {img.shape[1]}x{img.shape[0]} image cannot be halved {levels} times")
+    return cv2.resize(img[:h * k, :w * k], (w, h), interpolation=cv2.INTER_AREA)
+
+
+#: ``cv2.imdecode`` flags that make libjpeg decode at 1/2, 1/4 and 1/8 size.
+_REDUCED_COLOR = {1: cv2.IMREAD_REDUCED_COLOR_2, 2: cv2.IMREAD_REDUCED_COLOR_4,
+                  3: cv2.IMREAD_REDUCED_COLOR_8}
+
+
+def _check_halvable(size: tuple[int, int], levels: int, label: str | os.PathLike) -> None:
+    """Raise ``ValueError`` naming ``label`` when halving ``size`` ``levels`` times leaves
+    no pixel (a strip far wider than high), as :func:`halve` would."""
+    if size[0] >> levels == 0 or size[1] >> levels == 0:
+        raise ValueError(f"'{label}': a {size[0]}x{size[1]} image cannot be halved {levels} "
+                         f"times (to {size[0] >> levels}x{size[1] >> levels} pixels)")
+
+
+def load_working_image(
+    source: ImageSource, K: np.ndarray, dist: np.ndarray,
+    max_width: int | None = BOOK_MAX_WIDTH_PX, name: str = "image",
+) -> tuple[np.ndarray, tuple[int, int], int]:
+    """The working image of a path or array: BGR ``uint8``, undistorted, halved to ``max_width``.
+
+    ``K`` and ``dist`` describe the native image; it is undistorted at native
+    resolution (where the model holds) and then halved while wider than
+    ``max_width`` (None: never). A JPEG file without distortion to remove is
+    decoded straight at the reduced size, which is faster and needs less memory
+    than decoding it whole.
+
+    Returns
+    -------
+    image : (h, w, 3) uint8
+    native_size : (width, height) of the source
+    levels : int
+        Halvings applied; the working ``K`` is ``scale_intrinsics_halved(K, levels)``.
+    """
+    if isinstance(source, (str, os.PathLike)):
+        data = _read_bytes(source)
+        size = header_size(data[:_HEADER_BYTES])
+        levels = halving_levels(size[0], max_width) if size is not None else 0
+        if levels:
+            _check_halvable(size, levels, source)
+        if levels and not has_distortion(dist) and bytes(data[:2]) == b"\xff\xd8":
+            direct = min(levels, 3)
+            img = to_bgr8(_decode(data, _REDUCED_COLOR[direct], source), str(source))
+            k = 1 << direct
+            if image_size(img) == ((size[0] + k - 1) // k, (size[1] + k - 1) // k):
+                # libjpeg rounds partial blocks up; keep the whole ones only, as halve() does.
+                img = img[:size[1] >> direct, :size[0] >> direct]
+                return halve(img, levels - direct), size, levels
+            # The header did not describe the image: decode it whole below.
+        img = to_bgr8(_decode(data, _AS_STORED, source), str(source))
+    else:
+        img = to_bgr8(source, name=name)
+    native = image_size(img)
+    levels = halving_levels(native[0], max_width)
+    _check_halvable(native, levels, source_label(source, name))
+    if has_distortion(dist):
+        img = undistort_image(img, K, dist)
+    return halve(img, levels), native, levels
+
+
+def iter_working_images(
+    sources: Sequence[ImageSource], K: np.ndarray, dist: np.ndarray,
+    max_width: int | None = BOOK_MAX_WIDTH_PX, names: Sequence[str] | None = None,
+) -> Iterator[tuple[np.ndarray, tuple[int, int], int]]:
+    """:func:`load_working_image` of photos of one camera, in order, two decoding at once
+    (decoding releases the GIL) and no more than two held ahead of the consumer.
+
+    Yields ``(image, native_size, levels)`` per source.
+
+    Raises
+    ------
+    ValueError
+        At the first source whose size differs from the first's: one calibration
+        holds for one size (:func:`scene3D.geometry.camera.different_sizes_message`).
+    """
+    names = list(names) if names is not None else [f"image {i}" for i in range(len(sources))]
+    first: tuple[str, tuple[int, int]] | None = None
+
+    def checked(src: ImageSource, name: str, job: Future
+                ) -> tuple[np.ndarray, tuple[int, int], int]:
+        nonlocal first
+        img, size, levels = job.result()
+        label = source_label(src, name)
+        first = first or (label, size)
+        if size != first[1]:
+            raise ValueError(different_sizes_message(label, size, *first))
+        return img, size, levels
+
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        pending: deque[tuple[ImageSource, str, Future]] = deque()
+        for src, name in zip(sources, names):
+            pending.append((src, name, pool.submit(load_working_image, src, K, dist,
+                                                   max_width, name)))
+            if len(pending) == 2:
+                yield checked(*pending.popleft())
+        while pending:
+            yield checked(*pending.popleft())
+
+
+def load_working_images(
+    sources: Sequence[ImageSource], K: np.ndarray, dist: np.ndarray,
+    max_width: int | None = BOOK_MAX_WIDTH_PX, names: Sequence[str] | None = None,
+) -> tuple[list[np.ndarray], tuple[int, int] | None, int]:
+    """All of :func:`iter_working_images` at once: the working images, their common
+    native ``(width, height)`` (None for no sources) and the number of halvings.
+
+    Raises ``ValueError`` when the sources differ in size.
+    """
+    loaded = list(iter_working_images(sources, K, dist, max_width, names))
+    if not loaded:
+        return [], None, 0
+    return [img for img, _, _ in loaded], loaded[0][1], loaded[0][2]
+
+
+def source_label(source: ImageSource, name: str) -> str:
+    """How messages name an image: a path as given, an array by ``name``."""
+    return os.fspath(source) if isinstance(source, (str, os.PathLike)) else name
+
+
+def image_size(img: np.ndarray) -> tuple[int, int]:
+    """Return (width, height) of an image array."""
+    return int(img.shape[1]), int(img.shape[0])
