@@ -1,0 +1,268 @@
+"""The package's layout (issue #49): the old module paths still import, warn and give the moved
+module's objects; nothing in the repository imports them; at most eight modules stay at the top
+level; and the import graph between scene3D's modules has no cycle."""
+
+import ast
+import importlib
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+PACKAGE = REPO / "scene3D"
+
+#: The modules moved into subpackages (old -> new, under scene3D), whose old paths are shims
+#: that warn: they go in the next release.
+MOVED = {
+    "camera": "geometry.camera",
+    "epipolar": "geometry.epipolar",
+    "pose": "geometry.pose",
+    "triangulation": "geometry.triangulation",
+    "rectification": "geometry.rectification",
+    "intrinsics_prior": "geometry.intrinsics_prior",
+    "uncertainty": "optim.uncertainty",
+    "refinement": "optim.refinement",
+    "schur": "optim.schur",
+    "bundle": "optim.bundle",
+    "bundle_two_view": "optim.bundle_two_view",
+    "degeneracy": "twoview.degeneracy",
+    "essential_fit": "twoview.essential_fit",
+    "focal_fit": "twoview.focal_fit",
+    "distortion_fit": "twoview.distortion_fit",
+    "flow_check": "twoview.flow_check",
+    "imageio": "io.images",
+    "image_integrity": "io.image_integrity",
+    "exif": "io.exif",
+    "calibration_io": "io.calibration",
+    "export": "io.export",
+    "datasets": "io.datasets",
+    "calibration_uncertainty": "calibration.uncertainty",
+    "drawing": "viz.drawing",
+    "plotting": "viz.plotting",
+    "synthetic": "evaluation.synthetic",
+}
+#: The modules that a package of the same name replaced: the package re-exports the module's
+#: public names (no shim, no warning).
+REPLACED = {
+    "geometry": "geometry.conventions",
+    "features": "features.matching",
+    "calibration": "calibration.board",
+    "evaluation": "evaluation.poses",
+}
+MAX_TOP_LEVEL_MODULES = 8
+SKIPPED_FOLDERS = {".git", ".venv", "venv", "site", "out", "build", "dist", "__pycache__"}
+
+
+def public_names(module) -> list[str]:
+    """The names a module offers: its ``__all__``, what it defines, and what it takes from
+    other scene3D modules (not the third-party names it imports)."""
+    tree = ast.parse(Path(module.__file__).read_text())
+    own = set(getattr(module, "__all__", ()))
+    for node in tree.body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            own.add(node.name)
+        elif isinstance(node, ast.Assign):
+            own |= {t.id for t in node.targets if isinstance(t, ast.Name)}
+        elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
+            own.add(node.target.id)
+    names = []
+    for name, value in vars(module).items():
+        if name.startswith("_") or name == "logger" or isinstance(value, type(sys)):
+            continue
+        if name in own or (getattr(value, "__module__", None) or "").startswith("scene3D"):
+            names.append(name)
+    return sorted(names)
+
+
+@pytest.mark.parametrize("old", sorted(MOVED))
+def test_an_old_path_warns_and_gives_the_moved_module_objects(old, monkeypatch):
+    new = importlib.import_module(f"scene3D.{MOVED[old]}")
+    monkeypatch.delitem(sys.modules, f"scene3D.{old}", raising=False)
+    with pytest.warns(DeprecationWarning,
+                      match=rf"^scene3D\.{old} moved to scene3D\.{re.escape(MOVED[old])}$"):
+        shim = importlib.import_module(f"scene3D.{old}")
+    names = public_names(new)
+    assert names
+    assert [n for n in names if getattr(shim, n, None) is not getattr(new, n)] == []
+
+
+@pytest.mark.parametrize("old", sorted(REPLACED))
+def test_a_package_that_replaced_a_module_offers_its_names(old):
+    package = importlib.import_module(f"scene3D.{old}")
+    module = importlib.import_module(f"scene3D.{REPLACED[old]}")
+    assert hasattr(package, "__path__") and not (PACKAGE / f"{old}.py").exists()
+    names = public_names(module)
+    assert names
+    assert [n for n in names if getattr(package, n, None) is not getattr(module, n)] == []
+
+
+def test_the_new_paths_import_without_a_deprecation_warning():
+    modules = sorted(module_name(p) for p in package_files()
+                     if not is_shim(p) and p.name != "__main__.py")  # __main__ runs the command
+    code = f"import importlib\nfor m in {modules!r}:\n    importlib.import_module(m)\n"
+    proc = subprocess.run([sys.executable, "-W", "error::DeprecationWarning", "-c", code],
+                          cwd=REPO, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_at_most_eight_modules_stay_at_the_top_level():
+    top = sorted(p.stem for p in PACKAGE.glob("*.py"))
+    shims = [name for name in top if name in MOVED]
+    assert len(top) - len(shims) <= MAX_TOP_LEVEL_MODULES, top
+    for name in MOVED:  # each old path is a shim and nothing more
+        assert is_shim(PACKAGE / f"{name}.py"), name
+
+
+def test_nothing_in_the_repository_imports_an_old_path():
+    old = {f"scene3D.{name}" for name in MOVED}
+    dotted = re.compile(r"(?<![\w.])scene3D\.(" + "|".join(MOVED) + r")(?![\w])")
+    found = []
+    for path, source in repository_sources():
+        in_package = PACKAGE in path.parents
+        for node in ast.walk(ast.parse(source)):
+            for target in imported_modules(node, module_name(path) if in_package else "",
+                                           path.name == "__init__.py"):
+                if target in old or any(target.startswith(f"{o}.") for o in old):
+                    found.append(f"{path.relative_to(REPO)}:{node.lineno}: {target}")
+        for lineno, line in enumerate(source.splitlines(), 1):  # patch targets, loggers
+            if dotted.search(line):
+                found.append(f"{path.relative_to(REPO)}:{lineno}: {line.strip()}")
+    assert found == []
+
+
+def test_the_imports_between_scene3D_modules_make_no_cycle():
+    graph = import_graph()
+    assert "scene3D.geometry.conventions" in graph["scene3D.geometry"]
+    state: dict[str, int] = {}  # 1 on the path, 2 done
+    path: list[str] = []
+
+    def visit(node: str) -> None:
+        state[node] = 1
+        path.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                cycle = path[path.index(nxt):] + [nxt]
+                pytest.fail("import cycle: " + " -> ".join(cycle))
+            if nxt not in state:
+                visit(nxt)
+        path.pop()
+        state[node] = 2
+
+    for node in sorted(graph):
+        if node not in state:
+            visit(node)
+
+
+# --- helpers -------------------------------------------------------------------------------
+
+def package_files() -> list[Path]:
+    return sorted(p for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.parts)
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(REPO).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def is_shim(path: Path) -> bool:
+    """A docstring, ``import warnings``, imports from the new module and one warning."""
+    if path.parent != PACKAGE or path.stem not in MOVED:
+        return False
+    new = f"{MOVED[path.stem]}"
+    body = ast.parse(path.read_text()).body
+    kinds = []
+    for node in body:
+        if isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant):
+            kinds.append("doc")
+        elif isinstance(node, ast.Import) and [a.name for a in node.names] == ["warnings"]:
+            kinds.append("import")
+        elif isinstance(node, ast.ImportFrom) and node.level == 1 and node.module == new:
+            kinds.append("from")
+        elif (isinstance(node, ast.Expr) and isinstance(node.value, ast.Call)
+              and ast.unparse(node.value.func) == "warnings.warn"):
+            kinds.append("warn")
+        else:
+            return False
+    return kinds[:2] == ["doc", "import"] and kinds[-1] == "warn" and "from" in kinds
+
+
+def repository_sources() -> list[tuple[Path, str]]:
+    """Every .py file of the repository but the shims and this test, and the notebooks' code."""
+    out = []
+    for path in sorted(REPO.rglob("*.py")):
+        rel = path.relative_to(REPO).parts
+        if SKIPPED_FOLDERS & set(rel[:-1]) or any(p.startswith(".") for p in rel[:-1]):
+            continue
+        if is_shim(path) or path == Path(__file__).resolve():
+            continue
+        out.append((path, path.read_text()))
+    for path in sorted((REPO / "examples").glob("*.ipynb")):
+        cells = json.loads(path.read_text())["cells"]
+        code = "\n".join("".join(c["source"]) for c in cells if c["cell_type"] == "code")
+        code = "\n".join("pass" if line.lstrip().startswith(("%", "!")) else line
+                         for line in code.splitlines())
+        out.append((path, code))
+    return out
+
+
+def imported_modules(node: ast.AST, importer: str, is_package: bool) -> list[str]:
+    """The absolute names of the modules an import statement loads (for ``from P import x``
+    both ``P`` and ``P.x``, which may be a submodule)."""
+    if isinstance(node, ast.Import):
+        return [a.name for a in node.names]
+    if not isinstance(node, ast.ImportFrom):
+        return []
+    if node.level:
+        parts = importer.split(".") if is_package else importer.split(".")[:-1]
+        parts = parts[: len(parts) - (node.level - 1)]
+        base = ".".join(parts + ([node.module] if node.module else []))
+    else:
+        base = node.module or ""
+    return [base] + [f"{base}.{a.name}" for a in node.names]
+
+
+def type_checking_imports(tree: ast.Module) -> set[int]:
+    """The ids of the import nodes under ``if TYPE_CHECKING:`` (they never run)."""
+    skip = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and ast.unparse(node.test) == "TYPE_CHECKING":
+            skip |= {id(n) for stmt in node.body for n in ast.walk(stmt)}
+    return skip
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Module -> the scene3D modules its imports load, shims left out (nothing imports them).
+
+    An import of ``a.b.c`` runs the ``__init__`` of ``a`` and ``a.b`` first, so it depends on
+    those too, except on the importer's own packages, which are already being imported. A
+    package's ``__init__`` depends on the submodules it imports. Imports under
+    ``TYPE_CHECKING`` do not count; those inside functions do."""
+    files = {module_name(p): p for p in package_files() if not is_shim(p)}
+    graph: dict[str, set[str]] = {}
+    for name, path in files.items():
+        tree = ast.parse(path.read_text())
+        skip = type_checking_imports(tree)
+        own = {".".join(name.split(".")[:i]) for i in range(1, name.count(".") + 1)}
+        if path.name == "__init__.py":
+            own.add(name)
+        edges = set()
+        for node in ast.walk(tree):
+            if id(node) in skip:
+                continue
+            for target in imported_modules(node, name, path.name == "__init__.py"):
+                if target not in files:
+                    continue
+                parts = target.split(".")
+                for i in range(1, len(parts) + 1):
+                    prefix = ".".join(parts[:i])
+                    if prefix in files and (prefix not in own or prefix == target):
+                        edges.add(prefix)
+        edges.discard(name)
+        graph[name] = edges
+    return graph
