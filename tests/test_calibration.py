@@ -270,8 +270,8 @@ def test_cli_refuses_a_wrong_board_size(tmp_path, chessboards, capsys):
     err = capsys.readouterr().err
     # One line of error, after the warning that names the photos without a 5x5 board.
     warning, error = err.strip().splitlines()
-    # In how many a 5x5 search finds something is the detector's (6 with OpenCV 5.1, 7
-    # with 5.0): some, not all.
+    # In how many a 5x5 search finds something is the detector's (6 here, 7 with OpenCV
+    # 5.0 on SSE4 kernels): some, not all.
     missed = re.match(r"WARNING: the board was not found in (\d+) of the 13 photos, left out: ",
                       warning)
     assert missed and 1 <= int(missed.group(1)) <= 12, warning
@@ -283,9 +283,9 @@ def test_cli_refuses_a_wrong_board_size(tmp_path, chessboards, capsys):
     assert "no camera's for image_size 640x480" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
     # The user can insist: --max-rms lifts the limit on the error. What a 7x5 search of
-    # the 9x6 board then fits is the detector's (a camera with OpenCV 5.1, a principal
-    # point far outside the image with 5.0): written, or refused as no camera, but not
-    # for its error.
+    # the 9x6 board then fits is the detector's (a camera with the newest versions, a
+    # principal point far outside the image with the oldest the ranges admit): written,
+    # or refused as no camera, but not for its error.
     argv[argv.index("5x5")] = "7x5"
     code = main(argv + ["--max-rms", "50", "-q"])
     err = capsys.readouterr().err
