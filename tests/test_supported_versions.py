@@ -61,8 +61,8 @@ def test_each_pin_is_the_lower_bound_the_range_admits(name):
 
 
 def test_opencv_is_held_below_its_next_minor_release():
-    """A minor release of OpenCV moves RANSAC, SIFT and the solvers' results: the range
-    admits only the ones CI has run."""
+    """A minor release of OpenCV can move RANSAC's, SIFT's and the solvers' results: the
+    range admits only the releases CI has run."""
     opencv = _requirements()["opencv-contrib-python-headless"]
     assert any(s.operator == "<" for s in opencv.specifier), opencv
 
