@@ -100,8 +100,7 @@ def run_scene3d(folder: Path, work: Path) -> dict:
     largest = summary["models"][0] if summary.get("models") else {}
     return {"seconds": seconds, "models": len(summary.get("models", [])),
             "views": {name: [c["R"], c["center"]] for name, c in cameras.items()},
-            "focal_px": summary["K"][0][0] * scale, "k1": None,
-            "status": summary["status"], "registered": largest.get("registered", 0)}
+            "focal_px": summary["K"][0][0] * scale, "registered": largest.get("registered", 0)}
 
 
 def run_colmap(folder: Path, work: Path, threads: int) -> dict:
