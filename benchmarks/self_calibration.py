@@ -40,7 +40,8 @@ def exif_segment(focal_35mm: int) -> bytes:
     """A JPEG APP1 segment holding an EXIF block with ``FocalLengthIn35mmFilm``."""
     exif = Image.Exif()
     exif[ExifTags.Base.Make], exif[ExifTags.Base.Model] = "benchmark", "Strecha camera"
-    exif.get_ifd(ExifTags.IFD.Exif)[ExifTags.Base.FocalLengthIn35mmFilm] = focal_35mm
+    # The sub-IFD as a dict under its pointer: Pillow 9.5 drops values set via get_ifd.
+    exif[ExifTags.IFD.Exif] = {ExifTags.Base.FocalLengthIn35mmFilm: focal_35mm}
     payload = exif.tobytes()  # starts with b"Exif\0\0"
     return b"\xff\xe1" + (len(payload) + 2).to_bytes(2, "big") + payload
 

@@ -17,9 +17,58 @@ from scene3D.io.datasets import default_data_root  # noqa: E402
 REPO = Path(__file__).resolve().parents[1]
 
 
+def pytest_report_header(config) -> list[str]:
+    """What the results depend on beyond our code: the versions of the numerical
+    libraries and the SIMD kernels they dispatch to on this CPU (a pose on a knife edge
+    can come out otherwise on another machine: docs/contributing.md, "Machines and
+    versions")."""
+    import platform
+
+    import cv2
+
+    try:
+        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+    except ImportError:  # numpy's private layout may move; the header is for reading
+        __cpu_dispatch__, __cpu_features__ = [], {}
+    numpy_simd = [name for name in __cpu_dispatch__ if __cpu_features__.get(name)]
+    cpuinfo = Path("/proc/cpuinfo")
+    model = next((line.split(":", 1)[1].strip() for line in (
+        cpuinfo.read_text().splitlines() if cpuinfo.exists() else ())
+        if line.startswith("model name")), platform.processor())
+    held = [f"{name}={os.environ[name]!r}" for name in ("NPY_DISABLE_CPU_FEATURES",
+                                                        "OPENCV_CPU_DISABLE")
+            if os.environ.get(name)]
+    versions = [f"numpy {np.__version__}", f"opencv {cv2.__version__}",
+                f"matplotlib {matplotlib.__version__}"]
+    for name in ("scipy", "PIL", "plotly"):
+        try:
+            versions.append(f"{name} {__import__(name).__version__}")
+        except ImportError:
+            versions.append(f"{name} not installed")
+    simd = " ".join(numpy_simd) or "its baseline only"
+    return [f"scene3D against: {', '.join(versions)}",
+            f"CPU: {platform.machine()} {model}, {os.cpu_count()} cores; numpy dispatches to "
+            f"{simd}; OpenCV: {cv2.getCPUFeaturesLine()} (* dispatched, ? disabled)"
+            + (f"; held by {', '.join(held)}" if held else "")]
+
+
+#: Fixtures that read the shared photos (SCENE3D_DATA): their tests are marked
+#: ``realdata``, the ones whose outcomes a CPU's floating point or a dependency's release
+#: can move (``pytest -m realdata``: CI runs them again on kernels held to AVX2).
+REAL_DATA_FIXTURES = {"data_root"}
+
+
+def pytest_collection_modifyitems(config, items) -> None:
+    for item in items:
+        if REAL_DATA_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.realdata)
+
+
 def _data_root() -> Path | None:
     root = default_data_root()
-    return root if root is not None and root.is_dir() else None
+    # Absolute, so a test that links to a photo or runs a command elsewhere still finds it
+    # when SCENE3D_DATA is relative.
+    return root.resolve() if root is not None and root.is_dir() else None
 
 
 @pytest.fixture(scope="session")

@@ -2,7 +2,9 @@
 the views refute, photos of one name in two folders, ``--out`` among the photos, hidden
 files in a folder, and names COLMAP's text format cannot hold."""
 
+import dataclasses
 import json
+import re
 
 import cv2
 import numpy as np
@@ -52,10 +54,12 @@ def _earlier_run(out):
     return files
 
 
-def _fail_under_focal_length(fountain, tmp_path, capsys, focal_px: float) -> str:
+def _fail_under_focal_length(fountain, tmp_path, capsys, focal_px: float,
+                             written_if_failed: bool = False) -> str:
     """reconstruct-views of fountain-P11 0004-0008 at 768 px with a calibration whose focal
     length is ``focal_px`` (the truth: 2759 px): exit 1 in one line, and an earlier run's
-    files in ``--out`` as they were. The line."""
+    files in ``--out`` as they were, unless ``written_if_failed`` and a model that failed
+    its check was written for inspection. The line."""
     K = read_strecha_camera(fountain / "gt_dense_cameras" / "0004.jpg.camera").K.copy()
     K[0, 0] = K[1, 1] = focal_px
     calib = save_calibration(tmp_path / "wrong.yaml",
@@ -67,44 +71,53 @@ def _fail_under_focal_length(fountain, tmp_path, capsys, focal_px: float) -> str
                            "-q", "--out", str(out)]) == 1
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
-    assert {p.name: p.read_text() for p in out.iterdir()} == earlier
+    summary = json.loads((out / "reconstruction.json").read_text())
+    if written_if_failed and summary.get("status") == "failed":
+        assert "failed its consistency check" in err
+    else:
+        assert {p.name: p.read_text() for p in out.iterdir()} == earlier
     return err
 
 
 def test_a_calibration_that_leaves_no_model_stops_in_one_line(fountain, tmp_path, capsys,
                                                               monkeypatch):
-    """A focal length of 800 px, the run started from the one candidate pair trusted under
-    it as if the candidates' focal checks were not weighed together (they now stop it at
-    the start: test below): the check takes the first model's views out until one is
-    left (before: on until none was, and an IndexError; all 11 views: one left, and an
-    IndexError in the command)."""
-    _start_without_weighing_the_candidates(monkeypatch)
-    err = _fail_under_focal_length(fountain, tmp_path, capsys, 800.0)
-    assert err.startswith("error: no model could be kept: the one started from views ")
-    assert "taken out because their poses contradicted the pair geometry" in err
-    assert "does the calibration fit these photos?" in err
+    """A focal length of 800 px, the run started from the best candidate pair as if the
+    candidates' focal checks were not weighed (they stop it at the start: test below):
+    the check takes the first model's views out, until one is left (before: on until
+    none was, and an IndexError; all 11 views: one left, and an IndexError in the
+    command), or until the model left fails its check (on another CPU's floating point);
+    either way one line that says so and asks about the calibration, exit 1."""
+    _start_from_the_best_candidate(monkeypatch)
+    err = _fail_under_focal_length(fountain, tmp_path, capsys, 800.0, written_if_failed=True)
+    assert (err.startswith("error: no model could be kept: the one started from views ")
+            and "taken out because their poses contradicted the pair geometry" in err
+            and "does the calibration fit these photos?" in err
+            or err.startswith("error: the reconstruction failed its consistency check: ")
+            and "is the calibration for this camera" in err), err
 
 
-def test_a_calibration_most_start_pairs_refute_stops_at_the_start(fountain, tmp_path, capsys):
-    """A focal length of 900 px (a third of the truth): one candidate pair is trusted
+_REFUTED = re.compile(r"error: the candidate pairs to start from fit a focal length "
+                      r"(\d+\.\d\d) times the calibration's \(the median of (\d+)")
+
+
+@pytest.mark.parametrize("focal_px", [900.0, 600.0])
+def test_a_calibration_the_start_pairs_refute_stops_at_the_start(fountain, tmp_path, capsys,
+                                                                focal_px):
+    """A focal length of 900 px (a third of the truth): one candidate pair was trusted
     under it, its own focal check passing, 14 deg off; grown from it, a model of three
-    views came back with status ok, 10-12 deg off. Three of the five candidates fit a
-    focal length 2.8 times the calibration's: the run stops at the start."""
-    err = _fail_under_focal_length(fountain, tmp_path, capsys, 900.0)
-    assert err.startswith("error: 3 of the 5 candidate pairs to start from fit a focal length "
-                          "2.8")
-    assert "does the calibration fit these photos?" in err
-
-
-def test_a_calibration_that_leaves_no_trusted_start_says_so_in_one_line(fountain, tmp_path,
-                                                                      capsys):
-    """A focal length of 600 px: every candidate start is doubted (the focal check;
-    0007-0008, once trusted, has 29 % of its inliers behind a camera). The line quotes a
-    doubt and asks about the calibration."""
-    err = _fail_under_focal_length(fountain, tmp_path, capsys, 600.0)
-    assert err.startswith("error: no pair of views gives a trustworthy two-view start; the "
-                          "best candidate pair: ")
-    assert "does the calibration fit these photos?" in err
+    views came back with status ok, 10-12 deg off. At 600 px no candidate is trusted.
+    Either way the candidate pairs whose matches tell the focal length refute the
+    calibration, by a factor of at least 2, and the run stops at the start, in one line.
+    (Which candidates triangulate or pass their own checks is left to the CPU's floating
+    point: one machine counted 3 of 5 refuting at 900 px, another 4 of 5, a third 2 of
+    4; with pairs that cannot tell counted against it, the third started from the wrong
+    pair and lost its model.)"""
+    err = _fail_under_focal_length(fountain, tmp_path, capsys, focal_px)
+    refuted = _REFUTED.match(err)
+    assert refuted, err
+    factor, refuting = float(refuted.group(1)), int(refuted.group(2))
+    assert 2.0 < factor < 1.2 * 2759.0 / focal_px and refuting >= 2
+    assert "; does the calibration fit these photos?" in err
 
 
 def test_photos_of_one_name_in_two_folders_are_refused(tmp_path, capsys, no_reconstruction):
@@ -298,10 +311,14 @@ def test_photos_with_spaces_in_their_names(fountain, tmp_path, capsys):
     assert sorted(f[9] for f in fields) == [n.replace(" ", "_") for n in names]
 
 
-def _start_without_weighing_the_candidates(monkeypatch):
-    """The mapper chooses its start as before its candidates' focal checks were weighed
-    together (mapper.initial_pair's ``calibrated``), to reach the checks after it."""
-    choose = mapper.initial_pair
+def _start_from_the_best_candidate(monkeypatch):
+    """The mapper starts from the best-scoring candidate pair, trusted or not, without
+    weighing the candidates' focal checks (mapper.initial_pair's ``calibrated``): a run
+    under a wrong calibration then reaches the checks after the start on any CPU (which
+    candidates a wrong calibration leaves trusted is up to its floating point)."""
+    choose, fit = mapper.initial_pair, mapper.reconstruct_from_matches
+    monkeypatch.setattr(mapper, "reconstruct_from_matches", lambda *args, **kwargs: (
+        dataclasses.replace(fit(*args, **kwargs), trusted=True)))
     monkeypatch.setattr(mapper, "initial_pair",
                         lambda *args, **kwargs: choose(*args, **{**kwargs, "calibrated": False}))
 
@@ -313,10 +330,10 @@ def test_a_calibration_for_another_focal_length_fails_the_check(fountain, tmp_pa
     'ok' with camera centres 33 % of the scene off (a review). Adjusted with the focal
     length free, the observations call for 1.4 and 3.3 times the calibration's: the
     check fails (exit 1), the models are written for inspection with status 'failed',
-    and the error says why. (Three of the four candidate pairs to start from refute
-    that calibration too, which now stops the run before any model: the start is
-    chosen here as before, to test the model's check.)"""
-    _start_without_weighing_the_candidates(monkeypatch)
+    and the error says why. (The candidate pairs to start from refute that calibration
+    too, which stops the run before any model: the start is chosen here without them,
+    to test the model's check.)"""
+    _start_from_the_best_candidate(monkeypatch)
     K = read_strecha_camera(fountain / "gt_dense_cameras" / "0004.jpg.camera").K.copy()
     K[0, 0] = K[1, 1] = 850.0
     calib = save_calibration(tmp_path / "wrong.yaml",
@@ -325,12 +342,13 @@ def test_a_calibration_for_another_focal_length_fails_the_check(fountain, tmp_pa
     assert multiview.main([str(fountain / "images"), "--calib", str(calib), "--max-width",
                            "768", "--no-plots", "--no-report", "-q", "--out", str(out)]) == 1
     err = capsys.readouterr().err
-    assert "the views fit a focal length" in err and "times the calibration's" in err
+    called_for = re.search(r"the views fit a focal length (\d+\.\d+) times the calibration's "
+                           r"\(\+-(\d+\.\d+)\)", err)
+    assert called_for, err
+    factor, sigma = map(float, called_for.groups())
+    assert factor > 1.15 and sigma < 0.1 * (factor - 1)
     summary = json.loads((out / "reconstruction.json").read_text())
-    assert summary["status"] == "failed"
-    check = summary["models"][0]["check"]
-    assert check["status"] == "failed" and check["focal_scale"] > 1.15
-    assert check["focal_scale_sigma"] < 0.1 * (check["focal_scale"] - 1)
+    assert summary["status"] == "failed" and summary["models"][0]["check"]["status"] == "failed"
 
 
 def test_the_focal_test_keeps_right_calibrations_and_refutes_a_few_percent():

@@ -11,15 +11,13 @@ from PIL import ExifTags, Image
 from scene3D.evaluation import relative_pose_error
 from scene3D.io.datasets import read_strecha_camera, relative_pose
 
+from .exif_blocks import exif_block
 from .test_cli_chapter4 import run
 
 
 def exif_bytes(make="Canon", model="EOS 5D", focal_35mm=None) -> bytes:
-    exif = Image.Exif()
-    exif[ExifTags.Base.Make], exif[ExifTags.Base.Model] = make, model
-    if focal_35mm is not None:
-        exif.get_ifd(ExifTags.IFD.Exif)[ExifTags.Base.FocalLengthIn35mmFilm] = focal_35mm
-    return exif.tobytes()
+    return exif_block({ExifTags.Base.Make: make, ExifTags.Base.Model: model},
+                      {ExifTags.Base.FocalLengthIn35mmFilm: focal_35mm}).tobytes()
 
 
 def resave(source, target, exif: bytes | None = None):

@@ -10,26 +10,22 @@ from PIL import ExifTags, Image
 from scene3D.geometry.intrinsics_prior import focal_px_from_35mm
 from scene3D.io.exif import read_camera_prior, read_exif
 
+from .exif_blocks import exif_block
+
 SIZE = (96, 64)
 
 
 def exif_bytes(make="Canon", model="Canon EOS 5D", focal_35mm=None, focal_mm=None,
                plane_res=None, plane_unit=None, pixel_dims=None, orientation=None) -> bytes:
-    exif = Image.Exif()
-    exif[ExifTags.Base.Make] = make
-    exif[ExifTags.Base.Model] = model
-    if orientation is not None:
-        exif[ExifTags.Base.Orientation] = orientation
-    sub = exif.get_ifd(ExifTags.IFD.Exif)
-    for tag, value in [(ExifTags.Base.FocalLengthIn35mmFilm, focal_35mm),
-                       (ExifTags.Base.FocalLength, focal_mm),
-                       (ExifTags.Base.FocalPlaneXResolution, plane_res),
-                       (ExifTags.Base.FocalPlaneResolutionUnit, plane_unit)]:
-        if value is not None:
-            sub[tag] = value
-    if pixel_dims is not None:
-        sub[ExifTags.Base.ExifImageWidth], sub[ExifTags.Base.ExifImageHeight] = pixel_dims
-    return exif.tobytes()
+    width, height = pixel_dims if pixel_dims is not None else (None, None)
+    return exif_block({ExifTags.Base.Make: make, ExifTags.Base.Model: model,
+                       ExifTags.Base.Orientation: orientation},
+                      {ExifTags.Base.FocalLengthIn35mmFilm: focal_35mm,
+                       ExifTags.Base.FocalLength: focal_mm,
+                       ExifTags.Base.FocalPlaneXResolution: plane_res,
+                       ExifTags.Base.FocalPlaneResolutionUnit: plane_unit,
+                       ExifTags.Base.ExifImageWidth: width,
+                       ExifTags.Base.ExifImageHeight: height}).tobytes()
 
 
 def save(path, exif: bytes | None = None, size=SIZE):

@@ -14,6 +14,8 @@ from scene3D.io.datasets import read_strecha_camera, relative_pose
 from scene3D.io.exif import read_camera_prior, read_exif
 from scene3D.io.images import read_image, read_image_size
 
+from .exif_blocks import exif_block
+
 pillow_heif = pytest.importorskip("pillow_heif")
 
 
@@ -28,13 +30,8 @@ def _save_heic(path, bgr, exif=None):
 
 
 def _iphone_exif(orientation=1):
-    from PIL import Image
-
-    exif = Image.Exif()
-    exif[0x010F], exif[0x0110], exif[0x0112] = "Apple", "iPhone 13", orientation
-    exif.get_ifd(0x8769)[0x920A] = 5.1  # FocalLength, mm
-    exif.get_ifd(0x8769)[0xA405] = 26  # FocalLengthIn35mmFilm
-    return exif
+    return exif_block({0x010F: "Apple", 0x0110: "iPhone 13", 0x0112: orientation},
+                      {0x920A: 5.1, 0xA405: 26})  # FocalLength (mm), FocalLengthIn35mmFilm
 
 
 @pytest.fixture(scope="module")

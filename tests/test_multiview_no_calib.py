@@ -17,6 +17,8 @@ from scene3D.io.datasets import read_strecha_camera
 from scene3D.multiview import PairMatches, SfMSettings, ViewFeatures, reconstruct_models
 from scene3D.multiview.focal import FocalSettings
 
+from .exif_blocks import exif_block
+
 #: Square pixels, the principal point off the image centre by 1.5 % and 2 % (the model
 #: puts it at the centre: the focal length must still come out close).
 K_TRUE = np.array([[520.0, 0, 329.0], [0, 520.0, 229.0], [0, 0, 1]])
@@ -228,9 +230,8 @@ def fountain_with_exif(fountain, tmp_path_factory):
     folders = {}
     for focal_35mm in (32, 23):
         folder = tmp_path_factory.mktemp(f"exif{focal_35mm}")
-        exif = Image.Exif()
-        exif[ExifTags.Base.Make], exif[ExifTags.Base.Model] = "Canon", "EOS 5D"
-        exif.get_ifd(ExifTags.IFD.Exif)[ExifTags.Base.FocalLengthIn35mmFilm] = focal_35mm
+        exif = exif_block({ExifTags.Base.Make: "Canon", ExifTags.Base.Model: "EOS 5D"},
+                          {ExifTags.Base.FocalLengthIn35mmFilm: focal_35mm})
         for i in range(3, 8):
             with Image.open(fountain / "images" / f"{i:04d}.jpg") as img:
                 img.save(folder / f"{i:04d}.jpg", quality=95, subsampling=0, exif=exif.tobytes())

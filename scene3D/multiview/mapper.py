@@ -34,7 +34,7 @@ import numpy as np
 from ..errors import ReconstructionError, plural
 from ..geometry.conventions import FloatArray, median
 from ..twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
-from ..twoview.trust import focal_mismatch
+from ..twoview.trust import focal_agreement, focal_mismatch, k_words
 from .focal import (
     FocalSettings,
     focal_estimate,
@@ -104,14 +104,15 @@ def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches],
                  ) -> tuple[PairMatches, TwoViewGeometry] | str:
     """The verified pair (among those with most inliers) giving most reliable points.
 
-    Returns the pair and its two-view geometry, or, when no candidate is trusted, the
-    reason (quoting the doubt about the best-scoring one, e.g. a calibration that does
-    not fit). With ``calibrated`` (``K`` from a calibration file), also the reason when
-    most candidates' matches refute the calibration's focal length
-    (:func:`scene3D.twoview.trust.focal_mismatch`): a pair whose own focal check passed
-    may then sit in a wrong pose's valley (fountain-P11 4-8 under a focal length a third
-    of the truth: a trusted start 14 deg off, and a model 10-12 deg off with status ok).
-    ``K_source`` names where ``K`` came from in the pairs' warnings
+    Returns the pair and its two-view geometry, or the reason there is none: first,
+    when ``K``'s focal length is known rather than being self-calibrated (``calibrated``:
+    a calibration file; or ``K_source="other photos"``: a further model's, from the
+    models before it), because the candidates' matches refute it
+    (:func:`refuted_focal_length`), trusted candidate or not: a pair whose own focal check
+    passed may sit in a wrong pose's valley (fountain-P11 4-8 under a focal length a
+    third of the truth: a trusted start 14 deg off, and a model 10-12 deg off with
+    status ok); then, when no candidate is trusted, quoting the doubt about the
+    best-scoring one. ``K_source`` names where ``K`` came from in the pairs' warnings
     (:data:`scene3D.twoview.trust.K_SOURCES`).
     """
     ranked = sorted(pairs, key=lambda p: (-p.num_inliers, p.i, p.j))
@@ -133,16 +134,61 @@ def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches],
             best, best_score = (pair, r), score
         elif not r.trusted and score > doubt_score:
             doubt, doubt_score = f"; the best candidate pair: {r.warnings[0]}", score
+    if calibrated or K_source == "other photos":
+        refuted = refuted_focal_length(answered, settings, K_source)
+        if refuted:
+            return refuted
     if best is None:
         return "no pair of views gives a trustworthy two-view start" + doubt
-    if calibrated:
-        refuting = [r.focal_scale for r in answered if focal_mismatch(
-            r.focal_scale, r.focal_scale_sigma / r.focal_scale, settings)]
-        if 2 * len(refuting) > len(answered):
-            return (f"{len(refuting)} of the {len(answered)} candidate pairs to start from "
-                    f"fit a focal length {median(np.array(refuting)):.2f} times the "
-                    "calibration's (median)")
     return best
+
+
+def refuted_focal_length(candidates: Sequence[TwoViewGeometry], settings: TwoViewSettings,
+                         K_source: str = "calibration") -> str:
+    """Why the candidate start pairs refute ``K``'s focal length, or ``""``.
+
+    Each candidate's matches fit a focal length ``focal_scale`` times ``K``'s. Those
+    that can tell vote: a pair refutes ``K`` (:func:`scene3D.twoview.trust.focal_mismatch`)
+    or confirms it (:func:`scene3D.twoview.trust.focal_agreement`); a pair whose matches
+    leave the focal length wide open abstains. ``K`` is refuted when at least two pairs
+    refute it and they outnumber those that confirm it. Counting the abstaining pairs
+    against the refutation, as a plain majority of the candidates did, left the verdict
+    to pairs that say nothing about it: fountain-P11 4-8 under a third of the true focal
+    length was refuted or not by which of them a CPU's floating point let triangulate.
+
+    Parameters
+    ----------
+    candidates : sequence of TwoViewGeometry
+        The candidates' two-view results under ``K``.
+    settings : TwoViewSettings
+        The two-view focal check's limits (``max_focal_mismatch``,
+        ``focal_mismatch_sigmas``).
+    K_source : str
+        Where ``K`` came from, a key of :data:`scene3D.twoview.trust.K_SOURCES`: the
+        reason names it.
+
+    Returns
+    -------
+    str
+        The reason (the refuting pairs' median factor, how many refute, confirm and
+        cannot tell), or ``""`` when ``K`` is not refuted.
+    """
+    refuting, confirming = [], 0
+    for r in candidates:
+        sigma_log = r.focal_scale_sigma / r.focal_scale
+        if focal_mismatch(r.focal_scale, sigma_log, settings):
+            refuting.append(r.focal_scale)
+        elif focal_agreement(r.focal_scale, sigma_log, settings):
+            confirming += 1
+    if len(refuting) < 2 or len(refuting) <= confirming:
+        return ""
+    whose = k_words(K_source).whose
+    others = [f"{confirming} {'fits' if confirming == 1 else 'fit'} {whose}"] * bool(confirming)
+    if abstaining := len(candidates) - len(refuting) - confirming:
+        others.append(f"{abstaining} cannot tell")
+    return (f"the candidate pairs to start from fit a focal length "
+            f"{median(np.array(refuting)):.2f} times {whose} (the median of "
+            f"{len(refuting)}{''.join('; ' + o for o in others)})")
 
 
 def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: FloatArray,

@@ -225,6 +225,16 @@ def focal_mismatch(scale: float, sigma_log: float, s: TwoViewSettings) -> bool:
             and log_scale > s.focal_mismatch_sigmas * sigma_log)
 
 
+def focal_agreement(scale: float, sigma_log: float, s: TwoViewSettings) -> bool:
+    """A focal length ``scale`` times the calibration's that confirms it: within
+    ``1 + s.max_focal_mismatch`` either way, and known well enough to tell
+    (``s.focal_mismatch_sigmas`` standard deviations of its log, ``sigma_log``, inside that
+    band). A pair whose matches leave the focal length wide open neither confirms nor
+    refutes (:func:`focal_mismatch`) the calibration."""
+    band = np.log1p(s.max_focal_mismatch)
+    return bool(abs(np.log(scale)) <= band and s.focal_mismatch_sigmas * sigma_log < band)
+
+
 def principal_point_warning(K: FloatArray, pts1: FloatArray, pts2: FloatArray,
                             image_size: tuple[int, int] | None = None) -> str | None:
     """Why ``K``'s principal point may not be these images', or None.
