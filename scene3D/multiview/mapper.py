@@ -225,7 +225,8 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
         open_views = np.flatnonzero(allowed & ~model.registered & ~model.blocked)
         candidates = [int(v) for v in open_views if v not in failed]
         counts = [len(model.correspondences(v)[0]) for v in candidates]
-        if not candidates or max(counts) < s.min_registration_inliers:
+        if not candidates or max(counts) < min(s.min_registration_inliers,
+                                               s.min_confirmed_registration_inliers):
             if len(open_views) and more_pairs is not None and rounds < s.retry_rounds:
                 rounds += 1
                 t0 = time.perf_counter()

@@ -74,6 +74,10 @@ class SfMSettings:
         RANSAC reprojection threshold when registering a view.
     min_registration_inliers : int
         A view needs this many PnP inliers to be registered.
+    min_confirmed_registration_inliers, min_confirmed_share : int, float
+        Or this many, when its pose explains a verified pair with a registered view (at
+        least ``min_pair_inliers`` of the pair's matches and this share of them, within
+        ``pnp_threshold_px``; :meth:`scene3D.multiview.state.GrowingModel.pair_confirms`).
     max_reprojection_px : float
         Observations reprojecting worse are removed (after triangulation and BA).
     min_parallax_deg : float
@@ -128,6 +132,13 @@ class SfMSettings:
         reconstructed again with the focal length they call for, at most this many
         times (:attr:`MultiViewReconstruction.focal_refits`); 0: never (the model then
         fails its check).
+    max_lens_passes : int
+        Without a calibration and with a distorting camera model: how many times at
+        most the views are reconstructed again with their keypoints undistorted by the
+        lens the largest model calls for (:mod:`scene3D.multiview.lens`).
+    lens_tolerance_px : float
+        Another pass is made when the lens the model calls for moves an image corner
+        more than this from where the current undistortion puts it.
     min_focal_test_views : int
         Models of fewer views are held to the two-view check's limits instead
         (``TwoViewSettings.max_focal_mismatch``, 15 %): three views of a short stretch
@@ -140,6 +151,8 @@ class SfMSettings:
     max_verify_iterations: int = 1000
     pnp_threshold_px: float = 3.0
     min_registration_inliers: int = 30
+    min_confirmed_registration_inliers: int = 8
+    min_confirmed_share: float = 0.8
     max_reprojection_px: float = 2.0
     min_parallax_deg: float = 1.5
     neighbours: int = 3
@@ -158,6 +171,8 @@ class SfMSettings:
     focal_mismatch_sigmas: float = 5.0
     max_focal_refits: int = 2
     min_focal_test_views: int = 4
+    max_lens_passes: int = 3
+    lens_tolerance_px: float = 0.5
 
 
 def refutes_calibration(focal_scale: float, sigma_log: float, views: int,
@@ -424,6 +439,18 @@ class MultiViewReconstruction:
     prior_description : str
         Without a calibration, where the prior came from ("EXIF FocalLengthIn35mmFilm
         32 mm", the default); empty with one.
+    camera_model : str
+        ``"pinhole"`` (a calibration file's camera, its distortion removed from the
+        images first, or a pinhole camera asked for), ``"simple_radial"`` or
+        ``"radial"`` (:mod:`scene3D.geometry.lens`).
+    radial_distortion : tuple[float, ...]
+        The radial coefficients ``k1[, k2]`` of the camera model about ``K`` (working
+        images): the models' observations are the photos' keypoints undistorted with
+        them, so the models are exact pinhole models of those; a corner moved less
+        than ``SfMSettings.lens_tolerance_px`` by the lens the model calls for leaves the
+        keypoints as photographed (the coefficients 0).
+    lens_passes : int
+        How many times the views were reconstructed again with undistorted keypoints.
     """
 
     names: tuple[str, ...]
@@ -438,6 +465,9 @@ class MultiViewReconstruction:
     calibration_source: str = "file"
     prior_description: str = ""
     focal_refits: tuple[float, ...] = ()
+    camera_model: str = "pinhole"
+    radial_distortion: tuple[float, ...] = ()
+    lens_passes: int = 0
 
     @property
     def focal_refit_scale(self) -> float:

@@ -33,10 +33,12 @@ from ..geometry.camera import (
     validate_intrinsics,
 )
 from ..geometry.intrinsics_prior import FocalPrior, camera_prior
+from ..geometry.lens import corner_shifts_px, max_shift_px, radial_coefficients
 from ..io.images import BOOK_MAX_WIDTH_PX, ImageSource, refuse_single_path, source_label
 from ..optim.bundle import Observations
 from .features import content_key, view_features
 from .focal import FocalSettings
+from .lens import model_lens, refine_lens, undistorted_features
 from .mapper import reconstruct_models
 from .matching import verify_pair
 from .models import (
@@ -150,6 +152,7 @@ def reconstruct_views(
     progress: Callable[[str], None] | None = None,
     engine: Engine | None = None,
     focal_prior: FocalPrior | None = None,
+    camera_model: str = "auto",
 ) -> MultiViewReconstruction:
     """Reconstruct cameras and points from several photos of one camera, calibrated or not.
 
@@ -190,6 +193,13 @@ def reconstruct_views(
         Without ``K``: the focal length to start from, of the native images (default:
         :func:`scene3D.io.exif.read_camera_prior` of the files, the EXIF focal length or
         1.2 times the longer side; for arrays the default).
+    camera_model : str
+        Without ``K``: ``"simple_radial"`` (one focal length and one radial coefficient,
+        the default, ``"auto"``), ``"radial"`` (two coefficients) or ``"pinhole"`` (no
+        distortion); the distortion is found from the largest model and the views
+        reconstructed again with their keypoints undistorted (:mod:`scene3D.multiview.lens`).
+        With ``K`` the calibration gives the camera: ``"auto"`` or ``"pinhole"`` only
+        (``dist`` undistorts the images first).
 
     Returns
     -------
@@ -225,6 +235,13 @@ def reconstruct_views(
     if len(images) < 2:
         raise ReconstructionError("too_few_views", "need at least two images",
                                   views=len(images))
+    if camera_model == "auto":
+        camera_model = "pinhole" if K is not None else "simple_radial"
+    num_radial = radial_coefficients(camera_model)
+    if K is not None and num_radial:
+        raise ValueError(f"camera_model {camera_model!r} needs photos without a calibration: "
+                         "with `K` the calibration gives the camera (its `dist` undistorts "
+                         "the images)")
     if K is None:
         if dist is not None:
             raise ValueError("`dist` needs `K`: photos without a calibration are taken as "
@@ -340,6 +357,40 @@ def reconstruct_views(
             break
         refits.append(scale)
         K_work = K_refit
+    # Without a calibration: the lens the largest model calls for, its keypoints
+    # undistorted with it and the views reconstructed again (scene3D.multiview.lens).
+    lens, K_lens, lens_passes = np.zeros(num_radial), K_work.copy(), 0
+    raw_keypoints = [f.keypoints for f in features]
+    while focal is not None and num_radial and lens_passes < s.max_lens_passes:
+        t0 = time.perf_counter()
+        K_model = models[0].K if models[0].K is not None else K_work
+        fit = refine_lens(models[0], K_model, lens, K_lens, focal)
+        current = model_lens(lens, float(K_lens[0, 0]), float(K_model[0, 0]))
+        moved = float(np.max(np.linalg.norm(
+            corner_shifts_px(fit.K, fit.k, working_size)
+            - corner_shifts_px(K_model, current, working_size), axis=1)))
+        timings["lens"] = timings.get("lens", 0.0) + time.perf_counter() - t0
+        if moved <= s.lens_tolerance_px:
+            break
+        say(f"lens distortion: k1 {fit.k[0]:+.3f} moves the image corners "
+            f"{max_shift_px(fit.K, fit.k, working_size):.1f} px; reconstructing with the "
+            "keypoints undistorted")
+        kept = features, handles
+        features = undistorted_features(features, raw_keypoints, fit.K, fit.k)
+        handles = [engine.share(f) for f in features]
+        try:
+            attempt = reconstruct_with(fit.K)
+        except ReconstructionError as exc:
+            attempt, why = None, str(exc)
+        else:
+            why = "it registers fewer views"
+            if attempt[0][0].registered.sum() >= models[0].registered.sum():
+                models, reasons, num_matched, num_verified = attempt
+                lens, K_lens, lens_passes = fit.k, fit.K, lens_passes + 1
+                continue
+        say(f"no better model with the keypoints undistorted ({why}): keeping the last")
+        features, handles = kept
+        break
     timings["total"] = sum(timings.values())
     if focal is not None:
         K_work = models[0].K if models[0].K is not None else K_work
@@ -352,4 +403,7 @@ def reconstruct_views(
         timings_s=timings,
         calibration_source="file" if focal is None else models[0].focal.source,
         prior_description="" if focal_prior is None else focal_prior.description,
-        focal_refits=tuple(refits))
+        focal_refits=tuple(refits), camera_model=camera_model,
+        radial_distortion=tuple(float(v) for v in model_lens(
+            lens, float(K_lens[0, 0]), float(K_work[0, 0]))),
+        lens_passes=lens_passes)

@@ -16,7 +16,8 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
-from ..geometry.conventions import FloatArray, camera_centers
+from ..geometry.conventions import FloatArray, camera_centers, relative_pose
+from ..geometry.epipolar import essential_distances, essential_from_pose
 from ..optim.bundle import Observations, bundle_adjust, bundle_adjust_focal, reprojection_residuals
 from .checks import check_model
 from .focal import FocalSettings, longer_side_px
@@ -205,23 +206,55 @@ class GrowingModel:
         return nodes[points >= 0], points[points >= 0]
 
     def register(self, view: int) -> bool:
+        """Register ``view`` by PnP on its 2D-3D matches. A pose from fewer than
+        ``min_registration_inliers`` inliers (but at least
+        ``min_confirmed_registration_inliers``) counts only when a verified pair with a
+        registered view confirms it (:meth:`pair_confirms`)."""
         nodes, points = self.correspondences(view)
-        if len(nodes) < self.s.min_registration_inliers:
+        need = min(self.s.min_registration_inliers, self.s.min_confirmed_registration_inliers)
+        if len(nodes) < need:
             return False
         obj, img = self.X[points], self.xy[nodes]
         ok, rvec, tvec, inliers = cv2.solvePnPRansac(
             obj, img, self.K, None, iterationsCount=2000,
             reprojectionError=self.s.pnp_threshold_px, confidence=0.9999,
             flags=cv2.SOLVEPNP_SQPNP)
-        if not ok or inliers is None or len(inliers) < self.s.min_registration_inliers:
+        if not ok or inliers is None or len(inliers) < need:
             return False
         inl = inliers.ravel()
         rvec, tvec = cv2.solvePnPRefineLM(obj[inl], img[inl], self.K, None, rvec, tvec)
-        self.R[view] = cv2.Rodrigues(rvec)[0]
-        self.t[view] = tvec.ravel()
+        R, t = cv2.Rodrigues(rvec)[0], tvec.ravel()
+        if len(inl) < self.s.min_registration_inliers and not self.pair_confirms(view, R, t):
+            return False
+        self.R[view], self.t[view] = R, t
         self.registered[view] = True
         self.node_point[nodes[inl]] = points[inl]
         return True
+
+    def pair_confirms(self, view: int, R: FloatArray, t: FloatArray) -> bool:
+        """Whether the pose ``(R, t)`` of ``view`` explains a verified pair with a registered
+        view: at least ``min_pair_inliers`` of the pair's matches, and
+        ``min_confirmed_share`` of them, within ``pnp_threshold_px`` of the epipolar
+        geometry the two poses give (Sampson distance). A view whose matches with the
+        model's points are few (a corner turned) but whose pair with a registered view is
+        strong registers so; a wrong pose from a few 2D-3D matches explains no pair."""
+        for p in self.pairs:
+            other = p.j if p.i == view else p.i if p.j == view else -1
+            if other < 0 or not self.registered[other] or p.num_inliers < self.s.min_pair_inliers:
+                continue
+            poses = {view: (R, t), other: (self.R[other], self.t[other])}
+            R_ij, t_ij = relative_pose(*poses[p.i], *poses[p.j])
+            if not np.linalg.norm(t_ij) > 0:
+                continue
+            distances = essential_distances(
+                essential_from_pose(R_ij, t_ij / np.linalg.norm(t_ij)),
+                self.features[p.i].keypoints[p.idx_i], self.features[p.j].keypoints[p.idx_j],
+                self.K)
+            explained = int(np.sum(distances <= self.s.pnp_threshold_px))
+            if (explained >= self.s.min_pair_inliers
+                    and explained >= self.s.min_confirmed_share * p.num_inliers):
+                return True
+        return False
 
     def deregister(self, view: int) -> None:
         nodes = np.arange(self.tracks.offsets[view], self.tracks.offsets[view + 1])

@@ -1,0 +1,89 @@
+"""Lens distortion for photos without a calibration file: undistorted keypoints, refined.
+
+Without a calibration the camera model (:mod:`scene3D.geometry.lens`) is ``f`` and
+radial coefficients about the image centre. Its distortion is found from a model and
+applied to the keypoints, so that the pair verification, the focal and consistency
+checks and the registrations all work in the undistorted geometry of the current
+estimate:
+
+1. The views are reconstructed with the keypoints as they are (the coefficients 0).
+2. The largest model is adjusted on the photographed keypoints with the focal length and
+   the coefficients free (:func:`scene3D.optim.bundle.bundle_adjust_radial`), starting from
+   the lens its keypoints were undistorted with (exact: pixels undistorted with one
+   focal length and taken by a pinhole camera of another are an exact radial camera,
+   :func:`scene3D.geometry.lens.rescaled_coefficients`).
+3. When that lens moves an image corner more than ``SfMSettings.lens_tolerance_px``
+   from where the current undistortion puts it, the keypoints are undistorted with it
+   and the views reconstructed again (the model made with the last lens keeps only the
+   observations that fit it, which biases the next estimate towards that lens: kermit's
+   k1 came out -0.115, -0.130, then -0.132), at most ``SfMSettings.max_lens_passes`` times; a
+   pass that registers fewer views is not kept.
+
+A lens that hardly distorts (the Strecha scenes: under half a pixel at the corners)
+leaves the keypoints as they are and the models as a pinhole camera would give them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..geometry.conventions import FloatArray
+from ..geometry.lens import distort_pixels, rescaled_coefficients, undistort_pixels
+from ..optim.bundle import Observations, RadialAdjustment, bundle_adjust_radial
+from .focal import FocalSettings
+from .models import SfMModel, ViewFeatures
+
+#: The coefficients' prior standard deviation: weak, it holds them only where a model's
+#: views do not determine them (COLMAP's SIMPLE_RADIAL starts at 0 with none).
+K_PRIOR_SIGMA = 0.5
+
+
+def model_lens(lens: FloatArray, lens_focal_px: float, model_focal_px: float) -> FloatArray:
+    """The coefficients about a model's focal length of keypoints undistorted with
+    ``(lens_focal_px, lens)``: the model's exact camera (``(m,)``)."""
+    return rescaled_coefficients(lens, lens_focal_px, model_focal_px)
+
+
+def refine_lens(model: SfMModel, K_model: FloatArray, lens: FloatArray,
+                K_lens: FloatArray, focal: FocalSettings) -> RadialAdjustment:
+    """The focal length and radial coefficients a model calls for, on the photographed
+    keypoints.
+
+    Parameters
+    ----------
+    model : SfMModel
+        Its observations are keypoints undistorted with ``(K_lens, lens)``.
+    K_model : (3, 3)
+        The intrinsics it was adjusted with.
+    lens : (m,)
+        The coefficients the keypoints were undistorted with, about ``K_lens``.
+    K_lens : (3, 3)
+    focal : FocalSettings
+        The focal length's prior.
+
+    Returns
+    -------
+    RadialAdjustment
+        About the image centre and the refined focal length; ``k`` has ``m`` entries.
+    """
+    obs = model.observations
+    raw = Observations(obs.view, obs.point, distort_pixels(obs.xy, K_lens, lens), obs.sigma)
+    # The model's world is its initial pair's first camera, [I | 0]: it stays.
+    views = np.flatnonzero(model.registered)
+    reference = int(views[np.argmin(np.linalg.norm(model.t[views], axis=1))])
+    start = model_lens(lens, float(K_lens[0, 0]), float(K_model[0, 0]))
+    return bundle_adjust_radial(model.R, model.t, model.points3d, raw, K_model, start,
+                                reference, focal.prior_focal_px, focal.prior_sigma_log,
+                                K_PRIOR_SIGMA)
+
+
+def undistorted_features(features: Sequence[ViewFeatures], raw_keypoints: Sequence[FloatArray],
+                         K_lens: FloatArray, lens: FloatArray) -> list[ViewFeatures]:
+    """The views' features with their photographed keypoints undistorted by ``(K_lens,
+    lens)`` (everything else as it is)."""
+    return [dataclasses.replace(f, keypoints=undistort_pixels(raw, K_lens, lens))
+            for f, raw in zip(features, raw_keypoints)]
+
