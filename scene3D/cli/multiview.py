@@ -16,15 +16,14 @@ from ..evaluation.poses import camera_set_error
 from ..features.matching import FEATURE_MODES, resolve_feature_mode
 from ..geometry.camera import adapt_intrinsics_to_size
 from ..io.calibration import load_calibration
+from ..io.colmap import cameras_json, write_colmap_text
 from ..io.datasets import StrechaCamera, read_strecha_camera
 from ..io.export import (
     all_or_nothing,
     colmap_image_name,
-    colmap_text_files,
     save_figure,
     write_json,
     write_ply,
-    write_text_files,
     written_bytes,
 )
 from ..io.images import BOOK_MAX_WIDTH_PX, folder_images, glob_files, read_image_size
@@ -78,7 +77,8 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
         ),
         epilog=(
             "Writes into --out: points.ply (binary, RGB), cameras.json (world-to-camera "
-            "poses), colmap/cameras.txt, images.txt, points3D.txt (a COLMAP text model), "
+            "poses, K, distortion and size of the photos), colmap/cameras.txt, images.txt, "
+            "points3D.txt (a COLMAP text model of the photos at their own size), "
             "cameras.png (cloud with camera frusta) for the largest model, the same files "
             "in model-1/, model-2/, ... for further models (views that connect among "
             "themselves but not to the first), and reconstruction.json (summary: which "
@@ -434,17 +434,12 @@ def write_model(folder: Path, names: list[str], recon: MultiViewReconstruction,
         if not made.exists():
             made.mkdir()
             note_created_folders([made])
-    obs = model.observations
     K = recon.model_K(model)
-    colmap = colmap_text_files(names, K, recon.image_size, model.registered, model.R,
-                               model.t, model.points3d, model.colors, obs.view, obs.point,
-                               obs.xy, model.point_errors_px(K))
+    colmap = recon.colmap_model(model)  # at the photos' size, with their distortion
     points_file, cameras_file = MODEL_FILES[:2]
     written = [write_ply(folder / points_file, model.points3d, model.colors)]
-    cameras = {n: {"R": model.R[i], "t": model.t[i], "center": model.centers[i]}
-               for i, n in enumerate(names) if model.registered[i]}
-    written.append(write_json(folder / cameras_file, cameras))
-    written += write_text_files(folder / "colmap", colmap)
+    written.append(write_json(folder / cameras_file, cameras_json(colmap)))
+    written += write_colmap_text(folder / "colmap", colmap)
     if plots:
         from ..viz.plotting import plot_cameras_and_points
 

@@ -488,6 +488,21 @@ def colmap_text(model: ColmapModel) -> dict[str, str]:
             "points3D.txt": "\n".join(points) + "\n"}
 
 
+def cameras_json(model: ColmapModel) -> dict[str, dict]:
+    """Each image's camera as JSON-ready values, by image name: world-to-camera ``R``
+    ``(3, 3)`` and ``t`` ``(3,)``, the centre ``(3,)``, ``K`` ``(3, 3)`` (OpenCV pixels),
+    the OpenCV ``distortion`` coefficients, ``image_size`` ``[width, height]`` and COLMAP's
+    ``camera_model``."""
+    centers = model.centers
+    out = {}
+    for v, name in enumerate(model.names):
+        camera = model.camera(v)
+        out[name] = {"R": model.R[v], "t": model.t[v], "center": centers[v], "K": camera.K,
+                     "distortion": camera.dist, "image_size": list(camera.image_size),
+                     "camera_model": camera.model}
+    return out
+
+
 def write_colmap_text(folder: str | os.PathLike, model: ColmapModel) -> list[Path]:
     """Write ``model`` as a COLMAP text model into ``folder`` (created if needed), each
     file atomically; returns the paths written."""

@@ -352,4 +352,4 @@ def reconstruct_views(
         timings_s=timings,
         calibration_source="file" if focal is None else models[0].focal.source,
         prior_description="" if focal_prior is None else focal_prior.description,
-        focal_refits=tuple(refits))
+        focal_refits=tuple(refits), photo_size=first, dist=dist)
