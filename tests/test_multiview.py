@@ -298,7 +298,8 @@ def fountain_views(fountain, tmp_path_factory):
     proc = subprocess.run(
         [sys.executable, "-m", "scene3D", "reconstruct-views", str(fountain / "images"),
          "--calib", str(REPO / "data" / "fountain_P11_intrinsics.yaml"),
-         "--ground-truth", str(fountain / "gt_dense_cameras"), "--out", str(out)],
+         "--ground-truth", str(fountain / "gt_dense_cameras"), "--out", str(out),
+         "--export", "nerfstudio"],
         capture_output=True, text=True, timeout=900)
     return proc, out
 
@@ -354,6 +355,36 @@ def test_colmap_model_is_consistent(fountain_views):
             assert np.linalg.norm(u - xy[idx, :2]) < 6.0  # 3 px in the working images
             checked += 1
     assert checked > 300
+
+
+def test_the_nerfstudio_export_has_the_cameras_of_the_ground_truth(fountain, fountain_views):
+    """transforms.json: the photos' intrinsics at the top, each frame's file_path leading
+    to its photo, camera-to-world in OpenGL axes that match the Strecha cameras after a
+    similarity as the model's do."""
+    from scene3D.io.datasets import read_strecha_camera
+
+    proc, out = fountain_views
+    assert f"Wrote '{out / 'transforms.json'}'" in proc.stdout
+    data = json.loads((out / "transforms.json").read_text())
+    summary = json.loads((out / "reconstruction.json").read_text())
+    K_work = np.array(summary["K"])
+    assert (data["w"], data["h"], data["camera_model"]) == (3072, 2048, "OPENCV")
+    assert data["fl_x"] == pytest.approx(2 * K_work[0, 0])
+    assert data["cx"] == pytest.approx(2 * (K_work[0, 2] + 0.5))
+    assert data["ply_file_path"] == "points.ply"
+    R, C, truth = [], [], []
+    for frame in data["frames"]:
+        photo = (out / frame["file_path"]).resolve()
+        assert photo == (fountain / "images" / photo.name).resolve()
+        c2w = np.array(frame["transform_matrix"])
+        R.append((c2w[:3, :3] @ np.diag([1.0, -1.0, -1.0])).T)
+        C.append(c2w[:3, 3])
+        truth.append(read_strecha_camera(fountain / "gt_dense_cameras"
+                                         / f"{photo.name}.camera"))
+    assert len(R) == 11
+    err = camera_set_error(np.array(R), np.array(C), np.array([c.R for c in truth]),
+                           np.array([c.center for c in truth]))
+    assert err.center_errors.max() < 0.02 and err.rotation_errors_deg.max() < 0.5
 
 
 def test_pycolmap_reads_the_model(fountain_views):
