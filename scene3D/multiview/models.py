@@ -7,13 +7,18 @@ its initial pair) and scale (that pair's baseline). Poses are world-to-camera,
 
 from __future__ import annotations
 
+import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import cv2
 import numpy as np
 
 from ..geometry.conventions import FloatArray, camera_centers
 from ..io.colmap import ColmapModel, colmap_model_from_views, model_for_photos
+from ..io.export import all_or_nothing
+from ..io.model_files import save_model
 from ..optim.bundle import Observations, reprojection_residuals
 from ..twoview.results import TwoViewSettings
 from ..twoview.trust import focal_mismatch
@@ -536,6 +541,23 @@ class MultiViewReconstruction:
         if not photos:
             return working
         return model_for_photos(working, self.photo_size or self.image_size, self.dist)
+
+    def save(self, folder: str | os.PathLike,
+             images: str | os.PathLike | Mapping[str, str | os.PathLike] | None = None
+             ) -> list[Path]:
+        """Write every model's files as ``reconstruct-views`` does, all or none: the
+        largest in ``folder``, further ones in ``folder/model-1``, ...; in each
+        ``points.ply``, ``cameras.json`` and ``colmap/`` at the photos' size
+        (:meth:`colmap_model`, :func:`scene3D.io.model_files.save_model`) and, given the
+        photos (their folder, or each one's path by its name), ``transforms.json``.
+        Returns the paths written."""
+        folder = Path(folder)
+        written: list[Path] = []
+        with all_or_nothing():
+            for m, model in enumerate(self.models):
+                written += save_model(folder if m == 0 else folder / f"model-{m}",
+                                      self.colmap_model(model), images)
+        return written
 
     @property
     def model_of_view(self) -> np.ndarray:
