@@ -188,17 +188,24 @@ class SceneReconstruction3D:
         """Write the pair's reconstruction (:meth:`reconstruct`, computed if needed) into
         ``folder``: ``point_cloud.ply``, ``cameras.json`` and ``colmap/`` at the size of
         the loaded photos, with their distortion
-        (:meth:`scene3D.twoview.TwoViewReconstruction.save`). Returns the paths written.
+        (:meth:`scene3D.twoview.TwoViewReconstruction.save`). The views are named by
+        their file names (``img1``, ``img2`` for arrays), prefixed ``1_`` and ``2_`` when
+        they share one. Returns the paths written.
 
         Raises
         ------
         ReconstructionError
             As :meth:`reconstruct`.
         """
+        from .io.export import colmap_image_name
+
         result = self.reconstruct(feat_mode)
         img1, _ = self._require_images()
-        return result.save(folder, (img1.shape[1], img1.shape[0]), self.image_names,
-                           self.native_size, self.d)
+        names = self.image_names
+        if colmap_image_name(names[0]) == colmap_image_name(names[1]):  # a/IMG.jpg, b/IMG.jpg
+            names = tuple(f"{i}_{name}" for i, name in enumerate(names, start=1))
+        return result.save(folder, (img1.shape[1], img1.shape[0]), names, self.native_size,
+                           self.d)
 
     def self_calibrate(self, feat_mode: str = "SIFT", prior_sigma_log: float = 0.5,
                        prior_source: str = "prior",

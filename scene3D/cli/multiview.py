@@ -147,7 +147,7 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
                         help="also write each model for other tools: 'nerfstudio', its "
                              f"{NERFSTUDIO_FILE} (nerfstudio's format, which instant-ngp and "
                              "Gaussian-splatting trainers read: the photos' cameras, "
-                             "camera-to-world in OpenGL axes, paths relative to it)")
+                             "camera-to-world in OpenGL axes, paths relative to it); default: none")
     parser.add_argument("--no-plots", action="store_true", help="skip cameras.png")
     parser.add_argument("--no-report", action="store_true",
                         help="skip report.html (one self-contained page: the numbers, the "
