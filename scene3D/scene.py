@@ -15,7 +15,9 @@ reconstruction are computed once per feature mode and reused by every plot.
 from __future__ import annotations
 
 import logging
+import os
 from dataclasses import replace
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -94,6 +96,7 @@ class SceneReconstruction3D:
         self.img1: np.ndarray | None = None
         self.img2: np.ndarray | None = None
         self.native_size: tuple[int, int] | None = None  # (width, height) as loaded
+        self.image_names: tuple[str, ...] = ()  # file names, or img1, img2 for arrays
         self.halvings = 0  # times the loaded images were halved
         self._matches: dict[str, Matches] = {}
         self._results: dict[str, TwoViewReconstruction] = {}
@@ -130,6 +133,8 @@ class SceneReconstruction3D:
             raise ValueError(f"'{first}' and '{second}' are the same photo (the same pixels): "
                              "a pair needs two views of the scene")
         self.img1, self.img2 = a, b
+        self.image_names = tuple(Path(source_label(src, name)).name
+                                 for src, name in ((img1, "img1"), (img2, "img2")))
         self.native_size = size
         self.halvings = levels
         self.K = scale_intrinsics_halved(self.K_native, levels)
@@ -178,6 +183,29 @@ class SceneReconstruction3D:
         self.F, self.E = result.F, result.E
         self.Rt1, self.Rt2 = result.Rt1, result.Rt2
         return result
+
+    def save(self, folder: str | os.PathLike, feat_mode: str = "SIFT") -> list[Path]:
+        """Write the pair's reconstruction (:meth:`reconstruct`, computed if needed) into
+        ``folder``: ``point_cloud.ply``, ``cameras.json`` and ``colmap/`` at the size of
+        the loaded photos, with their distortion
+        (:meth:`scene3D.twoview.TwoViewReconstruction.save`). The views are named by
+        their file names (``img1``, ``img2`` for arrays), prefixed ``1_`` and ``2_`` when
+        they share one. Returns the paths written.
+
+        Raises
+        ------
+        ReconstructionError
+            As :meth:`reconstruct`.
+        """
+        from .io.export import colmap_image_name
+
+        result = self.reconstruct(feat_mode)
+        img1, _ = self._require_images()
+        names = self.image_names
+        if colmap_image_name(names[0]) == colmap_image_name(names[1]):  # a/IMG.jpg, b/IMG.jpg
+            names = tuple(f"{i}_{name}" for i, name in enumerate(names, start=1))
+        return result.save(folder, (img1.shape[1], img1.shape[0]), names, self.native_size,
+                           self.d)
 
     def self_calibrate(self, feat_mode: str = "SIFT", prior_sigma_log: float = 0.5,
                        prior_source: str = "prior",

@@ -54,7 +54,7 @@ def pytest_report_header(config) -> list[str]:
 
 #: Fixtures that read the shared photos (SCENE3D_DATA): their tests are marked
 #: ``realdata``, the ones whose outcomes a CPU's floating point or a dependency's release
-#: can move (``pytest -m realdata``: CI runs them again on kernels held to AVX2).
+#: can move (``pytest -m realdata`` runs only them, e.g. on kernels held lower).
 REAL_DATA_FIXTURES = {"data_root"}
 
 

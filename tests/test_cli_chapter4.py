@@ -53,10 +53,17 @@ def test_default_run_is_the_book_pair_against_ground_truth(tmp_path, data_root):
     assert proc.returncode == 0, proc.stderr
     out = tmp_path / "out"
     names = {"optic_flow.png", "epipolar_lines.png", "rectified.png", "point_cloud.png",
-             "point_cloud.ply", "reconstruction.json", "report.html"}
-    assert {p.name for p in out.iterdir()} == names
-    for name in names:
+             "point_cloud.ply", "cameras.json", "reconstruction.json", "report.html"}
+    assert {p.name for p in out.iterdir()} == names | {"colmap"}
+    for name in [*names, "colmap/cameras.txt", "colmap/images.txt", "colmap/points3D.txt"]:
         assert f"Wrote '{out / name}'" in proc.stdout
+    # The pair's COLMAP model is of the photos as they are (3072x2048, not the working
+    # 768x512), camera 2 at the reconstructed pose.
+    from scene3D.io.colmap import read_colmap_text
+
+    model = read_colmap_text(out / "colmap")
+    assert model.names == ("0004.jpg", "0005.jpg")
+    assert model.camera(0).image_size == (3072, 2048)
     summary = json.loads((out / "reconstruction.json").read_text())
     gt = data_root / "fountain-P11" / "gt_dense_cameras"
     cam4, cam5 = (read_strecha_camera(gt / f"000{i}.jpg.camera") for i in (4, 5))
@@ -64,6 +71,8 @@ def test_default_run_is_the_book_pair_against_ground_truth(tmp_path, data_root):
                               *relative_pose(cam4, cam5))
     assert err.rotation_deg < 1.0 and err.translation_deg < 3.0
     assert summary["image_size"] == [768, 512]
+    np.testing.assert_allclose(model.R[1], summary["R"], atol=1e-9)
+    np.testing.assert_allclose(model.t[1], summary["t"], atol=1e-9)
     np.testing.assert_allclose(summary["K"], scale_intrinsics(cam4.K, 0.25, 0.25))
     assert summary["feature"] == "SIFT"
     assert summary["num_inliers"] <= summary["num_matches"]
@@ -491,14 +500,16 @@ def test_a_run_replaces_the_previous_runs_files_and_keeps_the_users(tmp_path, sy
     assert run(args, cwd=tmp_path).returncode == 0
     first = json.loads((out / "reconstruction.json").read_text())["files"]
     assert "report.html" in first and "point_cloud.png" in first
-    assert sorted(first) == sorted(p.name for p in out.iterdir())
+    assert sorted({n.split("/")[0] for n in first}) == sorted(p.name for p in out.iterdir())
     (out / "notes.txt").write_text("mine")
     proc = run(args + ["--no-plots", "--no-report"], cwd=tmp_path)
     assert proc.returncode == 0
     assert f"Removed '{out / 'report.html'}' (an earlier run's, not written again)" in proc.stdout
     second = json.loads((out / "reconstruction.json").read_text())["files"]
-    assert second == ["point_cloud.ply", "reconstruction.json"]
-    assert sorted(p.name for p in out.iterdir()) == ["notes.txt", *second]
+    assert second == ["cameras.json", "colmap/cameras.txt", "colmap/images.txt",
+                      "colmap/points3D.txt", "point_cloud.ply", "reconstruction.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["cameras.json", "colmap", "notes.txt",
+                                                     "point_cloud.ply", "reconstruction.json"]
 
 
 def test_a_reconstruction_json_of_someone_else_is_not_replaced(tmp_path, synthetic_files):
@@ -528,7 +539,8 @@ def test_an_out_folder_from_before_the_file_list_keeps_working(tmp_path, synthet
     proc = run(args + ["--no-plots", "--no-report"], cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert f"Removed '{out / 'report.html'}'" in proc.stdout
-    assert sorted(p.name for p in out.iterdir()) == ["point_cloud.ply", "reconstruction.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["cameras.json", "colmap", "point_cloud.ply",
+                                                     "reconstruction.json"]
     proc = run(args, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
 
@@ -564,14 +576,14 @@ def test_a_write_that_fails_leaves_the_previous_run_whole(tmp_path, synthetic_fi
     out = tmp_path / "out"
     args = [f / "a.png", f / "b.png", "--calib", f / "camera.yaml", "--out", out, "--no-plots"]
     assert run(args + ["--no-report"], cwd=tmp_path).returncode == 0
-    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    before = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
     (out / "report.html").mkdir()
     proc = run(args + ["--feature", "akaze"], cwd=tmp_path)
     assert proc.returncode == 2
     assert proc.stderr.strip() == (f"error: a folder stands where this file is to be written: "
                                    f"'{out / 'report.html'}'")
-    after = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
-    assert after == before  # the earlier point cloud and JSON, and no temporary file
+    after = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    assert after == before  # the earlier point cloud, model and JSON, no temporary file
 
 
 def test_warnings_are_printed_also_when_they_leave_the_pose_trusted():

@@ -298,7 +298,8 @@ def test_photos_with_spaces_in_their_names(fountain, tmp_path, capsys):
         (folder / name).symlink_to(fountain / "images" / f"{i:04d}.jpg")
     out = tmp_path / "out"
     assert multiview.main([str(folder), "--calib", CALIB, "--max-width", "400",
-                           "--no-plots", "--no-report", "--out", str(out)]) == 0
+                           "--no-plots", "--no-report", "--out", str(out),
+                           "--export", "nerfstudio"]) == 0
     warnings = [line for line in capsys.readouterr().err.splitlines()
                 if line.startswith("WARNING: COLMAP")]
     assert warnings == ["WARNING: COLMAP's text format cannot hold names with spaces: "
@@ -309,6 +310,18 @@ def test_photos_with_spaces_in_their_names(fountain, tmp_path, capsys):
     fields = _image_lines((out / "colmap" / "images.txt").read_text())
     assert all(len(f) == 10 for f in fields)
     assert sorted(f[9] for f in fields) == [n.replace(" ", "_") for n in names]
+    # transforms.json, which can hold spaces, names the photos as they are.
+    frames = json.loads((out / "transforms.json").read_text())["frames"]
+    assert sorted(f["file_path"] for f in frames) == [f"../my photos/{n}" for n in names]
+    assert all((out / f["file_path"]).is_file() for f in frames)
+
+
+def test_an_unknown_export_format_is_a_usage_error(tmp_path, capsys):
+    _photos(tmp_path / "photos", ["a.jpg", "b.jpg"])
+    with pytest.raises(SystemExit) as info:
+        multiview.main([str(tmp_path / "photos"), "--export", "instant-ngp"])
+    assert info.value.code == 2
+    assert "invalid choice: 'instant-ngp'" in capsys.readouterr().err
 
 
 def _start_from_the_best_candidate(monkeypatch):

@@ -93,6 +93,23 @@ def test_a_run_that_fails_while_writing_leaves_the_earlier_results_whole(tmp_pat
         [("a.txt", "new"), ("b.txt", "{}\n")]
 
 
+def test_a_block_within_a_block_waits_for_the_outer_one(tmp_path):
+    """A result's save() (its own all_or_nothing) inside a command's block: its files are
+    placed when the command's block ends, and not at all when that block fails."""
+    (tmp_path / "a.txt").write_text("old")
+    with pytest.raises(OSError, match="No space left on device"):
+        with all_or_nothing():
+            with all_or_nothing():
+                atomic_write_bytes(tmp_path / "a.txt", b"new")
+            assert (tmp_path / "a.txt").read_text() == "old"  # the inner end placed nothing
+            raise OSError(28, "No space left on device")
+    assert [(p.name, p.read_text()) for p in tmp_path.iterdir()] == [("a.txt", "old")]
+    with all_or_nothing():
+        with all_or_nothing():
+            atomic_write_bytes(tmp_path / "a.txt", b"new")
+    assert (tmp_path / "a.txt").read_text() == "new"
+
+
 def test_a_folder_where_a_file_goes_is_refused_before_writing(tmp_path):
     (tmp_path / "report.html").mkdir()
     (tmp_path / "a.txt").write_text("old")

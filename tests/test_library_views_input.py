@@ -22,7 +22,7 @@ from scene3D.geometry.intrinsics_prior import (
 from scene3D.io.datasets import fetch_fountain_p11, read_strecha_camera
 from scene3D.io.exif import read_camera_prior
 from scene3D.io.images import load_working_images
-from scene3D.multiview import reconstruct_views
+from scene3D.multiview import image_sources, reconstruct_views
 
 VIEWS = ("0004.jpg", "0005.jpg", "0006.jpg")
 
@@ -59,12 +59,14 @@ def test_K_of_the_stored_size_passes_the_check(fountain, small_views):
 
 
 @pytest.mark.parametrize("as_path", [str, Path])
-def test_one_folder_is_not_a_list_of_images(fountain, as_path):
+def test_one_folder_is_taken_as_the_command_takes_it(fountain, as_path):
+    """reconstruct_views(folder) reads the folder's images, sorted (as reconstruct-views
+    does), rather than refusing one path (issue #51)."""
     folder = as_path(fountain / "images")
-    with pytest.raises(TypeError, match=r"`images` must be a list of image paths") as info:
-        reconstruct_views(folder, None)
-    assert "sorted(Path(folder).glob('*.jpg'))" in str(info.value)
-    assert str(fountain / "images") in str(info.value)
+    photos = sorted((fountain / "images").glob("*.jpg"))
+    assert len(photos) == 11
+    assert image_sources(folder) == photos
+    assert image_sources(as_path(fountain / "images" / "000[45].jpg")) == photos[4:6]
 
 
 @pytest.mark.parametrize("as_path", [str, Path])

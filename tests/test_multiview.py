@@ -298,7 +298,8 @@ def fountain_views(fountain, tmp_path_factory):
     proc = subprocess.run(
         [sys.executable, "-m", "scene3D", "reconstruct-views", str(fountain / "images"),
          "--calib", str(REPO / "data" / "fountain_P11_intrinsics.yaml"),
-         "--ground-truth", str(fountain / "gt_dense_cameras"), "--out", str(out)],
+         "--ground-truth", str(fountain / "gt_dense_cameras"), "--out", str(out),
+         "--export", "nerfstudio"],
         capture_output=True, text=True, timeout=900)
     return proc, out
 
@@ -341,7 +342,8 @@ def test_colmap_model_is_consistent(fountain_views):
         images[int(h[0])] = (R, t, xy)
     assert len(images) == 11
     checked = 0
-    for line in (out / "colmap" / "points3D.txt").read_text().splitlines()[2:200]:
+    for line in [line for line in (out / "colmap" / "points3D.txt").read_text().splitlines()
+                 if not line.startswith("#")][:200]:
         v = line.split()
         X = np.array(list(map(float, v[1:4])))
         track = np.array(v[8:], int).reshape(-1, 2)
@@ -350,9 +352,39 @@ def test_colmap_model_is_consistent(fountain_views):
             assert int(xy[idx, 2]) == int(v[0])  # the 2D point refers back to this 3D point
             c = R @ X + t
             u = np.array([fx * c[0] / c[2] + cx, fy * c[1] / c[2] + cy])
-            assert np.linalg.norm(u - xy[idx, :2]) < 3.0
+            assert np.linalg.norm(u - xy[idx, :2]) < 6.0  # 3 px in the working images
             checked += 1
     assert checked > 300
+
+
+def test_the_nerfstudio_export_has_the_cameras_of_the_ground_truth(fountain, fountain_views):
+    """transforms.json: the photos' intrinsics at the top, each frame's file_path leading
+    to its photo, camera-to-world in OpenGL axes that match the Strecha cameras after a
+    similarity as the model's do."""
+    from scene3D.io.datasets import read_strecha_camera
+
+    proc, out = fountain_views
+    assert f"Wrote '{out / 'transforms.json'}'" in proc.stdout
+    data = json.loads((out / "transforms.json").read_text())
+    summary = json.loads((out / "reconstruction.json").read_text())
+    K_work = np.array(summary["K"])
+    assert (data["w"], data["h"], data["camera_model"]) == (3072, 2048, "OPENCV")
+    assert data["fl_x"] == pytest.approx(2 * K_work[0, 0])
+    assert data["cx"] == pytest.approx(2 * (K_work[0, 2] + 0.5))
+    assert data["ply_file_path"] == "points.ply"
+    R, C, truth = [], [], []
+    for frame in data["frames"]:
+        photo = (out / frame["file_path"]).resolve()
+        assert photo == (fountain / "images" / photo.name).resolve()
+        c2w = np.array(frame["transform_matrix"])
+        R.append((c2w[:3, :3] @ np.diag([1.0, -1.0, -1.0])).T)
+        C.append(c2w[:3, 3])
+        truth.append(read_strecha_camera(fountain / "gt_dense_cameras"
+                                         / f"{photo.name}.camera"))
+    assert len(R) == 11
+    err = camera_set_error(np.array(R), np.array(C), np.array([c.R for c in truth]),
+                           np.array([c.center for c in truth]))
+    assert err.center_errors.max() < 0.02 and err.rotation_errors_deg.max() < 0.5
 
 
 def test_pycolmap_reads_the_model(fountain_views):
@@ -360,6 +392,46 @@ def test_pycolmap_reads_the_model(fountain_views):
     _, out = fountain_views
     model = pycolmap.Reconstruction(str(out / "colmap"))
     assert model.num_reg_images() == 11 and model.num_points3D() > 3000
+
+
+def test_the_colmap_model_is_of_the_photos_as_they_are(fountain, fountain_views):
+    """The cameras are at the photos' size (3072x2048, not the working 1536x1024), with K
+    scaled back; pycolmap opens the photos at that size and its reprojection errors,
+    recomputed with its own camera model, are ours (the working images' errors doubled)."""
+    pycolmap = pytest.importorskip("pycolmap")
+    _, out = fountain_views
+    summary = json.loads((out / "reconstruction.json").read_text())
+    rec = pycolmap.Reconstruction(str(out / "colmap"))
+    (camera,) = rec.cameras.values()
+    K_work = np.array(summary["K"])
+    assert (camera.width, camera.height) == (3072, 2048)
+    np.testing.assert_allclose(camera.calibration_matrix(),
+                               [[2 * K_work[0, 0], 0, 2 * (K_work[0, 2] + 0.5)],
+                                [0, 2 * K_work[1, 1], 2 * (K_work[1, 2] + 0.5)], [0, 0, 1]],
+                               rtol=1e-9)
+    for image in rec.images.values():
+        photo = cv2.imread(str(fountain / "images" / image.name), cv2.IMREAD_UNCHANGED)
+        assert photo.shape[:2] == (camera.height, camera.width)
+    residuals = []
+    for image in rec.images.values():
+        for p2d in image.points2D:
+            if p2d.has_point3D():
+                xy = image.project_point(rec.points3D[p2d.point3D_id].xyz)
+                residuals.append(xy - p2d.xy)
+    residuals = np.array(residuals)
+    rmse = np.sqrt(np.mean(residuals**2))
+    assert rmse == pytest.approx(2 * summary["reprojection_rmse_px"], rel=1e-5)
+    stored = {pid: p.error for pid, p in rec.points3D.items()}
+    rec.update_point_3d_errors()
+    recomputed = np.array([rec.points3D[pid].error for pid in stored])
+    np.testing.assert_allclose(recomputed, list(stored.values()), atol=1e-5)
+    cameras = json.loads((out / "cameras.json").read_text())
+    assert sorted(cameras) == sorted(image.name for image in rec.images.values())
+    for cam in cameras.values():
+        assert cam["image_size"] == [3072, 2048] and cam["camera_model"] == "PINHOLE"
+        np.testing.assert_allclose(cam["K"], camera.calibration_matrix() - [[0, 0, 0.5],
+                                                                            [0, 0, 0.5],
+                                                                            [0, 0, 0]])
 
 
 def test_an_unrelated_or_blank_image_is_reported_not_registered(fountain, chessboards, tmp_path):

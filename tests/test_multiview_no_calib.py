@@ -165,10 +165,11 @@ def test_fountain_without_a_calibration(fountain_no_calib, fountain):
     assert gt["max_rotation_error_deg"] < 0.6 and gt["max_center_error_fraction"] < 0.01
     assert summary["reprojection_rmse_px"] < 0.5
     assert "focal length" in proc.stdout and "refined by the photos" in proc.stdout
-    # The COLMAP model carries the focal length found.
+    # The COLMAP model carries the focal length found, at the photos' size (3072x2048).
     camera_line = next(line for line in (out / "colmap" / "cameras.txt").read_text().splitlines()
                        if not line.startswith("#"))
-    assert float(camera_line.split()[4]) == pytest.approx(K[0, 0])
+    assert camera_line.split()[2:4] == ["3072", "2048"]
+    assert float(camera_line.split()[4]) == pytest.approx(2 * K[0, 0])
 
 
 def test_a_few_views_whose_focal_lengths_differ_widen_its_sigma(castle, tmp_path):

@@ -33,6 +33,9 @@ print(json.dumps({
     "rms_px": calibration.rms_px,
     "K": calibration.K.tolist(),
     "views": len(calibration.per_view_errors_px),
+    "saved": sorted(p.name for p in written),
+    "saved_camera_size": __import__("scene3D.io.colmap", fromlist=["x"]).read_colmap_text(
+        "out/pair/colmap").camera(0).image_size,
 }))
 """
 
@@ -75,6 +78,14 @@ def test_the_book_pair_agrees_with_the_ground_truth(executed):
     assert values["num_points"] > 500
     assert values["trusted"]
     assert values["dense_points"] >= 100 * values["num_points"]
+
+
+def test_the_result_saves_itself_in_one_call(executed):
+    """scene.save(folder): the PLY, cameras.json and a COLMAP model of the 3072x2048 photos."""
+    _, values = executed
+    assert values["saved"] == ["cameras.json", "cameras.txt", "images.txt", "point_cloud.ply",
+                               "points3D.txt"]
+    assert values["saved_camera_size"] == [3072, 2048]
 
 
 def test_the_calibration_matches_opencvs_published_values(executed):

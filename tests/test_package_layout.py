@@ -266,3 +266,15 @@ def import_graph() -> dict[str, set[str]]:
         edges.discard(name)
         graph[name] = edges
     return graph
+
+
+def test_default_data_root_is_beside_the_checkout(monkeypatch):
+    """Without ``$SCENE3D_DATA`` the data are ``shared/data`` beside the checkout, wherever
+    the module that finds them sits in the package (a move once made it look inside it)."""
+    from scene3D.io.datasets import default_data_root
+
+    monkeypatch.delenv("SCENE3D_DATA", raising=False)
+    beside = Path(__file__).resolve().parents[2] / "shared" / "data"
+    assert default_data_root() == (beside if beside.is_dir() else None)
+    monkeypatch.setenv("SCENE3D_DATA", "/somewhere/else")
+    assert default_data_root() == Path("/somewhere/else")

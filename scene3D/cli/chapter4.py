@@ -73,6 +73,8 @@ def build_parser(prog: str = "chapter4.py") -> argparse.ArgumentParser:
         ),
         epilog=(
             f"Outputs in --out: {', '.join(PLOT_FILES)}, point_cloud.ply (binary, RGB), "
+            "cameras.json and colmap/ (a COLMAP text model of the two photos at their own "
+            "size), "
             "with --dense dense.ply and disparity.png, and reconstruction.json (R, t with "
             "x_cam2 = R x_cam1 + t and |t| = 1: the scale is unknown), and report.html (one "
             "self-contained page: the numbers, the figures and an interactive 3D view of the "
@@ -331,16 +333,18 @@ def _figures_and_view(scene: SceneReconstruction3D, result, dense, plots: bool, 
         return {name: future.result() for name, future in futures.items()}, view
 
 
+#: The pair's model files beside point_cloud.ply (SceneReconstruction3D.save writes them).
+MODEL_FILES = ("cameras.json", "colmap/cameras.txt", "colmap/images.txt", "colmap/points3D.txt")
 #: Every file a run may write in ``--out``.
-OUTPUT_NAMES = (*PLOT_FILES, "disparity.png", "point_cloud.ply", "dense.ply", SUMMARY_FILE,
-                REPORT_FILE)
+OUTPUT_NAMES = (*PLOT_FILES, "disparity.png", "point_cloud.ply", *MODEL_FILES, "dense.ply",
+                SUMMARY_FILE, REPORT_FILE)
 
 
 def _planned_outputs(args: argparse.Namespace) -> list[str]:
     """The names of the files a successful run writes in ``--out``."""
     figures = [] if args.no_plots else [*PLOT_FILES, *(["disparity.png"] if args.dense else [])]
-    return [*figures, "point_cloud.ply", *(["dense.ply"] if args.dense else []), SUMMARY_FILE,
-            *([] if args.no_report else [REPORT_FILE])]
+    return [*figures, "point_cloud.ply", *MODEL_FILES, *(["dense.ply"] if args.dense else []),
+            SUMMARY_FILE, *([] if args.no_report else [REPORT_FILE])]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -397,7 +401,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     with all_or_nothing():  # a write that fails leaves the previous run's files as they were
         written = [atomic_write_bytes(out / name, png) for name, png in figures.items()]
-        written.append(write_ply(out / "point_cloud.ply", result.points3d, result.colors))
+        written += scene.save(out, mode)  # point_cloud.ply, cameras.json, colmap/
         if dense is not None:
             written.append(write_ply(out / "dense.ply", dense.points3d, dense.colors))
         if report is not None:

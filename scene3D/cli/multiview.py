@@ -16,18 +16,18 @@ from ..evaluation.poses import camera_set_error
 from ..features.matching import FEATURE_MODES, resolve_feature_mode
 from ..geometry.camera import adapt_intrinsics_to_size
 from ..io.calibration import load_calibration
+from ..io.colmap import cameras_json, write_colmap_text
 from ..io.datasets import StrechaCamera, read_strecha_camera
 from ..io.export import (
     all_or_nothing,
     colmap_image_name,
-    colmap_text_files,
     save_figure,
     write_json,
     write_ply,
-    write_text_files,
     written_bytes,
 )
 from ..io.images import BOOK_MAX_WIDTH_PX, folder_images, glob_files, read_image_size
+from ..io.nerfstudio import write_nerfstudio
 from ..multiview import (
     PAIR_MODES,
     FocalEstimate,
@@ -66,6 +66,10 @@ REPORT_FILE = "report.html"
 #: (almost) nothing (a two-view start alone triangulates dozens).
 MIN_MODEL_POINTS = 10
 
+#: What --export can write, and nerfstudio's file in a model's folder.
+EXPORT_FORMATS = ("nerfstudio",)
+NERFSTUDIO_FILE = "transforms.json"
+
 
 def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentParser:
     parser = ArgumentParser(
@@ -78,8 +82,10 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
         ),
         epilog=(
             "Writes into --out: points.ply (binary, RGB), cameras.json (world-to-camera "
-            "poses), colmap/cameras.txt, images.txt, points3D.txt (a COLMAP text model), "
-            "cameras.png (cloud with camera frusta) for the largest model, the same files "
+            "poses, K, distortion and size of the photos), colmap/cameras.txt, images.txt, "
+            "points3D.txt (a COLMAP text model of the photos at their own size), "
+            "cameras.png (cloud with camera frusta) and with --export nerfstudio "
+            f"{NERFSTUDIO_FILE} for the largest model, the same files "
             "in model-1/, model-2/, ... for further models (views that connect among "
             "themselves but not to the first), and reconstruction.json (summary: which "
             "views are in which model, which are in none and why) and report.html (the "
@@ -137,6 +143,11 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
                              "(as listed in that run's reconstruction.json); other files "
                              "are kept, and a file named as an output that no earlier run "
                              "wrote stops the run (exit code 2)")
+    parser.add_argument("--export", action="append", choices=EXPORT_FORMATS, default=[],
+                        help="also write each model for other tools: 'nerfstudio', its "
+                             f"{NERFSTUDIO_FILE} (nerfstudio's format, which instant-ngp and "
+                             "Gaussian-splatting trainers read: the photos' cameras, "
+                             "camera-to-world in OpenGL axes, paths relative to it); default: none")
     parser.add_argument("--no-plots", action="store_true", help="skip cameras.png")
     parser.add_argument("--no-report", action="store_true",
                         help="skip report.html (one self-contained page: the numbers, the "
@@ -434,17 +445,12 @@ def write_model(folder: Path, names: list[str], recon: MultiViewReconstruction,
         if not made.exists():
             made.mkdir()
             note_created_folders([made])
-    obs = model.observations
     K = recon.model_K(model)
-    colmap = colmap_text_files(names, K, recon.image_size, model.registered, model.R,
-                               model.t, model.points3d, model.colors, obs.view, obs.point,
-                               obs.xy, model.point_errors_px(K))
+    colmap = recon.colmap_model(model)  # at the photos' size, with their distortion
     points_file, cameras_file = MODEL_FILES[:2]
     written = [write_ply(folder / points_file, model.points3d, model.colors)]
-    cameras = {n: {"R": model.R[i], "t": model.t[i], "center": model.centers[i]}
-               for i, n in enumerate(names) if model.registered[i]}
-    written.append(write_json(folder / cameras_file, cameras))
-    written += write_text_files(folder / "colmap", colmap)
+    written.append(write_json(folder / cameras_file, cameras_json(colmap)))
+    written += write_colmap_text(folder / "colmap", colmap)
     if plots:
         from ..viz.plotting import plot_cameras_and_points
 
@@ -484,7 +490,7 @@ def run(args: argparse.Namespace) -> int:
         camera = load_calibration(args.calib)
     names = [p.name for p in paths]
     truth = None if args.ground_truth is None else read_ground_truth(args.ground_truth, paths)
-    model_names = (*MODEL_FILES, MODEL_FIGURE)
+    model_names = (*MODEL_FILES, MODEL_FIGURE, NERFSTUDIO_FILE)
     out_folder = OutputFolder(args.out, inputs=[*paths, *filter(None, [args.calib])],
                               names=(*model_names, *(f"model-*/{n}" for n in model_names),
                                      SUMMARY_FILE, REPORT_FILE))
@@ -493,6 +499,7 @@ def run(args: argparse.Namespace) -> int:
     # (how many models come out is known only at the end, when all are checked again).
     out_folder.check_free([*(out / name for name in (
         *MODEL_FILES, *([] if args.no_plots else [MODEL_FIGURE]), SUMMARY_FILE,
+        *([NERFSTUDIO_FILE] if "nerfstudio" in args.export else []),
         *([] if args.no_report else [REPORT_FILE]))),
         *(p for p in out_folder.matching() if p.relative_to(out).parts[0].startswith("model-"))])
     if not args.no_report:
@@ -544,6 +551,11 @@ def run(args: argparse.Namespace) -> int:
                     recon.model_K(model) if model.focal is not None else None, recon.image_size)
             models.append(entry)
             written += write_model(folder, names, recon, model, not args.no_plots)
+            if "nerfstudio" in args.export:
+                written.append(write_nerfstudio(folder / NERFSTUDIO_FILE,
+                                                recon.colmap_model(model),
+                                                dict(zip(names, paths)),
+                                                ply_file=folder / MODEL_FILES[0]))
         main_model = models[0]
         # A model without points has cameras resting on nothing (e.g. a calibration that
         # does not fit): a failure, not a result.

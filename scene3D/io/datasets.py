@@ -76,7 +76,7 @@ def default_data_root() -> Path | None:
     env = os.environ.get("SCENE3D_DATA")
     if env:
         return Path(env)
-    beside_checkout = Path(__file__).resolve().parents[2] / "shared" / "data"
+    beside_checkout = Path(__file__).resolve().parents[3] / "shared" / "data"
     return beside_checkout if beside_checkout.is_dir() else None
 
 

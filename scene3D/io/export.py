@@ -43,8 +43,12 @@ def all_or_nothing() -> Iterator[None]:
     Each file is written to its temporary name as usual; the renames over the targets
     wait for the end of the block and happen only if it succeeds (renames need no space,
     so they do not fail for want of it). If it raises, the temporary files are removed
-    and every target keeps what it held.
+    and every target keeps what it held. Within another such block it adds its files to
+    that block's, placed (or not) when the outer block ends.
     """
+    if _staged.get() is not None:
+        yield
+        return
     staged: list[tuple[Path, Path]] = []
     token = _staged.set(staged)
     try:

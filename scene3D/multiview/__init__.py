@@ -45,7 +45,7 @@ from .models import (
     ViewFeatures,
 )
 from .pairs import PAIR_MODES, select_pairs
-from .pipeline import reconstruct_views
+from .pipeline import image_sources, reconstruct_views
 from .retrieval import Vocabulary, describe_view, similarity_ranking, train_vocabulary
 from .tracks import Tracks, build_tracks
 
@@ -65,6 +65,7 @@ __all__ = [
     "check_model",
     "describe_view",
     "extract_features",
+    "image_sources",
     "match_views",
     "reconstruct_models",
     "reconstruct_views",

@@ -7,12 +7,18 @@ its initial pair) and scale (that pair's baseline). Poses are world-to-camera,
 
 from __future__ import annotations
 
+import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import cv2
 import numpy as np
 
 from ..geometry.conventions import FloatArray, camera_centers
+from ..io.colmap import ColmapModel, colmap_model_from_views, model_for_photos
+from ..io.export import all_or_nothing
+from ..io.model_files import save_model
 from ..optim.bundle import Observations, reprojection_residuals
 from ..twoview.results import TwoViewSettings
 from ..twoview.trust import focal_mismatch
@@ -439,18 +445,23 @@ class MultiViewReconstruction:
     prior_description : str
         Without a calibration, where the prior came from ("EXIF FocalLengthIn35mmFilm
         32 mm", the default); empty with one.
+    photo_size : tuple[int, int] or None
+        (width, height) of the photos as stored, from which the working images were made
+        (None: not known, taken as ``image_size``).
+    dist : (k,) float64
+        The photos' OpenCV distortion coefficients (empty: none), about ``K``: a
+        calibration file's, removed from the images before features were found; or,
+        without one, ``(k1, k2, 0, 0)`` of the lens the largest model found
+        (:attr:`camera_model`), removed from the keypoints (the models' observations are
+        the keypoints undistorted with it, so the models are exact pinhole models of
+        those). A lens that moves no corner more than ``SfMSettings.lens_tolerance_px``
+        from where no lens would leaves the keypoints as photographed (empty).
     camera_model : str
-        ``"pinhole"`` (a calibration file's camera, its distortion removed from the
-        images first, or a pinhole camera asked for), ``"simple_radial"`` or
-        ``"radial"`` (:mod:`scene3D.geometry.lens`).
-    radial_distortion : tuple[float, ...]
-        The radial coefficients ``k1[, k2]`` of the camera model about ``K`` (working
-        images): the models' observations are the photos' keypoints undistorted with
-        them, so the models are exact pinhole models of those; a corner moved less
-        than ``SfMSettings.lens_tolerance_px`` by the lens the model calls for leaves the
-        keypoints as photographed (the coefficients 0).
+        ``"pinhole"`` (a calibration file's camera, or a pinhole camera asked for),
+        ``"simple_radial"`` or ``"radial"`` (:mod:`scene3D.geometry.lens`).
     lens_passes : int
-        How many times the views were reconstructed again with undistorted keypoints.
+        How many times the views were reconstructed again with their keypoints
+        undistorted (:mod:`scene3D.multiview.lens`).
     """
 
     names: tuple[str, ...]
@@ -465,8 +476,9 @@ class MultiViewReconstruction:
     calibration_source: str = "file"
     prior_description: str = ""
     focal_refits: tuple[float, ...] = ()
+    photo_size: tuple[int, int] | None = None
+    dist: FloatArray = field(default_factory=lambda: np.zeros(0))
     camera_model: str = "pinhole"
-    radial_distortion: tuple[float, ...] = ()
     lens_passes: int = 0
 
     @property
@@ -532,6 +544,48 @@ class MultiViewReconstruction:
     def point_errors_px(self) -> FloatArray:
         """Mean reprojection error of each point of the main model ``(P,)``."""
         return self.main.point_errors_px(self.model_K(self.main))
+
+    def colmap_model(self, model: SfMModel | None = None, photos: bool = True) -> ColmapModel:
+        """``model`` (default the largest) as a COLMAP model, one camera, image ids
+        ``view + 1`` and point ids ``point + 1``.
+
+        With ``photos`` (the default) its camera is that of the photos as stored
+        (:attr:`photo_size`): the working intrinsics scaled back, the photos' distortion
+        (OPENCV) when they had some, and the observations where they lie in the photos
+        (:func:`scene3D.io.colmap.model_for_photos`), so that tools which open the
+        photos (COLMAP, pycolmap, Gaussian-splatting trainers) find the points where
+        the model says. Without, the model of the undistorted working images (PINHOLE).
+
+        After a focal refit (:attr:`focal_refits`) of distorted photos the distortion
+        is put back with the refitted focal length, an approximation of what the
+        undistortion with the calibration's did.
+        """
+        model = self.main if model is None else model
+        obs = model.observations
+        working = colmap_model_from_views(self.names, self.model_K(model), self.image_size,
+                                          model.registered, model.R, model.t,
+                                          model.points3d, model.colors, obs.view, obs.point,
+                                          obs.xy)
+        if not photos:
+            return working
+        return model_for_photos(working, self.photo_size or self.image_size, self.dist)
+
+    def save(self, folder: str | os.PathLike,
+             images: str | os.PathLike | Mapping[str, str | os.PathLike] | None = None
+             ) -> list[Path]:
+        """Write every model's files as ``reconstruct-views`` does, all or none: the
+        largest in ``folder``, further ones in ``folder/model-1``, ...; in each
+        ``points.ply``, ``cameras.json`` and ``colmap/`` at the photos' size
+        (:meth:`colmap_model`, :func:`scene3D.io.model_files.save_model`) and, given the
+        photos (their folder, or each one's path by its name), ``transforms.json``.
+        Returns the paths written."""
+        folder = Path(folder)
+        written: list[Path] = []
+        with all_or_nothing():
+            for m, model in enumerate(self.models):
+                written += save_model(folder if m == 0 else folder / f"model-{m}",
+                                      self.colmap_model(model), images)
+        return written
 
     @property
     def model_of_view(self) -> np.ndarray:

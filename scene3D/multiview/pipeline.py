@@ -34,7 +34,13 @@ from ..geometry.camera import (
 )
 from ..geometry.intrinsics_prior import FocalPrior, camera_prior
 from ..geometry.lens import corner_shifts_px, max_shift_px, radial_coefficients
-from ..io.images import BOOK_MAX_WIDTH_PX, ImageSource, refuse_single_path, source_label
+from ..io.images import (
+    BOOK_MAX_WIDTH_PX,
+    ImageSource,
+    folder_images,
+    glob_files,
+    source_label,
+)
 from ..optim.bundle import Observations
 from .features import content_key, view_features
 from .focal import FocalSettings
@@ -139,8 +145,43 @@ def _check_distinct_names(images: Sequence[ImageSource], names: Sequence[str]) -
                              "file name; rename one or pass distinct `names`")
 
 
+def image_sources(images: str | os.PathLike | Sequence[ImageSource | str]
+                  ) -> list[ImageSource]:
+    """The images ``images`` names, in order: a folder gives its images (sorted, names
+    starting with '.' left out: :func:`scene3D.io.images.folder_images`), a path that is
+    neither file nor folder is read as a glob (its files, sorted), a file and an array
+    stay as they are; one path or a sequence of them (and of arrays).
+
+    Raises
+    ------
+    FileNotFoundError
+        A folder without images, or a path that names nothing and matches no file.
+    """
+    items = [images] if isinstance(images, (str, os.PathLike)) else list(images)
+    out: list[ImageSource] = []
+    for item in items:
+        if not isinstance(item, (str, os.PathLike)):
+            out.append(item)
+            continue
+        path = Path(item)
+        if path.is_dir():
+            found = folder_images(path)
+            if not found:
+                raise FileNotFoundError(f"no image in folder '{path}'")
+            out += found
+        elif path.is_file():
+            out.append(path)
+        else:
+            found = glob_files(os.fspath(item))
+            if not found:
+                raise FileNotFoundError(f"no image matches '{os.fspath(item)}' (neither a "
+                                        "file, nor a folder, nor a glob that matches one)")
+            out += found
+    return out
+
+
 def reconstruct_views(
-    images: Sequence[ImageSource],
+    images: str | os.PathLike | Sequence[ImageSource | str],
     K: ArrayLike | None,
     dist: ArrayLike | None = None,
     *,
@@ -158,9 +199,11 @@ def reconstruct_views(
 
     Parameters
     ----------
-    images : sequence of paths or (H, W[, C]) arrays
-        Photos of the same size, in any order; a list, not one path (for a folder:
-        ``sorted(Path(folder).glob("*.jpg"))``).
+    images : path, glob, or sequence of paths, globs and (H, W[, C]) arrays
+        Photos of the same size, in any order, given as ``reconstruct-views`` takes
+        them: a folder (its images, sorted; hidden names starting with '.' left out),
+        a glob such as ``"photos/*.jpg"`` (its files, sorted), an image file, or a list
+        of any of these and of BGR arrays (:func:`image_sources`).
     K : (3, 3) array_like or None
         Intrinsics of the **native** (stored) images; one that cannot be theirs (a
         ``K`` for larger photos: :func:`scene3D.geometry.camera.check_intrinsics_for_size`)
@@ -214,8 +257,9 @@ def reconstruct_views(
         when the images have too few keypoints for any pair), or the consistency check
         took so many views out of the first model that none could be kept (reason
         ``"no_model"``; usually a calibration that does not fit).
-    TypeError
-        ``images`` is one path (a str or Path) rather than a list of them.
+    FileNotFoundError
+        A path that is neither a file nor a folder and a glob that matches no file, or a
+        folder without images.
     FileNotFoundError, ValueError
         Unreadable images or images of different sizes, one photo given twice (a copy),
         two views of one name (``names``, by default the file names),
@@ -226,7 +270,7 @@ def reconstruct_views(
     s = settings or SfMSettings()
     engine = engine or LocalEngine()
     say = progress or (lambda message: logger.info("%s", message))
-    refuse_single_path(images, "images", "image paths or arrays")
+    images = image_sources(images)
     if names is None:
         names = [Path(src).name if isinstance(src, (str, os.PathLike)) else f"view{i}"
                  for i, src in enumerate(images)]
@@ -394,6 +438,9 @@ def reconstruct_views(
     timings["total"] = sum(timings.values())
     if focal is not None:
         K_work = models[0].K if models[0].K is not None else K_work
+    if lens_passes:  # the lens about the final K: OpenCV's (k1, k2, p1, p2)
+        k = model_lens(lens, float(K_lens[0, 0]), float(K_work[0, 0]))
+        dist = np.concatenate([k, np.zeros(4 - k.size)])
     return MultiViewReconstruction(
         names=names, K=np.asarray(K_work, np.float64), image_size=working_size,
         models=tuple(_to_input_order(m, order) for m in models),
@@ -403,7 +450,5 @@ def reconstruct_views(
         timings_s=timings,
         calibration_source="file" if focal is None else models[0].focal.source,
         prior_description="" if focal_prior is None else focal_prior.description,
-        focal_refits=tuple(refits), camera_model=camera_model,
-        radial_distortion=tuple(float(v) for v in model_lens(
-            lens, float(K_lens[0, 0]), float(K_work[0, 0]))),
+        focal_refits=tuple(refits), photo_size=first, dist=dist, camera_model=camera_model,
         lens_passes=lens_passes)

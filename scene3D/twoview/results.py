@@ -3,11 +3,18 @@
 from __future__ import annotations
 
 import math
+import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..geometry.conventions import FloatArray, is_real_number, is_whole_number
+from ..io.colmap import ColmapModel, colmap_model_from_views, model_for_photos
+from ..io.export import all_or_nothing
+from ..io.model_files import save_model
 from ..optim.uncertainty import PoseUncertainty, tangent_basis
 
 
@@ -406,3 +413,37 @@ class TwoViewReconstruction(TwoViewGeometry):
     def Rt2(self) -> FloatArray:
         """``[R | t]``, the book's camera-2 matrix (3, 4)."""
         return np.hstack([self.R, self.t.reshape(3, 1)])
+
+    def colmap_model(self, image_size: tuple[int, int],
+                     names: tuple[str, str] = ("image1", "image2"),
+                     photo_size: tuple[int, int] | None = None,
+                     dist: ArrayLike | None = None) -> ColmapModel:
+        """The pair as a COLMAP model: camera 1 ``[I | 0]`` (the world), camera 2
+        ``[R | t]``, every point seen by both at ``pts1`` and ``pts2``.
+
+        ``image_size`` (width, height) is that of the working images ``K`` is for; with
+        ``photo_size`` the model is that of the photos they came from (``K`` scaled back,
+        ``dist`` put back: :func:`scene3D.io.colmap.model_for_photos`)."""
+        n = len(self.points3d)
+        model = colmap_model_from_views(
+            list(names), self.K, image_size, np.ones(2, bool),
+            np.stack([np.eye(3), self.R]), np.stack([np.zeros(3), self.t]), self.points3d,
+            self.colors, np.repeat([0, 1], n), np.tile(np.arange(n), 2),
+            np.concatenate([self.pts1, self.pts2]))
+        if photo_size is None:
+            return model
+        return model_for_photos(model, photo_size, dist)
+
+    def save(self, folder: str | os.PathLike, image_size: tuple[int, int],
+             names: tuple[str, str] = ("image1", "image2"),
+             photo_size: tuple[int, int] | None = None, dist: ArrayLike | None = None,
+             images: str | os.PathLike | Mapping[str, str | os.PathLike] | None = None
+             ) -> list[Path]:
+        """Write the pair's files into ``folder``, all or none: ``point_cloud.ply`` (as
+        ``chapter4.py`` names it), ``cameras.json`` and ``colmap/`` of
+        :meth:`colmap_model` and, given the images (their folder, or each one's path by
+        its name), ``transforms.json`` (:func:`scene3D.io.model_files.save_model`).
+        Returns the paths written."""
+        with all_or_nothing():
+            return save_model(folder, self.colmap_model(image_size, names, photo_size, dist),
+                              images, points_file="point_cloud.ply")

@@ -1,0 +1,545 @@
+"""COLMAP text models (``cameras.txt``, ``images.txt``, ``points3D.txt``) in and out.
+
+A model read here is a :class:`ColmapModel` in scene3D's conventions, whatever wrote it
+(COLMAP, pycolmap, hloc, scene3D):
+
+- poses world-to-camera, ``x_cam = R @ X + t`` (COLMAP's ``cam_from_world``, the
+  quaternion ``(qw, qx, qy, qz)`` made a rotation matrix);
+- pixels in the OpenCV convention (integer coordinates at pixel centres): COLMAP puts
+  pixel centres at ``+0.5``, so principal points and 2D points move by half a pixel on the
+  way in and back on the way out;
+- intrinsics as ``K`` ``(3, 3)`` and OpenCV distortion coefficients ``(k1, k2, p1, p2[,
+  k3, k4, k5, k6])``; the camera models are those that OpenCV's model holds exactly:
+  :data:`CAMERA_MODELS`.
+
+The writers go through :mod:`scene3D.io.export` (atomic files). The files others add
+beside the three (``rigs.txt``, ``frames.txt`` of COLMAP 3.12) are not read: each image is
+its own camera pose.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..geometry.camera import scale_intrinsics_resize, validate_distortion
+from ..geometry.conventions import (
+    FloatArray,
+    camera_centers,
+    quaternion_from_rotation,
+    rotation_from_quaternion,
+)
+from .export import write_text_files
+
+#: The COLMAP camera models read and written, with their parameters in file order.
+CAMERA_MODELS: dict[str, tuple[str, ...]] = {
+    "SIMPLE_PINHOLE": ("f", "cx", "cy"),
+    "PINHOLE": ("fx", "fy", "cx", "cy"),
+    "SIMPLE_RADIAL": ("f", "cx", "cy", "k"),
+    "RADIAL": ("f", "cx", "cy", "k1", "k2"),
+    "OPENCV": ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2"),
+    "FULL_OPENCV": ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"),
+}
+
+#: The names of the three files of a text model.
+MODEL_FILES = ("cameras.txt", "images.txt", "points3D.txt")
+
+
+class ColmapFormatError(ValueError):
+    """A COLMAP text file that cannot be read: the message names the file and line."""
+
+
+@dataclass(frozen=True)
+class ColmapCamera:
+    """One camera of a COLMAP model.
+
+    Attributes
+    ----------
+    model : str
+        COLMAP's model name, one of :data:`CAMERA_MODELS`.
+    width, height : int
+        Size of the images in pixels.
+    params : tuple[float, ...]
+        The parameters as COLMAP stores them (principal point with pixel centres at
+        +0.5), in the order of ``CAMERA_MODELS[model]``.
+    """
+
+    model: str
+    width: int
+    height: int
+    params: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        if self.model not in CAMERA_MODELS:
+            raise ValueError(f"camera model '{self.model}' is not supported (supported: "
+                             f"{', '.join(CAMERA_MODELS)})")
+        if len(self.params) != len(CAMERA_MODELS[self.model]):
+            raise ValueError(f"camera model {self.model} has {len(CAMERA_MODELS[self.model])} "
+                             f"parameters, got {len(self.params)}")
+
+    @property
+    def image_size(self) -> tuple[int, int]:
+        """(width, height) in pixels."""
+        return (self.width, self.height)
+
+    @property
+    def _named(self) -> dict[str, float]:
+        return dict(zip(CAMERA_MODELS[self.model], self.params))
+
+    @property
+    def K(self) -> FloatArray:
+        """Intrinsics ``(3, 3)`` in the OpenCV pixel convention."""
+        p = self._named
+        fx, fy = p.get("fx", p.get("f")), p.get("fy", p.get("f"))
+        return np.array([[fx, 0.0, p["cx"] - 0.5], [0.0, fy, p["cy"] - 0.5], [0.0, 0.0, 1.0]])
+
+    @property
+    def dist(self) -> FloatArray:
+        """OpenCV distortion coefficients: ``(0,)`` for the pinhole models, else
+        ``(k1, k2, p1, p2)`` or, for FULL_OPENCV, ``(k1, k2, p1, p2, k3, k4, k5, k6)``."""
+        p = self._named
+        if self.model in ("SIMPLE_PINHOLE", "PINHOLE"):
+            return np.zeros(0)
+        if self.model == "SIMPLE_RADIAL":
+            return np.array([p["k"], 0.0, 0.0, 0.0])
+        if self.model == "RADIAL":
+            return np.array([p["k1"], p["k2"], 0.0, 0.0])
+        return np.array([p[name] for name in CAMERA_MODELS[self.model][4:]])
+
+    @classmethod
+    def from_opencv(cls, K: ArrayLike, dist: ArrayLike | None,
+                    image_size: tuple[int, int]) -> ColmapCamera:
+        """The camera of OpenCV's ``K`` ``(3, 3)`` and ``dist`` for images of
+        ``image_size`` (width, height): PINHOLE without distortion, SIMPLE_RADIAL or
+        RADIAL with ``k1[, k2]`` only and square pixels, OPENCV with ``k1, k2, p1, p2``,
+        FULL_OPENCV with ``k3``..``k6``.
+
+        Raises
+        ------
+        ValueError
+            ``K`` has a skew, or ``dist`` has thin-prism or tilt terms (COLMAP's
+            perspective models have neither).
+        """
+        K = np.asarray(K, dtype=np.float64)
+        if K.shape != (3, 3):
+            raise ValueError(f"`K` must have shape (3, 3), got {K.shape}")
+        if K[0, 1] != 0:
+            raise ValueError(f"`K` has a skew ({K[0, 1]:g}), which COLMAP's models cannot hold")
+        d = np.zeros(14)
+        given = validate_distortion(dist)
+        d[:given.size] = given
+        if np.any(d[8:] != 0):
+            raise ValueError("`dist` has thin-prism or tilt coefficients, which COLMAP's "
+                             "perspective models cannot hold")
+        base = (K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5)
+        width, height = (int(v) for v in image_size)
+        if np.any(d[4:8] != 0):
+            return cls("FULL_OPENCV", width, height, tuple(float(v) for v in (*base, *d[:8])))
+        if np.any(d[:4] != 0):
+            if K[0, 0] == K[1, 1] and not np.any(d[2:4]):  # radial only, square pixels
+                simple = (K[0, 0], *base[2:], d[0]) + ((d[1],) if d[1] else ())
+                return cls("RADIAL" if d[1] else "SIMPLE_RADIAL", width, height,
+                           tuple(float(v) for v in simple))
+            return cls("OPENCV", width, height, tuple(float(v) for v in (*base, *d[:4])))
+        return cls("PINHOLE", width, height, tuple(float(v) for v in base))
+
+
+@dataclass(frozen=True)
+class ColmapModel:
+    """Cameras, image poses and points of a COLMAP model, in scene3D's conventions.
+
+    ``V`` images (in the order of their ids), ``P`` points, ``O`` observations.
+
+    Attributes
+    ----------
+    cameras : dict[int, ColmapCamera]
+        By camera id.
+    image_ids : (V,) int
+    names : tuple[str, ...]
+        The image names (paths relative to the image folder).
+    camera_ids : (V,) int
+        The camera of each image.
+    R : (V, 3, 3) float64
+        World-to-camera rotations, ``x_cam = R @ X + t``.
+    t : (V, 3) float64
+        World-to-camera translations.
+    point_ids : (P,) int
+    points3d : (P, 3) float64
+        Points in the world frame.
+    colors : (P, 3) uint8
+        RGB colour of each point.
+    errors_px : (P,) float64
+        The mean reprojection error of each point, as the file says.
+    obs_view : (O,) int
+        Index (into ``names``) of the image of each observation.
+    obs_point : (O,) int
+        Index (into ``points3d``) of its point.
+    obs_xy : (O, 2) float64
+        Its pixel, OpenCV convention.
+    """
+
+    cameras: dict[int, ColmapCamera]
+    image_ids: np.ndarray
+    names: tuple[str, ...]
+    camera_ids: np.ndarray
+    R: FloatArray
+    t: FloatArray
+    point_ids: np.ndarray
+    points3d: FloatArray
+    colors: np.ndarray
+    errors_px: FloatArray
+    obs_view: np.ndarray
+    obs_point: np.ndarray
+    obs_xy: FloatArray
+
+    @property
+    def centers(self) -> FloatArray:
+        """Camera centres ``C = -R^T t`` ``(V, 3)`` in the world frame."""
+        return camera_centers(self.R, self.t)
+
+    def camera(self, view: int) -> ColmapCamera:
+        """The camera of image ``view`` (an index into ``names``)."""
+        return self.cameras[int(self.camera_ids[view])]
+
+    def reprojection_errors_px(self) -> FloatArray:
+        """The distance in pixels between each observation and its point projected with
+        its image's camera (distortion included) ``(O,)``."""
+        errors = np.empty(len(self.obs_view))
+        for v in range(len(self.names)):
+            mine = np.nonzero(self.obs_view == v)[0]
+            if mine.size == 0:
+                continue
+            camera = self.camera(v)
+            projected = project_points(self.points3d[self.obs_point[mine]], camera.K,
+                                       camera.dist, self.R[v], self.t[v])
+            errors[mine] = np.linalg.norm(projected - self.obs_xy[mine], axis=1)
+        return errors
+
+    def point_errors_px(self) -> FloatArray:
+        """The mean of :meth:`reprojection_errors_px` over each point's observations
+        ``(P,)`` (0 for a point without any)."""
+        sums = np.bincount(self.obs_point, self.reprojection_errors_px(),
+                           minlength=len(self.points3d))
+        counts = np.bincount(self.obs_point, minlength=len(self.points3d))
+        return sums / np.maximum(counts, 1)
+
+
+def project_points(points3d: FloatArray, K: FloatArray, dist: FloatArray, R: FloatArray,
+                   t: FloatArray) -> FloatArray:
+    """Pixels ``(N, 2)`` of world points ``(N, 3)`` in a camera ``x_cam = R X + t`` with
+    intrinsics ``K`` and OpenCV distortion ``dist`` (OpenCV pixel convention)."""
+    if len(points3d) == 0:
+        return np.zeros((0, 2))
+    cam = np.asarray(points3d, np.float64) @ np.asarray(R).T + np.asarray(t)
+    return _distorted_pixels(cam[:, :2] / cam[:, 2:], K, dist)
+
+
+def _distorted_pixels(normalized: FloatArray, K: FloatArray, dist: FloatArray) -> FloatArray:
+    """Pixels of normalized image coordinates ``(N, 2)`` through ``dist`` and ``K``."""
+    if dist.size == 0 or not np.any(dist):
+        return normalized @ K[:2, :2].T + K[:2, 2]
+    rays = np.column_stack([normalized, np.ones(len(normalized))])
+    pixels, _ = cv2.projectPoints(rays.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K, dist)
+    return pixels.reshape(-1, 2).astype(np.float64)
+
+
+def model_for_photos(model: ColmapModel, photo_size: tuple[int, int],
+                     dist: ArrayLike | None = None) -> ColmapModel:
+    """The model of undistorted images resized, as one of the photos they came from.
+
+    Every camera of ``model`` (pinhole, of images that were resized from the photos and
+    undistorted with their camera matrix kept) becomes the camera of photos of
+    ``photo_size`` (width, height): intrinsics and observations scaled with pixel edges
+    on pixel edges (:func:`scene3D.geometry.camera.scale_intrinsics`), and with ``dist``
+    (OpenCV coefficients) the lens distortion put back into the camera (OPENCV or
+    FULL_OPENCV) and the observations. Poses and points are unchanged; ``errors_px`` is
+    recomputed at the photos' size.
+
+    Raises
+    ------
+    ValueError
+        A camera of ``model`` with distortion, or another aspect ratio than ``photo_size``.
+    """
+    dist = validate_distortion(dist)
+    cameras = {}
+    xy = model.obs_xy.copy()
+    for cam_id, camera in model.cameras.items():
+        if camera.dist.size:
+            raise ValueError(f"camera {cam_id} of the model is {camera.model}: only "
+                             "undistorted (pinhole) cameras are taken to the photos' size")
+        w, h = camera.image_size
+        if abs(photo_size[0] * h / (photo_size[1] * w) - 1) > 0.01:
+            raise ValueError(f"camera {cam_id} is for {w}x{h} images, another aspect ratio "
+                             f"than the photos' {photo_size[0]}x{photo_size[1]}")
+        K = scale_intrinsics_resize(camera.K, camera.image_size, photo_size)
+        cameras[cam_id] = ColmapCamera.from_opencv(K, dist, photo_size)
+        mine = np.isin(model.obs_view, np.nonzero(model.camera_ids == cam_id)[0])
+        normalized = (xy[mine] - camera.K[:2, 2]) / np.diag(camera.K)[:2]
+        xy[mine] = _distorted_pixels(normalized, K, dist)
+    scaled = replace(model, cameras=cameras, obs_xy=xy)
+    return replace(scaled, errors_px=scaled.point_errors_px())
+
+
+# -- reading -----------------------------------------------------------------------------
+
+def _data_lines(path: Path) -> list[tuple[int, str]]:
+    """(line number, text) of the lines of ``path`` that are not comments; blank lines
+    kept (an image without 2D points has a blank second line)."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise FileNotFoundError(2, "COLMAP model file not found", str(path)) from None
+    return [(n, line.strip()) for n, line in enumerate(text.splitlines(), start=1)
+            if not line.lstrip().startswith("#")]
+
+
+def _numbers(path: Path, line: int, fields: list[str], what: str) -> list[float]:
+    try:
+        return [float(f) for f in fields]
+    except ValueError:
+        raise ColmapFormatError(f"'{path}' line {line}: {what} must be numbers, got "
+                                f"{' '.join(fields)!r}") from None
+
+
+def read_cameras_text(path: str | os.PathLike) -> dict[int, ColmapCamera]:
+    """The cameras of a ``cameras.txt``, by id.
+
+    Raises
+    ------
+    ColmapFormatError
+        A camera model other than :data:`CAMERA_MODELS` (the message names it and the
+        file), a wrong number of parameters, a malformed line.
+    """
+    path = Path(path)
+    cameras: dict[int, ColmapCamera] = {}
+    for n, line in _data_lines(path):
+        if not line:
+            continue
+        fields = line.split()
+        if len(fields) < 4:
+            raise ColmapFormatError(f"'{path}' line {n}: expected CAMERA_ID MODEL WIDTH "
+                                    f"HEIGHT PARAMS[], got {line!r}")
+        model = fields[1]
+        if model not in CAMERA_MODELS:
+            raise ColmapFormatError(f"'{path}' line {n}: camera model '{model}' is not "
+                                    f"supported (supported: {', '.join(CAMERA_MODELS)})")
+        cam_id, width, height = (int(v) for v in _numbers(path, n, [fields[0], *fields[2:4]],
+                                                          "CAMERA_ID, WIDTH and HEIGHT"))
+        params = _numbers(path, n, fields[4:], "the parameters")
+        if len(params) != len(CAMERA_MODELS[model]):
+            raise ColmapFormatError(f"'{path}' line {n}: camera model {model} has "
+                                    f"{len(CAMERA_MODELS[model])} parameters "
+                                    f"({', '.join(CAMERA_MODELS[model])}), got {len(params)}")
+        cameras[cam_id] = ColmapCamera(model, width, height, tuple(params))
+    return cameras
+
+
+def _read_images(path: Path) -> list[tuple[int, tuple[float, ...], int, str, FloatArray,
+                                           np.ndarray]]:
+    """(image id, qw qx qy qz tx ty tz, camera id, name, 2D points (n, 2) COLMAP pixels,
+    their point ids (n,)) of each image of an ``images.txt``."""
+    lines = _data_lines(path)
+    images = []
+    k = 0
+    while k < len(lines):
+        n, header = lines[k]
+        if not header:
+            k += 1
+            continue
+        fields = header.split(maxsplit=9)
+        if len(fields) < 10:
+            raise ColmapFormatError(f"'{path}' line {n}: expected IMAGE_ID QW QX QY QZ TX TY "
+                                    f"TZ CAMERA_ID NAME, got {header!r}")
+        values = _numbers(path, n, fields[:9], "IMAGE_ID, the pose and CAMERA_ID")
+        points_line = lines[k + 1][1] if k + 1 < len(lines) else ""
+        pts = _numbers(path, n + 1, points_line.split(), "POINTS2D[]")
+        if len(pts) % 3:
+            raise ColmapFormatError(f"'{path}' line {n + 1}: POINTS2D[] must be (X, Y, "
+                                    f"POINT3D_ID) triples, got {len(pts)} numbers")
+        pts_arr = np.array(pts, dtype=np.float64).reshape(-1, 3)
+        images.append((int(values[0]), tuple(values[1:8]), int(values[8]), fields[9],
+                       pts_arr[:, :2], pts_arr[:, 2].astype(np.int64)))
+        k += 2
+    return images
+
+
+def read_colmap_text(folder: str | os.PathLike) -> ColmapModel:
+    """Read a COLMAP text model from ``folder`` (its ``cameras.txt``, ``images.txt`` and
+    ``points3D.txt``) in scene3D's conventions (:class:`ColmapModel`).
+
+    Observations come from the points' tracks, image by image in the order of their 2D
+    points; 2D points that belong to no 3D point are not kept.
+
+    Raises
+    ------
+    FileNotFoundError
+        ``folder`` or one of the three files is missing (the error names the file).
+    ColmapFormatError
+        An unsupported camera model (the message names the model and the file), a
+        malformed line, an image of an unknown camera, a track naming an unknown image or
+        2D point.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(2, "COLMAP model folder not found", str(folder))
+    cameras = read_cameras_text(folder / "cameras.txt")
+    images = sorted(_read_images(folder / "images.txt"), key=lambda image: image[0])
+    images_path = folder / "images.txt"
+    view_of = {}
+    for v, (image_id, _, cam_id, name, _, _) in enumerate(images):
+        if cam_id not in cameras:
+            raise ColmapFormatError(f"'{images_path}': image {image_id} ('{name}') has "
+                                    f"camera {cam_id}, which cameras.txt does not list")
+        if image_id in view_of:
+            raise ColmapFormatError(f"'{images_path}': image id {image_id} comes twice")
+        view_of[image_id] = v
+    R = np.array([rotation_from_quaternion(im[1][:4]) for im in images]).reshape(-1, 3, 3)
+    t = np.array([im[1][4:] for im in images], dtype=np.float64).reshape(-1, 3)
+
+    path = folder / "points3D.txt"
+    ids, xyz, rgb, errors = [], [], [], []
+    obs_view, obs_point, obs_index, obs_xy = [], [], [], []
+    for n, line in _data_lines(path):
+        if not line:
+            continue
+        fields = line.split()
+        if len(fields) < 8 or (len(fields) - 8) % 2:
+            raise ColmapFormatError(f"'{path}' line {n}: expected POINT3D_ID X Y Z R G B "
+                                    f"ERROR TRACK[] as (IMAGE_ID, POINT2D_IDX), got {line!r}")
+        values = _numbers(path, n, fields, "the fields")
+        p = len(ids)
+        ids.append(int(values[0]))
+        xyz.append(values[1:4])
+        rgb.append(values[4:7])
+        errors.append(values[7])
+        for image_id, index in zip(values[8::2], values[9::2]):
+            v = view_of.get(int(image_id))
+            if v is None:
+                raise ColmapFormatError(f"'{path}' line {n}: point {ids[-1]} is seen in "
+                                        f"image {int(image_id)}, which images.txt does not "
+                                        "list")
+            points2d = images[v][4]
+            if not 0 <= int(index) < len(points2d):
+                raise ColmapFormatError(f"'{path}' line {n}: point {ids[-1]} is 2D point "
+                                        f"{int(index)} of image {int(image_id)}, which has "
+                                        f"{len(points2d)}")
+            obs_view.append(v)
+            obs_point.append(p)
+            obs_index.append(int(index))
+            obs_xy.append(points2d[int(index)] - 0.5)
+    order = np.lexsort((obs_index, obs_view))  # image by image, as their 2D points
+    return ColmapModel(
+        cameras=cameras, image_ids=np.array([im[0] for im in images], dtype=np.int64),
+        names=tuple(im[3] for im in images),
+        camera_ids=np.array([im[2] for im in images], dtype=np.int64), R=R, t=t,
+        point_ids=np.array(ids, dtype=np.int64),
+        points3d=np.array(xyz, dtype=np.float64).reshape(-1, 3),
+        colors=np.array(rgb, dtype=np.float64).reshape(-1, 3).clip(0, 255).astype(np.uint8),
+        errors_px=np.array(errors, dtype=np.float64),
+        obs_view=np.array(obs_view, dtype=np.int64)[order],
+        obs_point=np.array(obs_point, dtype=np.int64)[order],
+        obs_xy=np.array(obs_xy, dtype=np.float64).reshape(-1, 2)[order])
+
+
+# -- writing -----------------------------------------------------------------------------
+
+def colmap_text(model: ColmapModel) -> dict[str, str]:
+    """``model`` as the three files of a COLMAP text model (name -> text), every number
+    to full precision (a model read back is the same)."""
+    from .export import colmap_image_name
+
+    def num(x: float) -> str:
+        return f"{float(x):.17g}"
+
+    cameras = ["# Camera list with one line of data per camera:",
+               "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]",
+               f"# Number of cameras: {len(model.cameras)}"]
+    for cam_id in sorted(model.cameras):
+        c = model.cameras[cam_id]
+        cameras.append(f"{cam_id} {c.model} {c.width} {c.height} "
+                       + " ".join(num(p) for p in c.params))
+    point2d_index = np.zeros(len(model.obs_view), dtype=np.int64)
+    images = ["# Image list with two lines of data per image:",
+              "#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME",
+              "#   POINTS2D[] as (X, Y, POINT3D_ID)",
+              f"# Number of images: {len(model.names)}"]
+    for v, name in enumerate(model.names):
+        mine = np.nonzero(model.obs_view == v)[0]
+        point2d_index[mine] = np.arange(len(mine))
+        q = quaternion_from_rotation(model.R[v])
+        images.append(f"{model.image_ids[v]} " + " ".join(num(x) for x in (*q, *model.t[v]))
+                      + f" {model.camera_ids[v]} {colmap_image_name(name)}")
+        images.append(" ".join(f"{num(model.obs_xy[k, 0] + 0.5)} "
+                               f"{num(model.obs_xy[k, 1] + 0.5)} "
+                               f"{model.point_ids[model.obs_point[k]]}" for k in mine))
+    points = ["# 3D point list with one line of data per point:",
+              "#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as (IMAGE_ID, POINT2D_IDX)",
+              f"# Number of points: {len(model.points3d)}"]
+    order = np.argsort(model.obs_point, kind="stable")
+    starts = np.searchsorted(model.obs_point[order], np.arange(len(model.points3d) + 1))
+    for p in range(len(model.points3d)):
+        ks = order[starts[p]:starts[p + 1]]
+        X, c = model.points3d[p], model.colors[p]
+        track = " ".join(f"{model.image_ids[model.obs_view[k]]} {point2d_index[k]}"
+                         for k in ks)
+        points.append(f"{model.point_ids[p]} {num(X[0])} {num(X[1])} {num(X[2])} "
+                      f"{c[0]} {c[1]} {c[2]} {num(model.errors_px[p])} {track}".rstrip())
+    return {"cameras.txt": "\n".join(cameras) + "\n", "images.txt": "\n".join(images) + "\n",
+            "points3D.txt": "\n".join(points) + "\n"}
+
+
+def cameras_json(model: ColmapModel) -> dict[str, dict]:
+    """Each image's camera as JSON-ready values, by image name: world-to-camera ``R``
+    ``(3, 3)`` and ``t`` ``(3,)``, the centre ``(3,)``, ``K`` ``(3, 3)`` (OpenCV pixels),
+    the OpenCV ``distortion`` coefficients, ``image_size`` ``[width, height]`` and COLMAP's
+    ``camera_model``."""
+    centers = model.centers
+    out = {}
+    for v, name in enumerate(model.names):
+        camera = model.camera(v)
+        out[name] = {"R": model.R[v], "t": model.t[v], "center": centers[v], "K": camera.K,
+                     "distortion": camera.dist, "image_size": list(camera.image_size),
+                     "camera_model": camera.model}
+    return out
+
+
+def write_colmap_text(folder: str | os.PathLike, model: ColmapModel) -> list[Path]:
+    """Write ``model`` as a COLMAP text model into ``folder`` (created if needed), each
+    file atomically; returns the paths written."""
+    return write_text_files(folder, colmap_text(model))
+
+
+def colmap_model_from_views(names: list[str] | tuple[str, ...], K: ArrayLike,
+                            image_size: tuple[int, int], registered: ArrayLike,
+                            R: ArrayLike, t: ArrayLike, points3d: ArrayLike,
+                            colors: ArrayLike, obs_view: ArrayLike, obs_point: ArrayLike,
+                            obs_xy: ArrayLike) -> ColmapModel:
+    """A one-camera model (PINHOLE ``K`` for images of ``image_size``) of the views that
+    are ``registered`` ``(V,)`` among ``names``, image ids ``view + 1``, point ids
+    ``point + 1``; poses ``R`` ``(V, 3, 3)``, ``t`` ``(V, 3)`` world-to-camera; the
+    observations ``obs_view`` (indices into ``names``), ``obs_point``, ``obs_xy``
+    ``(O, 2)`` OpenCV pixels."""
+    registered = np.asarray(registered, dtype=bool)
+    views = np.nonzero(registered)[0]
+    index = np.full(len(registered), -1)
+    index[views] = np.arange(len(views))
+    obs_view = np.asarray(obs_view, dtype=np.int64)
+    keep = registered[obs_view]
+    points3d = np.asarray(points3d, dtype=np.float64).reshape(-1, 3)
+    model = ColmapModel(
+        cameras={1: ColmapCamera.from_opencv(K, None, image_size)},
+        image_ids=views.astype(np.int64) + 1, names=tuple(names[v] for v in views),
+        camera_ids=np.ones(len(views), dtype=np.int64),
+        R=np.asarray(R, np.float64)[views].reshape(-1, 3, 3),
+        t=np.asarray(t, np.float64)[views].reshape(-1, 3),
+        point_ids=np.arange(1, len(points3d) + 1, dtype=np.int64), points3d=points3d,
+        colors=np.asarray(colors, dtype=np.uint8).reshape(-1, 3),
+        errors_px=np.zeros(len(points3d)), obs_view=index[obs_view[keep]],
+        obs_point=np.asarray(obs_point, dtype=np.int64)[keep],
+        obs_xy=np.asarray(obs_xy, dtype=np.float64).reshape(-1, 2)[keep])
+    return replace(model, errors_px=model.point_errors_px())

@@ -1,0 +1,44 @@
+"""The files of one reconstructed model, as the commands write them.
+
+In a model's folder: the points (binary PLY, RGB), ``cameras.json`` (each image's
+world-to-camera ``R``, ``t``, centre, ``K``, distortion and size:
+:func:`scene3D.io.colmap.cameras_json`), ``colmap/`` (a COLMAP text model:
+:func:`scene3D.io.colmap.write_colmap_text`) and, given the images' paths, nerfstudio's
+``transforms.json`` (:func:`scene3D.io.nerfstudio.write_nerfstudio`). The results'
+``save`` methods (:meth:`scene3D.multiview.MultiViewReconstruction.save`,
+:meth:`scene3D.twoview.TwoViewReconstruction.save`,
+:meth:`scene3D.SceneReconstruction3D.save`) write through :func:`save_model`.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+from .colmap import ColmapModel, cameras_json, write_colmap_text
+from .export import write_json, write_ply
+from .nerfstudio import write_nerfstudio
+
+#: The names of the files in a model's folder.
+CAMERAS_FILE = "cameras.json"
+COLMAP_FOLDER = "colmap"
+NERFSTUDIO_FILE = "transforms.json"
+
+
+def save_model(folder: str | os.PathLike, model: ColmapModel,
+               images: str | os.PathLike | Mapping[str, str | os.PathLike] | None = None,
+               points_file: str = "points.ply") -> list[Path]:
+    """Write ``model``'s files into ``folder`` (created if needed), each atomically: the
+    points as ``points_file``, ``cameras.json``, ``colmap/cameras.txt``, ``images.txt``,
+    ``points3D.txt`` and, when ``images`` (their folder, or each image's path by its name
+    in the model) is given, ``transforms.json``. Returns the paths written."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    written = [write_ply(folder / points_file, model.points3d, model.colors),
+               write_json(folder / CAMERAS_FILE, cameras_json(model))]
+    written += write_colmap_text(folder / COLMAP_FOLDER, model)
+    if images is not None:
+        written.append(write_nerfstudio(folder / NERFSTUDIO_FILE, model, images,
+                                        ply_file=folder / points_file))
+    return written

@@ -1,0 +1,142 @@
+"""nerfstudio's ``transforms.json``: cameras for NeRF and Gaussian-splatting trainers.
+
+The format (https://docs.nerf.studio/quickstart/data_conventions.html, which instant-ngp
+and gsplat's loaders follow too):
+
+- intrinsics ``camera_model`` (``"OPENCV"``: ``fl_x, fl_y, cx, cy`` with radial ``k1, k2``
+  and tangential ``p1, p2``), ``w`` and ``h`` at the top of the file when every image has
+  the same camera, else in each frame;
+- pixels with pixel centres at ``+0.5`` (a ray for pixel (0, 0) goes through its
+  centre), as COLMAP: ``cx`` is OpenCV's ``cx + 0.5``;
+- each frame's ``transform_matrix`` ``(4, 4)`` is camera-to-world in the OpenGL camera
+  axes (x right, y up, z back: the camera looks along -z), that is OpenCV's
+  camera-to-world ``[R^T | C]`` with its y and z columns negated;
+- ``file_path`` is relative to the folder of the JSON file.
+
+The world frame is the model's, unchanged (nerfstudio re-orients and re-centres it when
+it loads the file); ``ply_file_path`` names the points, in that frame, for splatting
+trainers that start from them.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from ..geometry.conventions import FloatArray
+from .colmap import ColmapCamera, ColmapModel
+from .export import write_json
+
+#: OpenCV camera axes (x right, y down, z forward) to OpenGL's (x right, y up, z back).
+OPENGL_FROM_OPENCV = np.diag([1.0, -1.0, -1.0])
+
+#: The intrinsics keys of a frame or of the file's top.
+INTRINSICS_KEYS = ("camera_model", "fl_x", "fl_y", "cx", "cy", "w", "h", "k1", "k2", "k3",
+                   "p1", "p2")
+
+
+def camera_to_world_opengl(R: FloatArray, t: FloatArray) -> FloatArray:
+    """The ``(4, 4)`` camera-to-world matrix in OpenGL camera axes of a world-to-camera
+    pose ``x_cam = R X + t`` (OpenCV axes): ``[[R^T diag(1, -1, -1), C], [0, 1]]`` with the
+    centre ``C = -R^T t``."""
+    R = np.asarray(R, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64)
+    M = np.eye(4)
+    M[:3, :3] = R.T @ OPENGL_FROM_OPENCV
+    M[:3, 3] = -R.T @ t
+    return M
+
+
+def nerfstudio_intrinsics(camera: ColmapCamera) -> dict[str, float | int | str]:
+    """A camera as nerfstudio's intrinsics keys (``camera_model`` ``"OPENCV"``).
+
+    Raises
+    ------
+    ValueError
+        A FULL_OPENCV camera with ``k4``..``k6`` (rational) terms, which nerfstudio's
+        perspective model does not have.
+    """
+    K, dist = camera.K, np.zeros(8)
+    dist[:camera.dist.size] = camera.dist
+    if np.any(dist[5:] != 0):
+        raise ValueError(f"a {camera.model} camera with k4..k6 (rational distortion) cannot "
+                         "be written for nerfstudio, whose OPENCV model has k1, k2, k3, p1, p2")
+    out: dict[str, float | int | str] = {
+        "camera_model": "OPENCV", "fl_x": float(K[0, 0]), "fl_y": float(K[1, 1]),
+        "cx": float(K[0, 2] + 0.5), "cy": float(K[1, 2] + 0.5),
+        "w": camera.width, "h": camera.height,
+        "k1": float(dist[0]), "k2": float(dist[1]), "p1": float(dist[2]), "p2": float(dist[3])}
+    if dist[4] != 0:
+        out["k3"] = float(dist[4])
+    return out
+
+
+def _image_path(images: str | os.PathLike | Mapping[str, str | os.PathLike], name: str
+                ) -> Path:
+    if isinstance(images, Mapping):
+        try:
+            return Path(images[name])
+        except KeyError:
+            raise ValueError(f"`images` has no path for the model's image '{name}'") from None
+    return Path(images) / name
+
+
+def nerfstudio_transforms(model: ColmapModel,
+                          images: str | os.PathLike | Mapping[str, str | os.PathLike],
+                          json_folder: str | os.PathLike,
+                          ply_file: str | os.PathLike | None = None) -> dict:
+    """The content of a ``transforms.json`` for ``model``, to be written in ``json_folder``.
+
+    Parameters
+    ----------
+    model : ColmapModel
+        Cameras and world-to-camera poses (:func:`scene3D.io.colmap.read_colmap_text`,
+        :meth:`scene3D.multiview.MultiViewReconstruction.colmap_model`); its cameras
+        must be those of the images as stored.
+    images : path or mapping
+        The folder of the images (each at ``images / name``), or each image's path by
+        its name in the model.
+    json_folder : path
+        Where the file goes: every ``file_path`` (and ``ply_file_path``) is relative to it.
+    ply_file : path, optional
+        A point cloud in the model's world frame (``points.ply``), named by
+        ``ply_file_path``.
+
+    Returns
+    -------
+    dict
+        One camera: its intrinsics at the top; several: in each frame.
+    """
+    folder = Path(json_folder)
+
+    def relative(path: str | os.PathLike) -> str:
+        return Path(os.path.relpath(Path(path).absolute(), folder.absolute())).as_posix()
+
+    cameras = {int(c) for c in model.camera_ids}
+    shared = len(cameras) == 1
+    out: dict = {}
+    if shared:
+        out.update(nerfstudio_intrinsics(model.cameras[cameras.pop()]))
+    frames = []
+    for v, name in enumerate(model.names):
+        frame: dict = {"file_path": relative(_image_path(images, name)),
+                       "transform_matrix": camera_to_world_opengl(model.R[v], model.t[v])}
+        if not shared:
+            frame.update(nerfstudio_intrinsics(model.camera(v)))
+        frames.append(frame)
+    out["frames"] = frames
+    if ply_file is not None:
+        out["ply_file_path"] = relative(ply_file)
+    return out
+
+
+def write_nerfstudio(path: str | os.PathLike, model: ColmapModel,
+                     images: str | os.PathLike | Mapping[str, str | os.PathLike],
+                     ply_file: str | os.PathLike | None = None) -> Path:
+    """Write ``model`` as nerfstudio's ``transforms.json`` at ``path`` (atomically):
+    :func:`nerfstudio_transforms` with the paths relative to ``path``'s folder."""
+    path = Path(path)
+    return write_json(path, nerfstudio_transforms(model, images, path.parent, ply_file))
