@@ -15,6 +15,7 @@ from ..errors import plural
 from ..evaluation.poses import camera_set_error
 from ..features.matching import FEATURE_MODES, resolve_feature_mode
 from ..geometry.camera import adapt_intrinsics_to_size
+from ..geometry.lens import CAMERA_MODELS
 from ..io.calibration import load_calibration
 from ..io.colmap import cameras_json, write_colmap_text
 from ..io.datasets import StrechaCamera, read_strecha_camera
@@ -68,6 +69,7 @@ MIN_MODEL_POINTS = 10
 
 #: What --export can write, and nerfstudio's file in a model's folder.
 EXPORT_FORMATS = ("nerfstudio",)
+CAMERA_MODEL_CHOICES = ("auto", *CAMERA_MODELS)
 NERFSTUDIO_FILE = "transforms.json"
 
 
@@ -114,9 +116,15 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
                              "by the one they call for, with a warning); without it the "
                              "photos must come from one camera (one size, EXIF make, model "
                              "and focal length) and one focal length is "
-                             "found from them (principal point at the centre, no "
-                             "distortion; the documentation's page 'Photos without a "
-                             "calibration file')")
+                             "found from them (principal point at the centre, with the "
+                             "lens distortion of --camera-model; the documentation's page "
+                             "'Photos without a calibration file')")
+    parser.add_argument("--camera-model", choices=CAMERA_MODEL_CHOICES, default="auto",
+                        help="without --calib: 'simple_radial' (a focal length and one "
+                             "radial distortion coefficient, found from the photos; what "
+                             "'auto', the default, means), 'radial' (two coefficients) or "
+                             "'pinhole' (no distortion); with --calib the file gives the "
+                             "camera")
     add_size_args(parser, 2 * BOOK_MAX_WIDTH_PX, "3072 -> 1536, half resolution")
     parser.add_argument("--pairs", choices=PAIR_MODES, default="auto",
                         help="which pairs to match: 'retrieval' (each view with its "
@@ -481,6 +489,9 @@ def focal_summary(recon: MultiViewReconstruction, model: SfMModel, camera: str |
 
 def run(args: argparse.Namespace) -> int:
     t_start = time.perf_counter()
+    if args.calib is not None and args.camera_model not in ("auto", "pinhole"):
+        raise UsageError(f"--camera-model {args.camera_model} is for photos without --calib: "
+                         "the calibration file gives the camera (its distortion included)")
     paths = image_paths(args.images)
     check_out_folder(args.out, paths)
     prior = None
@@ -523,7 +534,8 @@ def run(args: argparse.Namespace) -> int:
             feature=args.feature, pairs=args.pairs,
             settings=SfMSettings(neighbours=args.neighbours,
                                  retrieval_neighbours=args.retrieval_neighbours),
-            progress=progress, engine=engine, focal_prior=prior)
+            progress=progress, engine=engine, focal_prior=prior,
+            camera_model=args.camera_model)
     # The files of every model, all or none: a write that fails leaves the earlier run's.
     with all_or_nothing():
         timings = {k: v for k, v in recon.timings_s.items() if k != "total"}
@@ -572,6 +584,7 @@ def run(args: argparse.Namespace) -> int:
             "verified_pairs": recon.verified_pairs,
             "image_size": list(recon.image_size), "K": recon.K,
             "calibration_source": recon.calibration_source,
+            "camera_model": recon.camera_model, "distortion": list(recon.dist),
             "focal_refits": list(recon.focal_refits),
             "warnings": _refit_warnings(recon),
             "focal_px_sigma": recon.focal_px_sigma,

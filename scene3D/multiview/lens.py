@@ -6,7 +6,9 @@ applied to the keypoints, so that the pair verification, the focal and consisten
 checks and the registrations all work in the undistorted geometry of the current
 estimate:
 
-1. The views are reconstructed with the keypoints as they are (the coefficients 0).
+1. The views are reconstructed with the keypoints as they are (the coefficients 0). When
+   no pair gives a start so, the keypoints are undistorted with a first guess from the
+   pairs with most matches (:func:`pair_lens_guess`) and the start tried again.
 2. The largest model is adjusted on the photographed keypoints with the focal length and
    the coefficients free (:func:`scene3D.optim.bundle.bundle_adjust_radial`), starting from
    the lens its keypoints were undistorted with (exact: pixels undistorted with one
@@ -28,13 +30,15 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 
+import cv2
 import numpy as np
 
 from ..geometry.conventions import FloatArray
 from ..geometry.lens import distort_pixels, rescaled_coefficients, undistort_pixels
 from ..optim.bundle import Observations, RadialAdjustment, bundle_adjust_radial
+from ..twoview.distortion_fit import fit_radial_distortion
 from .focal import FocalSettings
-from .models import SfMModel, ViewFeatures
+from .models import PairMatches, SfMModel, ViewFeatures
 
 #: The coefficients' prior standard deviation: weak, it holds them only where a model's
 #: views do not determine them (COLMAP's SIMPLE_RADIAL starts at 0 with none).
@@ -87,3 +91,35 @@ def undistorted_features(features: Sequence[ViewFeatures], raw_keypoints: Sequen
     return [dataclasses.replace(f, keypoints=undistort_pixels(raw, K_lens, lens))
             for f, raw in zip(features, raw_keypoints)]
 
+
+
+def pair_lens_guess(pairs: Sequence[PairMatches], features: Sequence[ViewFeatures],
+                    K: FloatArray, candidates: int = 3) -> float | None:
+    """A first ``k1`` for photos that give no start as they are: the median of the
+    one-coefficient lens (:func:`scene3D.twoview.distortion_fit.fit_radial_distortion`,
+    the division model, ``k`` about ``k1`` for the distortions of photos) that best
+    explains each of the ``candidates`` pairs with most verified matches, under ``K``.
+
+    A lens that bends the matches makes every pair call for another focal length than
+    the one it has, so no pair may look trustworthy (the two-view checks work in the
+    pinhole geometry); undistorted with this guess, the start's self-calibration and
+    checks see the geometry again, and the models' adjustments refine the lens
+    (:func:`refine_lens`).
+
+    Returns
+    -------
+    float or None
+        None when no pair determines a coefficient.
+    """
+    guesses = []
+    for p in sorted(pairs, key=lambda p: -p.num_inliers)[:candidates]:
+        pts1 = features[p.i].keypoints[p.idx_i]
+        pts2 = features[p.j].keypoints[p.idx_j]
+        E, _ = cv2.findEssentialMat(pts1, pts2, K, method=cv2.LMEDS)
+        if E is None or E.shape != (3, 3):
+            continue
+        _, R, t, _ = cv2.recoverPose(E, pts1, pts2, K)
+        fit = fit_radial_distortion(R, t.ravel(), pts1, pts2, K)
+        if np.isfinite(fit.k) and np.isfinite(fit.sigma):
+            guesses.append(fit.k)
+    return float(np.median(guesses)) if guesses else None

@@ -145,6 +145,12 @@ class SfMSettings:
     lens_tolerance_px : float
         Another pass is made when the lens the model calls for moves an image corner
         more than this from where the current undistortion puts it.
+    min_lens_shift : float
+        A lens that moves no image corner more than this share of the image diagonal
+        is taken as none (the keypoints stay as photographed). The Strecha scenes, whose
+        photos have no distortion, call for 0.06-0.1 % (a principal point a few pixels
+        off the centre takes that shape), and undistorting by it cost castle-P19's focal
+        length 0.2 %; photos from compact cameras and phones call for 2-4 %.
     min_focal_test_views : int
         Models of fewer views are held to the two-view check's limits instead
         (``TwoViewSettings.max_focal_mismatch``, 15 %): three views of a short stretch
@@ -179,6 +185,7 @@ class SfMSettings:
     min_focal_test_views: int = 4
     max_lens_passes: int = 3
     lens_tolerance_px: float = 0.5
+    min_lens_shift: float = 0.0025
 
 
 def refutes_calibration(focal_scale: float, sigma_log: float, views: int,

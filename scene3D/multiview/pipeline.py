@@ -44,7 +44,7 @@ from ..io.images import (
 from ..optim.bundle import Observations
 from .features import content_key, view_features
 from .focal import FocalSettings
-from .lens import model_lens, refine_lens, undistorted_features
+from .lens import model_lens, pair_lens_guess, refine_lens, undistorted_features
 from .mapper import reconstruct_models
 from .matching import verify_pair
 from .models import (
@@ -339,6 +339,8 @@ def reconstruct_views(
     num_words = vocabulary.size if not vocabulary.binary else 0
     timings["matching"] = time.perf_counter() - t0
 
+    latest_pairs: list[PairMatches] = []  # the last pass's verified pairs
+
     def reconstruct_with(K_work: np.ndarray) -> tuple[list[SfMModel], dict[int, str], int, int]:
         """The models under ``K_work``, the reasons for the views left out, and the
         pairs matched and verified: pair verification depends on ``K``."""
@@ -351,6 +353,7 @@ def reconstruct_views(
             return [r for r in results if r is not None]
 
         verified = verify(pair_list, "pairs")
+        latest_pairs[:] = verified
         timings["matching"] += time.perf_counter() - t0
         say(f"{len(verified)} of {len(pair_list)} pairs verified ({selection})")
 
@@ -382,7 +385,28 @@ def reconstruct_views(
             timings[stage] = timings.get(stage, 0.0) + seconds
         return models, reasons, len(matched), len(verified)
 
-    models, reasons, num_matched, num_verified = reconstruct_with(K_work)
+    lens, K_lens, lens_passes = np.zeros(num_radial), K_work.copy(), 0
+    raw_keypoints = [f.keypoints for f in features]
+    try:
+        models, reasons, num_matched, num_verified = reconstruct_with(K_work)
+    except ReconstructionError as exc:
+        # A lens that bends the matches can leave no pair trustworthy in the pinhole
+        # geometry: undistort with the lens the best pairs call for and start again.
+        guess = (pair_lens_guess(latest_pairs, features, K_work)
+                 if exc.reason == "no_initial_pair" and focal is not None and num_radial
+                 else None)
+        if guess is None:
+            raise
+        say(f"no start with the keypoints as photographed; the pairs with most matches "
+            f"call for a lens with k1 {guess:+.3f}: starting again with them undistorted")
+        lens[0] = guess
+        features = undistorted_features(features, raw_keypoints, K_lens, lens)
+        handles = [engine.share(f) for f in features]
+        try:
+            models, reasons, num_matched, num_verified = reconstruct_with(K_work)
+        except ReconstructionError:
+            raise exc from None
+        lens_passes = 1
     refits: list[float] = []
     # With a calibration file: views that refute its focal length are reconstructed
     # again with the one they call for (castle-P19 under a calibration 8 % off: cameras
@@ -403,8 +427,6 @@ def reconstruct_views(
         K_work = K_refit
     # Without a calibration: the lens the largest model calls for, its keypoints
     # undistorted with it and the views reconstructed again (scene3D.multiview.lens).
-    lens, K_lens, lens_passes = np.zeros(num_radial), K_work.copy(), 0
-    raw_keypoints = [f.keypoints for f in features]
     while focal is not None and num_radial and lens_passes < s.max_lens_passes:
         t0 = time.perf_counter()
         K_model = models[0].K if models[0].K is not None else K_work
@@ -414,7 +436,9 @@ def reconstruct_views(
             corner_shifts_px(fit.K, fit.k, working_size)
             - corner_shifts_px(K_model, current, working_size), axis=1)))
         timings["lens"] = timings.get("lens", 0.0) + time.perf_counter() - t0
-        if moved <= s.lens_tolerance_px:
+        negligible = (max_shift_px(fit.K, fit.k, working_size)
+                      <= s.min_lens_shift * float(np.hypot(*working_size)))
+        if moved <= s.lens_tolerance_px or (negligible and not lens_passes):
             break
         say(f"lens distortion: k1 {fit.k[0]:+.3f} moves the image corners "
             f"{max_shift_px(fit.K, fit.k, working_size):.1f} px; reconstructing with the "
