@@ -11,10 +11,11 @@ from scene3D.evaluation.synthetic import lens_photo
 from scene3D.features import find_matches
 from scene3D.geometry import pose_angle_deg, project, rotation_about_axis, skew, to_homogeneous
 from scene3D.geometry.camera import scale_intrinsics_halved
+from scene3D.geometry.epipolar import fundamental_derivatives
 from scene3D.io.datasets import read_strecha_camera, relative_pose
 from scene3D.io.images import load_working_image
-from scene3D.optim.refinement import _fundamental_derivatives, _update_pose, refine_relative_pose
-from scene3D.optim.uncertainty import tangent_basis
+from scene3D.optim.refinement import refine_relative_pose
+from scene3D.optim.uncertainty import tangent_basis, update_pose
 from scene3D.selfcalibration import self_calibrate_pair
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches, reconstruct_two_view
 from scene3D.twoview.distortion_fit import (
@@ -57,14 +58,14 @@ def test_distortion_jacobian_matches_finite_differences(camera, true_pose, k):
     basis = tangent_basis(t)
 
     def sampson_at(x):
-        R_, t_ = _update_pose(R, t, x[:5], basis)
+        R_, t_ = update_pose(R, t, x[:5], basis)
         F = K_inv.T @ skew(t_) @ R_ @ K_inv
         return _observed_sampson(F, _undistorted(h1, camera, k + x[5]),
                                  _undistorted(h2, camera, k + x[5]))[0]
 
     p1, p2 = _undistorted(h1, camera, k), _undistorted(h2, camera, k)
     F = K_inv.T @ skew(t) @ R @ K_inv
-    J = _observed_sampson_jacobian(F, _fundamental_derivatives(R, t, basis, K_inv), p1, p2,
+    J = _observed_sampson_jacobian(F, fundamental_derivatives(R, t, basis, K_inv), p1, p2,
                                    _observed_sampson(F, p1, p2)[1])
     step = 1e-6
     numeric = np.stack([(sampson_at(step * e) - sampson_at(-step * e)) / (2 * step)

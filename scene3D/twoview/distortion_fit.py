@@ -29,7 +29,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..geometry.conventions import FloatArray, skew, to_homogeneous
-from ..optim.refinement import _fundamental_derivatives, _refine_pose_and_one
+from ..geometry.epipolar import fundamental_derivatives
+from ..optim.refinement import refine_pose_and_parameter
 
 #: The fit does not step beyond this coefficient either way. The model folds over where
 #: ``1 + k |x|^2 = 0``: for ``k = -1`` at the corners of a 90 deg diagonal field of view,
@@ -214,9 +215,9 @@ def fit_radial_distortion(
     def jacobian(R_: FloatArray, t_: FloatArray, k: float, basis: FloatArray,
                  cache: tuple) -> FloatArray:
         F_, p1, p2, terms = cache
-        dF = _fundamental_derivatives(R_, t_, basis, K_inv)
+        dF = fundamental_derivatives(R_, t_, basis, K_inv)
         return _observed_sampson_jacobian(F_, dF, p1, p2, terms)
 
-    R, t, k, sigma = _refine_pose_and_one(R, t, initial_k, residuals, jacobian, MAX_ABS_K,
+    R, t, k, sigma = refine_pose_and_parameter(R, t, initial_k, residuals, jacobian, MAX_ABS_K,
                                           loss, scale_px, max_iterations)
     return DistortionFit(float(k), sigma, R, t)
