@@ -137,8 +137,7 @@ def require_searchable_range(lo: int, hi: int, width: int, offset: int = 0) -> N
             f"dense matching cannot serve this pair: its sparse disparities span [{lo}, {hi}) "
             f"px, too wide a search for rectified images {width} px across (cameras that "
             "converge strongly on a scene deep in range, an epipole in or near the image, "
-            "or a pose too uncertain to rectify by); the sparse result does not need it "
-            "(run without --dense)")
+            "or a pose too uncertain to rectify by); the sparse result does not need it")
 
 
 def _sgbm(min_disp: int, num_disp: int, block: int) -> cv2.StereoSGBM:
@@ -339,7 +338,7 @@ def dense_point_cloud(
     if len(xs) == 0:
         raise ReconstructionError(
             "no_dense_points", "dense matching found no pixel whose disparity the left and "
-            "right views agree on; the sparse result does not need it (run without --dense)")
+            "right views agree on; the sparse result does not need it")
     d = np.abs(disparity[ys, xs]).astype(np.float64)
     f, cx, cy = rect.P1[0, 0], rect.P1[0, 2], rect.P1[1, 2]
     baseline = float(np.linalg.norm(t))

@@ -6,8 +6,8 @@ triangulation and bundle adjustment stay here.
 
 Views are processed in an order fixed by their content (a digest of each view's
 keypoints and descriptors), not by their names or input order: the same photos under
-other names give the same reconstruction. Only ``--pairs sequential`` (and ``auto``
-when the images themselves say the input order is a sequence) use the input order.
+other names give the same reconstruction. Only sequential pairs (``pairs="sequential"``, and
+``"auto"`` when the images themselves say the input order is a sequence) use the input order.
 Every per-view array of the result follows the input order.
 """
 
