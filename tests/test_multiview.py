@@ -830,6 +830,39 @@ def test_a_model_without_points_is_a_failure(fountain, tmp_path, monkeypatch, ca
     assert summary["models"][0]["check"]["status"] == "ok"  # consistent, but empty
 
 
+def test_the_library_calls_a_model_without_points_a_failure_as_the_command_does(
+        fountain, tmp_path, monkeypatch):
+    """The same two views without points in Python: ``ok`` is False (the command's exit 1),
+    the check itself passed, the summary says 'failed', and the model's folder holds its
+    files (scene3D.io.model_folder)."""
+    from scene3D.io.calibration import load_calibration
+    from scene3D.io.export import read_ply
+    from scene3D.io.model_folder import MODEL_FILES, write_model
+    from scene3D.multiview import reconstruct_views, state
+
+    original = state.GrowingModel.result
+
+    def without_points(self, check):
+        return dataclasses.replace(
+            original(self, check), points3d=np.zeros((0, 3)), colors=np.zeros((0, 3), np.uint8),
+            observations=Observations(np.zeros(0, int), np.zeros(0, int), np.zeros((0, 2))),
+            reprojection_rmse_px=float("nan"))
+
+    monkeypatch.setattr(state.GrowingModel, "result", without_points)
+    camera = load_calibration(REPO / "data" / "fountain_P11_intrinsics.yaml")
+    recon = reconstruct_views([fountain / "images" / f"000{i}.jpg" for i in (4, 5)],
+                              camera.K, camera.dist, max_width=400)
+    assert recon.consistent and recon.thin_models == (0,) and not recon.ok
+    assert recon.min_model_points == SfMSettings().min_model_points == 10
+    summary = recon.to_dict()
+    assert summary["status"] == "failed" and summary["points"] == 0
+    assert summary["models"][0]["status"] == "failed"
+    assert summary["models"][0]["check"]["status"] == "ok"
+    written = write_model(tmp_path / "model", recon, recon.main, figure=False)
+    assert [p.relative_to(tmp_path / "model").as_posix() for p in written] == list(MODEL_FILES)
+    assert len(read_ply(written[0])[0]) == 0
+
+
 def test_a_copy_of_a_photo_under_another_name_is_refused(fountain, tmp_path):
     """A byte-identical copy is one view twice (chapter4.py and calibrate refuse it too)."""
     folder = tmp_path / "photos"

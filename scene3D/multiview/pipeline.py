@@ -195,7 +195,8 @@ def reconstruct_views(
     -------
     MultiViewReconstruction
         One model, or several when parts of the view graph cannot be joined; check
-        ``ok`` (the consistency check) and ``unregistered_reasons``.
+        ``ok`` (every model passed the consistency check and has
+        ``SfMSettings.min_model_points`` points) and ``unregistered_reasons``.
 
     Raises
     ------
@@ -352,4 +353,4 @@ def reconstruct_views(
         timings_s=timings,
         calibration_source="file" if focal is None else models[0].focal.source,
         prior_description="" if focal_prior is None else focal_prior.description,
-        focal_refits=tuple(refits))
+        focal_refits=tuple(refits), feature=feature, min_model_points=s.min_model_points)
