@@ -88,11 +88,11 @@ def path_arg(text: str) -> Path:
 def require_utf8(path: Path) -> None:
     """Raise :class:`UsageError` when ``path`` is not valid UTF-8 (bytes of another
     system's encoding): OpenCV, JSON and the reports cannot carry its name."""
-    try:
-        str(path).encode("utf-8")
-    except UnicodeEncodeError:
-        raise UsageError(f"the name {str(path)!r} is not valid UTF-8 (from another system?): "
-                         "rename it") from None
+    from ..io.paths import utf8_name_problem  # OpenCV only when a path is given
+
+    problem = utf8_name_problem(path)
+    if problem:
+        raise UsageError(problem)
 
 
 def _number(text: str, kind: type, name: str) -> float:
