@@ -20,11 +20,11 @@ from scene3D.selfcalibration import self_calibrate_pair
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches, reconstruct_two_view
 from scene3D.twoview.distortion_fit import (
     DistortionFit,
-    _observed_sampson,
-    _observed_sampson_jacobian,
-    _undistorted,
     fit_radial_distortion,
+    observed_sampson,
+    observed_sampson_jacobian,
     undistort_division,
+    undistort_homogeneous,
 )
 from scene3D.twoview.trust import distortion_warning
 
@@ -60,13 +60,13 @@ def test_distortion_jacobian_matches_finite_differences(camera, true_pose, k):
     def sampson_at(x):
         R_, t_ = update_pose(R, t, x[:5], basis)
         F = K_inv.T @ skew(t_) @ R_ @ K_inv
-        return _observed_sampson(F, _undistorted(h1, camera, k + x[5]),
-                                 _undistorted(h2, camera, k + x[5]))[0]
+        return observed_sampson(F, undistort_homogeneous(h1, camera, k + x[5]),
+                                undistort_homogeneous(h2, camera, k + x[5]))[0]
 
-    p1, p2 = _undistorted(h1, camera, k), _undistorted(h2, camera, k)
+    p1, p2 = undistort_homogeneous(h1, camera, k), undistort_homogeneous(h2, camera, k)
     F = K_inv.T @ skew(t) @ R @ K_inv
-    J = _observed_sampson_jacobian(F, fundamental_derivatives(R, t, basis, K_inv), p1, p2,
-                                   _observed_sampson(F, p1, p2)[1])
+    J = observed_sampson_jacobian(F, fundamental_derivatives(R, t, basis, K_inv), p1, p2,
+                                  observed_sampson(F, p1, p2)[1])
     step = 1e-6
     numeric = np.stack([(sampson_at(step * e) - sampson_at(-step * e)) / (2 * step)
                         for e in np.eye(6)], axis=1)

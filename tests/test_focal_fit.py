@@ -15,10 +15,10 @@ from scene3D.twoview.focal_fit import (
     COMMON,
     MAX_LOG_SCALE,
     RATIO,
-    _focal_fundamental_derivatives,
-    _scaled_fundamental,
     fit_focal_ratio,
     fit_focal_scale,
+    focal_fundamental_derivatives,
+    scaled_fundamental,
 )
 
 from .helpers import correspondences, perturbed_pose, project, random_points, strecha_pair
@@ -33,12 +33,12 @@ def test_focal_jacobian_matches_finite_differences(camera, true_pose, weights):
 
     def sampson_at(x):
         R_, t_ = update_pose(R, t, x[:5], basis)
-        F = _scaled_fundamental(R_, t_, log_s + x[5], weights, K_inv)
+        F = scaled_fundamental(R_, t_, log_s + x[5], weights, K_inv)
         return sampson_residuals_homogeneous(F, h1, h2)
 
     basis = tangent_basis(t)
-    J = sampson_jacobian(_scaled_fundamental(R, t, log_s, weights, K_inv),
-                         _focal_fundamental_derivatives(R, t, log_s, weights, basis, K_inv),
+    J = sampson_jacobian(scaled_fundamental(R, t, log_s, weights, K_inv),
+                         focal_fundamental_derivatives(R, t, log_s, weights, basis, K_inv),
                          h1, h2)
     step = 1e-6
     numeric = np.stack([(sampson_at(step * e) - sampson_at(-step * e)) / (2 * step)

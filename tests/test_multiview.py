@@ -32,7 +32,7 @@ from scene3D.multiview import (
     verify_pair,
 )
 from scene3D.optim.bundle import Observations, bundle_adjust, reprojection_residuals
-from scene3D.optim.schur import _schur_product_dense, _schur_product_sparse
+from scene3D.optim.schur import schur_product_dense, schur_product_sparse
 
 from .conftest import REPO
 from .helpers import scipy_bundle_adjust
@@ -231,19 +231,19 @@ def test_schur_product_sparse_equals_dense():
     V_inv = A @ A.transpose(0, 2, 1) + np.eye(3)
     W = rng.normal(size=(len(camera), 6, 3))
     Y = W @ V_inv[point]
-    dense = _schur_product_dense(Y, W, camera, point, 30)
-    np.testing.assert_allclose(_schur_product_sparse(Y, W, camera, point, 30), dense,
+    dense = schur_product_dense(Y, W, camera, point, 30)
+    np.testing.assert_allclose(schur_product_sparse(Y, W, camera, point, 30), dense,
                                atol=1e-10)
     # Points a chunk at a time (tables of at most 30 x 7 entries): the same sum.
-    np.testing.assert_allclose(_schur_product_sparse(Y, W, camera, point, 30, chunk_entries=210),
+    np.testing.assert_allclose(schur_product_sparse(Y, W, camera, point, 30, chunk_entries=210),
                                dense, atol=1e-10)
     # Point numbers with gaps and cameras that see nothing (30 and 31) change nothing.
-    wider = _schur_product_sparse(Y, W, camera, 3 * point + 1, 32)
+    wider = schur_product_sparse(Y, W, camera, 3 * point + 1, 32)
     np.testing.assert_allclose(wider[:180, :180], dense, atol=1e-10)
     assert not wider[180:].any() and not wider[:, 180:].any()
     # One point's contribution by hand: camera blocks (a, b) get Y_a W_b^T.
     obs = np.flatnonzero(point == 7)
-    S = _schur_product_sparse(Y[obs], W[obs], camera[obs], point[obs], 30)
+    S = schur_product_sparse(Y[obs], W[obs], camera[obs], point[obs], 30)
     a, b = obs[0], obs[1]
     np.testing.assert_allclose(S[6 * camera[a]:6 * camera[a] + 6, 6 * camera[b]:6 * camera[b] + 6],
                                Y[a] @ W[b].T)

@@ -76,7 +76,7 @@ def _to_input_order(model: SfMModel, order: np.ndarray) -> SfMModel:
         focal=focal)
 
 
-def _focal_prior(images: Sequence[ImageSource], names: Sequence[str]) -> FocalPrior:
+def default_focal_prior(images: Sequence[ImageSource], names: Sequence[str]) -> FocalPrior:
     """The prior of photos without a calibration: from their EXIF when they are files
     (:func:`scene3D.io.exif.read_camera_prior`, one camera checked), else the default."""
     if all(isinstance(src, (str, os.PathLike)) for src in images):
@@ -230,7 +230,7 @@ def reconstruct_views(
         if dist is not None:
             raise ValueError("`dist` needs `K`: photos without a calibration are taken as "
                              "undistorted")
-        focal_prior = focal_prior or _focal_prior(images, names)
+        focal_prior = focal_prior or default_focal_prior(images, names)
         K = focal_prior.K
     else:
         focal_prior = None

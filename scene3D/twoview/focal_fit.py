@@ -47,17 +47,17 @@ def _scaled_inverses(x: float, weights: tuple[float, float],
     return tuple(np.diag([np.exp(-w * x), np.exp(-w * x), 1.0]) @ K_inv for w in weights)
 
 
-def _scaled_fundamental(R: FloatArray, t: FloatArray, x: float, weights: tuple[float, float],
-                        K_inv: FloatArray) -> FloatArray:
+def scaled_fundamental(R: FloatArray, t: FloatArray, x: float, weights: tuple[float, float],
+                       K_inv: FloatArray) -> FloatArray:
     """``F = K_2^-T [t]x R K_1^-1`` (:func:`_scaled_inverses`)."""
     K1_inv, K2_inv = _scaled_inverses(x, weights, K_inv)
     return K2_inv.T @ skew(t) @ R @ K1_inv
 
 
-def _focal_fundamental_derivatives(R: FloatArray, t: FloatArray, x: float,
-                                   weights: tuple[float, float], basis: FloatArray,
-                                   K_inv: FloatArray) -> FloatArray:
-    """``dF / dx`` ``(6, 3, 3)`` of :func:`_scaled_fundamental`: the pose step of
+def focal_fundamental_derivatives(R: FloatArray, t: FloatArray, x: float,
+                                  weights: tuple[float, float], basis: FloatArray,
+                                  K_inv: FloatArray) -> FloatArray:
+    """``dF / dx`` ``(6, 3, 3)`` of :func:`scaled_fundamental`: the pose step of
     :func:`scene3D.optim.uncertainty.update_pose` (5), then ``x``.
 
     ``d(K_i^-1) / dx = -w_i P K_i^-1`` with ``P = diag(1, 1, 0)``.
@@ -108,8 +108,8 @@ class FocalFit(NamedTuple):
         """``(3, 3)`` the fundamental matrix of the fitted pose and focal lengths, for
         the calibration ``K`` the fit started from."""
         K_inv = np.linalg.inv(np.asarray(K, dtype=np.float64))
-        return _scaled_fundamental(self.R, self.t, float(np.log(self.scale)), self.weights,
-                                   K_inv)
+        return scaled_fundamental(self.R, self.t, float(np.log(self.scale)), self.weights,
+                                  K_inv)
 
 
 def _fit_focal(R: ArrayLike, t: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: ArrayLike,
@@ -124,12 +124,12 @@ def _fit_focal(R: ArrayLike, t: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: 
     K_inv = np.linalg.inv(np.asarray(K, dtype=np.float64))
 
     def residuals(R_: FloatArray, t_: FloatArray, x: float) -> tuple[FloatArray, FloatArray]:
-        F_ = _scaled_fundamental(R_, t_, x, weights, K_inv)
+        F_ = scaled_fundamental(R_, t_, x, weights, K_inv)
         return sampson_residuals_homogeneous(F_, h1, h2), F_
 
     def jacobian(R_: FloatArray, t_: FloatArray, x: float, basis: FloatArray,
                  F_: FloatArray) -> FloatArray:
-        dF = _focal_fundamental_derivatives(R_, t_, x, weights, basis, K_inv)
+        dF = focal_fundamental_derivatives(R_, t_, x, weights, basis, K_inv)
         return sampson_jacobian(F_, dF, h1, h2)
 
     # The same first-order covariance as the pose's (refinement.relative_pose_covariance).
