@@ -17,9 +17,10 @@ from ..geometry.camera import adapt_intrinsics_to_size
 from ..io.calibration import load_calibration
 from ..io.datasets import CameraFilesError, StrechaCamera, read_strecha_cameras
 from ..io.export import all_or_nothing, colmap_image_name, write_json, written_bytes
-from ..io.images import BOOK_MAX_WIDTH_PX, folder_images, glob_files, read_image_size
+from ..io.images import BOOK_MAX_WIDTH_PX, read_image_size
 from ..io.model_folder import MODEL_FIGURE, MODEL_FILES, model_folder_name
 from ..io.model_folder import write_model as write_model_folder
+from ..io.paths import image_files
 from ..multiview import (
     PAIR_MODES,
     FocalEstimate,
@@ -139,49 +140,15 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
 
 
 def image_paths(specs: list[str]) -> list[Path]:
-    """Files, folders (their images, sorted; hidden names starting with '.', such as
-    macOS's ``._IMG.jpg``, left out) and globs, in the order given; refused
-    (:class:`UsageError`) when one file comes twice or two share a name."""
-    paths: list[Path] = []
-    for spec in specs:
-        p = Path(spec)
-        if p.is_dir():
-            paths += folder_images(p)
-        elif p.is_file():
-            paths.append(p)
-        else:
-            matched = glob_files(spec)
-            if not matched:
-                raise FileNotFoundError(_nothing_at(spec))
-            paths += matched
+    """Files, folders and globs in the order given (:func:`scene3D.io.paths.image_files`);
+    refused (:class:`UsageError`) when fewer than two, one file comes twice or two share a
+    name."""
+    paths = image_files(specs)
     if len(paths) < 2:
         raise UsageError(f"need at least two images, got {len(paths)}")
     check_image_paths(paths)
     check_view_names(paths)
     return paths
-
-
-def _nothing_at(spec: str) -> str:
-    """Why ``spec`` (neither a file nor a folder) gives no image: a missing folder or image
-    named as such (with the first missing folder on the way, as an unset variable in
-    ``$DATA/images`` leaves), else a glob that matches nothing."""
-    from ..io.images import IMAGE_SUFFIXES
-
-    def missing(path: Path) -> str:
-        first = next((a for a in reversed(path.parents) if not a.exists()), path)
-        return f" ('{first}' does not exist)" if first != path else ""
-
-    def is_glob(text: str) -> bool:  # as glob.has_magic
-        return any(c in text for c in "*?[")
-
-    path = Path(spec)
-    if not is_glob(spec):
-        what = "image" if path.suffix.lower() in IMAGE_SUFFIXES else "folder"
-        return f"{what} not found: '{spec}'{missing(path)}"
-    folder = path.parent
-    if not is_glob(str(folder)) and not folder.is_dir():
-        return f"no image matches '{spec}': folder not found: '{folder}'{missing(folder)}"
-    return f"no image matches '{spec}'"
 
 
 def check_view_names(paths: list[Path]) -> None:

@@ -1,18 +1,21 @@
-"""Paths given by the user: which files a folder or a glob lists, and names that cannot travel.
+"""Paths given by the user: the images that files, folders and globs name, which files a
+folder or a glob lists, and names that cannot travel.
 
 The folders and globs themselves are read by :func:`scene3D.io.images.folder_images` and
-:func:`scene3D.io.images.glob_files`; this module says whether one of them would list a
-given file (an output about to be written among the inputs) and whether a name can be
-carried by OpenCV, JSON and the reports.
+:func:`scene3D.io.images.glob_files`; this module expands a list of them
+(:func:`image_files`), says whether one of them would list a given file (an output about
+to be written among the inputs, :func:`lists_file`) and whether a name can be carried by
+OpenCV, JSON and the reports (:func:`utf8_name_problem`).
 """
 
 from __future__ import annotations
 
 import fnmatch
 import os
+from collections.abc import Sequence
 from pathlib import Path
 
-from .images import glob_patterns, is_folder_image
+from .images import IMAGE_SUFFIXES, folder_images, glob_files, glob_patterns, is_folder_image
 
 
 def lists_file(spec: str, path: Path) -> bool:
@@ -68,3 +71,64 @@ def utf8_name_problem(path: str | os.PathLike) -> str:
         return (f"the name {os.fspath(path)!r} is not valid UTF-8 (from another system?): "
                 "rename it")
     return ""
+
+
+def image_files(specs: Sequence[str]) -> list[Path]:
+    """The images that files, folders and globs name, in the order given.
+
+    A folder gives its images (:func:`scene3D.io.images.folder_images`: sorted, hidden
+    names starting with '.', such as macOS's ``._IMG.jpg``, left out), a glob the files it
+    matches (sorted), a file itself.
+
+    Parameters
+    ----------
+    specs : sequence of str
+        Files, folders or globs such as ``"photos/*.jpg"``.
+
+    Returns
+    -------
+    list of Path
+        Perhaps with a file twice (the caller decides).
+
+    Raises
+    ------
+    FileNotFoundError
+        A spec that is neither a file nor a folder and matches nothing: the message names
+        the missing folder or image (the first missing folder on the way, as an unset
+        variable in ``$DATA/images`` leaves), else the glob.
+    """
+    paths: list[Path] = []
+    for spec in specs:
+        p = Path(spec)
+        if p.is_dir():
+            paths += folder_images(p)
+        elif p.is_file():
+            paths.append(p)
+        else:
+            matched = glob_files(spec)
+            if not matched:
+                raise FileNotFoundError(_nothing_at(spec))
+            paths += matched
+    return paths
+
+
+def _nothing_at(spec: str) -> str:
+    """Why ``spec`` (neither a file nor a folder) gives no image: a missing folder or image
+    named as such (with the first missing folder on the way, as an unset variable in
+    ``$DATA/images`` leaves), else a glob that matches nothing."""
+
+    def missing(path: Path) -> str:
+        first = next((a for a in reversed(path.parents) if not a.exists()), path)
+        return f" ('{first}' does not exist)" if first != path else ""
+
+    def is_glob(text: str) -> bool:  # as glob.has_magic
+        return any(c in text for c in "*?[")
+
+    path = Path(spec)
+    if not is_glob(spec):
+        what = "image" if path.suffix.lower() in IMAGE_SUFFIXES else "folder"
+        return f"{what} not found: '{spec}'{missing(path)}"
+    folder = path.parent
+    if not is_glob(str(folder)) and not folder.is_dir():
+        return f"no image matches '{spec}': folder not found: '{folder}'{missing(folder)}"
+    return f"no image matches '{spec}'"
