@@ -25,9 +25,26 @@ from .schur import normal_equations, solve_damped
 from .uncertainty import tangent_basis, update_pose
 
 
-def _two_view_residuals(R: FloatArray, t: FloatArray, X: FloatArray, pts1: FloatArray,
-                        pts2: FloatArray, K: FloatArray) -> FloatArray:
-    """Reprojection errors ``(N, 4)`` of camera-1 points ``X``: image 1's (x, y), then image 2's."""
+def two_view_residuals(R: FloatArray, t: FloatArray, X: FloatArray, pts1: FloatArray,
+                       pts2: FloatArray, K: FloatArray) -> FloatArray:
+    """Reprojection errors of points seen by two cameras, the cost's residuals.
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array
+        The pose of camera 2, ``x_cam2 = R x_cam1 + t`` (camera 1 is ``[I | 0]``).
+    X : (N, 3) array
+        The points, in the camera-1 frame.
+    pts1, pts2 : (N, 2) array
+        Their pixels in images 1 and 2.
+    K : (3, 3) array
+        The intrinsics of both.
+
+    Returns
+    -------
+    (N, 4) float64
+        Projected minus observed pixels: image 1's (x, y), then image 2's.
+    """
     return np.hstack([project_with_jacobian(X, K)[0] - pts1,
                       project_with_jacobian(X @ R.T + t, K)[0] - pts2])
 
@@ -51,7 +68,7 @@ def _settle_points(R: FloatArray, t: FloatArray, X: FloatArray, pts1: FloatArray
     candidates = np.stack([X, on_ray1, on_ray2])  # (3, N, 3)
     costs = np.empty((3, len(X)))
     for k, C in enumerate(candidates):
-        r = _two_view_residuals(R, t, C, pts1, pts2, K)
+        r = two_view_residuals(R, t, C, pts1, pts2, K)
         costs[k] = np.sum(robust_loss((r / scale) ** 2, loss)[0], axis=1)
         costs[k][(C[:, 2] <= 0) | ((C @ R.T + t)[:, 2] <= 0)] = np.inf
     return candidates[np.argmin(costs, axis=0), np.arange(len(X))]
@@ -113,7 +130,7 @@ def bundle_adjust_two_view(
     point = np.tile(np.arange(n), 2)
 
     def evaluate(R_: FloatArray, t_: FloatArray, X_: FloatArray) -> tuple[tuple, float]:
-        r = _two_view_residuals(R_, t_, X_, p1, p2, K)
+        r = two_view_residuals(R_, t_, X_, p1, p2, K)
         r_ = np.vstack([r[:, :2], r[:, 2:]])  # (2N, 2): the observations above
         return (R_, t_, X_, r_), robust_cost(r_, loss, scale_px)
 
