@@ -33,15 +33,15 @@ from scene3D.evaluation import relative_pose_error  # noqa: E402
 from scene3D.geometry.epipolar import essential_distances  # noqa: E402
 from scene3D.io.datasets import fetch_fountain_p11, read_strecha_camera  # noqa: E402
 from scene3D.optim.bundle import Observations  # noqa: E402
-from scene3D.optim.bundle_two_view import _two_view_residuals, bundle_adjust_two_view  # noqa: E402
-from scene3D.optim.refinement import _robust_cost  # noqa: E402
+from scene3D.optim.bundle_two_view import bundle_adjust_two_view, two_view_residuals  # noqa: E402
+from scene3D.optim.least_squares import robust_cost  # noqa: E402
 from scene3D.twoview import TwoViewSettings  # noqa: E402
 from scene3D.twoview.essential_fit import loss_scale_px  # noqa: E402
 from tests.helpers import scipy_bundle_adjust  # noqa: E402
 
 
 def cost(R, t, X, pts1, pts2, K, scale):
-    return _robust_cost(_two_view_residuals(R, t, X, pts1, pts2, K), "cauchy", scale)
+    return robust_cost(two_view_residuals(R, t, X, pts1, pts2, K), "cauchy", scale)
 
 
 def main() -> int:

@@ -112,7 +112,7 @@ def errors(p: dict, R: np.ndarray, t: np.ndarray) -> str:
 def solve_scene3d(p: dict, loss: str, iterations: int) -> tuple:
     c0, w0 = time.process_time(), time.perf_counter()
     counted = []
-    original = bundle._levenberg_marquardt
+    original = bundle.levenberg_marquardt
 
     def counting(state, cost, linearize, max_iterations, min_decrease):
         def counted_linearize(s):
@@ -120,13 +120,13 @@ def solve_scene3d(p: dict, loss: str, iterations: int) -> tuple:
             return linearize(s)
         return original(state, cost, counted_linearize, max_iterations, min_decrease)
 
-    bundle._levenberg_marquardt = counting
+    bundle.levenberg_marquardt = counting
     try:
         R, t, X = bundle.bundle_adjust(p["R"], p["t"], p["X"], p["obs"], p["K"], p["fixed"],
                                        loss=loss, scale_px=1.0, max_iterations=iterations,
                                        tolerance=1e-10)
     finally:
-        bundle._levenberg_marquardt = original
+        bundle.levenberg_marquardt = original
     return R, t, X, time.process_time() - c0, time.perf_counter() - w0, len(counted)
 
 

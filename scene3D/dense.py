@@ -137,11 +137,28 @@ def require_searchable_range(lo: int, hi: int, width: int, offset: int = 0) -> N
             f"dense matching cannot serve this pair: its sparse disparities span [{lo}, {hi}) "
             f"px, too wide a search for rectified images {width} px across (cameras that "
             "converge strongly on a scene deep in range, an epipole in or near the image, "
-            "or a pose too uncertain to rectify by); the sparse result does not need it "
-            "(run without --dense)")
+            "or a pose too uncertain to rectify by); the sparse result does not need it")
 
 
-def _sgbm(min_disp: int, num_disp: int, block: int) -> cv2.StereoSGBM:
+def sgbm_matcher(min_disp: int, num_disp: int, block: int) -> cv2.StereoSGBM:
+    """OpenCV's semi-global matcher as :func:`compute_disparity` configures it.
+
+    Parameters
+    ----------
+    min_disp : int
+        The smallest disparity searched, in pixels.
+    num_disp : int
+        How many disparities are searched (a multiple of 16).
+    block : int
+        The odd side of the matched blocks, in pixels (the smoothness penalties
+        ``P1 = 24 block^2`` and ``P2 = 96 block^2`` follow it).
+
+    Returns
+    -------
+    cv2.StereoSGBM
+        3-way SGBM, no left-right check of its own (:func:`compute_disparity` does it),
+        no speckle filter; its disparities are in 1/16 pixel.
+    """
     return cv2.StereoSGBM_create(
         minDisparity=min_disp, numDisparities=num_disp, blockSize=block,
         P1=8 * 3 * block * block, P2=32 * 3 * block * block, disp12MaxDiff=-1,
@@ -172,11 +189,11 @@ def compute_disparity(
     (H, W) float32
         Disparities in pixels, NaN where invalid.
     """
-    left_matcher = _sgbm(min_disparity, num_disparities, block_size)
+    left_matcher = sgbm_matcher(min_disparity, num_disparities, block_size)
     disp_left = left_matcher.compute(left, right).astype(np.float32) / 16.0
     # The right view's disparities: mirrored, the right image becomes a left image whose
     # pixel x' matches x' - d with the same d, so the same range applies; mirror back.
-    right_matcher = _sgbm(min_disparity, num_disparities, block_size)
+    right_matcher = sgbm_matcher(min_disparity, num_disparities, block_size)
     disp_right = right_matcher.compute(right[:, ::-1].copy(), left[:, ::-1].copy())
     disp_right = disp_right[:, ::-1].astype(np.float32) / 16.0
     invalid_left = disp_left < min_disparity
@@ -339,7 +356,7 @@ def dense_point_cloud(
     if len(xs) == 0:
         raise ReconstructionError(
             "no_dense_points", "dense matching found no pixel whose disparity the left and "
-            "right views agree on; the sparse result does not need it (run without --dense)")
+            "right views agree on; the sparse result does not need it")
     d = np.abs(disparity[ys, xs]).astype(np.float64)
     f, cx, cy = rect.P1[0, 0], rect.P1[0, 2], rect.P1[1, 2]
     baseline = float(np.linalg.norm(t))

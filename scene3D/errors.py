@@ -40,7 +40,8 @@ class ReconstructionError(RuntimeError):
     reason : str
         Short machine-readable cause: ``"too_few_matches"``, ``"too_few_inliers"``,
         ``"no_parallax"``, ``"planar_scene"``, ``"no_cheirality_winner"``,
-        ``"too_few_points"``; from dense matching ``"no_dense_range"``, ``"no_dense_points"``.
+        ``"too_few_points"``; from dense matching ``"no_dense_range"``, ``"no_dense_points"``
+        (the sparse result stands without it).
     counts : dict[str, int | float]
         The numbers behind the decision (matches, inliers, parallax, ...).
     message : str
@@ -86,7 +87,22 @@ class DatasetError(RuntimeError):
 
 class EngineError(RuntimeError):
     """An execution engine could not run its tasks: a task was given up after the workers
-    running it died too often, or the cluster went away (see :mod:`scene3D.engines`)."""
+    running it died too often, or the cluster went away (see :mod:`scene3D.engines`).
+
+    Attributes
+    ----------
+    reason : str
+        Short machine-readable cause: ``"scheduler_lost"``, ``"no_workers"`` (the cluster
+        has had no worker for the engine's limit), ``"task_given_up"``, ``"task_cancelled"``,
+        or ``"failed"``.
+    """
+
+    def __init__(self, message: str, reason: str = "failed") -> None:
+        self.reason = reason
+        super().__init__(message)
+
+    def __reduce__(self) -> tuple:
+        return type(self), (self.args[0], self.reason)
 
 
 def _rebuild_reconstruction_error(reason: str, message: str, counts: dict

@@ -6,8 +6,8 @@ from scene3D.geometry import project
 from scene3D.geometry.epipolar import fundamental_from_essential
 from scene3D.geometry.triangulation import reprojection_errors, triangulate_points
 from scene3D.optim.bundle_two_view import bundle_adjust_two_view
-from scene3D.optim.refinement import _robust_cost, _update_pose
-from scene3D.optim.uncertainty import tangent_basis
+from scene3D.optim.least_squares import robust_cost
+from scene3D.optim.uncertainty import tangent_basis, update_pose
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches
 
 from .helpers import correspondences, perturbed_pose, scipy_bundle_adjust
@@ -43,7 +43,7 @@ def test_two_view_bundle_adjustment_reaches_a_minimum_scipy_does_not_beat(camera
     def cost(R_, t_, X_):
         r = np.vstack([project(X_, camera, np.eye(3), np.zeros(3)) - pts1,
                        project(X_, camera, R_, t_) - pts2])
-        return _robust_cost(r, loss, 0.5)
+        return robust_cost(r, loss, 0.5)
 
     R1, t1, X1 = bundle_adjust_two_view(R, t, X0, pts1, pts2, camera, loss=loss, scale_px=0.5)
     assert np.linalg.norm(t1) == pytest.approx(1.0)
@@ -51,7 +51,7 @@ def test_two_view_bundle_adjustment_reaches_a_minimum_scipy_does_not_beat(camera
     at_result = cost(R1, t1, X1)
     basis = tangent_basis(t1)
     for e in np.vstack([np.eye(5), -np.eye(5)]):
-        assert cost(*_update_pose(R1, t1, 1e-5 * e, basis), X1) > at_result
+        assert cost(*update_pose(R1, t1, 1e-5 * e, basis), X1) > at_result
     rng = np.random.default_rng(0)
     for _ in range(5):
         assert cost(R1, t1, X1 + rng.normal(0, 1e-5, X1.shape)) > at_result

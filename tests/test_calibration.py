@@ -374,6 +374,57 @@ def test_cli_on_opencv_left_writes_a_readable_calibration(tmp_path, chessboards,
                  "-q"]) == 0
 
 
+def test_the_library_calibrates_as_the_command_does(tmp_path, chessboards, capsys):
+    """scene3D.calibration.views and .pipeline, with plain arguments, give the command's
+    calibration: the same K and distortion in the file, the same lines printed, the same
+    metadata beside them (but the date)."""
+    from scene3D.calibration.pipeline import calibrate_views
+    from scene3D.calibration.views import collect_views, photo_files, read_photos
+
+    folder = chessboards / "opencv-left"
+    out = tmp_path / "left.yaml"
+    assert main(["--images", str(folder), "--out", str(out), "--square-size", "0.025",
+                 "--no-report"]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    board = BoardSpec(square_size_m=0.025)
+    found = collect_views(read_photos(photo_files(str(folder))), board)
+    assert (len(found.views), found.seen, found.without_board) == (13, 13, ())
+    calibration = calibrate_views(found.views, found.image_size, board)
+    camera = load_calibration(out)
+    np.testing.assert_array_equal(camera.K, calibration.result.K)
+    np.testing.assert_array_equal(camera.dist.ravel(), calibration.result.dist.ravel())
+    lines = calibration.summary_lines()
+    assert printed[:len(lines)] == lines
+    metadata = calibration.file_metadata()
+    assert fs_value(out, "rms_px") == metadata["rms_px"]
+    assert fs_value(out, "projection_uncertainty_median_px") == \
+        metadata["projection_uncertainty_median_px"]
+    assert metadata["board"] == board.describe() and metadata["view_names"].count(";") == 12
+
+
+def test_sources_the_library_refuses_name_no_flag(tmp_path, board_views):
+    """A video given as photos, photos of two sizes, a folder given as a video: typed
+    errors with a reason, their messages without the command's flags."""
+    from scene3D.calibration.views import ViewSourceError, photo_files, read_frames, read_photos
+
+    video = _write_video(tmp_path / "board.avi", board_views[:2])
+    with pytest.raises(ViewSourceError) as info:
+        photo_files(str(video))
+    assert info.value.reason == "video_not_photos" and "--" not in str(info.value)
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    cv2.imwrite(str(folder / "a.png"), board_views[0])
+    cv2.imwrite(str(folder / "b.png"), cv2.resize(board_views[1], (320, 240)))
+    with pytest.raises(ViewSourceError) as info:
+        list(read_photos(photo_files(str(folder))))
+    assert info.value.reason == "mixed_sizes" and "skip_other_sizes=True" in str(info.value)
+    assert len(list(read_photos(photo_files(str(folder)), skip_other_sizes=True))) == 1
+    with pytest.raises(ViewSourceError) as info:
+        next(read_frames(folder))
+    assert info.value.reason == "folder_not_video" and "--" not in str(info.value)
+    assert [name for name, _ in read_frames(video)] == ["frame 0", "frame 1"]
+
+
 def test_cli_on_awkward_udacity_set(tmp_path, chessboards, capsys):
     folder = str(chessboards / "udacity-lane-9x6")
     assert main(["--images", folder, "--out", str(tmp_path / "u.yaml")]) == 2
@@ -840,14 +891,14 @@ def test_cli_says_when_the_output_folder_goes_away_during_the_work(tmp_path, che
     photos = _photos(tmp_path / "photos", FOUR, chessboards)
     out_dir = tmp_path / "out"
     out_dir.mkdir()
-    solve = command.calibrate
+    solve = command.calibrate_views
 
     def solve_then_lose_the_folder(*args, **kwargs):
         result = solve(*args, **kwargs)
         out_dir.rmdir()  # unmounted, or removed by hand, while the command ran
         return result
 
-    monkeypatch.setattr(command, "calibrate", solve_then_lose_the_folder)
+    monkeypatch.setattr(command, "calibrate_views", solve_then_lose_the_folder)
     assert main(["--images", str(photos), "--out", str(out_dir / "c.yaml")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1] == (f"error: --out '{out_dir / 'c.yaml'}': cannot write in '{out_dir}': "
@@ -939,13 +990,13 @@ def test_a_pattern_finds_photos_at_its_own_depth_only(tmp_path):
     """The check that --out's figures would not land among the photos --images finds
     reads a pattern as glob does: '*' does not reach across a '/' (fnmatch on the whole
     path let 'photos/*' claim 'photos/sub/c_coverage.png' and refused a valid --out)."""
-    from scene3D.cli.calibrate import _read_as_photo
+    from scene3D.io.paths import lists_file
 
     photos = tmp_path / "photos"
-    assert _read_as_photo(photos / "c_coverage.png", f"{photos}/*")
-    assert not _read_as_photo(photos / "sub" / "c_coverage.png", f"{photos}/*")
-    assert not _read_as_photo(tmp_path / "c_coverage.png", f"{photos}*/*")
-    assert _read_as_photo(photos / "a.png", f"{tmp_path}/p*/*.png")
+    assert lists_file(f"{photos}/*", photos / "c_coverage.png")
+    assert not lists_file(f"{photos}/*", photos / "sub" / "c_coverage.png")
+    assert not lists_file(f"{photos}*/*", tmp_path / "c_coverage.png")
+    assert lists_file(f"{tmp_path}/p*/*.png", photos / "a.png")
 
 
 def test_a_bare_matrix_is_told_what_a_calibration_file_needs(tmp_path):

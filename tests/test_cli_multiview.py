@@ -439,3 +439,34 @@ def test_the_failure_message_names_the_suspect_views_and_the_focal_length_called
     assert "a focal length 1.271 times the calibration's" in message
     assert "still after 2 reconstructions" in message and "lens's distortion?" in message
     assert "\n" not in message
+
+
+def test_the_summary_the_command_writes_is_the_librarys_to_dict(fountain, tmp_path):
+    """reconstruction.json is ``MultiViewReconstruction.to_dict()`` with ground truth, but
+    for the command's total time and its list of files; read_strecha_cameras reads the
+    ground truth the command reads."""
+    from scene3D.geometry.camera import adapt_intrinsics_to_size
+    from scene3D.io.calibration import load_calibration
+    from scene3D.io.datasets import read_strecha_cameras
+    from scene3D.io.export import write_json
+    from scene3D.io.images import read_image_size
+
+    paths = [fountain / "images" / f"000{i}.jpg" for i in (3, 4, 5)]
+    truth_folder = fountain / "gt_dense_cameras"
+    out = tmp_path / "out"
+    assert multiview.main([*map(str, paths), "--calib", CALIB, "--ground-truth",
+                           str(truth_folder), "--max-width", "400", "--no-plots",
+                           "--no-report", "--out", str(out), "-q"]) == 0
+    written = json.loads((out / "reconstruction.json").read_text())
+    camera = load_calibration(CALIB)
+    K = adapt_intrinsics_to_size(camera.K, camera.image_size, read_image_size(paths[0]))
+    recon = reconstruct_views(paths, K, camera.dist, max_width=400, feature="sift")
+    assert recon.ok
+    summary = recon.to_dict(ground_truth=read_strecha_cameras(truth_folder, paths))
+    write_json(tmp_path / "library.json", summary)
+    library = json.loads((tmp_path / "library.json").read_text())
+    for entry in (written, library):
+        entry.pop("timings_s")
+    written.pop("files")
+    assert library == written
+    assert written["status"] == "ok" and written["ground_truth"]["max_rotation_error_deg"] < 1

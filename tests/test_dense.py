@@ -43,7 +43,7 @@ def test_a_range_leaving_no_column_a_disparity_is_refused():
         with pytest.raises(ReconstructionError) as info:
             require_searchable_range(lo, hi, 640, offset)
         assert info.value.reason == "no_dense_range"
-        assert f"[{lo}, {hi}) px" in str(info.value) and "without --dense" in str(info.value)
+        assert f"[{lo}, {hi}) px" in str(info.value) and "--" not in str(info.value)
 
 
 def test_range_edges_cut_counts_the_disparities_piled_at_each_edge():
@@ -180,7 +180,7 @@ def test_disparity_against_the_middlebury_ground_truth(chessboards):
     ground-truth disparities are in pixels of these images (0 = unknown)."""
     import cv2
 
-    from scene3D.dense import _sgbm
+    from scene3D.dense import sgbm_matcher
     from scene3D.features import find_matches
 
     folder = chessboards / "opencv-aloe-stereo"
@@ -208,6 +208,6 @@ def test_disparity_against_the_middlebury_ground_truth(chessboards):
     assert density > 0.6 and within_1px > 0.85 and bad < 0.025
     # The left-right and speckle checks keep the bad pixels out: plain SGBM over the
     # same range has more than twice as many.
-    raw = _sgbm(lo, hi - lo, 5).compute(left, right).astype(np.float32) / 16.0
+    raw = sgbm_matcher(lo, hi - lo, 5).compute(left, right).astype(np.float32) / 16.0
     raw[raw < lo] = np.nan
     assert quality(raw)[2] > 2 * bad

@@ -11,19 +11,20 @@ from scene3D.evaluation.synthetic import lens_photo
 from scene3D.features import find_matches
 from scene3D.geometry import pose_angle_deg, project, rotation_about_axis, skew, to_homogeneous
 from scene3D.geometry.camera import scale_intrinsics_halved
+from scene3D.geometry.epipolar import fundamental_derivatives
 from scene3D.io.datasets import read_strecha_camera, relative_pose
 from scene3D.io.images import load_working_image
-from scene3D.optim.refinement import _fundamental_derivatives, _update_pose, refine_relative_pose
-from scene3D.optim.uncertainty import tangent_basis
+from scene3D.optim.refinement import refine_relative_pose
+from scene3D.optim.uncertainty import tangent_basis, update_pose
 from scene3D.selfcalibration import self_calibrate_pair
 from scene3D.twoview import TwoViewSettings, reconstruct_from_matches, reconstruct_two_view
 from scene3D.twoview.distortion_fit import (
     DistortionFit,
-    _observed_sampson,
-    _observed_sampson_jacobian,
-    _undistorted,
     fit_radial_distortion,
+    observed_sampson,
+    observed_sampson_jacobian,
     undistort_division,
+    undistort_homogeneous,
 )
 from scene3D.twoview.trust import distortion_warning
 
@@ -57,15 +58,15 @@ def test_distortion_jacobian_matches_finite_differences(camera, true_pose, k):
     basis = tangent_basis(t)
 
     def sampson_at(x):
-        R_, t_ = _update_pose(R, t, x[:5], basis)
+        R_, t_ = update_pose(R, t, x[:5], basis)
         F = K_inv.T @ skew(t_) @ R_ @ K_inv
-        return _observed_sampson(F, _undistorted(h1, camera, k + x[5]),
-                                 _undistorted(h2, camera, k + x[5]))[0]
+        return observed_sampson(F, undistort_homogeneous(h1, camera, k + x[5]),
+                                undistort_homogeneous(h2, camera, k + x[5]))[0]
 
-    p1, p2 = _undistorted(h1, camera, k), _undistorted(h2, camera, k)
+    p1, p2 = undistort_homogeneous(h1, camera, k), undistort_homogeneous(h2, camera, k)
     F = K_inv.T @ skew(t) @ R @ K_inv
-    J = _observed_sampson_jacobian(F, _fundamental_derivatives(R, t, basis, K_inv), p1, p2,
-                                   _observed_sampson(F, p1, p2)[1])
+    J = observed_sampson_jacobian(F, fundamental_derivatives(R, t, basis, K_inv), p1, p2,
+                                  observed_sampson(F, p1, p2)[1])
     step = 1e-6
     numeric = np.stack([(sampson_at(step * e) - sampson_at(-step * e)) / (2 * step)
                         for e in np.eye(6)], axis=1)

@@ -142,9 +142,9 @@ def test_evaluate_summary_counts_one_pose_in_the_singular(fountain, capsys):
      "flagged; 1 more than 5 deg off not flagged."),
 ])
 def test_evaluate_trust_line_says_pose_for_one(counts, line):
-    from scene3D.cli.evaluate import _trust_line
+    from scene3D.cli.evaluate import trust_line
 
-    assert _trust_line(counts) == line
+    assert trust_line(counts) == line
 
 
 def test_evaluate_refuses_a_pair_of_two_cameras(fountain, tmp_path, capsys):
@@ -166,9 +166,9 @@ def test_evaluate_refuses_a_pair_of_two_cameras(fountain, tmp_path, capsys):
 
 
 def test_evaluate_maps_one_task_per_view_and_one_per_pair(fountain):
-    from scene3D.cli.evaluate import _views, evaluate_pairs
+    from scene3D.cli.evaluate import evaluate_pairs
     from scene3D.engines import LocalEngine
-    from scene3D.io.datasets import read_strecha_camera
+    from scene3D.io.datasets import read_strecha_camera, strecha_views
     from scene3D.twoview import TwoViewSettings
 
     class Recording(LocalEngine):
@@ -184,7 +184,7 @@ def test_evaluate_maps_one_task_per_view_and_one_per_pair(fountain):
             self.shared.append(value)
             return value
 
-    views = _views(fountain)[:4]
+    views = strecha_views(fountain)[:4]
     engine, seen = Recording(), []
     rows = list(evaluate_pairs(engine, [image for image, _ in views],
                                [read_strecha_camera(c) for _, c in views],
@@ -222,11 +222,11 @@ def test_evaluate_bundle_adjusts_when_asked(fountain, capsys, monkeypatch):
 
 
 def test_evaluate_pair_specs():
-    from scene3D.cli.evaluate import _pairs
+    from scene3D.cli.evaluate import pairs_from_specs
 
-    assert _pairs(["consecutive"], 4) == [(0, 1), (1, 2), (2, 3)]
-    assert _pairs(["skip1"], 4) == [(0, 2), (1, 3)]
-    assert _pairs(["skip4", "1-0"], 11) == [(i, i + 5) for i in range(6)] + [(1, 0)]
+    assert pairs_from_specs(["consecutive"], 4) == [(0, 1), (1, 2), (2, 3)]
+    assert pairs_from_specs(["skip1"], 4) == [(0, 2), (1, 3)]
+    assert pairs_from_specs(["skip4", "1-0"], 11) == [(i, i + 5) for i in range(6)] + [(1, 0)]
 
 
 @pytest.mark.parametrize("argv, message", [

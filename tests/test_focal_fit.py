@@ -7,17 +7,18 @@ import pytest
 from scene3D.evaluation import relative_pose_error
 from scene3D.features import find_matches
 from scene3D.geometry import to_homogeneous
-from scene3D.optim.refinement import _sampson, _sampson_jacobian, _update_pose, refine_relative_pose
-from scene3D.optim.uncertainty import tangent_basis
+from scene3D.geometry.epipolar import sampson_jacobian, sampson_residuals_homogeneous
+from scene3D.optim.refinement import refine_relative_pose
+from scene3D.optim.uncertainty import tangent_basis, update_pose
 from scene3D.twoview import reconstruct_two_view
 from scene3D.twoview.focal_fit import (
     COMMON,
     MAX_LOG_SCALE,
     RATIO,
-    _focal_fundamental_derivatives,
-    _scaled_fundamental,
     fit_focal_ratio,
     fit_focal_scale,
+    focal_fundamental_derivatives,
+    scaled_fundamental,
 )
 
 from .helpers import correspondences, perturbed_pose, project, random_points, strecha_pair
@@ -31,13 +32,14 @@ def test_focal_jacobian_matches_finite_differences(camera, true_pose, weights):
     K_inv, log_s = np.linalg.inv(camera), 0.2
 
     def sampson_at(x):
-        R_, t_ = _update_pose(R, t, x[:5], basis)
-        return _sampson(_scaled_fundamental(R_, t_, log_s + x[5], weights, K_inv), h1, h2)
+        R_, t_ = update_pose(R, t, x[:5], basis)
+        F = scaled_fundamental(R_, t_, log_s + x[5], weights, K_inv)
+        return sampson_residuals_homogeneous(F, h1, h2)
 
     basis = tangent_basis(t)
-    J = _sampson_jacobian(_scaled_fundamental(R, t, log_s, weights, K_inv),
-                          _focal_fundamental_derivatives(R, t, log_s, weights, basis, K_inv),
-                          h1, h2)
+    J = sampson_jacobian(scaled_fundamental(R, t, log_s, weights, K_inv),
+                         focal_fundamental_derivatives(R, t, log_s, weights, basis, K_inv),
+                         h1, h2)
     step = 1e-6
     numeric = np.stack([(sampson_at(step * e) - sampson_at(-step * e)) / (2 * step)
                         for e in np.eye(6)], axis=1)
@@ -84,8 +86,8 @@ def test_focal_fit_fundamental_is_the_fitted_geometry(camera, true_pose):
     R, t = true_pose
     _, pts1, pts2 = correspondences(camera, R, t, n=50)
     fit = fit_focal_ratio(R, t, pts1, pts2, camera)
-    distances = np.abs(_sampson(fit.fundamental(camera), to_homogeneous(pts1),
-                                to_homogeneous(pts2)))
+    distances = np.abs(sampson_residuals_homogeneous(fit.fundamental(camera),
+                                                     to_homogeneous(pts1), to_homogeneous(pts2)))
     assert distances.max() < 1e-6
 
 

@@ -312,3 +312,27 @@ def test_a_glob_finds_photos_in_a_folder_whose_name_holds_brackets(tmp_path):
     (tmp_path / "set1" / "c.jpg").write_bytes(b"")
     assert glob_files(f"{tmp_path}/set[0-9]/*.jpg") == [tmp_path / "set1" / "c.jpg"]
     assert glob_files(f"{folder}/*.png") == []
+
+
+def test_files_folders_and_globs_name_images_in_the_order_given(tmp_path):
+    """scene3D.io.paths: a folder's images (sorted, hidden ones left out), a glob's files, a
+    file itself; a spec that names nothing says which folder is missing; lists_file and
+    utf8_name_problem answer for a path that need not exist."""
+    from scene3D.io.paths import image_files, lists_file, utf8_name_problem
+
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    for name in ("b.jpg", "a.jpg", "._a.jpg", "notes.txt"):
+        (folder / name).write_bytes(b"")
+    single = tmp_path / "c.png"
+    single.write_bytes(b"")
+    assert image_files([str(single), str(folder), f"{folder}/b*"]) == [
+        single, folder / "a.jpg", folder / "b.jpg", folder / "b.jpg"]
+    with pytest.raises(FileNotFoundError, match=r"^folder not found: '.*/gone/images' "
+                                                r"\('.*/gone' does not exist\)$"):
+        image_files([str(tmp_path / "gone" / "images")])
+    with pytest.raises(FileNotFoundError, match=r"^no image matches '.*/photos/\*\.png'$"):
+        image_files([f"{folder}/*.png"])
+    assert lists_file(str(folder), folder / "new.png") and not lists_file(str(folder),
+                                                                           folder / "new.txt")
+    assert utf8_name_problem(folder) == ""

@@ -32,7 +32,7 @@ from scene3D.multiview import (
     verify_pair,
 )
 from scene3D.optim.bundle import Observations, bundle_adjust, reprojection_residuals
-from scene3D.optim.schur import _schur_product_dense, _schur_product_sparse
+from scene3D.optim.schur import schur_product_dense, schur_product_sparse
 
 from .conftest import REPO
 from .helpers import scipy_bundle_adjust
@@ -231,19 +231,19 @@ def test_schur_product_sparse_equals_dense():
     V_inv = A @ A.transpose(0, 2, 1) + np.eye(3)
     W = rng.normal(size=(len(camera), 6, 3))
     Y = W @ V_inv[point]
-    dense = _schur_product_dense(Y, W, camera, point, 30)
-    np.testing.assert_allclose(_schur_product_sparse(Y, W, camera, point, 30), dense,
+    dense = schur_product_dense(Y, W, camera, point, 30)
+    np.testing.assert_allclose(schur_product_sparse(Y, W, camera, point, 30), dense,
                                atol=1e-10)
     # Points a chunk at a time (tables of at most 30 x 7 entries): the same sum.
-    np.testing.assert_allclose(_schur_product_sparse(Y, W, camera, point, 30, chunk_entries=210),
+    np.testing.assert_allclose(schur_product_sparse(Y, W, camera, point, 30, chunk_entries=210),
                                dense, atol=1e-10)
     # Point numbers with gaps and cameras that see nothing (30 and 31) change nothing.
-    wider = _schur_product_sparse(Y, W, camera, 3 * point + 1, 32)
+    wider = schur_product_sparse(Y, W, camera, 3 * point + 1, 32)
     np.testing.assert_allclose(wider[:180, :180], dense, atol=1e-10)
     assert not wider[180:].any() and not wider[:, 180:].any()
     # One point's contribution by hand: camera blocks (a, b) get Y_a W_b^T.
     obs = np.flatnonzero(point == 7)
-    S = _schur_product_sparse(Y[obs], W[obs], camera[obs], point[obs], 30)
+    S = schur_product_sparse(Y[obs], W[obs], camera[obs], point[obs], 30)
     a, b = obs[0], obs[1]
     np.testing.assert_allclose(S[6 * camera[a]:6 * camera[a] + 6, 6 * camera[b]:6 * camera[b] + 6],
                                Y[a] @ W[b].T)
@@ -454,8 +454,8 @@ def test_an_unrelated_or_blank_image_is_reported_not_registered(fountain, chessb
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((out / "reconstruction.json").read_text())
     assert summary["feature_requested"] == "surf"
-    assert summary["feature"] == ("SURF" if features._surf_available() else "SIFT")
-    assert proc.stderr.count("SURF is patented") == (0 if features._surf_available() else 1)
+    assert summary["feature"] == ("SURF" if features.surf_available() else "SIFT")
+    assert proc.stderr.count("SURF is patented") == (0 if features.surf_available() else 1)
     # A blank photo has no keypoints at all: it is left out like any other.
     assert sorted(summary["unregistered"]) == ["0005b_board.jpg", "0006b_blank.jpg"]
     assert all(summary["unregistered_reasons"][name] for name in summary["unregistered"])
@@ -900,6 +900,39 @@ def test_a_model_without_points_is_a_failure(fountain, tmp_path, monkeypatch, ca
     assert summary["status"] == "failed" and summary["points"] == 0
     assert summary["models"][0]["status"] == "failed"
     assert summary["models"][0]["check"]["status"] == "ok"  # consistent, but empty
+
+
+def test_the_library_calls_a_model_without_points_a_failure_as_the_command_does(
+        fountain, tmp_path, monkeypatch):
+    """The same two views without points in Python: ``ok`` is False (the command's exit 1),
+    the check itself passed, the summary says 'failed', and the model's folder holds its
+    files (scene3D.io.model_folder)."""
+    from scene3D.io.calibration import load_calibration
+    from scene3D.io.export import read_ply
+    from scene3D.io.model_folder import MODEL_FILES, write_model
+    from scene3D.multiview import reconstruct_views, state
+
+    original = state.GrowingModel.result
+
+    def without_points(self, check):
+        return dataclasses.replace(
+            original(self, check), points3d=np.zeros((0, 3)), colors=np.zeros((0, 3), np.uint8),
+            observations=Observations(np.zeros(0, int), np.zeros(0, int), np.zeros((0, 2))),
+            reprojection_rmse_px=float("nan"))
+
+    monkeypatch.setattr(state.GrowingModel, "result", without_points)
+    camera = load_calibration(REPO / "data" / "fountain_P11_intrinsics.yaml")
+    recon = reconstruct_views([fountain / "images" / f"000{i}.jpg" for i in (4, 5)],
+                              camera.K, camera.dist, max_width=400)
+    assert recon.consistent and recon.thin_models == (0,) and not recon.ok
+    assert recon.min_model_points == SfMSettings().min_model_points == 10
+    summary = recon.to_dict()
+    assert summary["status"] == "failed" and summary["points"] == 0
+    assert summary["models"][0]["status"] == "failed"
+    assert summary["models"][0]["check"]["status"] == "ok"
+    written = write_model(tmp_path / "model", recon, recon.main, figure=False)
+    assert [p.relative_to(tmp_path / "model").as_posix() for p in written] == list(MODEL_FILES)
+    assert len(read_ply(written[0])[0]) == 0
 
 
 def test_a_copy_of_a_photo_under_another_name_is_refused(fountain, tmp_path):

@@ -265,14 +265,14 @@ def test_an_exif_focal_length_is_refined_and_a_wrong_one_overruled(fountain, fou
 
 def test_arrays_without_a_calibration_start_from_the_default_prior():
     from scene3D.multiview import reconstruct_views
-    from scene3D.multiview.pipeline import _focal_prior
+    from scene3D.multiview.pipeline import default_focal_prior
 
-    prior = _focal_prior([np.zeros((480, 640, 3), np.uint8)] * 2, ["a", "b"])
+    prior = default_focal_prior([np.zeros((480, 640, 3), np.uint8)] * 2, ["a", "b"])
     assert prior.source == "prior" and prior.focal_px == pytest.approx(1.2 * 640)
     np.testing.assert_allclose(prior.K[:2, 2], [319.5, 239.5])
     with pytest.raises(ValueError, match="one camera at one size"):
-        _focal_prior([np.zeros((480, 640, 3), np.uint8), np.zeros((400, 640, 3), np.uint8)],
-                     ["a", "b"])
+        default_focal_prior([np.zeros((480, 640, 3), np.uint8),
+                             np.zeros((400, 640, 3), np.uint8)], ["a", "b"])
     with pytest.raises(ValueError, match="`dist` needs `K`"):
         reconstruct_views([np.zeros((480, 640, 3), np.uint8)] * 2, None, np.zeros(5))
 

@@ -3,16 +3,14 @@ import pytest
 
 from scene3D.evaluation import relative_pose_error
 from scene3D.geometry import rotation_about_axis, skew, to_homogeneous
-from scene3D.optim.refinement import (
-    _fundamental_derivatives,
-    _robust_cost,
-    _sampson,
-    _sampson_jacobian,
-    _update_pose,
-    pose_intrinsics_sensitivity,
-    refine_relative_pose,
+from scene3D.geometry.epipolar import (
+    fundamental_derivatives,
+    sampson_jacobian,
+    sampson_residuals_homogeneous,
 )
-from scene3D.optim.uncertainty import rotation_vector, tangent_basis
+from scene3D.optim.least_squares import robust_cost
+from scene3D.optim.refinement import pose_intrinsics_sensitivity, refine_relative_pose
+from scene3D.optim.uncertainty import rotation_vector, tangent_basis, update_pose
 
 from .helpers import correspondences, perturbed_pose
 
@@ -34,14 +32,14 @@ def test_sampson_jacobian_matches_finite_differences(camera, true_pose):
     K_inv = np.linalg.inv(camera)
 
     def sampson_at(R_, t_):
-        return _sampson(K_inv.T @ skew(t_) @ R_ @ K_inv, h1, h2)
+        return sampson_residuals_homogeneous(K_inv.T @ skew(t_) @ R_ @ K_inv, h1, h2)
 
     basis = tangent_basis(t)
-    J = _sampson_jacobian(K_inv.T @ skew(t) @ R @ K_inv,
-                          _fundamental_derivatives(R, t, basis, K_inv), h1, h2)
+    J = sampson_jacobian(K_inv.T @ skew(t) @ R @ K_inv,
+                         fundamental_derivatives(R, t, basis, K_inv), h1, h2)
     step = 1e-6
-    numeric = np.stack([(sampson_at(*_update_pose(R, t, step * e, basis))
-                         - sampson_at(*_update_pose(R, t, -step * e, basis))) / (2 * step)
+    numeric = np.stack([(sampson_at(*update_pose(R, t, step * e, basis))
+                         - sampson_at(*update_pose(R, t, -step * e, basis))) / (2 * step)
                         for e in np.eye(5)], axis=1)
     np.testing.assert_allclose(J, numeric, rtol=1e-5, atol=1e-6 * np.abs(numeric).max())
 
@@ -57,12 +55,13 @@ def test_robust_refinement_ends_at_a_minimum_of_its_cost(camera, true_pose, loss
     h1, h2 = to_homogeneous(pts1), to_homogeneous(pts2)
 
     def cost(R_, t_):
-        return _robust_cost(_sampson(K_inv.T @ skew(t_) @ R_ @ K_inv, h1, h2), loss, 0.5)
+        F = K_inv.T @ skew(t_) @ R_ @ K_inv
+        return robust_cost(sampson_residuals_homogeneous(F, h1, h2), loss, 0.5)
 
     basis = tangent_basis(t1)
     at_result = cost(R1, t1)
     for e in np.vstack([np.eye(5), -np.eye(5)]):
-        assert cost(*_update_pose(R1, t1, 1e-4 * e, basis)) > at_result
+        assert cost(*update_pose(R1, t1, 1e-4 * e, basis)) > at_result
     err = relative_pose_error(R1, t1, R, t)
     assert err.rotation_deg < 0.2 and err.translation_deg < 1.0
 

@@ -1,8 +1,14 @@
 """Camera calibration from views of a chessboard, a ChArUco board or a grid of circles.
 
+- :mod:`scene3D.calibration.views`: the photos or video frames, and the board found in
+  each (the distinct views of a video);
 - :mod:`scene3D.calibration.board`: board detection, the solve, coverage;
 - :mod:`scene3D.calibration.uncertainty`: the covariance of the intrinsics and the
-  projection-uncertainty map.
+  projection-uncertainty map;
+- :mod:`scene3D.calibration.pipeline`: the chain ``scene3d calibrate`` runs (solve,
+  coverage, uncertainty map, warnings) and what the calibration file holds beside ``K``.
+
+``views`` and ``pipeline`` are imported by their own paths.
 
 The calibration file is read and written by :mod:`scene3D.io.calibration`. This package
 replaces the module ``scene3D.calibration`` and re-exports its public names (with

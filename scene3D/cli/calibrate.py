@@ -3,19 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import datetime as dt
-import fnmatch
-import hashlib
 import io
 import json
 import logging
 import os
 import sys
-import warnings
-from collections import Counter
 from collections.abc import Iterator
-from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -25,36 +18,30 @@ from ..calibration.board import (
     MAX_RMS_PX,
     PATTERNS,
     BoardSpec,
-    CalibrationResult,
-    Detection,
     board_size_problem,
-    calibrate,
-    corner_coverage,
-    coverage_warnings,
-    detect_board,
     min_image_side_px,
     save_calibration,
 )
-from ..calibration.uncertainty import (
-    CORNER_LIMIT_PX,
-    UncertaintyMap,
-    format_px,
-    uncertainty_map,
+from ..calibration.pipeline import calibrate_views
+from ..calibration.uncertainty import CORNER_LIMIT_PX
+from ..calibration.views import (
+    FRAMES,
+    MIN_FRAMES,
+    MIN_MOTION,
+    VIDEO_SUFFIXES,  # noqa: F401 (the endings --images refuses; its old path)
+    CollectedViews,
+    ViewSourceError,
+    photo_files,
+    read_frames,
+    read_photos,
 )
+from ..calibration.views import collect_views as collect_board_views
 from ..errors import CalibrationError, plural
 from ..geometry.camera import undistort_image
 from ..io.calibration import CALIBRATION_SUFFIXES
 from ..io.export import all_or_nothing, atomic_write_bytes, atomic_write_pieces
-from ..io.images import (
-    IMAGE_SUFFIXES,
-    folder_images,
-    glob_files,
-    glob_patterns,
-    image_size,
-    is_folder_image,
-    load_bgr,
-    read_image_size,
-)
+from ..io.images import IMAGE_SUFFIXES
+from ..io.paths import lists_file
 from .common import (
     EXIT_OK,
     ArgumentParser,
@@ -67,30 +54,30 @@ from .common import (
     path_arg,
     positive_float,
     require_parent_folder,
-    require_utf8,
     require_writable_folder,
     run_command,
     show_images,
 )
-from .outputs import FILES_KEY, previous_outputs, recorded_files, remove_stale_outputs
+from .outputs import (
+    FILES_KEY,
+    previous_outputs,
+    recorded_files,
+    remove_earlier_files,
+    remove_stale_outputs,
+)
 
 logger = logging.getLogger("scene3D.cli")
 
 
 #: Defaults of the options that only a source or a pattern uses (None in the parser, so
-#: that :func:`_ignored_options` can tell a value that was given).
-FRAMES = 20
-MIN_FRAMES = 3
-MIN_MOTION = 0.05
+#: that :func:`_ignored_options` can tell a value that was given); FRAMES, MIN_FRAMES and
+#: MIN_MOTION are scene3D.calibration.views's.
 DICTIONARY = "DICT_6X6_250"
 #: The record of the undistorted copies a run wrote into --save-undistorted: a JSON object
 #: naming the calibration (``UNDISTORTED_KEY``) and the copies (``FILES_KEY``), so that the
 #: next run into that folder removes those it does not write again, and no file of the user's.
 UNDISTORTED_RECORD = "undistorted.json"
 UNDISTORTED_KEY = "undistorted_with"
-#: Endings of video files, which --images cannot read (--video does).
-VIDEO_SUFFIXES = frozenset({".avi", ".mp4", ".m4v", ".mov", ".mkv", ".webm", ".wmv",
-                            ".mpg", ".mpeg", ".flv", ".3gp", ".mts", ".m2ts"})
 
 
 def _board_size(text: str) -> tuple[int, int]:
@@ -234,127 +221,39 @@ def _ignored_options(args: argparse.Namespace) -> list[str]:
     return notes
 
 
+def _with_flags(exc: ViewSourceError) -> UsageError:
+    """The library's refusal of a source, as the command says it: with the flags."""
+    source = exc.source
+    if exc.reason == "video_not_photos":
+        return UsageError(f"--images '{source}' is a video, not photos; use --video '{source}'")
+    if exc.reason == "finds_video":
+        return UsageError(f"--images '{source}' finds '{exc.details['video']}', a video, not a "
+                          "photo: narrow the pattern to the photos (--video reads a video)")
+    if exc.reason == "mixed_sizes":
+        return UsageError(
+            f"the images have different sizes: {exc.details['sizes']}; one calibration holds "
+            "for one size (--skip-other-sizes keeps the most common)"
+            + ("; some are stored turned by 90 degrees (their pixels are read as stored, "
+               "whatever their EXIF orientation says)" if exc.details["turned"] else ""))
+    if exc.reason == "folder_not_video":
+        return UsageError(f"--video '{source}' is a folder, not a video file (--images takes "
+                          "a folder of photos)")
+    return UsageError(str(exc))
+
+
 def _image_files(spec: str) -> list[Path]:
-    path = Path(spec)
-    if path.is_dir():
-        files = folder_images(path)
-    else:
-        files = glob_files(spec)
-    if not files:
-        raise UsageError(f"no images found in '{spec}'")
-    videos = [p for p in files if p.suffix.lower() in VIDEO_SUFFIXES]
-    if videos and Path(spec).is_file():  # named, not matched by a pattern
-        raise UsageError(f"--images '{spec}' is a video, not photos; use --video '{spec}'")
-    if videos:
-        raise UsageError(f"--images '{spec}' finds '{videos[0]}', a video, not a photo: "
-                         "narrow the pattern to the photos (--video reads a video)")
-    for path in files:
-        require_utf8(path)
-    return files
-
-
-def _photos(args: argparse.Namespace) -> Iterator[tuple[str, np.ndarray]]:
-    """The photos, one at a time: sizes come from the file headers first, so that a
-    folder of large photos is never held in memory at once."""
-    files = _image_files(args.images)
-    sizes = {path: read_image_size(path) for path in files}
-    counts = Counter(sizes.values())
-    if len(counts) > 1:
-        listing = ", ".join(f"{w}x{h} ({n})" for (w, h), n in counts.most_common())
-        turned = any((h, w) in counts for w, h in counts if w != h)
-        if not args.skip_other_sizes:
-            raise UsageError(
-                f"the images have different sizes: {listing}; one calibration holds for one "
-                "size (--skip-other-sizes keeps the most common)"
-                + ("; some are stored turned by 90 degrees (their pixels are read as stored, "
-                   "whatever their EXIF orientation says)" if turned else ""))
-        keep = counts.most_common(1)[0][0]
-        skipped = [path.name for path in files if sizes[path] != keep]
-        logger.warning("skipping %d image(s) not %dx%d: %s", len(skipped), *keep,
-                       ", ".join(skipped))
-        files = [path for path in files if sizes[path] == keep]
-    _check_distinct_files(files)
-    by_pixels: dict[bytes, Path] = {}
-    for path in files:
-        img = load_bgr(path)
-        digest = hashlib.blake2b(img.tobytes(), digest_size=16)
-        digest.update(repr(img.shape).encode())
-        first = by_pixels.setdefault(digest.digest(), path)
-        if first != path:  # e.g. one photo saved again as PNG
-            raise UsageError(f"photo given twice: '{first}' and '{path}' (the same pixels)")
-        yield path.name, img
-
-
-def _check_distinct_files(files: list[Path]) -> None:
-    """Raise :class:`UsageError` when one photo is given twice (a link to it, a copy):
-    a view counted twice drags the calibration towards it (fx 935 px instead of 533
-    from four links to one of OpenCV's left*.jpg)."""
-    by_content: dict[bytes, Path] = {}
-    for path in files:
-        digest = hashlib.blake2b(path.read_bytes(), digest_size=16).digest()
-        first = by_content.setdefault(digest, path)
-        if first != path:
-            raise UsageError(f"photo given twice: '{first}' and '{path}'")
-
-
-def _frames(args: argparse.Namespace) -> Iterator[tuple[str, np.ndarray]]:
-    if args.video is not None:
-        if args.video.is_dir():
-            raise UsageError(f"--video '{args.video}' is a folder, not a video file "
-                             "(--images takes a folder of photos)")
-        if not args.video.is_file():
-            raise FileNotFoundError(f"video not found: '{args.video}'")
-        capture, what = cv2.VideoCapture(str(args.video)), f"video '{args.video}'"
-    else:
-        if args.camera >= 2**31:  # OpenCV takes a C int, and raises on more
-            raise UsageError(f"cannot open camera {args.camera}: no such camera index")
-        capture, what = cv2.VideoCapture(args.camera), f"camera {args.camera}"
-    if not capture.isOpened():
-        raise UsageError(f"cannot open {what}")
-    index = 0
+    """The photos ``--images`` names (:func:`scene3D.calibration.views.photo_files`)."""
     try:
-        while True:
-            ok, frame = capture.read()
-            if not ok:
-                return
-            yield f"frame {index}", frame
-            index += 1
-    finally:
-        capture.release()
+        return photo_files(spec)
+    except ViewSourceError as exc:
+        raise _with_flags(exc) from None
 
 
-def _is_distinct(det: Detection, kept: list[Detection], min_motion_px: float) -> bool:
-    for other in kept:
-        if other.image_points.shape == det.image_points.shape:
-            motion = np.linalg.norm(other.image_points - det.image_points, axis=1).mean()
-            if motion < min_motion_px:
-                return False
-    return True
-
-
-@dataclass(frozen=True)
-class CollectedViews:
-    """What :func:`collect_views` found.
-
-    Attributes
-    ----------
-    views : list of Detection
-    images : list of (H, W, 3) uint8
-        The images of ``views`` (only with ``keep_images``, otherwise empty).
-    image_size : tuple[int, int]
-        (width, height) of every view.
-    seen : int
-        Photos or frames read.
-    not_distinct : int
-        Video/webcam frames with the board that were dropped because its corners had
-        moved less than ``--min-motion`` from a view already kept.
-    """
-
-    views: list[Detection]
-    images: list[np.ndarray]
-    image_size: tuple[int, int]
-    seen: int
-    not_distinct: int = 0
+def _source(args: argparse.Namespace) -> Iterator[tuple[str, np.ndarray]]:
+    """The photos of ``--images`` or the frames of ``--video`` / ``--camera``."""
+    if args.images is not None:
+        return read_photos(_image_files(args.images), args.skip_other_sizes)
+    return read_frames(args.video if args.video is not None else args.camera)
 
 
 def with_stream_defaults(args: argparse.Namespace) -> argparse.Namespace:
@@ -369,99 +268,37 @@ def with_stream_defaults(args: argparse.Namespace) -> argparse.Namespace:
 
 def collect_views(args: argparse.Namespace, board: BoardSpec, keep_images: bool = False
                   ) -> CollectedViews:
-    """Detect the board in every photo, or in video frames until ``--frames`` distinct views.
-
-    Only one image at a time is in memory unless ``keep_images``.
-    """
+    """The views of the command's source (:func:`scene3D.calibration.views.collect_views`),
+    with its progress on stderr (not with ``-q``) and its warnings: a stream that ended
+    before ``--frames`` views, photos without the board."""
     args = with_stream_defaults(args)
     from_stream = args.images is None
-    source = _frames(args) if from_stream else _photos(args)
-    views: list[Detection] = []
-    images: list[np.ndarray] = []
-    size, seen, without_board, not_distinct = None, 0, [], 0
-    for name, img in source:
-        seen += 1
-        if size is None:
-            size = image_size(img)
-        elif image_size(img) != size:
-            raise UsageError(f"'{name}' is {image_size(img)}, not {size} like the first view")
-        det = detect_board(img, board, name)
-        if det is None:
-            logger.info("%s: board not found", name)
-            without_board.append(name)
-            continue
-        if from_stream:
-            min_motion = args.min_motion * float(np.hypot(*size))
-            if not _is_distinct(det, views, min_motion):
-                not_distinct += 1
-                continue
-            if not args.quiet:  # -q: only errors on stderr
-                print(f"view {len(views) + 1}/{args.frames} from {name}", file=sys.stderr)
-        else:
-            logger.info("%s: %d corners (%s)", name, len(det.image_points), det.method)
-        views.append(det)
-        if keep_images:
-            images.append(img)
-        if from_stream and len(views) >= args.frames:
-            break
-    if size is None:
-        raise UsageError("the source gave no images")
-    if len(views) >= 3:  # fewer is an error that gives the counts
-        if from_stream and len(views) < args.frames:
+
+    def progress(message: str) -> None:
+        if not args.quiet:  # -q: only errors on stderr
+            print(message, file=sys.stderr)
+
+    try:
+        found = collect_board_views(_source(args), board,
+                                    frames=args.frames if from_stream else None,
+                                    min_motion=args.min_motion, keep_images=keep_images,
+                                    progress=progress)
+    except ViewSourceError as exc:
+        raise _with_flags(exc) from None
+    if len(found.views) >= 3:  # fewer is an error that gives the counts
+        if found.ended_early:
             logger.warning("the %s ended after %d frames with %d of the %d distinct views "
                            "asked for (--frames); calibrating on those", _stream_kind(args),
-                           seen, len(views), args.frames)
-        elif not from_stream and without_board:
+                           found.seen, len(found.views), args.frames)
+        elif not from_stream and found.without_board:
             logger.warning("the board was not found in %d of the %d photos, left out: %s",
-                           len(without_board), seen, ", ".join(without_board))
-    return CollectedViews(views, images, size, seen, not_distinct)
+                           len(found.without_board), found.seen,
+                           ", ".join(found.without_board))
+    return found
 
 
 def _stream_kind(args: argparse.Namespace) -> str:
     return "video" if args.video is not None else "camera stream"
-
-
-def _result_lines(result: CalibrationResult, umap: UncertaintyMap) -> list[str]:
-    """What the command prints (also the head of the report)."""
-    K, d, std = result.K, result.dist, result.std_intrinsics
-    lines = [
-        f"RMS reprojection error: {result.rms_px:.4f} px over {len(result.per_view_errors_px)} "
-        f"views ({result.image_size[0]}x{result.image_size[1]}, {result.board.describe()})",
-        f"fx = {K[0, 0]:.3f} +- {std['fx']:.3f}   fy = {K[1, 1]:.3f} +- {std['fy']:.3f}",
-        f"cx = {K[0, 2]:.3f} +- {std['cx']:.3f}   cy = {K[1, 2]:.3f} +- {std['cy']:.3f}",
-        "distortion: " + ", ".join(
-            f"{n} = {v:+.5f} +- {std.get(n, float('nan')):.5f}"
-            for n, v in zip(("k1", "k2", "p1", "p2", "k3"), d)),
-        "per-view RMS (px): " + ", ".join(
-            f"{n} {e:.3f}" for n, e in result.per_view_errors_px.items()),
-    ]
-    if result.rejected_views:
-        lines.append("dropped as outliers (> 3x median error): " + ", ".join(
-            f"{n} ({e:.2f} px)" for n, e in result.rejected_views.items()))
-    corners = ", ".join(format_px(v) for v in umap.corners_px.values())
-    lines.append(f"projection uncertainty (1 sigma): median {format_px(umap.median_px)}, worst "
-                 f"{format_px(umap.worst_px)}, centre {format_px(umap.centre_px)}, corners "
-                 f"{corners}" + (f"; no ray reaches {umap.unreachable_share:.1%} of the image"
-                                 if umap.unreachable_share else ""))
-    return lines
-
-
-def _report_numbers(result: CalibrationResult) -> dict:
-    """The named values of the report's table."""
-    std = result.std_intrinsics
-    numbers: dict = {"image size": f"{result.image_size[0]}x{result.image_size[1]}",
-                     "board": result.board.describe(),
-                     "views kept": len(result.per_view_errors_px),
-                     "views dropped": len(result.rejected_views),
-                     "RMS reprojection error (px)": result.rms_px}
-    if result.covariance is not None:
-        numbers["corner noise, 1 sigma per coordinate (px)"] = \
-            result.covariance.residual_sigma_px
-    for name, (i, j) in {"fx": (0, 0), "fy": (1, 1), "cx": (0, 2), "cy": (1, 2)}.items():
-        numbers[f"{name} (px)"] = f"{result.K[i, j]:.3f} +- {std[name]:.3f}"
-    for name, value in zip(("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"), result.dist):
-        numbers[name] = f"{value:+.5f} +- {std.get(name, float('nan')):.5f}"
-    return numbers
 
 
 def _png(fig) -> bytes:
@@ -526,25 +363,6 @@ def _earlier_copies(args: argparse.Namespace) -> list[Path]:
     return previous_outputs(target, UNDISTORTED_RECORD, UNDISTORTED_KEY, "--save-undistorted")
 
 
-def _read_as_photo(path: Path, spec: str) -> bool:
-    """Would ``--images spec`` (a folder or a glob) list the file ``path``?"""
-    if Path(spec).is_dir():
-        return path.parent.resolve() == Path(spec).resolve() and is_folder_image(path)
-    return any(_glob_matches(name, pattern)
-               for glob_pattern in glob_patterns(spec)
-               for name, pattern in (
-                   (os.path.normpath(path), os.path.normpath(glob_pattern)),
-                   (os.path.abspath(path), os.path.abspath(glob_pattern))))
-
-
-def _glob_matches(name: str, pattern: str) -> bool:
-    """Whether glob ``pattern`` matches the path ``name``, component by component (as
-    ``glob`` does: ``*`` does not reach across a '/', unlike ``fnmatch`` on whole paths)."""
-    names, patterns = Path(name).parts, Path(pattern).parts
-    return len(names) == len(patterns) and all(
-        fnmatch.fnmatch(n, q) for n, q in zip(names, patterns))
-
-
 def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:
     """Refuse, before any work, outputs that could not be written or would overwrite files."""
     out = args.out
@@ -570,7 +388,7 @@ def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:
     require_parent_folder(out, "--out")
     require_writable_folder(out.parent, f"--out '{out}': cannot write in '{out.parent}'")
     if args.images is not None:
-        read_back = [p.name for p in outputs if _read_as_photo(p, args.images)]
+        read_back = [p.name for p in outputs if lists_file(args.images, p)]
         if read_back:
             raise UsageError(f"--out '{out}' puts {', '.join(read_back)} where --images "
                              "finds the photos: the next run would take them for photos; "
@@ -599,16 +417,6 @@ def _check_outputs(args: argparse.Namespace, outputs: list[Path]) -> None:
             # Their undistorted copies (NAME.png) could replace the photos themselves.
             raise UsageError(f"--save-undistorted '{target}' is the folder of the photos; "
                              "choose another folder for their undistorted copies")
-
-
-@contextmanager
-def _no_glyph_warnings() -> Iterator[None]:
-    """Silence matplotlib's "Glyph ... missing from font(s)" warnings: a view name in a
-    script the font lacks is drawn as boxes, and said twice per character on stderr."""
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=r"Glyph \d+ .*missing from",
-                                category=UserWarning)
-        yield
 
 
 def _too_few_views(args: argparse.Namespace, board: BoardSpec, found: CollectedViews) -> str:
@@ -641,23 +449,6 @@ def _too_few_views(args: argparse.Namespace, board: BoardSpec, found: CollectedV
             + hint)
 
 
-def _remove_earlier(paths: list[Path]) -> list[Path]:
-    """Remove ``paths`` (:func:`_not_written_again`) once the new files are in place;
-    return those removed. One that cannot be removed is named in a warning."""
-    removed = []
-    for path in paths:
-        try:
-            path.unlink()
-        except FileNotFoundError:
-            continue
-        except OSError as exc:
-            logger.warning("could not remove '%s' of an earlier run: %s", path,
-                           exc.strerror or exc)
-            continue
-        removed.append(path)
-    return removed
-
-
 def _max_rms_hint(board: BoardSpec, rms_px: float | None) -> str:
     """What to check when the RMS error ``rms_px`` is above ``--max-rms``: up to
     :data:`MAX_RMS_PX` (the default limit) it is what the right board gives, and only a
@@ -686,38 +477,27 @@ def run(args: argparse.Namespace) -> int:
     if len(views) < 3:
         raise UsageError(_too_few_views(args, board, found))
     try:
-        result = calibrate(views, size, board, reject_outliers=not args.no_reject,
-                           max_rms_px=args.max_rms)
+        calibration = calibrate_views(views, size, board, reject_outliers=not args.no_reject,
+                                      max_rms_px=args.max_rms,
+                                      uncertainty_limit_px=args.uncertainty_limit)
     except CalibrationError as exc:
         if exc.reason != "corners_do_not_fit":
             raise
         raise CalibrationError(f"{exc} (--max-rms); {_max_rms_hint(board, exc.rms_px)}",
                                exc.reason, exc.rms_px) from None
-    kept = [v for v in views if v.name in result.per_view_errors_px]
-    counts = corner_coverage([v.image_points for v in kept], size)
-    if result.covariance is None:
-        raise CalibrationError("no covariance of the intrinsics: the projection uncertainty "
-                               "cannot be computed")
-    umap = uncertainty_map(result.K, result.dist, result.covariance, size,
-                           limit_px=args.uncertainty_limit)
-    advice = coverage_warnings(counts) + umap.warnings
+    result, kept, counts = calibration.result, calibration.views, calibration.coverage
+    umap, advice = calibration.uncertainty, list(calibration.warnings)
     for w in advice:
         logger.warning("%s", w)
 
-    from ..viz.plotting import plot_calibration_coverage, plot_uncertainty_map, plot_view_errors
+    from ..viz.plotting import (
+        plot_calibration_coverage,
+        plot_uncertainty_map,
+        plot_view_errors,
+        quiet_missing_glyphs,
+    )
 
-    extras = {
-        "rms_px": result.rms_px,
-        "per_view_errors": np.array(list(result.per_view_errors_px.values())).reshape(1, -1),
-        "view_names": ";".join(result.per_view_errors_px),
-        "std_intrinsics": np.array([result.std_intrinsics[k] for k in ("fx", "fy", "cx", "cy")]
-                                   ).reshape(1, -1),
-        "projection_uncertainty_median_px": umap.median_px,
-        "projection_uncertainty_worst_px": umap.worst_px,
-        "board": board.describe(),
-        "square_size_m": board.square_size_m,
-        "calibration_date": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
-    }
+    extras = calibration.file_metadata()
     undistorted, earlier_copies = [], _earlier_copies(args)
     if args.save_undistorted is not None:
         names = [Path(v.name).stem for v in views]
@@ -730,7 +510,7 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"'{existing[0]}' exists; use --force to overwrite it")
 
     # Everything in memory first; the files are written once all of it exists.
-    with _no_glyph_warnings():
+    with quiet_missing_glyphs():
         figures = {
             outputs[1].name: _png(plot_calibration_coverage([v.image_points for v in kept],
                                                             size, counts)),
@@ -738,12 +518,12 @@ def run(args: argparse.Namespace) -> int:
                                                    result.rejected_views)),
             outputs[3].name: _png(plot_uncertainty_map(umap)),
         }
-    lines = _result_lines(result, umap)
+    lines = calibration.summary_lines()
     report = None
     if not args.no_report:
         from ..report import calibration_report
 
-        report = calibration_report(lines, _report_numbers(result), result.per_view_errors_px,
+        report = calibration_report(lines, calibration.report_numbers(), result.per_view_errors_px,
                                     result.rejected_views, advice, umap, figures)
 
     # The folder may have gone read-only (or away) during the work: say so in one line.
@@ -765,7 +545,7 @@ def run(args: argparse.Namespace) -> int:
                       FILES_KEY: recorded_files(args.save_undistorted, undistorted)}
             written.append(atomic_write_bytes(args.save_undistorted / UNDISTORTED_RECORD,
                                               json.dumps(record, indent=2).encode()))
-    removed = _remove_earlier(_not_written_again(args))
+    removed = remove_earlier_files(_not_written_again(args))
     if args.save_undistorted is not None:  # an earlier run's copies not written again
         removed += remove_stale_outputs(args.save_undistorted, earlier_copies, written)
     if not args.quiet:
@@ -775,7 +555,7 @@ def run(args: argparse.Namespace) -> int:
     for path in removed:
         print(f"Removed '{path}' (an earlier run's, not written again)")
     if args.show:
-        with _no_glyph_warnings():
+        with quiet_missing_glyphs():
             show_images(written[1:4])
     return EXIT_OK
 

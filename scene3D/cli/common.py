@@ -33,6 +33,24 @@ EXIT_OK = 0
 EXIT_FAILED = 1  # valid input, but the reconstruction / calibration failed
 EXIT_USAGE = 2  # bad usage or bad input
 
+#: What a command adds to a library error that a flag avoids: ``(error type, reason) ->
+#: suffix``. The library's messages name no flag (a notebook user typed none); the commands
+#: print them with the flag that would have avoided the failure.
+FLAG_HINTS: dict[tuple[type, str], str] = {
+    (ReconstructionError, "no_dense_range"): " (run without --dense)",
+    (ReconstructionError, "no_dense_points"): " (run without --dense)",
+    (EngineError, "no_workers"): ", or run without --scheduler",
+}
+
+
+def with_flag_hint(exc: BaseException) -> str:
+    """``str(exc)``, followed by the flag that avoids it (:data:`FLAG_HINTS`), if any."""
+    reason = getattr(exc, "reason", None)
+    hint = next((suffix for (kind, why), suffix in FLAG_HINTS.items()
+                 if isinstance(exc, kind) and why == reason), "")
+    return f"{exc}{hint}"
+
+
 #: ``--workers`` takes at most this many worker processes per core of the machine.
 MAX_WORKERS_PER_CORE = 4
 
@@ -70,11 +88,11 @@ def path_arg(text: str) -> Path:
 def require_utf8(path: Path) -> None:
     """Raise :class:`UsageError` when ``path`` is not valid UTF-8 (bytes of another
     system's encoding): OpenCV, JSON and the reports cannot carry its name."""
-    try:
-        str(path).encode("utf-8")
-    except UnicodeEncodeError:
-        raise UsageError(f"the name {str(path)!r} is not valid UTF-8 (from another system?): "
-                         "rename it") from None
+    from ..io.paths import utf8_name_problem  # OpenCV only when a path is given
+
+    problem = utf8_name_problem(path)
+    if problem:
+        raise UsageError(problem)
 
 
 def _number(text: str, kind: type, name: str) -> float:
@@ -174,7 +192,8 @@ def check_report_viewer() -> None:
     try:
         plotly_js_path()
     except MissingViewerError as exc:
-        raise UsageError(str(exc)) from None
+        hint = ", or use --no-report" if exc.reason == "no_plotly" else ""
+        raise UsageError(f"{exc}{hint}") from None
 
 
 def add_common_args(parser: argparse.ArgumentParser,
@@ -444,7 +463,7 @@ def _exit_code(args: argparse.Namespace, body: Callable[[argparse.Namespace], in
     except (ReconstructionError, CalibrationError, EngineError) as exc:
         if args.debug:
             raise
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {with_flag_hint(exc)}", file=sys.stderr)
         return EXIT_FAILED
     except (UsageError, DatasetError, FileNotFoundError, FileExistsError, ValueError,
             OSError) as exc:

@@ -103,7 +103,7 @@ def _views(dataset: Path) -> list[tuple[Path, Path]]:
         raise UsageError(str(exc)) from None
 
 
-def _pairs(specs: list[str], count: int) -> list[tuple[int, int]]:
+def pairs_from_specs(specs: list[str], count: int) -> list[tuple[int, int]]:
     """The index pairs that ``specs`` select, in order; a pair selected twice (``4-5 4-5``,
     or ``consecutive 4-5``) is refused: it would count twice in the summary."""
     pairs: list[tuple[int, int]] = []
@@ -366,7 +366,7 @@ def _csv_text(rows: list[dict]) -> str:
 def run(args: argparse.Namespace) -> int:
     _check_csv_target(args.csv, args.force)
     views = _views(args.dataset)
-    pairs = _pairs(args.pairs, len(views))
+    pairs = pairs_from_specs(args.pairs, len(views))
     cameras = [read_strecha_camera(cam) for _, cam in views]
     rows = []
     with open_engine(args) as engine:
@@ -408,7 +408,7 @@ def run(args: argparse.Namespace) -> int:
           f"flagged {int(stats['flagged'])}, wrong and unflagged {int(stats['wrong_unflagged'])}"
           + (f"; the matches' focal length: median {float(np.median(fitted)):.3f} times the "
              "camera files'" if fitted else ""))
-    print(_trust_line(stats))
+    print(trust_line(stats))
     if calibration["pairs"]:
         print(f"Sigma calibration: {calibration['rotation_within90']:.0%} of the rotation errors "
               f"and {calibration['translation_within90']:.0%} of the translation-direction "
@@ -424,7 +424,7 @@ def run(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _trust_line(stats: dict[str, float]) -> str:
+def trust_line(stats: dict[str, float]) -> str:
     """The summary's line on the flags: right poses flagged, poses off and flagged."""
     return (f"Trust: {plural(int(stats['right_flagged']), 'right pose')} "
             f"(< 1 deg) flagged; {int(stats['off2_flagged'])} of "

@@ -12,23 +12,17 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import plural
-from ..evaluation.poses import camera_set_error
-from ..features.matching import FEATURE_MODES, resolve_feature_mode
+from ..features.matching import FEATURE_MODES
 from ..geometry.camera import adapt_intrinsics_to_size
 from ..geometry.lens import CAMERA_MODELS
 from ..io.calibration import load_calibration
-from ..io.colmap import cameras_json, write_colmap_text
-from ..io.datasets import StrechaCamera, read_strecha_camera
-from ..io.export import (
-    all_or_nothing,
-    colmap_image_name,
-    save_figure,
-    write_json,
-    write_ply,
-    written_bytes,
-)
-from ..io.images import BOOK_MAX_WIDTH_PX, folder_images, glob_files, read_image_size
+from ..io.datasets import CameraFilesError, StrechaCamera, read_strecha_cameras
+from ..io.export import all_or_nothing, colmap_image_name, write_json, written_bytes
+from ..io.images import BOOK_MAX_WIDTH_PX, read_image_size
+from ..io.model_folder import MODEL_FIGURE, MODEL_FILES, model_folder_name
+from ..io.model_folder import write_model as write_model_folder
 from ..io.nerfstudio import write_nerfstudio
+from ..io.paths import image_files
 from ..multiview import (
     PAIR_MODES,
     FocalEstimate,
@@ -37,6 +31,7 @@ from ..multiview import (
     SfMSettings,
     reconstruct_views,
 )
+from ..multiview.summary import CALIBRATION_QUESTION
 from .common import (
     EXIT_FAILED,
     EXIT_OK,
@@ -63,9 +58,8 @@ logger = logging.getLogger("scene3D.cli")
 
 REPORT_FILE = "report.html"
 
-#: A model with fewer points than this is a failure, not a result: its cameras rest on
-#: (almost) nothing (a two-view start alone triangulates dozens).
-MIN_MODEL_POINTS = 10
+#: A model with fewer points than this is a failure (``SfMSettings.min_model_points``).
+MIN_MODEL_POINTS = SfMSettings.min_model_points
 
 #: What --export can write, and nerfstudio's file in a model's folder.
 EXPORT_FORMATS = ("nerfstudio",)
@@ -166,49 +160,15 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
 
 
 def image_paths(specs: list[str]) -> list[Path]:
-    """Files, folders (their images, sorted; hidden names starting with '.', such as
-    macOS's ``._IMG.jpg``, left out) and globs, in the order given; refused
-    (:class:`UsageError`) when one file comes twice or two share a name."""
-    paths: list[Path] = []
-    for spec in specs:
-        p = Path(spec)
-        if p.is_dir():
-            paths += folder_images(p)
-        elif p.is_file():
-            paths.append(p)
-        else:
-            matched = glob_files(spec)
-            if not matched:
-                raise FileNotFoundError(_nothing_at(spec))
-            paths += matched
+    """Files, folders and globs in the order given (:func:`scene3D.io.paths.image_files`);
+    refused (:class:`UsageError`) when fewer than two, one file comes twice or two share a
+    name."""
+    paths = image_files(specs)
     if len(paths) < 2:
         raise UsageError(f"need at least two images, got {len(paths)}")
     check_image_paths(paths)
     check_view_names(paths)
     return paths
-
-
-def _nothing_at(spec: str) -> str:
-    """Why ``spec`` (neither a file nor a folder) gives no image: a missing folder or image
-    named as such (with the first missing folder on the way, as an unset variable in
-    ``$DATA/images`` leaves), else a glob that matches nothing."""
-    from ..io.images import IMAGE_SUFFIXES
-
-    def missing(path: Path) -> str:
-        first = next((a for a in reversed(path.parents) if not a.exists()), path)
-        return f" ('{first}' does not exist)" if first != path else ""
-
-    def is_glob(text: str) -> bool:  # as glob.has_magic
-        return any(c in text for c in "*?[")
-
-    path = Path(spec)
-    if not is_glob(spec):
-        what = "image" if path.suffix.lower() in IMAGE_SUFFIXES else "folder"
-        return f"{what} not found: '{spec}'{missing(path)}"
-    folder = path.parent
-    if not is_glob(str(folder)) and not folder.is_dir():
-        return f"no image matches '{spec}': folder not found: '{folder}'{missing(folder)}"
-    return f"no image matches '{spec}'"
 
 
 def check_view_names(paths: list[Path]) -> None:
@@ -249,57 +209,13 @@ def check_out_folder(out: Path, paths: list[Path]) -> None:
 
 def read_ground_truth(folder: Path, paths: list[Path]) -> list[StrechaCamera]:
     """The Strecha camera of every photo (``folder/NAME.camera``), read and checked
-    before any work: a missing or invalid file, or one for images of another aspect ratio
-    than its photo's (a photo stored turned, a cropped one), is a one-line input error."""
-    if not folder.is_dir():
-        raise UsageError(f"--ground-truth '{folder}' is not a folder")
-    cameras = []
-    for photo in paths:
-        path = folder / f"{photo.name}.camera"
-        if not path.is_file():
-            raise UsageError(f"--ground-truth '{folder}' has no camera file for "
-                             f"'{photo.name}' (expected '{path}')")
-        camera = read_strecha_camera(path)
-        try:
-            adapt_intrinsics_to_size(camera.K, camera.image_size, read_image_size(photo),
-                                     what="its camera file")
-        except ValueError as exc:
-            raise UsageError(f"--ground-truth '{path}' does not describe '{photo}': "
-                             f"{exc}") from None
-        cameras.append(camera)
-    return cameras
-
-
-def evaluate_against(cameras: list[StrechaCamera], names: list[str], model: SfMModel,
-                     K: np.ndarray | None = None, image_size: tuple[int, int] | None = None
-                     ) -> dict:
-    """Camera errors of a model's views against Strecha ground truth (``cameras``, one per
-    view: :func:`read_ground_truth`); with the model's self-calibrated ``K`` (working
-    images of ``image_size``) also its focal error against the camera files'
-    (``sqrt(fx fy)``, scaled to the working width)."""
-    reg = [i for i in range(len(names)) if model.registered[i]]
-    truth = [cameras[i] for i in reg]
-    err = camera_set_error(model.R[reg], model.centers[reg], np.array([c.R for c in truth]),
-                           np.array([c.center for c in truth]))
-    focal = {}
-    if K is not None and image_size is not None:
-        c = truth[0]
-        true_focal = float(np.sqrt(c.K[0, 0] * c.K[1, 1]) * image_size[0] / c.image_size[0])
-        focal = {"true_focal_px": true_focal, "focal_error_fraction": K[0, 0] / true_focal - 1}
-    return {**focal,
-        "views": [names[i] for i in reg],
-        "center_error_fraction_of_extent": err.center_errors,
-        "rotation_error_deg": err.rotation_errors_deg,
-        "max_center_error_fraction": float(err.center_errors.max()),
-        "median_center_error_fraction": float(np.median(err.center_errors)),
-        "max_rotation_error_deg": float(err.rotation_errors_deg.max()),
-        "median_rotation_error_deg": float(np.median(err.rotation_errors_deg)),
-    }
-
-
-#: What to ask when the views refute the calibration's focal length.
-_CALIBRATION_QUESTION = ("is the calibration for this camera, lens and zoom, with the lens's "
-                         "distortion?")
+    before any work (:func:`scene3D.io.datasets.read_strecha_cameras`): a missing or invalid
+    file, or one for images of another aspect ratio than its photo's, is a one-line input
+    error that names ``--ground-truth``."""
+    try:
+        return read_strecha_cameras(folder, paths)
+    except CameraFilesError as exc:
+        raise UsageError(f"--ground-truth '{exc.path}' {exc.problem}") from None
 
 
 def _failure_message(recon: MultiViewReconstruction, names: list[str]) -> str:
@@ -314,34 +230,9 @@ def _failure_message(recon: MultiViewReconstruction, names: list[str]) -> str:
                  "length they called for" if refits else "")
         why.append(f"the views fit a focal length {scale:.3f} times the calibration's "
                    f"(+-{scale * check.focal_scale_sigma_log:.2g}){after}: "
-                   f"{_CALIBRATION_QUESTION}")
+                   f"{CALIBRATION_QUESTION}")
     return (f"the reconstruction failed its consistency check: {'; '.join(why)} "
             "(see reconstruction.json; the files are written for inspection only)")
-
-
-def _refit_warnings(recon: MultiViewReconstruction) -> list[str]:
-    """What to say when the views refuted the calibration's focal length (none else)."""
-    if not recon.focal_refits:
-        return []
-    steps = (" (" + ", then ".join(f"{f:.3f}" for f in recon.focal_refits) + ")"
-             if len(recon.focal_refits) > 1 else "")
-    return [f"the views refuted the calibration's focal length: they were reconstructed "
-            f"with the one they called for, {recon.focal_refit_scale:.3f} times it"
-            f"{steps}, K in reconstruction.json; {_CALIBRATION_QUESTION}"]
-
-
-def check_summary(model: SfMModel, names: list[str]) -> dict:
-    check = model.check
-    return {
-        "status": "ok" if check.ok else "failed",
-        "pairs_checked": check.pairs_checked,
-        "inconsistent_pairs": [{"views": [names[i], names[j]], "median_epipolar_px": r}
-                               for i, j, r in check.inconsistent_pairs],
-        "suspect_views": [names[v] for v in check.suspect_views],
-        **({"focal_scale": check.focal_scale,
-            "focal_scale_sigma": check.focal_scale * check.focal_scale_sigma_log}
-           if np.isfinite(check.focal_scale_sigma_log) else {}),
-    }
 
 
 def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, summary: dict,
@@ -440,51 +331,15 @@ def _run_warnings(recon: MultiViewReconstruction, models: list[dict], summary: d
     return warnings + list(summary["warnings"])
 
 
-#: The files of a model in its folder (--out for the first), and its figure.
-MODEL_FILES = ("points.ply", "cameras.json", "colmap/cameras.txt", "colmap/images.txt",
-               "colmap/points3D.txt")
-MODEL_FIGURE = "cameras.png"
-
-
 def write_model(folder: Path, names: list[str], recon: MultiViewReconstruction,
                 model: SfMModel, plots: bool) -> list[Path]:
-    """The files of one model: PLY, cameras JSON, COLMAP text model, figure."""
-    for made in (folder, folder / "colmap"):  # removed again if the run fails
-        if not made.exists():
-            made.mkdir()
-            note_created_folders([made])
-    K = recon.model_K(model)
-    colmap = recon.colmap_model(model)  # at the photos' size, with their distortion
-    points_file, cameras_file = MODEL_FILES[:2]
-    written = [write_ply(folder / points_file, model.points3d, model.colors)]
-    written.append(write_json(folder / cameras_file, cameras_json(colmap)))
-    written += write_colmap_text(folder / "colmap", colmap)
-    if plots:
-        from ..viz.plotting import plot_cameras_and_points
-
-        figure = plot_cameras_and_points(model.points3d, model.colors, model.R, model.t,
-                                         K, recon.image_size)
-        written.append(save_figure(figure, folder / MODEL_FIGURE))
-    return written
-
-
-def focal_summary(recon: MultiViewReconstruction, model: SfMModel, camera: str | None
-                  ) -> dict:
-    """A model's ``self_calibration`` entry (photos without a calibration file)."""
-    f = model.focal
-    if f is None:
-        return {}
-    return {
-        "start": recon.prior_description, "camera": camera,
-        "prior_focal_px": f.prior_focal_px, "prior_sigma_log": f.prior_sigma_log,
-        "start_focal_px": f.start_focal_px,
-        "start_pair": None if f.start_pair is None else [recon.names[v] for v in f.start_pair],
-        "photos_focal_px": f.data_focal_px, "photos_sigma_log": f.data_sigma_log,
-        "adjustment_sigma_log": f.adjustment_sigma_log,
-        "principal_point_sigma_log": f.principal_point_sigma_log,
-        "jackknife_sigma_log": f.jackknife_sigma_log,
-        "determined": f.determined, "trusted": f.trusted, "warnings": list(f.warnings),
-    }
+    """The files of one model (:func:`scene3D.io.model_folder.write_model`; ``names`` are
+    ``recon.names``); the folders it creates are removed again if the run fails."""
+    created: list[Path] = []
+    try:
+        return write_model_folder(folder, recon, model, plots, created)
+    finally:
+        note_created_folders(created)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -538,64 +393,18 @@ def run(args: argparse.Namespace) -> int:
             camera_model=args.camera_model)
     # The files of every model, all or none: a write that fails leaves the earlier run's.
     with all_or_nothing():
-        timings = {k: v for k, v in recon.timings_s.items() if k != "total"}
-        models = []
         written: list[Path] = []
         for m, model in enumerate(recon.models):
-            folder = out if m == 0 else out / f"model-{m}"
-            entry = {
-                "folder": "." if m == 0 else folder.name,
-                "status": "ok" if model.check.ok and len(model.points3d) >= MIN_MODEL_POINTS
-                else "failed",
-                "views": [names[i] for i in model.views], "registered": len(model.views),
-                "points": len(model.points3d), "mean_track_length": model.mean_track_length,
-                "reprojection_rmse_px": model.reprojection_rmse_px,
-                "check": check_summary(model, names),
-            }
-            if model.focal is not None:
-                entry["K"] = recon.model_K(model)
-                entry["focal_px_sigma"] = model.focal.sigma_px
-                entry["calibration_source"] = model.focal.source
-                entry["self_calibration"] = focal_summary(recon, model, prior.camera_name)
-            if truth is not None:
-                entry["ground_truth"] = evaluate_against(
-                    truth, names, model,
-                    recon.model_K(model) if model.focal is not None else None, recon.image_size)
-            models.append(entry)
+            folder = out / model_folder_name(m)
             written += write_model(folder, names, recon, model, not args.no_plots)
             if "nerfstudio" in args.export:
                 written.append(write_nerfstudio(folder / NERFSTUDIO_FILE,
                                                 recon.colmap_model(model),
                                                 dict(zip(names, paths)),
                                                 ply_file=folder / MODEL_FILES[0]))
-        main_model = models[0]
-        # A model without points has cameras resting on nothing (e.g. a calibration that
-        # does not fit): a failure, not a result.
-        thin = [(m, entry) for m, entry in enumerate(models) if entry["points"] < MIN_MODEL_POINTS]
-        summary = {
-            "status": "ok" if recon.ok and not thin else "failed",
-            "views": len(names), "registered": main_model["registered"],
-            "unregistered": list(recon.unregistered),
-            "unregistered_reasons": recon.unregistered_reasons,
-            "models": models, "points": main_model["points"],
-            "mean_track_length": recon.mean_track_length,
-            "reprojection_rmse_px": recon.reprojection_rmse_px,
-            "pair_selection": recon.pair_selection, "matched_pairs": recon.matched_pairs,
-            "verified_pairs": recon.verified_pairs,
-            "image_size": list(recon.image_size), "K": recon.K,
-            "calibration_source": recon.calibration_source,
-            "camera_model": recon.camera_model, "distortion": list(recon.dist),
-            "focal_refits": list(recon.focal_refits),
-            "warnings": _refit_warnings(recon),
-            "focal_px_sigma": recon.focal_px_sigma,
-            "self_calibration": main_model.get("self_calibration", {})
-            if prior is not None else None,
-            "feature": resolve_feature_mode(args.feature), "feature_requested": args.feature,
-            "conventions": "each model: world = camera frame of the first view of its initial "
-                           "pair; x_cam = R @ X + t; arbitrary scale",
-        }
-        if "ground_truth" in main_model:
-            summary["ground_truth"] = main_model["ground_truth"]
+        summary = recon.to_dict(None if prior is None else prior.camera_name, truth)
+        models = summary["models"]
+        timings = {k: v for k, v in recon.timings_s.items() if k != "total"}
         timings["total"] = time.perf_counter() - t_start
         summary["timings_s"] = timings
         summary[FILES_KEY] = out_folder.record([
@@ -625,15 +434,16 @@ def run(args: argparse.Namespace) -> int:
         print(f"Wrote '{path}'")
     for path in removed:
         print(f"Removed '{path}' (an earlier run's, not written again)")
-    for m, entry in thin:
+    for m in recon.thin_models:
+        entry = models[m]
         print(f"error: {_model_name(m, entry['folder'])} has {plural(entry['points'], 'point')} "
-              f"for its {entry['registered']} views, fewer than {MIN_MODEL_POINTS}: its "
+              f"for its {entry['registered']} views, fewer than {recon.min_model_points}: its "
               "cameras rest on nothing (does the calibration fit these photos?); see "
               "reconstruction.json, the files are written for inspection only",
               file=sys.stderr)
-    if not recon.ok:
+    if not recon.consistent:
         print(f"error: {_failure_message(recon, names)}", file=sys.stderr)
-    return EXIT_FAILED if thin or not recon.ok else EXIT_OK
+    return EXIT_OK if recon.ok else EXIT_FAILED
 
 
 def main(argv: list[str] | None = None, prog: str = "scene3d reconstruct-views") -> int:

@@ -190,3 +190,21 @@ class OutputFolder:
         """:func:`remove_stale_outputs` once the run's files are in place; the files
         removed."""
         return remove_stale_outputs(self.path, self.previous, written)
+
+
+def remove_earlier_files(paths: list[Path]) -> list[Path]:
+    """Remove ``paths``, an earlier run's files this one did not write again, once the new
+    files are in place; return those removed. One that cannot be removed is named in a
+    warning."""
+    removed = []
+    for path in paths:
+        try:
+            path.unlink()
+        except FileNotFoundError:
+            continue
+        except OSError as exc:
+            logger.warning("could not remove '%s' of an earlier run: %s", path,
+                           exc.strerror or exc)
+            continue
+        removed.append(path)
+    return removed

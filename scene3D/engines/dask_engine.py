@@ -511,7 +511,7 @@ class DaskEngine:
                     has_workers = bool(self._client.nthreads())
                 except Exception as exc:  # the scheduler is gone: any comm error
                     raise EngineError(f"lost the Dask scheduler while {label} tasks ran: "
-                                      f"{first_line(exc)}") from None
+                                      f"{first_line(exc)}", "scheduler_lost") from None
                 if has_workers:
                     without_workers_since = None
                 elif without_workers_since is None:
@@ -520,8 +520,8 @@ class DaskEngine:
                     raise EngineError(
                         f"the Dask cluster has had no worker for "
                         f"{self._no_worker_timeout_s:g} s while {label} tasks waited (its "
-                        "workers died or left); start one with 'dask worker ADDRESS', or run "
-                        "without --scheduler")
+                        "workers died or left); start one with 'dask worker ADDRESS'",
+                        "no_workers")
             time.sleep(0.02)
 
     def _result(self, future: Any, label: str, index: int) -> Any:
@@ -544,9 +544,10 @@ class DaskEngine:
             deaths = exc.allowed_failures + 1
             raise EngineError(f"{label} task {index} was given up: the worker running it died "
                               f"{plural(deaths, 'time')} (the last: "
-                              f"{exc.last_worker.address})") from None
+                              f"{exc.last_worker.address})", "task_given_up") from None
         except CancelledError as exc:  # distributed's FutureCancelledError and older ones
-            raise EngineError(f"{label} task {index} was cancelled: {exc}") from None
+            raise EngineError(f"{label} task {index} was cancelled: {exc}",
+                              "task_cancelled") from None
 
     def _remember(self, value: Any, future: Any) -> None:
         """Keep ``future`` as the handle of ``value`` while the caller keeps ``value``."""

@@ -19,6 +19,7 @@ from .matching import (
     require_real_number,
     require_whole_number,
     resolve_feature_mode,
+    surf_available,
     to_gray,
     track_flow,
 )
@@ -27,5 +28,5 @@ __all__ = [
     "FEATURE_MODES", "ImageFeatures", "Matches", "check_image", "create_detector",
     "detect_features", "detect_keypoints", "find_matches", "image_features", "match_descriptors",
     "match_features", "normalize_feature_mode", "require_real_number", "require_whole_number",
-    "resolve_feature_mode", "to_gray", "track_flow",
+    "resolve_feature_mode", "surf_available", "to_gray", "track_flow",
 ]

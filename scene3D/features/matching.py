@@ -84,7 +84,7 @@ def resolve_feature_mode(mode: str) -> str:
     """
     global _warned_surf
     mode = normalize_feature_mode(mode)
-    if mode != "SURF" or _surf_available():
+    if mode != "SURF" or surf_available():
         return mode
     if not _warned_surf:
         logger.warning("SURF is patented and not in this OpenCV build; using SIFT instead")
@@ -92,7 +92,14 @@ def resolve_feature_mode(mode: str) -> str:
     return "SIFT"
 
 
-def _surf_available() -> bool:
+def surf_available() -> bool:
+    """Whether this OpenCV build has SURF (patented; in the contrib builds only).
+
+    Returns
+    -------
+    bool
+        False: ``"SURF"`` runs SIFT instead (:func:`resolve_feature_mode`).
+    """
     try:
         cv2.xfeatures2d.SURF_create(400)
     except (cv2.error, AttributeError):

@@ -13,10 +13,9 @@ re-exports its helpers, so ``from scene3D.geometry import skew`` works as it alw
 - :mod:`scene3D.geometry.triangulation`: DLT triangulation and parallax;
 - :mod:`scene3D.geometry.rectification`: ``stereoRectify`` with (width, height).
 
-Only the conventions are re-exported: the other modules are imported by their own paths.
-:mod:`scene3D.optim` and :mod:`scene3D.io` build on the conventions and the camera while
-``epipolar`` and ``rectification`` use them, so re-exporting every module here would make
-an import cycle.
+Only the conventions are re-exported: the other modules are imported by their own paths
+(they load OpenCV, which the conventions do not need). The geometry imports nothing above
+it: :mod:`scene3D.optim` and :mod:`scene3D.io` build on it.
 """
 
 from .conventions import (
@@ -27,6 +26,7 @@ from .conventions import (
     camera_centers,
     check_same_length,
     distinct_correspondences,
+    image_size,
     is_real_number,
     is_whole_number,
     median,
@@ -51,7 +51,8 @@ from .conventions import (
 
 __all__ = [
     "FloatArray", "angle_between_deg", "as_matrix", "as_points2d", "camera_centers",
-    "check_same_length", "distinct_correspondences", "is_real_number", "is_whole_number", "median",
+    "check_same_length", "distinct_correspondences", "image_size", "is_real_number",
+    "is_whole_number", "median",
     "normalize_points", "pose_angle_deg", "project", "project_with_jacobian", "projection_matrix",
     "quaternion_from_rotation", "relative_pose", "require_real_number", "require_whole_number",
     "rotation_about_axis", "rotation_angle_deg", "rotation_error_deg", "rotation_from_quaternion",

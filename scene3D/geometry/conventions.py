@@ -26,6 +26,21 @@ from numpy.typing import ArrayLike, NDArray
 FloatArray = NDArray[np.float64]
 
 
+def image_size(img: np.ndarray) -> tuple[int, int]:
+    """The ``(width, height)`` of an image indexed ``img[y, x]``.
+
+    Parameters
+    ----------
+    img : (H, W) or (H, W, C) array
+
+    Returns
+    -------
+    (int, int)
+        ``(W, H)``, the order OpenCV's sizes take.
+    """
+    return int(img.shape[1]), int(img.shape[0])
+
+
 def as_points2d(points: ArrayLike, name: str = "points") -> FloatArray:
     """Return ``points`` as a ``(N, 2) float64`` array, accepting ``(N, 1, 2)`` too.
 

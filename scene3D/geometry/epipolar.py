@@ -1,9 +1,11 @@
 """Fundamental and essential matrices: robust estimation and the relations between them.
 
 The robust ``F`` (USAC, then the normalised 8-point algorithm) and ``H``, the distances
-of correspondences to a model, ``E`` from a pose and ``F`` from ``E``, epipolar
-residuals and lines. The robust fit of ``E`` (restarts, local optimisation and the
-noise-adaptive thresholds) is in :mod:`scene3D.twoview.essential_fit`.
+of correspondences to a model (the Sampson distances, their Jacobian and ``F``'s derivatives
+by a pose step, which the refinements of :mod:`scene3D.optim` and :mod:`scene3D.twoview`
+share), ``E`` from a pose and ``F`` from ``E``, epipolar residuals and lines. The robust fit
+of ``E`` (restarts, local optimisation and the noise-adaptive thresholds) is in
+:mod:`scene3D.twoview.essential_fit`.
 
 Conventions: ``x2^T F x1 = 0`` with pixel coordinates, ``E = [t]x R`` with
 ``x_cam2 = R x_cam1 + t`` (Hartley & Zisserman, sections 9.2 and 9.6).
@@ -15,7 +17,6 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..optim.refinement import sampson_residuals
 from .conventions import (
     FloatArray,
     as_matrix,
@@ -30,7 +31,26 @@ from .conventions import (
 ROBUST_METHOD = cv2.USAC_MAGSAC
 
 
-def _check_pair(pts1: ArrayLike, pts2: ArrayLike, minimum: int) -> tuple[FloatArray, FloatArray]:
+def check_correspondences(pts1: ArrayLike, pts2: ArrayLike,
+                          minimum: int) -> tuple[FloatArray, FloatArray]:
+    """Validate two arrays of corresponding pixels and their count.
+
+    Parameters
+    ----------
+    pts1, pts2 : (N, 2) array_like
+        Corresponding pixels in images 1 and 2.
+    minimum : int
+        The fewest correspondences the caller needs.
+
+    Returns
+    -------
+    p1, p2 : (N, 2) float64
+
+    Raises
+    ------
+    ValueError
+        When either is not ``(N, 2)`` and finite, their lengths differ, or ``N < minimum``.
+    """
     p1 = as_points2d(pts1, "pts1")
     p2 = as_points2d(pts2, "pts2")
     check_same_length(p1, p2)
@@ -39,8 +59,126 @@ def _check_pair(pts1: ArrayLike, pts2: ArrayLike, minimum: int) -> tuple[FloatAr
     return p1, p2
 
 
-def _mask(mask: np.ndarray | None, n: int) -> np.ndarray:
+def inlier_mask(mask: np.ndarray | None, n: int) -> np.ndarray:
+    """The ``(n,)`` bool inliers of an OpenCV estimator's ``mask`` (any shape; ``None``: none).
+
+    Parameters
+    ----------
+    mask : (n, 1) or (n,) array or None
+        What ``cv2.findFundamentalMat`` and its kin return beside the model.
+    n : int
+        The number of correspondences given to the estimator.
+
+    Returns
+    -------
+    (n,) bool
+    """
     return np.zeros(n, dtype=bool) if mask is None else mask.ravel().astype(bool)
+
+
+def sampson_residuals(F: FloatArray, pts1: FloatArray, pts2: FloatArray) -> FloatArray:
+    """Signed Sampson distances ``(N,)`` in pixels of correspondences to ``x2^T F x1 = 0``.
+
+    Parameters
+    ----------
+    F : (3, 3) array
+        Fundamental matrix in pixels.
+    pts1, pts2 : (N, 2) array
+        Corresponding pixels in images 1 and 2.
+
+    Returns
+    -------
+    (N,) float64
+        The first-order geometric error of each correspondence (H&Z section 11.4.3).
+    """
+    return sampson_residuals_homogeneous(F, to_homogeneous(pts1), to_homogeneous(pts2))
+
+
+def sampson_residuals_homogeneous(F: FloatArray, h1: FloatArray, h2: FloatArray) -> FloatArray:
+    """:func:`sampson_residuals` of homogeneous pixels (for repeated calls on the same points).
+
+    Parameters
+    ----------
+    F : (3, 3) array
+    h1, h2 : (N, 3) array
+        Homogeneous pixels ``[x, y, 1]`` in images 1 and 2.
+
+    Returns
+    -------
+    (N,) float64
+    """
+    Fx1 = h1 @ F.T
+    Ftx2 = h2 @ F
+    algebraic = np.einsum("ij,ij->i", h2, Fx1)
+    norm = np.sqrt(Fx1[:, 0] ** 2 + Fx1[:, 1] ** 2 + Ftx2[:, 0] ** 2 + Ftx2[:, 1] ** 2)
+    return algebraic / np.maximum(norm, 1e-300)
+
+
+def fundamental_derivatives(R: FloatArray, t: FloatArray, basis: FloatArray,
+                            K_inv: FloatArray, K2_inv: FloatArray | None = None) -> FloatArray:
+    """Derivatives of ``F = K2^-T [t]x R K^-1`` by a pose step ``x`` ``(5,)``.
+
+    The step is :func:`scene3D.optim.uncertainty.update_pose`'s: ``R <- exp([w]x) R`` gives
+    ``dE/dw_k = [t]x [e_k]x R``; ``t <- t + d @ basis`` (then renormalised, which is
+    second order since ``basis`` is orthogonal to ``t``) gives ``dE/dd_k = [b_k]x R``.
+
+    Parameters
+    ----------
+    R : (3, 3) array
+        ``R_cam2_from_cam1``.
+    t : (3,) array
+        Unit translation, ``x_cam2 = R x_cam1 + t``.
+    basis : (2, 3) array
+        Orthonormal rows spanning the tangent plane of ``t``
+        (:func:`scene3D.optim.uncertainty.tangent_basis`).
+    K_inv : (3, 3) array
+        Inverse intrinsics of image 1.
+    K2_inv : (3, 3) array, optional
+        Inverse intrinsics of image 2; ``K_inv`` by default.
+
+    Returns
+    -------
+    dF : (5, 3, 3) float64
+        ``dF / dx_k`` for the rotation vector (3) and then the tangent step of ``t`` (2).
+    """
+    K2_inv = K_inv if K2_inv is None else K2_inv
+    dE = [skew(t) @ skew(axis) @ R for axis in np.eye(3)] + [skew(b) @ R for b in basis]
+    return np.stack([K2_inv.T @ d @ K_inv for d in dE])
+
+
+def sampson_jacobian(F: FloatArray, dF: FloatArray, h1: FloatArray,
+                     h2: FloatArray) -> FloatArray:
+    """Jacobian of :func:`sampson_residuals_homogeneous` for ``F`` moving along ``dF``.
+
+    With ``a = x2^T F x1``, ``l = F x1``, ``m = F^T x2`` and
+    ``n^2 = l_1^2 + l_2^2 + m_1^2 + m_2^2``, the distance ``a / n`` changes by
+    ``(x2^T dF x1) / n - a (l' . dF x1 + x2^T dF m') / n^3`` (``l', m'``: ``l, m``
+    with the third entry zeroed).
+
+    Parameters
+    ----------
+    F : (3, 3) array
+    dF : (k, 3, 3) array
+        Derivatives of ``F`` by ``k`` unknowns (e.g. :func:`fundamental_derivatives`).
+    h1, h2 : (N, 3) array
+        Homogeneous pixels in images 1 and 2.
+
+    Returns
+    -------
+    J : (N, k) float64
+    """
+    Fx1 = h1 @ F.T
+    Ftx2 = h2 @ F
+    a = np.einsum("ij,ij->i", h2, Fx1)
+    n = np.maximum(np.sqrt(Fx1[:, 0] ** 2 + Fx1[:, 1] ** 2 + Ftx2[:, 0] ** 2
+                           + Ftx2[:, 1] ** 2), 1e-300)
+    Fx1[:, 2] = 0.0
+    Ftx2[:, 2] = 0.0
+    # d(a/n)/dF as (N, 3, 3): x2 x1^T / n - a / n^3 (l' x1^T + x2 m'^T), then one product.
+    c = (a / n**3)[:, None, None]
+    grad = (h2 / n[:, None])[:, :, None] * h1[:, None, :]
+    grad -= c * (Fx1[:, :, None] * h1[:, None, :] + h2[:, :, None] * Ftx2[:, None, :])
+    return grad.reshape(-1, 9) @ dF.reshape(len(dF), 9).T
 
 
 def estimate_fundamental(
@@ -67,11 +205,11 @@ def estimate_fundamental(
         Rank-2 fundamental matrix with unit Frobenius norm, ``x2^T F x1 = 0``.
     inliers : (N,) bool
     """
-    p1, p2 = _check_pair(pts1, pts2, 8)
+    p1, p2 = check_correspondences(pts1, pts2, 8)
     F, mask = cv2.findFundamentalMat(p1, p2, ROBUST_METHOD, threshold_px, confidence, max_iters)
     if F is None or F.shape != (3, 3):
         return np.full((3, 3), np.nan), np.zeros(len(p1), dtype=bool)
-    inliers = _mask(mask, len(p1))
+    inliers = inlier_mask(mask, len(p1))
     if inliers.sum() >= 8:
         # Polish: normalised 8-point least squares over all inliers (exact without noise).
         F = fundamental_8point(p1[inliers], p2[inliers])
@@ -92,7 +230,7 @@ def fundamental_8point(pts1: ArrayLike, pts2: ArrayLike) -> FloatArray:
     A least-squares fit over all the given correspondences (N >= 8): use it on
     inliers only.
     """
-    p1, p2 = _check_pair(pts1, pts2, 8)
+    p1, p2 = check_correspondences(pts1, pts2, 8)
     T1, T2 = _hartley_normalization(p1), _hartley_normalization(p2)
     x1 = to_homogeneous(p1) @ T1.T
     x2 = to_homogeneous(p2) @ T2.T
@@ -124,12 +262,12 @@ def estimate_homography(
 
     Returns ``(H, inliers)``; ``H`` is NaN when no homography was found.
     """
-    p1, p2 = _check_pair(pts1, pts2, 4)
+    p1, p2 = check_correspondences(pts1, pts2, 4)
     H, mask = cv2.findHomography(p1, p2, ROBUST_METHOD, threshold_px, maxIters=10000,
                                  confidence=confidence)
     if H is None:
         return np.full((3, 3), np.nan), np.zeros(len(p1), dtype=bool)
-    inliers = _mask(mask, len(p1))
+    inliers = inlier_mask(mask, len(p1))
     if inliers.sum() >= 4:
         H_ls, _ = cv2.findHomography(p1[inliers], p2[inliers], 0)
         if H_ls is not None:
@@ -195,7 +333,7 @@ def epipolar_residuals(F: ArrayLike, pts1: ArrayLike, pts2: ArrayLike) -> FloatA
 
     The mean of the distance of ``x2`` to ``F x1`` and of ``x1`` to ``F^T x2``.
     """
-    p1, p2 = _check_pair(pts1, pts2, 1)
+    p1, p2 = check_correspondences(pts1, pts2, 1)
     F = np.asarray(F, dtype=np.float64)
     h1, h2 = to_homogeneous(p1), to_homogeneous(p2)
     lines2 = h1 @ F.T  # l2 = F x1

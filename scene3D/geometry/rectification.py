@@ -7,8 +7,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..io.images import image_size
-from .conventions import FloatArray
+from .conventions import FloatArray, image_size
 
 
 @dataclass(frozen=True)

@@ -29,10 +29,14 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DatasetError
-from ..geometry.camera import check_intrinsics_for_size, validate_intrinsics
+from ..geometry.camera import (
+    adapt_intrinsics_to_size,
+    check_intrinsics_for_size,
+    validate_intrinsics,
+)
 from ..geometry.conventions import FloatArray
 from ..geometry.conventions import relative_pose as _relative_pose
-from .images import IMAGE_SUFFIXES
+from .images import IMAGE_SUFFIXES, read_image_size
 
 logger = logging.getLogger(__name__)
 
@@ -355,6 +359,70 @@ def read_strecha_camera(path: str | os.PathLike) -> StrechaCamera:
         raise bad("K:", str(exc)) from None
     R = R_cam_to_world.T
     return StrechaCamera(K, dist, R, -R @ center, center, (int(size[0]), int(size[1])))
+
+
+class CameraFilesError(ValueError):
+    """A folder of Strecha camera files does not describe a set of photos.
+
+    Attributes
+    ----------
+    path : Path
+        The folder, or the camera file that does not fit.
+    problem : str
+        What is wrong, after the path: ``"is not a folder"``, ``"has no camera file for
+        'a.jpg' (expected ...)"``, ``"does not describe 'photos/a.jpg': ..."``.
+    """
+
+    def __init__(self, path: Path, problem: str) -> None:
+        self.path = Path(path)
+        self.problem = problem
+        super().__init__(f"Strecha camera files: '{path}' {problem}")
+
+    def __reduce__(self) -> tuple:
+        return type(self), (self.path, self.problem)
+
+
+def read_strecha_cameras(folder: str | os.PathLike,
+                         photos: list[Path]) -> list[StrechaCamera]:
+    """The Strecha camera of every photo, ``folder/NAME.camera``, checked against the photo.
+
+    Parameters
+    ----------
+    folder : path
+        A folder of ``.camera`` files named after the photos (``0000.png.camera``).
+    photos : list of Path
+        The photos, whose image size the cameras must fit.
+
+    Returns
+    -------
+    list of StrechaCamera
+        One per photo, in their order.
+
+    Raises
+    ------
+    CameraFilesError
+        ``folder`` is not a folder, a photo has no camera file, or a camera is for images
+        of another aspect ratio than its photo's (a photo stored turned, a cropped one).
+    FileNotFoundError, ValueError
+        A camera file that cannot be read (:func:`read_strecha_camera`).
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise CameraFilesError(folder, "is not a folder")
+    cameras = []
+    for photo in photos:
+        path = folder / f"{photo.name}.camera"
+        if not path.is_file():
+            raise CameraFilesError(folder, f"has no camera file for '{photo.name}' "
+                                           f"(expected '{path}')")
+        camera = read_strecha_camera(path)
+        try:
+            adapt_intrinsics_to_size(camera.K, camera.image_size, read_image_size(photo),
+                                     what="its camera file")
+        except ValueError as exc:
+            raise CameraFilesError(path, f"does not describe '{photo}': {exc}") from None
+        cameras.append(camera)
+    return cameras
 
 
 def _numbers(values: np.ndarray) -> str:

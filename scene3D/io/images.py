@@ -24,6 +24,7 @@ import numpy as np
 
 from ..errors import first_line
 from ..geometry.camera import different_sizes_message, has_distortion, undistort_image
+from ..geometry.conventions import image_size
 from .image_integrity import intact_image_data, jpeg_cut_short
 
 logger = logging.getLogger(__name__)
@@ -563,8 +564,3 @@ def load_working_images(
 def source_label(source: ImageSource, name: str) -> str:
     """How messages name an image: a path as given, an array by ``name``."""
     return os.fspath(source) if isinstance(source, (str, os.PathLike)) else name
-
-
-def image_size(img: np.ndarray) -> tuple[int, int]:
-    """Return (width, height) of an image array."""
-    return int(img.shape[1]), int(img.shape[0])

@@ -11,6 +11,7 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -22,6 +23,9 @@ from ..io.model_files import save_model
 from ..optim.bundle import Observations, reprojection_residuals
 from ..twoview.results import TwoViewSettings
 from ..twoview.trust import focal_mismatch
+
+if TYPE_CHECKING:
+    from ..io.datasets import StrechaCamera
 
 #: How far apart the focal lengths that different views of one scene call for lie under
 #: the right calibration, as the standard deviation of their log: 0.0020 at 768 px and
@@ -156,6 +160,10 @@ class SfMSettings:
         (``TwoViewSettings.max_focal_mismatch``, 15 %): three views of a short stretch
         of castle-P19 at 768 px, under the right calibration, called for 1.059 times
         its focal length, then 1.021 times that, without settling (a review).
+    min_model_points : int
+        A model with fewer points is a failure, not a result: its cameras rest on
+        (almost) nothing (a two-view start alone triangulates dozens);
+        :attr:`MultiViewReconstruction.ok` is False.
     """
 
     threshold_px: float = 1.0
@@ -186,6 +194,7 @@ class SfMSettings:
     max_lens_passes: int = 3
     lens_tolerance_px: float = 0.5
     min_lens_shift: float = 0.0025
+    min_model_points: int = 10
 
 
 def refutes_calibration(focal_scale: float, sigma_log: float, views: int,
@@ -469,6 +478,11 @@ class MultiViewReconstruction:
     lens_passes : int
         How many times the views were reconstructed again with their keypoints
         undistorted (:mod:`scene3D.multiview.lens`).
+    feature : str
+        The detector asked for (``reconstruct_views``'s ``feature``).
+    min_model_points : int
+        ``SfMSettings.min_model_points``: a model with fewer points fails
+        (:meth:`model_ok`).
     """
 
     names: tuple[str, ...]
@@ -487,6 +501,8 @@ class MultiViewReconstruction:
     dist: FloatArray = field(default_factory=lambda: np.zeros(0))
     camera_model: str = "pinhole"
     lens_passes: int = 0
+    feature: str = "SIFT"
+    min_model_points: int = 10
 
     @property
     def focal_refit_scale(self) -> float:
@@ -608,6 +624,50 @@ class MultiViewReconstruction:
         return tuple(n for n, m in zip(self.names, self.model_of_view) if m < 0)
 
     @property
-    def ok(self) -> bool:
-        """Every model passed the consistency check."""
+    def self_calibrated(self) -> bool:
+        """The focal length was found from the photos (no calibration file)."""
+        return self.calibration_source != "file"
+
+    def model_ok(self, model: SfMModel) -> bool:
+        """``model`` passed its consistency check and has ``min_model_points`` points."""
+        return model.check.ok and len(model.points3d) >= self.min_model_points
+
+    @property
+    def consistent(self) -> bool:
+        """Every model passed the consistency check (whatever its number of points)."""
         return all(model.check.ok for model in self.models)
+
+    @property
+    def thin_models(self) -> tuple[int, ...]:
+        """The indices of the models with fewer than ``min_model_points`` points."""
+        return tuple(m for m, model in enumerate(self.models)
+                     if len(model.points3d) < self.min_model_points)
+
+    @property
+    def ok(self) -> bool:
+        """Every model passed the consistency check and has ``min_model_points`` points:
+        the result that ``scene3d reconstruct-views`` calls a success."""
+        return all(self.model_ok(model) for model in self.models)
+
+    def to_dict(self, camera: str | None = None,
+                ground_truth: list[StrechaCamera] | None = None) -> dict:
+        """The summary as plain data (:func:`scene3D.multiview.summary.reconstruction_summary`).
+
+        Parameters
+        ----------
+        camera : str, optional
+            The photos' camera, for a self-calibration
+            (:attr:`scene3D.geometry.intrinsics_prior.FocalPrior.camera_name`).
+        ground_truth : list of StrechaCamera, optional
+            One camera per view (:func:`scene3D.io.datasets.read_strecha_cameras`): each
+            model's camera errors are added.
+
+        Returns
+        -------
+        dict
+            What ``scene3d reconstruct-views`` writes as ``reconstruction.json``, arrays as
+            numpy arrays (:func:`scene3D.io.export.write_json` writes them).
+        """
+        from .summary import reconstruction_summary
+
+        return reconstruction_summary(self, camera, ground_truth)

@@ -6,8 +6,8 @@ triangulation and bundle adjustment stay here.
 
 Views are processed in an order fixed by their content (a digest of each view's
 keypoints and descriptors), not by their names or input order: the same photos under
-other names give the same reconstruction. Only ``--pairs sequential`` (and ``auto``
-when the images themselves say the input order is a sequence) use the input order.
+other names give the same reconstruction. Only sequential pairs (``pairs="sequential"``, and
+``"auto"`` when the images themselves say the input order is a sequence) use the input order.
 Every per-view array of the result follows the input order.
 """
 
@@ -84,7 +84,7 @@ def _to_input_order(model: SfMModel, order: np.ndarray) -> SfMModel:
         focal=focal)
 
 
-def _focal_prior(images: Sequence[ImageSource], names: Sequence[str]) -> FocalPrior:
+def default_focal_prior(images: Sequence[ImageSource], names: Sequence[str]) -> FocalPrior:
     """The prior of photos without a calibration: from their EXIF when they are files
     (:func:`scene3D.io.exif.read_camera_prior`, one camera checked), else the default."""
     if all(isinstance(src, (str, os.PathLike)) for src in images):
@@ -248,7 +248,8 @@ def reconstruct_views(
     -------
     MultiViewReconstruction
         One model, or several when parts of the view graph cannot be joined; check
-        ``ok`` (the consistency check) and ``unregistered_reasons``.
+        ``ok`` (every model passed the consistency check and has
+        ``SfMSettings.min_model_points`` points) and ``unregistered_reasons``.
 
     Raises
     ------
@@ -290,7 +291,7 @@ def reconstruct_views(
         if dist is not None:
             raise ValueError("`dist` needs `K`: photos without a calibration are taken as "
                              "undistorted")
-        focal_prior = focal_prior or _focal_prior(images, names)
+        focal_prior = focal_prior or default_focal_prior(images, names)
         K = focal_prior.K
     else:
         focal_prior = None
@@ -474,5 +475,6 @@ def reconstruct_views(
         timings_s=timings,
         calibration_source="file" if focal is None else models[0].focal.source,
         prior_description="" if focal_prior is None else focal_prior.description,
-        focal_refits=tuple(refits), photo_size=first, dist=dist, camera_model=camera_model,
+        focal_refits=tuple(refits), photo_size=first, dist=dist, feature=feature,
+        min_model_points=s.min_model_points, camera_model=camera_model,
         lens_passes=lens_passes)

@@ -2,8 +2,10 @@
 
 - :mod:`scene3D.optim.uncertainty`: the pose parametrisation, sandwich covariances,
   chi-square bounds and the depth uncertainty of points;
-- :mod:`scene3D.optim.refinement`: the robust Sampson refinement of a two-view pose and its
-  covariance, and the Levenberg-Marquardt loop and robust losses the other solvers share;
+- :mod:`scene3D.optim.least_squares`: the robust losses, the scaled normal equations and the
+  Levenberg-Marquardt loop every solver here shares;
+- :mod:`scene3D.optim.refinement`: the robust Sampson refinement of a two-view pose (alone or
+  with one more unknown) and its covariance;
 - :mod:`scene3D.optim.schur`: the sparse normal equations both bundle adjustments solve;
 - :mod:`scene3D.optim.bundle_two_view`: the bundle adjustment of two views;
 - :mod:`scene3D.optim.bundle`: the bundle adjustment of many, optionally with one shared
@@ -23,8 +25,19 @@ from .bundle import (
     whitened_residuals,
 )
 from .bundle_two_view import bundle_adjust_two_view
+from .least_squares import (
+    LOSSES,
+    damped_steps,
+    levenberg_marquardt,
+    reweighting,
+    robust_cost,
+    robust_covariance,
+    robust_loss,
+    robust_scaling,
+)
 from .refinement import (
     pose_intrinsics_sensitivity,
+    refine_pose_and_parameter,
     refine_relative_pose,
     relative_pose_covariance,
     sampson_residuals,
@@ -57,17 +70,20 @@ from .uncertainty import (
     sandwich_covariance,
     tangent_basis,
     truncated_noise,
+    update_pose,
 )
 
 __all__ = [
-    "CHI2_90", "CHI2_99_POSE", "FocalAdjustment", "NormalEquations", "Observations",
+    "CHI2_90", "CHI2_99_POSE", "FocalAdjustment", "LOSSES", "NormalEquations", "Observations",
     "PoseUncertainty", "SPARSE_SCHUR_UNKNOWNS", "TruncatedNoise", "angular_bound_deg",
-    "bundle_adjust", "bundle_adjust_focal", "bundle_adjust_two_view", "depth_sigmas",
-    "focal_uncertainty", "global_information", "largest_sigma_deg", "marginal_covariance",
-    "normal_equations", "nuisance_sensitivity", "pairs_within_groups", "point_covariances",
-    "pose_difference_chi2", "pose_error_chi2", "pose_error_coordinates",
-    "pose_intrinsics_sensitivity", "refine_relative_pose", "relative_pose_covariance",
-    "reprojection_jacobians", "reprojection_residuals", "rotation_vector", "sampson_residuals",
-    "sandwich_covariance", "schur_product", "solve_damped", "solve_damped_global", "tangent_basis",
-    "truncated_noise", "whitened_residuals",
+    "bundle_adjust", "bundle_adjust_focal", "bundle_adjust_two_view", "damped_steps",
+    "depth_sigmas", "focal_uncertainty", "global_information", "largest_sigma_deg",
+    "levenberg_marquardt", "marginal_covariance", "normal_equations", "nuisance_sensitivity",
+    "pairs_within_groups", "point_covariances", "pose_difference_chi2", "pose_error_chi2",
+    "pose_error_coordinates", "pose_intrinsics_sensitivity", "refine_pose_and_parameter",
+    "refine_relative_pose", "relative_pose_covariance", "reprojection_jacobians",
+    "reprojection_residuals", "reweighting", "robust_cost", "robust_covariance", "robust_loss",
+    "robust_scaling", "rotation_vector", "sampson_residuals", "sandwich_covariance",
+    "schur_product", "solve_damped", "solve_damped_global", "tangent_basis", "truncated_noise",
+    "update_pose", "whitened_residuals",
 ]

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..geometry.camera import with_focal
 from ..geometry.conventions import FloatArray, project_with_jacobian, rotations_from_vectors, skews
-from .refinement import _levenberg_marquardt, _reweighting, _robust_cost
+from .least_squares import levenberg_marquardt, reweighting, robust_cost
 from .schur import global_information, normal_equations, solve_damped_global
 
 
@@ -66,10 +66,10 @@ def whitened_residuals(R: FloatArray, t: FloatArray, points3d: FloatArray, obs: 
 
 def _whitened_reweighting(r: FloatArray, obs: Observations, loss: str,
                           scale_px: float) -> tuple[FloatArray, FloatArray]:
-    """:func:`scene3D.optim.refinement._reweighting` of the whitened residuals ``r`` ``(O, 2)``
+    """:func:`scene3D.optim.least_squares.reweighting` of the whitened residuals ``r`` ``(O, 2)``
     (:func:`whitened_residuals`), its row scales divided by ``obs.sigma`` too: the
     whitened residuals' derivatives are the plain ones over it."""
-    row_scale, rw = _reweighting(r, loss, scale_px)
+    row_scale, rw = reweighting(r, loss, scale_px)
     return (row_scale, rw) if obs.sigma is None else (row_scale / obs.sigma[:, None], rw)
 
 
@@ -176,7 +176,7 @@ def _adjust(R: FloatArray, t: FloatArray, points3d: FloatArray, obs: Observation
                  log_f: float) -> tuple[tuple, float]:
         K_ = K if focal_prior is None else with_focal(K, float(np.exp(log_f)))
         r_ = whitened_residuals(R_, t_, X_, obs, K_)
-        cost = _robust_cost(r_, loss, scale_px)
+        cost = robust_cost(r_, loss, scale_px)
         if focal_prior is not None:
             cost += float((prior_weight * (log_f - prior_log)) ** 2)
         return (R_, t_, X_, log_f, r_), cost
@@ -208,7 +208,7 @@ def _adjust(R: FloatArray, t: FloatArray, points3d: FloatArray, obs: Observation
     log_f0 = float(np.log(K[0, 0]))
     state, cost = evaluate(np.array(R, np.float64), np.array(t, np.float64),
                            np.asarray(points3d, np.float64), log_f0)
-    R, t, X, log_f, _ = _levenberg_marquardt(state, cost, linearize, max_iterations,
+    R, t, X, log_f, _ = levenberg_marquardt(state, cost, linearize, max_iterations,
                                              tolerance)
     return R, t, X, float(np.exp(log_f))
 

@@ -20,14 +20,31 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..geometry.conventions import FloatArray, project_with_jacobian, skews, to_homogeneous
-from .refinement import _levenberg_marquardt, _loss, _reweighting, _robust_cost, _update_pose
+from .least_squares import levenberg_marquardt, reweighting, robust_cost, robust_loss
 from .schur import normal_equations, solve_damped
-from .uncertainty import tangent_basis
+from .uncertainty import tangent_basis, update_pose
 
 
-def _two_view_residuals(R: FloatArray, t: FloatArray, X: FloatArray, pts1: FloatArray,
-                        pts2: FloatArray, K: FloatArray) -> FloatArray:
-    """Reprojection errors ``(N, 4)`` of camera-1 points ``X``: image 1's (x, y), then image 2's."""
+def two_view_residuals(R: FloatArray, t: FloatArray, X: FloatArray, pts1: FloatArray,
+                       pts2: FloatArray, K: FloatArray) -> FloatArray:
+    """Reprojection errors of points seen by two cameras, the cost's residuals.
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array
+        The pose of camera 2, ``x_cam2 = R x_cam1 + t`` (camera 1 is ``[I | 0]``).
+    X : (N, 3) array
+        The points, in the camera-1 frame.
+    pts1, pts2 : (N, 2) array
+        Their pixels in images 1 and 2.
+    K : (3, 3) array
+        The intrinsics of both.
+
+    Returns
+    -------
+    (N, 4) float64
+        Projected minus observed pixels: image 1's (x, y), then image 2's.
+    """
     return np.hstack([project_with_jacobian(X, K)[0] - pts1,
                       project_with_jacobian(X @ R.T + t, K)[0] - pts2])
 
@@ -51,8 +68,8 @@ def _settle_points(R: FloatArray, t: FloatArray, X: FloatArray, pts1: FloatArray
     candidates = np.stack([X, on_ray1, on_ray2])  # (3, N, 3)
     costs = np.empty((3, len(X)))
     for k, C in enumerate(candidates):
-        r = _two_view_residuals(R, t, C, pts1, pts2, K)
-        costs[k] = np.sum(_loss((r / scale) ** 2, loss)[0], axis=1)
+        r = two_view_residuals(R, t, C, pts1, pts2, K)
+        costs[k] = np.sum(robust_loss((r / scale) ** 2, loss)[0], axis=1)
         costs[k][(C[:, 2] <= 0) | ((C @ R.T + t)[:, 2] <= 0)] = np.inf
     return candidates[np.argmin(costs, axis=0), np.arange(len(X))]
 
@@ -76,7 +93,7 @@ def bundle_adjust_two_view(
     freedom is left). Levenberg-Marquardt on the sparse normal equations: each
     point's 3x3 block is eliminated (Schur complement), so a step solves one 5x5
     system and N 3x3 ones. The loss enters by reweighting
-    (:func:`scene3D.optim.refinement._reweighting`), and under a non-convex loss each point
+    (:func:`scene3D.optim.least_squares.reweighting`), and under a non-convex loss each point
     starts, and ends, in the cheapest of its cost's basins (:func:`_settle_points`). It
     converges in 0.07-0.2 s for 500-1800 points, where scipy's sparse trust-region
     solver stopped short after seconds (``benchmarks/bundle_adjustment.py``).
@@ -113,9 +130,9 @@ def bundle_adjust_two_view(
     point = np.tile(np.arange(n), 2)
 
     def evaluate(R_: FloatArray, t_: FloatArray, X_: FloatArray) -> tuple[tuple, float]:
-        r = _two_view_residuals(R_, t_, X_, p1, p2, K)
+        r = two_view_residuals(R_, t_, X_, p1, p2, K)
         r_ = np.vstack([r[:, :2], r[:, 2:]])  # (2N, 2): the observations above
-        return (R_, t_, X_, r_), _robust_cost(r_, loss, scale_px)
+        return (R_, t_, X_, r_), robust_cost(r_, loss, scale_px)
 
     def linearize(state: tuple) -> Callable[[float], tuple]:
         R_, t_, X_, r_ = state
@@ -128,20 +145,20 @@ def bundle_adjust_two_view(
             [-skews(rotated), np.broadcast_to(basis.T, (n, 3, 2))], axis=2)  # (N, 3, 5)
         J_pose = np.concatenate([np.zeros((n, 2, 5)), J2 @ dY_dpose])
         J_point = np.concatenate([J1, J2 @ R_])
-        row_scale, rw = _reweighting(r_, loss, scale_px)
+        row_scale, rw = reweighting(r_, loss, scale_px)
         ne = normal_equations(J_pose * row_scale[:, :, None], camera,
                               J_point * row_scale[:, :, None], point, rw, 1, n)
 
         def try_step(damping: float) -> tuple[tuple, float]:
             step_pose, step_points = solve_damped(ne, damping)
-            return evaluate(*_update_pose(R_, t_, step_pose[0], basis), X_ + step_points)
+            return evaluate(*update_pose(R_, t_, step_pose[0], basis), X_ + step_points)
 
         return try_step
 
     X = _settle_points(R, t, X, p1, p2, K, loss, scale_px)
     for _ in range(3):  # refine; again while a point finds a cheaper basin at the optimum
         state, cost = evaluate(R, t, X)
-        R, t, X, _ = _levenberg_marquardt(state, cost, linearize, max_iterations, 1e-10)
+        R, t, X, _ = levenberg_marquardt(state, cost, linearize, max_iterations, 1e-10)
         settled = _settle_points(R, t, X, p1, p2, K, loss, scale_px)
         if np.array_equal(settled, X):
             break

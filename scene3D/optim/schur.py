@@ -143,8 +143,8 @@ def _camera_sums(camera: np.ndarray, J: FloatArray, residuals: FloatArray, num_c
     return U, g
 
 
-def _schur_product_dense(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
-                         num_cameras: int, chunk_entries: int = 1 << 22) -> FloatArray:
+def schur_product_dense(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
+                        num_cameras: int, chunk_entries: int = 1 << 22) -> FloatArray:
     """:func:`schur_product` for a few cameras: dense matrix products over chunks of points.
 
     A chunk of points at a time is laid out densely as ``(C c, 3 points)`` matrices
@@ -188,8 +188,8 @@ def pairs_within_groups(starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return starts[group] + k // n, starts[group] + k % n
 
 
-def _schur_product_sparse(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
-                          num_cameras: int, chunk_entries: int = 1 << 22) -> FloatArray:
+def schur_product_sparse(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
+                         num_cameras: int, chunk_entries: int = 1 << 22) -> FloatArray:
     """:func:`schur_product` for many cameras: one matrix product per pair of cameras that
     share points, over the points they share.
 
@@ -253,8 +253,8 @@ def schur_product(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.nd
     of the cameras): both give the same sum.
     """
     if num_cameras * Y.shape[1] <= SPARSE_SCHUR_UNKNOWNS:
-        return _schur_product_dense(Y, W, camera, point, num_cameras)
-    return _schur_product_sparse(Y, W, camera, point, num_cameras)
+        return schur_product_dense(Y, W, camera, point, num_cameras)
+    return schur_product_sparse(Y, W, camera, point, num_cameras)
 
 
 def _damped_inverse_points(ne: NormalEquations, damping: float) -> FloatArray:

@@ -5,7 +5,7 @@ The pose parametrisation
 A relative pose ``(R, t)`` (``x_cam2 = R x_cam1 + t``, ``|t| = 1``) has five degrees
 of freedom. Near an estimate ``(R, t)`` the poses are written with a 5-vector
 ``x = (w, d)``, the step that scene3D's refinements take
-(:func:`scene3D.optim.refinement.refine_relative_pose`):
+(:func:`scene3D.optim.refinement.refine_relative_pose`; :func:`update_pose` applies it):
 
 - ``R(x) = exp([w]x) R``: ``w`` (3,) is a rotation vector in radians, in the
   camera-2 frame (the rotation is applied after ``R``, on the left);
@@ -44,7 +44,14 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..geometry.conventions import FloatArray, median, project_with_jacobian, skew, skews
+from ..geometry.conventions import (
+    FloatArray,
+    median,
+    project_with_jacobian,
+    rotations_from_vectors,
+    skew,
+    skews,
+)
 
 CHI2_90 = {2: 4.605170185988091, 3: 6.251388631170325}
 """90 % quantiles of the chi-square distribution with 2 and 3 degrees of freedom: the
@@ -68,6 +75,33 @@ def tangent_basis(t: ArrayLike) -> FloatArray:
     b1 = skew(t) @ helper
     b1 /= np.linalg.norm(b1)
     return np.vstack([b1, skew(t) @ b1])
+
+
+def update_pose(
+    R: FloatArray, t: FloatArray, dx: FloatArray, basis: FloatArray | None = None
+) -> tuple[FloatArray, FloatArray]:
+    """Apply a step ``x = (w, d)`` of the pose parametrisation (module docstring) to ``(R, t)``.
+
+    Parameters
+    ----------
+    R : (3, 3) array
+        ``R_cam2_from_cam1``.
+    t : (3,) array
+        Unit translation, ``x_cam2 = R x_cam1 + t``.
+    dx : (5,) array
+        Rotation vector ``w`` (3, radians, camera-2 frame), then the tangent step ``d`` (2).
+    basis : (2, 3) array, optional
+        The tangent basis of ``t`` the step refers to; :func:`tangent_basis` ``(t)`` by default.
+
+    Returns
+    -------
+    R, t : (3, 3), (3,) float64
+        ``exp([w]x) R`` and ``(t + d @ basis) / |t + d @ basis|``.
+    """
+    basis = tangent_basis(t) if basis is None else basis
+    R_new = rotations_from_vectors(dx[None, :3])[0] @ R
+    t_new = t + dx[3:] @ basis
+    return R_new, t_new / np.linalg.norm(t_new)
 
 
 def sandwich_covariance(J: FloatArray, influence: FloatArray,

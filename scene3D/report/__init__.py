@@ -148,7 +148,7 @@ def two_view_layers(
     K : (3, 3) array_like
         Intrinsics of the working images, of size ``image_size`` (width, height).
     dense_points, dense_colors : optional
-        The dense cloud (``--dense``), same frame.
+        The dense cloud (:func:`scene3D.dense.dense_point_cloud`), same frame.
     """
     points3d = np.asarray(points3d, dtype=np.float64).reshape(-1, 3)
     poses_R = np.stack([np.eye(3), np.asarray(R, dtype=np.float64)])

@@ -32,7 +32,21 @@ MAX_VIEW_POINTS = 300_000
 
 
 class MissingViewerError(RuntimeError):
-    """plotly.js (the ``plotly`` package) is not installed."""
+    """plotly.js (the ``plotly`` package) is not installed.
+
+    Attributes
+    ----------
+    reason : str
+        ``"no_plotly"`` (the package is missing) or ``"no_plotly_js"`` (it has no
+        ``plotly.min.js``).
+    """
+
+    def __init__(self, message: str, reason: str = "no_plotly") -> None:
+        self.reason = reason
+        super().__init__(message)
+
+    def __reduce__(self) -> tuple:
+        return type(self), (self.args[0], self.reason)
 
 
 @dataclass(frozen=True)
@@ -112,10 +126,11 @@ def plotly_js_path() -> Path:
     spec = importlib.util.find_spec("plotly")
     if spec is None or not spec.submodule_search_locations:
         raise MissingViewerError("the report's 3D view needs the 'plotly' package "
-                                 "(pip install plotly), or use --no-report")
+                                 "(pip install plotly)", "no_plotly")
     path = Path(list(spec.submodule_search_locations)[0]) / "package_data" / "plotly.min.js"
     if not path.is_file():
-        raise MissingViewerError(f"the 'plotly' package has no '{path.name}' at '{path}'")
+        raise MissingViewerError(f"the 'plotly' package has no '{path.name}' at '{path}'",
+                                 "no_plotly_js")
     return path
 
 

@@ -29,7 +29,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..geometry.conventions import FloatArray, skew, to_homogeneous
-from ..optim.refinement import _fundamental_derivatives, _refine_pose_and_one
+from ..geometry.epipolar import fundamental_derivatives
+from ..optim.refinement import refine_pose_and_parameter
 
 #: The fit does not step beyond this coefficient either way. The model folds over where
 #: ``1 + k |x|^2 = 0``: for ``k = -1`` at the corners of a 90 deg diagonal field of view,
@@ -41,10 +42,10 @@ def undistort_division(pts: ArrayLike, K: ArrayLike, k: float) -> FloatArray:
     """Pixels ``(N, 2)`` as a pinhole camera ``K`` would have seen the pixels ``pts``
     ``(N, 2)`` of a lens with the division-model coefficient ``k`` (module docstring)."""
     h = to_homogeneous(np.asarray(pts, dtype=np.float64).reshape(-1, 2))
-    return _undistorted(h, np.asarray(K, dtype=np.float64), k).u[:, :2]
+    return undistort_homogeneous(h, np.asarray(K, dtype=np.float64), k).u[:, :2]
 
 
-class _Undistorted(NamedTuple):
+class Undistorted(NamedTuple):
     """Matched pixels undistorted with ``k``, and how they change with it."""
 
     u: FloatArray  # (N, 3) homogeneous undistorted pixels
@@ -53,7 +54,7 @@ class _Undistorted(NamedTuple):
     dg: FloatArray  # (N,) dg / dk
 
 
-def _undistorted(h: FloatArray, K: FloatArray, k: float) -> _Undistorted:
+def undistort_homogeneous(h: FloatArray, K: FloatArray, k: float) -> Undistorted:
     """Homogeneous pixels ``(N, 3)`` undistorted with ``k`` (:func:`undistort_division`).
 
     ``u = c + (p - c) g`` with ``g = 1 / (1 + k rho^2)`` and ``rho^2 = |K^-1 p|^2``, so
@@ -67,11 +68,11 @@ def _undistorted(h: FloatArray, K: FloatArray, k: float) -> _Undistorted:
     u[:, :2] = c + offset * g[:, None]
     du = np.zeros_like(h)
     du[:, :2] = -(offset * g[:, None]) * (rho2 * g)[:, None]
-    return _Undistorted(u, du, g, -rho2 * g**2)
+    return Undistorted(u, du, g, -rho2 * g**2)
 
 
-def _observed_sampson(F: FloatArray, p1: _Undistorted,
-                      p2: _Undistorted) -> tuple[FloatArray, tuple]:
+def observed_sampson(F: FloatArray, p1: Undistorted,
+                     p2: Undistorted) -> tuple[FloatArray, tuple]:
     """Sampson distances ``(N,)`` of undistorted correspondences to ``x2^T F x1 = 0``,
     in the pixels of the photos as given, and the terms their derivatives reuse.
 
@@ -92,9 +93,9 @@ def _observed_sampson(F: FloatArray, p1: _Undistorted,
     return a / n, (line2, line1, a, n)
 
 
-def _observed_sampson_jacobian(F: FloatArray, dF: FloatArray, p1: _Undistorted,
-                               p2: _Undistorted, terms: tuple) -> FloatArray:
-    """Jacobian ``(N, k + 1)`` of :func:`_observed_sampson`: for ``F`` moving along ``dF``
+def observed_sampson_jacobian(F: FloatArray, dF: FloatArray, p1: Undistorted,
+                              p2: Undistorted, terms: tuple) -> FloatArray:
+    """Jacobian ``(N, k + 1)`` of :func:`observed_sampson`: for ``F`` moving along ``dF``
     ``(k, 3, 3)``, then for the distortion coefficient.
 
     ``d(a/n) = da / n - a d(n^2) / (2 n^3)``. Along ``dF``: ``da = x2^T dF x1`` and
@@ -147,13 +148,13 @@ class DistortionFit(NamedTuple):
     def residuals(self, K: ArrayLike, pts1: ArrayLike, pts2: ArrayLike) -> FloatArray:
         """Signed Sampson distances ``(N,)`` of the correspondences ``pts1, pts2`` ``(N, 2)``,
         undistorted with ``k``, to the fitted pose under ``K``, in the pixels given
-        (:func:`_observed_sampson`)."""
+        (:func:`observed_sampson`)."""
         K = np.asarray(K, dtype=np.float64)
         K_inv = np.linalg.inv(K)
         F = K_inv.T @ skew(self.t) @ self.R @ K_inv
-        p1 = _undistorted(to_homogeneous(np.asarray(pts1, dtype=np.float64)), K, self.k)
-        p2 = _undistorted(to_homogeneous(np.asarray(pts2, dtype=np.float64)), K, self.k)
-        return _observed_sampson(F, p1, p2)[0]
+        p1 = undistort_homogeneous(to_homogeneous(np.asarray(pts1, dtype=np.float64)), K, self.k)
+        p2 = undistort_homogeneous(to_homogeneous(np.asarray(pts2, dtype=np.float64)), K, self.k)
+        return observed_sampson(F, p1, p2)[0]
 
     def shift_px(self, K: ArrayLike, pixel: ArrayLike) -> float:
         """How far, in pixels, undistorting with ``k`` moves ``pixel`` ``(2,)`` (an image
@@ -177,7 +178,7 @@ def fit_radial_distortion(
 
     Minimises the robust Sampson distances of the correspondences, undistorted by the
     division model with coefficient ``k`` (module docstring) about ``K``'s principal
-    point and measured in the pixels given (:func:`_observed_sampson`), as
+    point and measured in the pixels given (:func:`observed_sampson`), as
     :func:`scene3D.optim.refinement.refine_relative_pose` does for the pose alone,
     from ``R, t`` and ``k = initial_k``.
 
@@ -206,17 +207,17 @@ def fit_radial_distortion(
     h2 = to_homogeneous(np.asarray(pts2, dtype=np.float64))
 
     def residuals(R_: FloatArray, t_: FloatArray, k: float) -> tuple[FloatArray, tuple]:
-        p1, p2 = _undistorted(h1, K, k), _undistorted(h2, K, k)
+        p1, p2 = undistort_homogeneous(h1, K, k), undistort_homogeneous(h2, K, k)
         F_ = K_inv.T @ skew(t_) @ R_ @ K_inv
-        r_, terms = _observed_sampson(F_, p1, p2)
+        r_, terms = observed_sampson(F_, p1, p2)
         return r_, (F_, p1, p2, terms)
 
     def jacobian(R_: FloatArray, t_: FloatArray, k: float, basis: FloatArray,
                  cache: tuple) -> FloatArray:
         F_, p1, p2, terms = cache
-        dF = _fundamental_derivatives(R_, t_, basis, K_inv)
-        return _observed_sampson_jacobian(F_, dF, p1, p2, terms)
+        dF = fundamental_derivatives(R_, t_, basis, K_inv)
+        return observed_sampson_jacobian(F_, dF, p1, p2, terms)
 
-    R, t, k, sigma = _refine_pose_and_one(R, t, initial_k, residuals, jacobian, MAX_ABS_K,
+    R, t, k, sigma = refine_pose_and_parameter(R, t, initial_k, residuals, jacobian, MAX_ABS_K,
                                           loss, scale_px, max_iterations)
     return DistortionFit(float(k), sigma, R, t)

@@ -26,13 +26,14 @@ from ..geometry.camera import validate_intrinsics
 from ..geometry.conventions import FloatArray, distinct_correspondences, median, pose_angle_deg
 from ..geometry.epipolar import (
     ROBUST_METHOD,
-    _check_pair,
-    _mask,
+    check_correspondences,
     essential_distances,
     essential_from_pose,
+    inlier_mask,
 )
 from ..geometry.pose import decompose_essential, nearest_decomposition
-from ..optim.refinement import _loss, refine_relative_pose, relative_pose_covariance
+from ..optim.least_squares import robust_loss
+from ..optim.refinement import refine_relative_pose, relative_pose_covariance
 from ..optim.uncertainty import CHI2_99_POSE, pose_difference_chi2
 
 #: Robust estimator of the restarts of :func:`fit_essential` when they run below the
@@ -201,7 +202,7 @@ def fit_essential(
     """
     if max_starts < 1:
         raise ValueError(f"max_starts must be >= 1, got {max_starts}")
-    p1, p2 = _check_pair(pts1, pts2, 5)
+    p1, p2 = check_correspondences(pts1, pts2, 5)
     K = validate_intrinsics(K)
     n = len(p1)
     # Python's generator, not numpy's: numpy.random costs 13 ms to import.
@@ -305,7 +306,7 @@ def estimate_essential(
     if refine:
         fit = fit_essential(pts1, pts2, K, threshold_px, confidence, max_iters, max_starts=1)
         return fit.E, fit.inliers
-    p1, p2 = _check_pair(pts1, pts2, 5)
+    p1, p2 = check_correspondences(pts1, pts2, 5)
     return _robust_essential(p1, p2, validate_intrinsics(K), threshold_px, confidence,
                              max_iters)
 
@@ -326,7 +327,7 @@ def _robust_essential(p1: FloatArray, p2: FloatArray, K: FloatArray, threshold_p
         # Several solutions are stacked as (3k, 3) when the solver is not robust.
         return np.full((3, 3), np.nan), np.zeros(n, dtype=bool)
     inliers = np.zeros(n, dtype=bool)
-    inliers[np.arange(n) if order is None else order] = _mask(mask, n)
+    inliers[np.arange(n) if order is None else order] = inlier_mask(mask, n)
     return E / np.linalg.norm(E), inliers
 
 
@@ -335,7 +336,7 @@ def essential_costs(E: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: ArrayLike
     """Each correspondence's share ``(N,)`` of :func:`essential_cost`."""
     distances = np.minimum(essential_distances(E, pts1, pts2, K), threshold_px)
     scale = LOSS_SCALE_OF_THRESHOLD * threshold_px
-    return _loss((distances / scale) ** 2, "cauchy")[0]
+    return robust_loss((distances / scale) ** 2, "cauchy")[0]
 
 
 def essential_cost(E: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: ArrayLike,

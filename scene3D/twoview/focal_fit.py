@@ -22,13 +22,13 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..geometry.conventions import FloatArray, skew, to_homogeneous
-from ..optim.refinement import (
-    _fundamental_derivatives,
-    _refine_pose_and_one,
-    _sampson,
-    _sampson_jacobian,
+from ..geometry.epipolar import (
+    fundamental_derivatives,
+    sampson_jacobian,
     sampson_residuals,
+    sampson_residuals_homogeneous,
 )
+from ..optim.refinement import refine_pose_and_parameter
 
 #: How each check scales the two focal lengths: ``log s1 = w1 x``, ``log s2 = w2 x`` for
 #: the fitted unknown ``x``. A common factor; image 2's against image 1's, half each way
@@ -47,18 +47,18 @@ def _scaled_inverses(x: float, weights: tuple[float, float],
     return tuple(np.diag([np.exp(-w * x), np.exp(-w * x), 1.0]) @ K_inv for w in weights)
 
 
-def _scaled_fundamental(R: FloatArray, t: FloatArray, x: float, weights: tuple[float, float],
-                        K_inv: FloatArray) -> FloatArray:
+def scaled_fundamental(R: FloatArray, t: FloatArray, x: float, weights: tuple[float, float],
+                       K_inv: FloatArray) -> FloatArray:
     """``F = K_2^-T [t]x R K_1^-1`` (:func:`_scaled_inverses`)."""
     K1_inv, K2_inv = _scaled_inverses(x, weights, K_inv)
     return K2_inv.T @ skew(t) @ R @ K1_inv
 
 
-def _focal_fundamental_derivatives(R: FloatArray, t: FloatArray, x: float,
-                                   weights: tuple[float, float], basis: FloatArray,
-                                   K_inv: FloatArray) -> FloatArray:
-    """``dF / dx`` ``(6, 3, 3)`` of :func:`_scaled_fundamental`: the pose step of
-    :func:`scene3D.optim.refinement._update_pose` (5), then ``x``.
+def focal_fundamental_derivatives(R: FloatArray, t: FloatArray, x: float,
+                                  weights: tuple[float, float], basis: FloatArray,
+                                  K_inv: FloatArray) -> FloatArray:
+    """``dF / dx`` ``(6, 3, 3)`` of :func:`scaled_fundamental`: the pose step of
+    :func:`scene3D.optim.uncertainty.update_pose` (5), then ``x``.
 
     ``d(K_i^-1) / dx = -w_i P K_i^-1`` with ``P = diag(1, 1, 0)``.
     """
@@ -66,7 +66,7 @@ def _focal_fundamental_derivatives(R: FloatArray, t: FloatArray, x: float,
     E = skew(t) @ R
     P = np.diag([1.0, 1.0, 0.0])
     d_x = -K2_inv.T @ (weights[1] * P @ E + weights[0] * E @ P) @ K1_inv
-    return np.concatenate([_fundamental_derivatives(R, t, basis, K1_inv, K2_inv), d_x[None]])
+    return np.concatenate([fundamental_derivatives(R, t, basis, K1_inv, K2_inv), d_x[None]])
 
 
 class FocalFit(NamedTuple):
@@ -108,8 +108,8 @@ class FocalFit(NamedTuple):
         """``(3, 3)`` the fundamental matrix of the fitted pose and focal lengths, for
         the calibration ``K`` the fit started from."""
         K_inv = np.linalg.inv(np.asarray(K, dtype=np.float64))
-        return _scaled_fundamental(self.R, self.t, float(np.log(self.scale)), self.weights,
-                                   K_inv)
+        return scaled_fundamental(self.R, self.t, float(np.log(self.scale)), self.weights,
+                                  K_inv)
 
 
 def _fit_focal(R: ArrayLike, t: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: ArrayLike,
@@ -124,16 +124,16 @@ def _fit_focal(R: ArrayLike, t: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: 
     K_inv = np.linalg.inv(np.asarray(K, dtype=np.float64))
 
     def residuals(R_: FloatArray, t_: FloatArray, x: float) -> tuple[FloatArray, FloatArray]:
-        F_ = _scaled_fundamental(R_, t_, x, weights, K_inv)
-        return _sampson(F_, h1, h2), F_
+        F_ = scaled_fundamental(R_, t_, x, weights, K_inv)
+        return sampson_residuals_homogeneous(F_, h1, h2), F_
 
     def jacobian(R_: FloatArray, t_: FloatArray, x: float, basis: FloatArray,
                  F_: FloatArray) -> FloatArray:
-        dF = _focal_fundamental_derivatives(R_, t_, x, weights, basis, K_inv)
-        return _sampson_jacobian(F_, dF, h1, h2)
+        dF = focal_fundamental_derivatives(R_, t_, x, weights, basis, K_inv)
+        return sampson_jacobian(F_, dF, h1, h2)
 
     # The same first-order covariance as the pose's (refinement.relative_pose_covariance).
-    R, t, x, sigma_log = _refine_pose_and_one(R, t, float(np.log(initial_scale)), residuals,
+    R, t, x, sigma_log = refine_pose_and_parameter(R, t, float(np.log(initial_scale)), residuals,
                                               jacobian, MAX_LOG_SCALE, loss, scale_px,
                                               max_iterations)
     return FocalFit(float(np.exp(x)), sigma_log, R, t, weights)

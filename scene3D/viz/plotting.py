@@ -10,6 +10,10 @@ Images are BGR ``uint8`` as cv2 loads them; they are never drawn into.
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
@@ -28,6 +32,19 @@ from .drawing import (
     robust_extent,
     subsample_indices,
 )
+
+
+@contextmanager
+def quiet_missing_glyphs() -> Iterator[None]:
+    """Silence matplotlib's "Glyph ... missing from font(s)" warnings while drawing.
+
+    A view name in a script the font lacks is drawn as boxes, and said twice per character
+    on stderr.
+    """
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r"Glyph \d+ .*missing from",
+                                category=UserWarning)
+        yield
 
 
 def _axes(ax: Axes | None, ncols: int = 1, figsize: tuple[float, float] = (8, 6),
