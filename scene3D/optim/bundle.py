@@ -504,7 +504,7 @@ def bundle_adjust_radial(
     def evaluate(R_: FloatArray, t_: FloatArray, X_: FloatArray, g: FloatArray):
         projected = radial_projection(R_, t_, X_, obs, intrinsics(g), g[1:])
         r_ = whitened(projected[0])
-        cost = _robust_cost(r_, loss, scale_px) + float(
+        cost = robust_cost(r_, loss, scale_px) + float(
             np.sum((prior_weight * (g - prior_mean)) ** 2))
         return (R_, t_, X_, g, r_, projected), cost
 
@@ -536,7 +536,7 @@ def bundle_adjust_radial(
     # bundle_adjust_focal does.
     for _ in range(3):
         state, cost = evaluate(R0, t0, X0, g0)
-        state = _levenberg_marquardt(state, cost, linearize, max_iterations, tolerance)
+        state = levenberg_marquardt(state, cost, linearize, max_iterations, tolerance)
         R0, t0, X0, g0 = state[:4]
         settled = _robust_noise_px(state[4])
         if settled > 0.5 * noise:
