@@ -16,7 +16,7 @@ from scene3D.io.calibration import CameraCalibration, save_calibration
 from scene3D.io.datasets import read_strecha_camera
 from scene3D.io.export import colmap_text_files
 from scene3D.multiview import SfMSettings, mapper, reconstruct_views
-from scene3D.multiview.models import refutes_calibration
+from scene3D.multiview.settings import refutes_calibration
 
 from .conftest import REPO
 

@@ -27,9 +27,9 @@ from .models import (
     SfMModel,
     SfMSettings,
     ViewFeatures,
-    refutes_calibration,
 )
 from .points import max_parallax_deg, observation_errors, refine_points, triangulate_groups
+from .settings import refutes_calibration
 from .tracks import build_tracks, connected_components
 from .weights import keypoint_sigma
 
