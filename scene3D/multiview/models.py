@@ -102,7 +102,8 @@ class ModelCheck:
         the calibration's, and the standard deviation of its log. 1 and inf when not
         tested.
     focal_mismatch : bool
-        That focal length refutes the calibration's (:func:`scene3D.multiview.settings.refutes_calibration`).
+        That focal length refutes the calibration's
+        (:func:`scene3D.multiview.settings.refutes_calibration`).
     """
 
     pairs_checked: int
