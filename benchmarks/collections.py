@@ -12,8 +12,8 @@ one after the other on the same photos:
   default options otherwise.
 
 Per method: views registered in the largest model (and how many models), the focal length
-at the photos' native size and the radial distortion k1 (COLMAP's; scene3D's pinhole
-model has none), the focal length against the folder's ``K.txt`` where there is one (the
+at the photos' native size and the radial distortion k1 (both SIMPLE_RADIAL by default;
+empty where a method found none), the focal length against the folder's ``K.txt`` where there is one (the
 reference its project gives), the cameras of the largest model against COLMAP's
 (``scene3D.evaluation.camera_set_error``, aligned by orientations: rotation max / median
 in degrees, over the views both registered), and the wall time of the whole process, with
@@ -100,7 +100,9 @@ def run_scene3d(folder: Path, work: Path) -> dict:
     largest = summary["models"][0] if summary.get("models") else {}
     return {"seconds": seconds, "models": len(summary.get("models", [])),
             "views": {name: [c["R"], c["center"]] for name, c in cameras.items()},
-            "focal_px": summary["K"][0][0] * scale, "registered": largest.get("registered", 0)}
+            "focal_px": summary["K"][0][0] * scale, "registered": largest.get("registered", 0),
+            "k1": (summary.get("distortion") or [None])[0],
+            "camera_model": summary.get("camera_model")}
 
 
 def run_colmap(folder: Path, work: Path, threads: int) -> dict:

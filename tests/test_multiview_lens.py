@@ -4,6 +4,7 @@ rendered half orbit photographed through a barrel lens, reconstructed end to end
 import numpy as np
 import pytest
 
+from scene3D.errors import ReconstructionError
 from scene3D.evaluation import camera_set_error
 from scene3D.evaluation.synthetic import lens_photo, orbit_poses, orbit_scene, render_planes
 from scene3D.geometry.lens import max_shift_px
@@ -35,7 +36,8 @@ def _errors(recon, Rs, centers):
 def test_the_lens_is_found_and_removed(lens_orbit):
     """Without a calibration the default camera (simple_radial) finds the lens: k1 within
     0.01 and the focal length within 1 % of the truth, every view registered, the cameras
-    closer to the truth than a pinhole camera gets them; the result's dist is the lens."""
+    within 0.3 deg; the result's dist is the lens. A pinhole camera gets no start (the
+    pairs call for a focal length 0.82 times the prior's) or a worse model."""
     photos, Rs, centers = lens_orbit
     shift = max_shift_px(K_TRUE, [K1_TRUE], (640, 480))
     assert 28 < shift < 33
@@ -47,7 +49,14 @@ def test_the_lens_is_found_and_removed(lens_orbit):
     rotation, center = _errors(recon, Rs, centers)
     assert rotation < 0.3 and center < 0.01
 
-    pinhole = reconstruct_views(photos, None, camera_model="pinhole", progress=lambda _: None)
+    # The pinhole camera (what every run got before): no pair looks trustworthy under the
+    # bent matches, so no start; where one starts, a focal length and cameras further off.
+    try:
+        pinhole = reconstruct_views(photos, None, camera_model="pinhole",
+                                    progress=lambda _: None)
+    except ReconstructionError as exc:
+        assert exc.reason == "no_initial_pair"
+        return
     assert pinhole.camera_model == "pinhole" and pinhole.dist.size == 0
     assert pinhole.lens_passes == 0
     pinhole_rotation, pinhole_center = (_errors(pinhole, Rs, centers)
