@@ -324,6 +324,7 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
                        progress: Callable[[str], None] | None = None,
                        names: Sequence[str] | None = None,
                        focal: FocalSettings | None = None,
+                       start_from: FocalEstimate | None = None,
                        ) -> tuple[list[SfMModel], dict[int, str], dict[str, float]]:
     """Steps 1-6 on verified pairs: every model the views allow, largest first.
 
@@ -331,7 +332,9 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
     prior's, the first model's start pair is self-calibrated and every model refines one
     focal length in its global adjustments; a further model starts from the previous
     one's (:mod:`scene3D.multiview.focal`). Each model's ``K`` and ``focal`` say what it
-    ended with.
+    ended with. With ``focal`` and ``start_from`` (a model of the same views made before,
+    whose focal length ``K`` carries: :mod:`scene3D.multiview.lens`), the first model
+    starts as a further one does, without self-calibrating a pair again.
 
     Returns
     -------
@@ -360,7 +363,10 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
         t0 = time.perf_counter()
         inside = [p for p in pairs if remaining[p.i] and remaining[p.j]]
         focal_start = None
-        if focal is not None and not models and inside:
+        if focal is not None and not models and inside and start_from is not None:
+            focal_start = start_from
+            start = initial_pair(features, inside, K, K_source="other photos")
+        elif focal is not None and not models and inside:
             start, K, focal_start = self_calibrated_start(features, inside, K, focal,
                                                           initial_pair)
             if not isinstance(start, str):

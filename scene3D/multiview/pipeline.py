@@ -48,6 +48,7 @@ from .lens import model_lens, pair_lens_guess, refine_lens, undistorted_features
 from .mapper import reconstruct_models
 from .matching import verify_pair
 from .models import (
+    FocalEstimate,
     MultiViewReconstruction,
     PairMatches,
     SfMModel,
@@ -342,7 +343,8 @@ def reconstruct_views(
 
     latest_pairs: list[PairMatches] = []  # the last pass's verified pairs
 
-    def reconstruct_with(K_work: np.ndarray) -> tuple[list[SfMModel], dict[int, str], int, int]:
+    def reconstruct_with(K_work: np.ndarray, start_from: FocalEstimate | None = None
+                         ) -> tuple[list[SfMModel], dict[int, str], int, int]:
         """The models under ``K_work``, the reasons for the views left out, and the
         pairs matched and verified: pair verification depends on ``K``."""
         t0 = time.perf_counter()
@@ -375,7 +377,8 @@ def reconstruct_views(
 
         try:
             models, reasons, sfm_timings = reconstruct_models(
-                features, verified, K_work, s, more_pairs, say, canonical_names, focal)
+                features, verified, K_work, s, more_pairs, say, canonical_names, focal,
+                start_from)
         except ReconstructionError as exc:
             few = _too_few_keypoints(found, labels, s.min_pair_inliers, working_size)
             if exc.reason != "no_initial_pair" or few is None:
@@ -447,8 +450,11 @@ def reconstruct_views(
         kept = features, handles
         features = undistorted_features(features, raw_keypoints, fit.K, fit.k)
         handles = [engine.share(f) for f in features]
+        # The focal length is known from the model now: no pair is self-calibrated again.
+        start_from = None if models[0].focal is None else dataclasses.replace(
+            models[0].focal, start_focal_px=float(fit.K[0, 0]))
         try:
-            attempt = reconstruct_with(fit.K)
+            attempt = reconstruct_with(fit.K, start_from)
         except ReconstructionError as exc:
             attempt, why = None, str(exc)
         else:
