@@ -13,8 +13,8 @@ one after the other on the same photos:
 
 Per method: views registered in the largest model (and how many models), the focal length
 at the photos' native size and the radial distortion k1 (both SIMPLE_RADIAL by default;
-empty where a method found none), the focal length against the folder's ``K.txt`` where there is one (the
-reference its project gives), the cameras of the largest model against COLMAP's
+empty where a method found none), the focal length against the folder's ``K.txt`` where
+there is one (the reference its project gives), the cameras of the largest model against COLMAP's
 (``scene3D.evaluation.camera_set_error``, aligned by orientations: rotation max / median
 in degrees, over the views both registered), and the wall time of the whole process, with
 its ratio to COLMAP's. Prints a markdown table.

@@ -8,6 +8,7 @@ from scene3D.evaluation.synthetic import orbit_poses
 from scene3D.geometry.lens import (
     distort_normalized,
     distort_pixels,
+    folds_within,
     max_shift_px,
     radial_coefficients,
     rescaled_coefficients,
@@ -58,6 +59,15 @@ def test_rescaled_coefficients_are_the_same_camera():
     k2 = rescaled_coefficients(k, f1, f2)
     np.testing.assert_allclose(distort_normalized(n, k2) * f2 + K[:2, 2], photographed,
                                atol=1e-9)
+
+
+def test_a_lens_that_folds_inside_the_image_is_seen():
+    """k1 = -0.5 folds at r_u^2 = 2/3, distorted radius 0.544; the corner of 640x480 under
+    f = 700 is at 0.571: it folds inside. A photo's lens (-0.14) and a pincushion do not."""
+    assert folds_within(K, [-0.5], (640, 480))
+    assert not folds_within(K, [-0.14], (640, 480)) and not folds_within(K, [0.3], (640, 480))
+    K_small = np.array([[700.0, 0, 159.5], [0, 700.0, 119.5], [0, 0, 1]])
+    assert not folds_within(K_small, [-0.5], (320, 240))  # corners at 0.29: inside the fold
 
 
 def test_camera_models_and_corner_shift():

@@ -171,6 +171,30 @@ def corner_shifts_px(K: ArrayLike, k: ArrayLike, image_size: tuple[int, int]) ->
     return corners - undistort_pixels(corners, K, k)
 
 
+def folds_within(K: ArrayLike, k: ArrayLike, image_size: tuple[int, int]) -> bool:
+    """Whether the lens ``k`` folds over inside the image: a barrel lens whose distorted
+    radius stops growing (``1 + 3 k1 r^2 + 5 k2 r^4 <= 0``) before the farthest corner,
+    so that the model maps two points to one pixel there and cannot be undistorted.
+
+    Parameters
+    ----------
+    K : (3, 3) array_like
+    k : array_like
+    image_size : (width, height)
+    """
+    k1, k2 = _padded(k)
+    w, h = image_size
+    K = np.asarray(K, np.float64)
+    corners = np.array([[0.0, 0.0], [w - 1.0, 0.0], [0.0, h - 1.0], [w - 1.0, h - 1.0]])
+    r_d = float(np.max(np.linalg.norm(_normalized(corners, K), axis=1)))
+    radii = np.linspace(0.0, 3.0 * r_d, 601)  # r_u out to where r_d(r_u) passes the corner
+    slope = 1.0 + 3.0 * k1 * radii**2 + 5.0 * k2 * radii**4
+    reach = radii * (1.0 + k1 * radii**2 + k2 * radii**4)
+    inside = np.flatnonzero(reach >= r_d)
+    last = inside[0] if inside.size else len(radii)
+    return bool(np.any(slope[:last] <= 0))
+
+
 def max_shift_px(K: ArrayLike, k: ArrayLike, image_size: tuple[int, int]) -> float:
     """How far the distortion ``k`` moves the image's farthest corner, in pixels
     (:func:`corner_shifts_px`)."""

@@ -33,7 +33,7 @@ from ..geometry.camera import (
     validate_intrinsics,
 )
 from ..geometry.intrinsics_prior import FocalPrior, camera_prior
-from ..geometry.lens import corner_shifts_px, max_shift_px, radial_coefficients
+from ..geometry.lens import corner_shifts_px, folds_within, max_shift_px, radial_coefficients
 from ..io.images import (
     BOOK_MAX_WIDTH_PX,
     ImageSource,
@@ -399,7 +399,7 @@ def reconstruct_views(
         guess = (pair_lens_guess(latest_pairs, features, K_work)
                  if exc.reason == "no_initial_pair" and focal is not None and num_radial
                  else None)
-        if guess is None:
+        if guess is None or folds_within(K_lens, [guess], working_size):
             raise
         say(f"no start with the keypoints as photographed; the pairs with most matches "
             f"call for a lens with k1 {guess:+.3f}: starting again with them undistorted")
@@ -443,6 +443,10 @@ def reconstruct_views(
         negligible = (max_shift_px(fit.K, fit.k, working_size)
                       <= s.min_lens_shift * float(np.hypot(*working_size)))
         if moved <= s.lens_tolerance_px or (negligible and not lens_passes):
+            break
+        if folds_within(fit.K, fit.k, working_size):  # no lens of a photo: a wrong fit
+            say(f"the lens the model calls for (k {np.round(fit.k, 3).tolist()}) folds over "
+                "inside the image: keeping the last")
             break
         say(f"lens distortion: k1 {fit.k[0]:+.3f} moves the image corners "
             f"{max_shift_px(fit.K, fit.k, working_size):.1f} px; reconstructing with the "
