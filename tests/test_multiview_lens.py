@@ -1,6 +1,12 @@
 """Photos of a distorting lens without a calibration file (scene3D.multiview.lens): a
 rendered half orbit photographed through a barrel lens, reconstructed end to end."""
 
+import json
+import re
+import subprocess
+import sys
+
+import cv2
 import numpy as np
 import pytest
 
@@ -8,6 +14,7 @@ from scene3D.errors import ReconstructionError
 from scene3D.evaluation import camera_set_error
 from scene3D.evaluation.synthetic import lens_photo, orbit_poses, orbit_scene, render_planes
 from scene3D.geometry.lens import max_shift_px
+from scene3D.io.colmap import read_colmap_text
 from scene3D.multiview import reconstruct_views
 
 K_TRUE = np.array([[560.0, 0, 319.5], [0, 560.0, 239.5], [0, 0, 1]])
@@ -65,17 +72,32 @@ def test_the_lens_is_found_and_removed(lens_orbit):
     assert pinhole_rotation > rotation or pinhole_center > center
 
 
-def test_the_colmap_model_carries_the_lens(lens_orbit, tmp_path):
-    """The COLMAP model of the photos is SIMPLE_RADIAL with the lens found, and its
-    observations are where the points lie in the photos as taken: the points reprojected
-    through that camera land on them (the error as small as the model's own)."""
+def test_the_command_prints_and_writes_the_lens(lens_orbit, tmp_path):
+    """``reconstruct-views`` on the photos as files: a line names the lens, the summary
+    carries it, and the COLMAP model is SIMPLE_RADIAL with its observations where the
+    points lie in the photos as taken (reprojected through that camera, as small an error
+    as the model's own)."""
     photos, _, _ = lens_orbit
-    recon = reconstruct_views(photos[:8], None, progress=lambda _: None)
-    colmap = recon.colmap_model()
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    for i, photo in enumerate(photos[:8]):
+        cv2.imwrite(str(folder / f"{i:02d}.png"), photo)
+    out = tmp_path / "out"
+    run = subprocess.run([sys.executable, "-m", "scene3D", "reconstruct-views", str(folder),
+                          "--out", str(out), "--no-plots", "--no-report"],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    (line,) = [ln for ln in run.stdout.splitlines() if ln.startswith("lens (simple_radial)")]
+    k1 = float(re.search(r"k1 ([-+][0-9.]+)", line).group(1))
+    assert abs(k1 - K1_TRUE) < 0.015
+    summary = json.loads((out / "reconstruction.json").read_text())
+    assert summary["camera_model"] == "simple_radial"
+    assert summary["distortion"][0] == pytest.approx(k1, abs=1e-4)
+    colmap = read_colmap_text(out / "colmap")
     (camera,) = colmap.cameras.values()
     assert camera.model == "SIMPLE_RADIAL"
-    assert camera.params[3] == pytest.approx(recon.dist[0])
-    assert np.median(colmap.errors_px) < 2 * recon.main.reprojection_rmse_px + 0.1
+    assert camera.params[3] == pytest.approx(summary["distortion"][0])
+    assert np.median(colmap.errors_px) < 2 * summary["reprojection_rmse_px"] + 0.1
 
 
 @pytest.mark.parametrize("model", ["simple_radial", "radial"])

@@ -14,7 +14,7 @@ import numpy as np
 from ..errors import plural
 from ..features.matching import FEATURE_MODES
 from ..geometry.camera import adapt_intrinsics_to_size
-from ..geometry.lens import CAMERA_MODELS
+from ..geometry.lens import CAMERA_MODELS, max_shift_px, radial_coefficients
 from ..io.calibration import load_calibration
 from ..io.datasets import CameraFilesError, StrechaCamera, read_strecha_cameras
 from ..io.export import all_or_nothing, colmap_image_name, write_json, written_bytes
@@ -271,6 +271,19 @@ def _focal_text(K: np.ndarray, focal: FocalEstimate) -> str:
             f"({focal.source}" + ("" if focal.trusted else "; untrusted") + ")")
 
 
+def _lens_line(recon: MultiViewReconstruction) -> str:
+    """The lens a reconstruction without a calibration found (``camera_model``, ``dist``)."""
+    if not np.any(recon.dist):
+        return (f"lens ({recon.camera_model}): none applied (it would move the image "
+                f"corners less than {100 * SfMSettings.min_lens_shift:.2f} % of the diagonal)")
+    k = recon.dist[:radial_coefficients(recon.camera_model)]
+    names = ", ".join(f"k{i + 1} {v:+.4f}" for i, v in enumerate(k))
+    shift = max_shift_px(recon.K, k, recon.image_size)
+    return (f"lens ({recon.camera_model}): {names}, moving the image corners {shift:.1f} px "
+            f"at the working size (the keypoints undistorted with it, the views reconstructed "
+            f"again {plural(recon.lens_passes, 'time')})")
+
+
 def _result_lines(names: list[str], recon: MultiViewReconstruction, models: list[dict]
                   ) -> list[str]:
     """What the command prints of its result (the report shows the same lines)."""
@@ -290,6 +303,8 @@ def _result_lines(names: list[str], recon: MultiViewReconstruction, models: list
         lines.append(f"focal length {recon.K[0, 0]:.1f} px {sigma} at the working size "
                      f"({recon.prior_description}; {how}"
                      + ("" if recon.focal.trusted else "; untrusted") + ")")
+    if recon.focal is not None and recon.camera_model != "pinhole":
+        lines.append(_lens_line(recon))
     if recon.focal_refits:
         lines.append(f"focal length {recon.K[0, 0]:.1f} px at the working size, "
                      f"{recon.focal_refit_scale:.3f} times the calibration's (the views "
