@@ -7,8 +7,9 @@ checks and the registrations all work in the undistorted geometry of the current
 estimate:
 
 1. The views are reconstructed with the keypoints as they are (the coefficients 0). When
-   no pair gives a start so, the keypoints are undistorted with a first guess from the
-   pairs with most matches (:func:`pair_lens_guess`) and the start tried again.
+   no pair gives a start so, or the consistency check leaves the first model no views,
+   the keypoints are undistorted with a first guess from the pairs with most matches
+   (:func:`pair_lens_guess`) and the views reconstructed again.
 2. The largest model is adjusted on the photographed keypoints with the focal length and
    the coefficients free (:func:`scene3D.optim.bundle.bundle_adjust_radial`), starting from
    the lens its keypoints were undistorted with (exact: pixels undistorted with one

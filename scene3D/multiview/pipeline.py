@@ -395,14 +395,16 @@ def reconstruct_views(
         models, reasons, num_matched, num_verified = reconstruct_with(K_work)
     except ReconstructionError as exc:
         # A lens that bends the matches can leave no pair trustworthy in the pinhole
-        # geometry: undistort with the lens the best pairs call for and start again.
+        # geometry, or make the consistency check take right poses out of the first
+        # model: undistort with the lens the best pairs call for and start again.
         guess = (pair_lens_guess(latest_pairs, features, K_work)
-                 if exc.reason == "no_initial_pair" and focal is not None and num_radial
-                 else None)
+                 if exc.reason in ("no_initial_pair", "no_model") and focal is not None
+                 and num_radial else None)
         if guess is None or folds_within(K_lens, [guess], working_size):
             raise
-        say(f"no start with the keypoints as photographed; the pairs with most matches "
-            f"call for a lens with k1 {guess:+.3f}: starting again with them undistorted")
+        say(f"no model with the keypoints as photographed ({exc}); the pairs with most "
+            f"matches call for a lens with k1 {guess:+.3f}: starting again with them "
+            "undistorted")
         lens[0] = guess
         features = undistorted_features(features, raw_keypoints, K_lens, lens)
         handles = [engine.share(f) for f in features]
