@@ -4,7 +4,8 @@
 - :func:`read_photos` reads them one at a time, all of one size (or the most common one),
   each photo once (a link, a copy or the same pixels saved again is refused: a view counted
   twice drags the calibration towards it);
-- :func:`read_frames` reads the frames of a video file or a webcam;
+- :func:`read_frames` reads the frames of a video file or a webcam (named by
+  index or by time, :func:`frame_time_name`);
 - :func:`collect_views` finds the board in each image
   (:func:`scene3D.calibration.board.detect_board`); from a video it keeps only views whose
   corners moved, until it has enough.
@@ -18,6 +19,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import time
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
@@ -189,18 +191,21 @@ def check_distinct_files(files: list[Path]) -> None:
             raise ValueError(f"photo given twice: '{first}' and '{path}'")
 
 
-def read_frames(source: Path | int) -> Iterator[tuple[str, np.ndarray]]:
+def read_frames(source: Path | int, timed: bool = False) -> Iterator[tuple[str, np.ndarray]]:
     """The frames of a video file or a webcam, one at a time, as ``("frame i", image)``.
 
     Parameters
     ----------
     source : Path or int
         A video file, or a camera index (``0``: the first webcam).
+    timed : bool
+        Name the frames by their time instead (:func:`frame_time_name`): their time
+        stamp in the video, or for a camera the time since its first frame.
 
     Yields
     ------
     name : str
-        ``"frame 0"``, ``"frame 1"``, ...
+        ``"frame 0"``, ``"frame 1"``, ...; with ``timed`` ``"t000.00s"``, ``"t000.04s"``, ...
     image : (H, W, 3) uint8
 
     Raises
@@ -226,16 +231,37 @@ def read_frames(source: Path | int) -> Iterator[tuple[str, np.ndarray]]:
         capture, what = cv2.VideoCapture(str(source)), f"video '{source}'"
     if not capture.isOpened():
         raise ValueError(f"cannot open {what}")
-    index = 0
+    index, fps, started = 0, capture.get(cv2.CAP_PROP_FPS), time.monotonic()
     try:
         while True:
             ok, frame = capture.read()
             if not ok:
                 return
-            yield f"frame {index}", frame
+            if not timed:
+                yield f"frame {index}", frame
+            elif isinstance(source, int):
+                yield frame_time_name(time.monotonic() - started), frame
+            else:  # the frame's time stamp; from its index where the container has none
+                msec = capture.get(cv2.CAP_PROP_POS_MSEC)
+                seconds = msec / 1000 if msec > 0 or index == 0 or not fps > 0 else index / fps
+                yield frame_time_name(seconds), frame
             index += 1
     finally:
         capture.release()
+
+
+def frame_time_name(seconds: float) -> str:
+    """A frame's name from its time in the video: ``12.4`` -> ``"t012.40s"``.
+
+    Parameters
+    ----------
+    seconds : float
+
+    Returns
+    -------
+    str
+    """
+    return f"t{max(seconds, 0.0):06.2f}s"
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..calibration.views import VIDEO_SUFFIXES
 from ..errors import plural
 from ..features.matching import FEATURE_MODES
 from ..geometry.camera import adapt_intrinsics_to_size
@@ -31,7 +32,9 @@ from ..multiview import (
     SfMSettings,
     reconstruct_views,
 )
+from ..multiview.pipeline import default_focal_prior
 from ..multiview.summary import CALIBRATION_QUESTION
+from ..multiview.video import MAX_FRAMES, MIN_MOTION
 from .common import (
     EXIT_FAILED,
     EXIT_OK,
@@ -45,6 +48,7 @@ from .common import (
     check_report_viewer,
     exit_codes_help,
     focal_sigma_text,
+    non_negative_int,
     note_created_folders,
     open_engine,
     path_arg,
@@ -53,6 +57,7 @@ from .common import (
     run_command,
 )
 from .outputs import FILES_KEY, SUMMARY_FILE, OutputFolder
+from .video import FRAMES_FOLDER, read_video, video_source, write_frames
 
 logger = logging.getLogger("scene3D.cli")
 
@@ -95,15 +100,30 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
             "status 'failed', and the exit code is 1; when no model can start or be kept, "
             "nothing is written (an earlier run's files stay). Views are named by their "
             "file names (two photos of one name are refused); colmap/images.txt, which "
-            "cannot hold spaces, has '_' for each. "
+            "cannot hold spaces, has '_' for each. From a video (or --camera) the views "
+            "are frames picked by motion and sharpness (each kept frame named on stderr "
+            f"with why, then one summary line): no blurred frame, each {100 * MIN_MOTION:g} "
+            "% of the image diagonal of median image motion from the frame kept before, "
+            "at most --max-frames (from a file, thinned to every other frame as often as "
+            "needed to stay within it); they are named by their time in the video "
+            "('t012.40s'), their focal length starts at 1.2 x the longer side (a video has "
+            f"no EXIF), and --export nerfstudio writes them as {FRAMES_FOLDER}/NAME.png. "
             + exit_codes_help("no pair gives a trustworthy start or the check leaves no "
                               "model, a model failed its "
                               f"consistency check or has fewer than {MIN_MODEL_POINTS} "
                               "points, or the cluster gave a task up") + "."
         ),
     )
-    parser.add_argument("images", nargs="+", metavar="IMAGES",
-                        help="image files, a folder, or quoted globs such as 'photos/*.jpg'")
+    parser.add_argument("images", nargs="*", metavar="IMAGES",
+                        help="image files, a folder, or quoted globs such as 'photos/*.jpg'; "
+                             "or one video file (" + " ".join(sorted(VIDEO_SUFFIXES)) +
+                             ", or any file OpenCV reads as a video and not as an image)")
+    parser.add_argument("--camera", type=non_negative_int, metavar="INDEX",
+                        help="instead of IMAGES, frames of this webcam (0: the first), "
+                             "read until --max-frames are kept")
+    parser.add_argument("--max-frames", type=positive_int, default=MAX_FRAMES, metavar="N",
+                        help="from a video or --camera: the most frames kept (default "
+                             f"{MAX_FRAMES}, at least 2)")
     parser.add_argument("--calib", type=Path, metavar="FILE",
                         help="camera calibration (OpenCV YAML/XML as calibrate.py writes it; "
                              "a focal length the photos refute by more than 2 %% is replaced "
@@ -362,19 +382,25 @@ def run(args: argparse.Namespace) -> int:
     if args.calib is not None and args.camera_model not in ("auto", "pinhole"):
         raise UsageError(f"--camera-model {args.camera_model} is for photos without --calib: "
                          "the calibration file gives the camera (its distortion included)")
-    paths = image_paths(args.images)
+    video = video_source(args)
+    if video is not None and args.ground_truth is not None:
+        raise UsageError("--ground-truth needs photos (NAME.camera per photo), not a video")
+    if video is None and args.max_frames != MAX_FRAMES:
+        logger.warning("--max-frames is for a video or --camera; ignored with photos")
+    paths = [] if video is not None else image_paths(args.images)
     check_out_folder(args.out, paths)
     prior = None
-    if args.calib is None:
-        prior = read_camera_prior(paths)  # one camera, or a one-line error (exit code 2)
-    else:
+    if args.calib is not None:
         camera = load_calibration(args.calib)
+    elif video is None:
+        prior = read_camera_prior(paths)  # one camera, or a one-line error (exit code 2)
     names = [p.name for p in paths]
     truth = None if args.ground_truth is None else read_ground_truth(args.ground_truth, paths)
     model_names = (*MODEL_FILES, MODEL_FIGURE, NERFSTUDIO_FILE)
-    out_folder = OutputFolder(args.out, inputs=[*paths, *filter(None, [args.calib])],
+    out_folder = OutputFolder(args.out, inputs=[*paths, *filter(None, [args.calib]),
+                                                *([video] if isinstance(video, Path) else [])],
                               names=(*model_names, *(f"model-*/{n}" for n in model_names),
-                                     SUMMARY_FILE, REPORT_FILE))
+                                     f"{FRAMES_FOLDER}/*.png", SUMMARY_FILE, REPORT_FILE))
     out = out_folder.path
     # Before the work: the first model's files, and those of further models already there
     # (how many models come out is known only at the end, when all are checked again).
@@ -386,9 +412,15 @@ def run(args: argparse.Namespace) -> int:
     if not args.no_report:
         check_report_viewer()
 
-    if prior is None:
-        K_native = adapt_intrinsics_to_size(camera.K, camera.image_size,
-                                            read_image_size(paths[0]))
+    sources: list = list(paths)
+    if video is not None:
+        chosen = read_video(video, args.max_frames, args.quiet)
+        sources, names = chosen.images, chosen.names
+        if args.calib is None and sources:
+            prior = default_focal_prior(sources, names)
+    if args.calib is not None:
+        K_native = adapt_intrinsics_to_size(camera.K, camera.image_size, chosen.image_size
+                                            if video is not None else read_image_size(paths[0]))
         dist = camera.dist
     else:
         K_native, dist = None, None
@@ -399,7 +431,7 @@ def run(args: argparse.Namespace) -> int:
 
     with open_engine(args) as engine:
         recon = reconstruct_views(
-            paths, K_native, dist,
+            sources, K_native, dist,
             max_width=None if args.no_pyr_down else args.max_width, names=names,
             feature=args.feature, pairs=args.pairs,
             settings=SfMSettings(neighbours=args.neighbours,
@@ -409,13 +441,17 @@ def run(args: argparse.Namespace) -> int:
     # The files of every model, all or none: a write that fails leaves the earlier run's.
     with all_or_nothing():
         written: list[Path] = []
+        images = dict(zip(names, paths))
+        if video is not None and "nerfstudio" in args.export:
+            images = write_frames(out / FRAMES_FOLDER, recon, sources)
+            written += images.values()
         for m, model in enumerate(recon.models):
             folder = out / model_folder_name(m)
             written += write_model(folder, names, recon, model, not args.no_plots)
             if "nerfstudio" in args.export:
                 written.append(write_nerfstudio(folder / NERFSTUDIO_FILE,
                                                 recon.colmap_model(model),
-                                                dict(zip(names, paths)),
+                                                images,
                                                 ply_file=folder / MODEL_FILES[0]))
         summary = recon.to_dict(None if prior is None else prior.camera_name, truth)
         models = summary["models"]

@@ -243,6 +243,22 @@ def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = 100) -> Path:
     return atomic_write_bytes(path, buffer.getvalue())
 
 
+def write_png(path: str | os.PathLike, image: np.ndarray) -> Path:
+    """Write a BGR ``(H, W, 3) uint8`` (or grey ``(H, W)``) image as PNG, atomically.
+
+    Raises
+    ------
+    ValueError
+        OpenCV cannot encode ``image``.
+    """
+    import cv2  # OpenCV only where an image is written
+
+    ok, data = cv2.imencode(".png", np.asarray(image))
+    if not ok:
+        raise ValueError(f"cannot encode an image of shape {np.shape(image)} as PNG")
+    return atomic_write_bytes(path, data.tobytes())
+
+
 def colmap_image_name(name: str) -> str:
     """``name`` as COLMAP's text format can hold it: every space (any whitespace) as '_'.
 

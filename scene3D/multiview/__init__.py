@@ -21,7 +21,9 @@ bundle adjustment as the missing step. One module per stage, in pipeline order:
   views (the start pair self-calibrated, then refined in the global adjustments);
 - :mod:`~scene3D.multiview.checks`: the model against its pairs' own geometry;
 - :mod:`~scene3D.multiview.models`: the data (settings, features, pairs, results);
-- :mod:`~scene3D.multiview.pipeline`: :func:`reconstruct_views`, the stages in order.
+- :mod:`~scene3D.multiview.pipeline`: :func:`reconstruct_views`, the stages in order;
+- :mod:`~scene3D.multiview.video`: the frames of a video worth reconstructing (sharp,
+  and far enough apart), :func:`select_frames`.
 
 The bundle adjustment itself is :mod:`scene3D.optim.bundle` (on :mod:`scene3D.optim.schur`).
 
@@ -48,17 +50,20 @@ from .pairs import PAIR_MODES, select_pairs
 from .pipeline import image_sources, reconstruct_views
 from .retrieval import Vocabulary, describe_view, similarity_ranking, train_vocabulary
 from .tracks import Tracks, build_tracks
+from .video import FrameChoice, VideoFrames, select_frames
 
 __all__ = [
     "PAIR_MODES",
     "FocalEstimate",
     "FocalSettings",
+    "FrameChoice",
     "ModelCheck",
     "MultiViewReconstruction",
     "PairMatches",
     "SfMModel",
     "SfMSettings",
     "Tracks",
+    "VideoFrames",
     "ViewFeatures",
     "Vocabulary",
     "build_tracks",
@@ -69,6 +74,7 @@ __all__ = [
     "match_views",
     "reconstruct_models",
     "reconstruct_views",
+    "select_frames",
     "select_pairs",
     "similarity_ranking",
     "train_vocabulary",
