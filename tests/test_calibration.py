@@ -391,14 +391,17 @@ def test_the_library_calibrates_as_the_command_does(tmp_path, chessboards, capsy
     assert (len(found.views), found.seen, found.without_board) == (13, 13, ())
     calibration = calibrate_views(found.views, found.image_size, board)
     camera = load_calibration(out)
-    np.testing.assert_array_equal(camera.K, calibration.result.K)
-    np.testing.assert_array_equal(camera.dist.ravel(), calibration.result.dist.ravel())
+    # The same calibration run twice: the same to rounding (OpenCV's solver is not
+    # bit-reproducible across runs on every build: 5e-10 px apart on 5.0 with AVX2).
+    np.testing.assert_allclose(camera.K, calibration.result.K, rtol=1e-9)
+    np.testing.assert_allclose(camera.dist.ravel(), calibration.result.dist.ravel(), rtol=1e-7,
+                               atol=1e-12)
     lines = calibration.summary_lines()
     assert printed[:len(lines)] == lines
     metadata = calibration.file_metadata()
-    assert fs_value(out, "rms_px") == metadata["rms_px"]
-    assert fs_value(out, "projection_uncertainty_median_px") == \
-        metadata["projection_uncertainty_median_px"]
+    assert fs_value(out, "rms_px") == pytest.approx(metadata["rms_px"], rel=1e-9)
+    assert fs_value(out, "projection_uncertainty_median_px") == pytest.approx(
+        metadata["projection_uncertainty_median_px"], rel=1e-6)
     assert metadata["board"] == board.describe() and metadata["view_names"].count(";") == 12
 
 

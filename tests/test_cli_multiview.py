@@ -355,11 +355,19 @@ def test_a_calibration_for_another_focal_length_fails_the_check(fountain, tmp_pa
     assert multiview.main([str(fountain / "images"), "--calib", str(calib), "--max-width",
                            "768", "--no-plots", "--no-report", "-q", "--out", str(out)]) == 1
     err = capsys.readouterr().err
+    assert err.startswith("error: the reconstruction failed its consistency check: ")
+    assert len(err.strip().splitlines()) == 1
+    # Which of the check's two findings is left after the focal refits depends on the
+    # versions and kernels (OpenCV 5.0 with AVX2: only views contradicting their pairs;
+    # 5.1: the focal length): a factor when it is quoted, else the views.
     called_for = re.search(r"the views fit a focal length (\d+\.\d+) times the calibration's "
                            r"\(\+-(\d+\.\d+)\)", err)
-    assert called_for, err
-    factor, sigma = map(float, called_for.groups())
-    assert factor > 1.15 and sigma < 0.1 * (factor - 1)
+    if called_for:
+        factor, sigma = map(float, called_for.groups())
+        assert factor > 1.15 and sigma < 0.1 * (factor - 1)
+    else:
+        assert re.search(r"the poses of \S+\.jpg(, \S+\.jpg)* contradict their pair geometry",
+                         err), err
     summary = json.loads((out / "reconstruction.json").read_text())
     assert summary["status"] == "failed" and summary["models"][0]["check"]["status"] == "failed"
 
