@@ -46,14 +46,34 @@ footer { margin-top: 2em; font-size: 0.8em; color: #777; }
 
 
 def esc(text: Any) -> str:
-    """HTML-escaped ``str(text)``."""
+    """HTML-escaped ``str(text)``.
+
+    Parameters
+    ----------
+    text : Any
+        A value.
+
+    Returns
+    -------
+    str
+    """
     return html.escape(str(text), quote=True)
 
 
 def format_value(value: Any) -> str:
     """A number or value as the report prints it: floats to 4 significant digits with their
     trailing zeros, so that a ratio of 0.99998 reads ``1.000`` (not ``1``, an exact or whole
-    value), 2.0 ``2.000`` and 1234.56 ``1235``; ints as they are."""
+    value), 2.0 ``2.000`` and 1234.56 ``1235``; ints as they are.
+
+    Parameters
+    ----------
+    value : Any
+        None, a bool, a float, an int, a list or tuple of them, or another value.
+
+    Returns
+    -------
+    str
+    """
     if value is None:
         return "-"
     if isinstance(value, bool):
@@ -68,7 +88,22 @@ def format_value(value: Any) -> str:
 
 
 def image_data_url(data: bytes) -> str:
-    """``data:image/png;base64,...`` (or ``image/jpeg`` for JPEG bytes)."""
+    """``data:image/png;base64,...`` (or ``image/jpeg`` for JPEG bytes).
+
+    Parameters
+    ----------
+    data : bytes
+        PNG or JPEG bytes.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    ValueError
+        For other bytes.
+    """
     if data[:8] == b"\x89PNG\r\n\x1a\n":
         mime = "image/png"
     elif data[:3] == b"\xff\xd8\xff":
