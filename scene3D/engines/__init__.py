@@ -45,6 +45,22 @@ class Engine(Protocol):
         ``fn`` must be a module-level function (it may be sent to another process)
         without side effects; ``label`` names the tasks in progress reports. An
         exception raised by a task is raised here.
+
+        Parameters
+        ----------
+        fn : callable
+            A module-level function without side effects.
+        arguments : iterable of tuple
+            The arguments of each task.
+        label : str, default "tasks"
+            Names the tasks in progress reports.
+        progress : callable or None, default None
+            ``progress(label, done, total)``; None for no reports.
+
+        Yields
+        ------
+        object
+            Each task's result, in the order of ``arguments``.
         """
         ...
 
@@ -53,6 +69,15 @@ class Engine(Protocol):
 
         Locally the value itself; on a cluster, the value is sent to the workers
         once instead of with every task that needs it.
+
+        Parameters
+        ----------
+        value : Any
+            A value taken as immutable.
+
+        Returns
+        -------
+        Any
         """
         ...
 

@@ -119,6 +119,20 @@ class ColmapCamera:
         RADIAL with ``k1[, k2]`` only and square pixels, OPENCV with ``k1, k2, p1, p2``,
         FULL_OPENCV with ``k3``..``k6``.
 
+        Parameters
+        ----------
+        K : (3, 3) array_like
+            Intrinsics (OpenCV pixels, no skew).
+        dist : array_like or None
+            OpenCV distortion coefficients; None for none.
+        image_size : (int, int)
+            ``(width, height)`` in px.
+
+        Returns
+        -------
+        ColmapCamera
+
+
         Raises
         ------
         ValueError
@@ -203,7 +217,17 @@ class ColmapModel:
         return camera_centers(self.R, self.t)
 
     def camera(self, view: int) -> ColmapCamera:
-        """The camera of image ``view`` (an index into ``names``)."""
+        """The camera of image ``view`` (an index into ``names``).
+
+        Parameters
+        ----------
+        view : int
+            Index into ``names``.
+
+        Returns
+        -------
+        ColmapCamera
+        """
         return self.cameras[int(self.camera_ids[view])]
 
     def reprojection_errors_px(self) -> FloatArray:
