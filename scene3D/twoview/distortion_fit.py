@@ -205,7 +205,19 @@ class DistortionFit(NamedTuple):
     def residuals(self, K: ArrayLike, pts1: ArrayLike, pts2: ArrayLike) -> FloatArray:
         """Signed Sampson distances ``(N,)`` of the correspondences ``pts1, pts2`` ``(N, 2)``,
         undistorted with ``k``, to the fitted pose under ``K``, in the pixels given
-        (:func:`observed_sampson`)."""
+        (:func:`observed_sampson`).
+
+        Parameters
+        ----------
+        K : (3, 3) array_like
+            The calibration's intrinsics.
+        pts1, pts2 : (N, 2) array_like
+            Photographed pixels in images 1 and 2.
+
+        Returns
+        -------
+        (N,) float64 ndarray
+        """
         K = np.asarray(K, dtype=np.float64)
         K_inv = np.linalg.inv(K)
         F = K_inv.T @ skew(self.t) @ self.R @ K_inv
@@ -215,7 +227,19 @@ class DistortionFit(NamedTuple):
 
     def shift_px(self, K: ArrayLike, pixel: ArrayLike) -> float:
         """How far, in pixels, undistorting with ``k`` moves ``pixel`` ``(2,)`` (an image
-        corner: the largest shift in the image)."""
+        corner: the largest shift in the image).
+
+        Parameters
+        ----------
+        K : (3, 3) array_like
+            The calibration's intrinsics.
+        pixel : (2,) array_like
+            A pixel (OpenCV convention).
+
+        Returns
+        -------
+        float
+        """
         pixel = np.asarray(pixel, dtype=np.float64).reshape(1, 2)
         return float(np.linalg.norm(undistort_division(pixel, K, self.k) - pixel))
 

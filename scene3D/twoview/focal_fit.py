@@ -130,13 +130,36 @@ class FocalFit(NamedTuple):
 
     def residuals(self, K: ArrayLike, pts1: ArrayLike, pts2: ArrayLike) -> FloatArray:
         """Signed Sampson distances ``(N,)`` in pixels of the correspondences ``pts1, pts2``
-        ``(N, 2)`` to the fitted pose and focal lengths (:meth:`fundamental`)."""
+        ``(N, 2)`` to the fitted pose and focal lengths (:meth:`fundamental`).
+
+        Parameters
+        ----------
+        K : (3, 3) array_like
+            The calibration the fit started from.
+        pts1, pts2 : (N, 2) array_like
+            Pixels in images 1 and 2.
+
+        Returns
+        -------
+        (N,) float64 ndarray
+        """
         return sampson_residuals(self.fundamental(K), np.asarray(pts1, dtype=np.float64),
                                  np.asarray(pts2, dtype=np.float64))
 
     def fundamental(self, K: ArrayLike) -> FloatArray:
         """``(3, 3)`` the fundamental matrix of the fitted pose and focal lengths, for
-        the calibration ``K`` the fit started from."""
+        the calibration ``K`` the fit started from.
+
+        Parameters
+        ----------
+        K : (3, 3) array_like
+            The calibration the fit started from.
+
+        Returns
+        -------
+        (3, 3) float64 ndarray
+            ``F`` with ``x2^T F x1 = 0``.
+        """
         K_inv = np.linalg.inv(np.asarray(K, dtype=np.float64))
         return scaled_fundamental(self.R, self.t, float(np.log(self.scale)), self.weights,
                                   K_inv)
