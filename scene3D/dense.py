@@ -110,6 +110,20 @@ def disparity_range(
     The range spans the 1st to 99th percentile widened by ``margin`` of its width
     (at least ``min_margin_px``) on each side, rounded out to a multiple of 16 as
     SGBM requires.
+
+    Parameters
+    ----------
+    sparse_disparities : (N,) ndarray
+        Disparities (px) of the sparse matches on the rectified images.
+    margin : float, default 0.15
+        Widening on each side, as a share of the range's width.
+    min_margin_px : int, default 8
+        Smallest widening (px).
+
+    Returns
+    -------
+    (int, int)
+        ``(lo, hi)`` in px, ``hi - lo`` a multiple of 16.
     """
     lo, hi = np.percentile(sparse_disparities, [1, 99])
     pad = max(margin * (hi - lo), min_margin_px)
@@ -129,6 +143,20 @@ def require_searchable_range(lo: int, hi: int, width: int, offset: int = 0) -> N
     image fails inside OpenCV. A range that wide comes from cameras that converge
     strongly on a scene deep in range, from an epipole in or near the image (the camera
     moved towards the scene), or from a pose too uncertain to rectify by.
+
+    Parameters
+    ----------
+    lo, hi : int
+        Disparity search range ``[lo, hi)`` (px).
+    width : int
+        Width (px) of the rectified images across the baseline.
+    offset : int, default 0
+        Shift (px) of image 2.
+
+    Raises
+    ------
+    ReconstructionError
+        ``"no_dense_range"``.
     """
     lost = max(hi - offset, 0) + max(offset - lo, 0)
     if lost >= width:
@@ -219,6 +247,18 @@ def range_edges_cut(disparity: np.ndarray, lo: int, hi: int) -> tuple[bool, bool
 
     ``disparity`` is a map of :func:`compute_disparity` searched over ``[lo, hi)``
     (NaN where invalid); see :data:`EDGE_PILE_UP_FRACTION`.
+
+    Parameters
+    ----------
+    disparity : (H, W) ndarray
+        Disparity map (px), NaN where invalid.
+    lo, hi : int
+        The range it was searched over (px).
+
+    Returns
+    -------
+    (bool, bool)
+        Piled up at the low end, at the high end.
     """
     valid = disparity[np.isfinite(disparity)]
     if len(valid) == 0:
@@ -247,6 +287,24 @@ def search_disparity(
 
     Returns the disparity map (H, W) float32 (zero at infinity) and the range ``(lo, hi)``
     it searched.
+
+    Parameters
+    ----------
+    left, right : (H, W) uint8 ndarray
+        Rectified grey images 1 and 2.
+    lo, hi : int
+        Starting range ``[lo, hi)`` (px), ``hi - lo`` a multiple of 16.
+    block_size : int, default 5
+        SGBM block size (px, odd).
+    max_widenings : int, default 2
+        Most widenings of the range.
+    offset : int, default 0
+        How far ``right`` was shifted (px).
+
+    Returns
+    -------
+    disparity : (H, W) float32 ndarray
+    range : (int, int)
     """
     def match(lo: int, hi: int) -> np.ndarray:
         return compute_disparity(left, right, lo - offset, hi - lo, block_size) + offset

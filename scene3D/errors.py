@@ -17,17 +17,47 @@ RESULT_WARNING = "scene3d_result_warning"
 
 def plural(count: int, noun: str) -> str:
     """``count`` and ``noun`` for messages: ``"1 pose"``, ``"0 poses"``, ``"2 inner corners"``
-    (the last word takes an ``s``; the nouns of scene3D's messages are all regular)."""
+    (the last word takes an ``s``; the nouns of scene3D's messages are all regular).
+
+    Parameters
+    ----------
+    count : int
+        The number.
+    noun : str
+        A regular noun, singular.
+
+    Returns
+    -------
+    str
+    """
     return f"{count} {noun}{'s' * (count != 1)}"
 
 
 def first_line(exc: BaseException) -> str:
-    """The first line of an exception's message, or its type's name when it has none."""
+    """The first line of an exception's message, or its type's name when it has none.
+
+    Parameters
+    ----------
+    exc : BaseException
+        The exception.
+
+    Returns
+    -------
+    str
+    """
     return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
 
 
 def log_result_warnings(logger: logging.Logger, warnings: tuple[str, ...]) -> None:
-    """Log each of a result's ``warnings`` at WARNING level, marked :data:`RESULT_WARNING`."""
+    """Log each of a result's ``warnings`` at WARNING level, marked :data:`RESULT_WARNING`.
+
+    Parameters
+    ----------
+    logger : logging.Logger
+        The library logger to use.
+    warnings : tuple of str
+        The result's warnings.
+    """
     for warning in warnings:
         logger.warning("%s", warning, extra={RESULT_WARNING: True})
 

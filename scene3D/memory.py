@@ -51,7 +51,17 @@ def malloc_environment() -> dict[str, str]:
 def user_tuned_malloc(environ: Mapping[str, str]) -> bool:
     """Whether ``environ`` holds a malloc setting: a ``MALLOC_...`` variable (glibc's are
     ``MALLOC_ARENA_MAX``, ``MALLOC_TRIM_THRESHOLD_`` and the like), or ``glibc.malloc``
-    in ``GLIBC_TUNABLES``."""
+    in ``GLIBC_TUNABLES``.
+
+    Parameters
+    ----------
+    environ : mapping of str to str
+        An environment (``os.environ``).
+
+    Returns
+    -------
+    bool
+    """
     return (any(k.startswith("MALLOC_") for k in environ)
             or "glibc.malloc" in environ.get("GLIBC_TUNABLES", ""))
 
@@ -62,7 +72,17 @@ def worker_environment(spawn_environ: Mapping[str, object]) -> dict[str, object]
     :func:`malloc_environment` when this process keeps freed memory
     (:func:`keep_freed_memory`) and the configuration holds Dask's own trim threshold
     (:data:`DASK_WORKER_TRIM_BYTES`; another value is the user's, and kept). Each worker
-    then holds up to :data:`KEPT_BYTES` for its next image."""
+    then holds up to :data:`KEPT_BYTES` for its next image.
+
+    Parameters
+    ----------
+    spawn_environ : mapping of str to object
+        Dask's ``distributed.nanny.pre-spawn-environ`` configuration.
+
+    Returns
+    -------
+    dict[str, object]
+    """
     environ = dict(spawn_environ)
     trim = environ.get("MALLOC_TRIM_THRESHOLD_", DASK_WORKER_TRIM_BYTES)
     if _kept and str(trim) == str(DASK_WORKER_TRIM_BYTES):

@@ -113,6 +113,17 @@ class SceneReconstruction3D:
         ``cv2.pyrDown``; we average 2x2 blocks, which a JPEG decoder does for free
         (see :mod:`scene3D.io.images`). ``use_pyr_down=False`` keeps the native size.
 
+        Parameters
+        ----------
+        img1, img2 : str, os.PathLike or ndarray
+            Image files, or arrays ``(H, W, 3)`` BGR / ``(H, W)`` grey ``uint8``, at the
+            native size ``K`` is for.
+        use_pyr_down : bool, default True
+            Halve while wider than ``max_width``; False keeps the native size.
+        max_width : int, default BOOK_MAX_WIDTH_PX
+            Largest working width (px).
+
+
         Raises
         ------
         FileNotFoundError
@@ -152,7 +163,18 @@ class SceneReconstruction3D:
 
     # -- computation (cached per feature mode) -----------------------------------
     def matches(self, feat_mode: str = "SIFT") -> Matches:
-        """Matched points for ``feat_mode``, computed once and reused."""
+        """Matched points for ``feat_mode``, computed once and reused.
+
+        Parameters
+        ----------
+        feat_mode : str, default "SIFT"
+            Feature mode (:data:`scene3D.features.FEATURE_MODES`).
+
+        Returns
+        -------
+        Matches
+            ``pts1, pts2`` ``(N, 2)`` pixels of the working images (OpenCV convention).
+        """
         mode = normalize_feature_mode(feat_mode)
         if mode not in self._matches:
             img1, img2 = self._require_images()
@@ -164,6 +186,18 @@ class SceneReconstruction3D:
 
         Also sets the book's attributes ``F``, ``E``, ``Rt1``, ``Rt2``,
         ``match_pts1/2`` and ``match_inliers1/2``.
+
+        Parameters
+        ----------
+        feat_mode : str, default "SIFT"
+            Feature mode (:data:`scene3D.features.FEATURE_MODES`).
+
+        Returns
+        -------
+        TwoViewReconstruction
+            ``x_cam2 = R x_cam1 + t`` with ``|t| = 1`` (the scale is unknown); points in the
+            camera-1 frame.
+
 
         Raises
         ------
@@ -191,6 +225,18 @@ class SceneReconstruction3D:
         (:meth:`scene3D.twoview.TwoViewReconstruction.save`). The views are named by
         their file names (``img1``, ``img2`` for arrays), prefixed ``1_`` and ``2_`` when
         they share one. Returns the paths written.
+
+        Parameters
+        ----------
+        folder : str or os.PathLike
+            Target folder (created if needed).
+        feat_mode : str, default "SIFT"
+            Feature mode (:data:`scene3D.features.FEATURE_MODES`).
+
+        Returns
+        -------
+        list of Path
+
 
         Raises
         ------
@@ -220,6 +266,22 @@ class SceneReconstruction3D:
         matches of ``feat_mode``; ``K`` (and ``K_native``) become the result's, and
         :meth:`reconstruct` and every plot use them. The doubts about the focal length
         join the reconstruction's ``warnings`` (and can make it untrusted).
+
+        Parameters
+        ----------
+        feat_mode : str, default "SIFT"
+            Feature mode (:data:`scene3D.features.FEATURE_MODES`).
+        prior_sigma_log : float, default 0.5
+            Standard deviation of the prior's ``log f``.
+        prior_source : str, default "prior"
+            Where ``K``'s focal length comes from: ``"exif"`` or ``"prior"``.
+        search : SelfCalibrationSettings or None, default None
+            The search's settings; None for the defaults.
+
+        Returns
+        -------
+        SelfCalibration
+
 
         Raises
         ------
@@ -257,7 +319,22 @@ class SceneReconstruction3D:
         return calibration
 
     def rectify(self, feat_mode: str = "SIFT") -> RectifiedPair:
-        """Rectify the working pair with the estimated pose."""
+        """Rectify the working pair with the estimated pose.
+
+        Parameters
+        ----------
+        feat_mode : str, default "SIFT"
+            Feature mode (:data:`scene3D.features.FEATURE_MODES`).
+
+        Returns
+        -------
+        RectifiedPair
+
+        Raises
+        ------
+        ReconstructionError
+            As :meth:`reconstruct`.
+        """
         result = self.reconstruct(feat_mode)
         img1, img2 = self._require_images()
         return rectify_pair(img1, img2, self.K, result.R, result.t)
@@ -269,6 +346,22 @@ class SceneReconstruction3D:
         Uses the pose and the sparse matches of :meth:`reconstruct` (the disparity
         range comes from them); points are in the camera-1 frame, same scale as
         the sparse cloud. Cached per feature mode and block size.
+
+        Parameters
+        ----------
+        feat_mode : str, default "SIFT"
+            Feature mode (:data:`scene3D.features.FEATURE_MODES`).
+        block_size : int, default 5
+            SGBM block size (px, odd).
+
+        Returns
+        -------
+        DenseReconstruction
+
+        Raises
+        ------
+        ReconstructionError
+            As :meth:`reconstruct`, or when dense matching cannot serve the pair.
         """
         from .dense import dense_point_cloud
 
@@ -289,7 +382,19 @@ class SceneReconstruction3D:
         return plot_optic_flow(self._require_images()[0], m.pts1, m.pts2)
 
     def draw_epipolar_lines(self, feat_mode: str = "SIFT", num_lines: int = 20) -> Figure:
-        """Figure of both images with epipolar lines of inlier matches."""
+        """Figure of both images with epipolar lines of inlier matches.
+
+        Parameters
+        ----------
+        feat_mode : str, default "SIFT"
+            Feature mode (:data:`scene3D.features.FEATURE_MODES`).
+        num_lines : int, default 20
+            Number of inlier matches drawn.
+
+        Returns
+        -------
+        Figure
+        """
         from .viz.plotting import plot_epipolar_lines
 
         result = self.reconstruct(feat_mode)
@@ -298,13 +403,33 @@ class SceneReconstruction3D:
                                    result.inlier_pts2, num_lines)
 
     def plot_rectified_images(self, feat_mode: str = "SIFT") -> Figure:
-        """Figure of the rectified pair side by side."""
+        """Figure of the rectified pair side by side.
+
+        Parameters
+        ----------
+        feat_mode : str, default "SIFT"
+            Feature mode (:data:`scene3D.features.FEATURE_MODES`).
+
+        Returns
+        -------
+        Figure
+        """
         from .viz.plotting import plot_rectified
 
         return plot_rectified(self.rectify(feat_mode))
 
     def plot_point_cloud(self, feat_mode: str = "SIFT") -> Figure:
-        """Figure of the triangulated, coloured point cloud."""
+        """Figure of the triangulated, coloured point cloud.
+
+        Parameters
+        ----------
+        feat_mode : str, default "SIFT"
+            Feature mode (:data:`scene3D.features.FEATURE_MODES`).
+
+        Returns
+        -------
+        Figure
+        """
         from .viz.plotting import plot_point_cloud
 
         result = self.reconstruct(feat_mode)

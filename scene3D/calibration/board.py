@@ -61,7 +61,19 @@ def board_size_problem(pattern: str, size: tuple[int, int]) -> str:
     calibrate, or ``""``, naming the smallest board that can. A view needs
     :data:`MIN_POINTS_PER_VIEW` points; OpenCV's chessboard detector needs at least 3
     inner corners a side (3x3 is the smallest chessboard), the other targets 2 squares
-    or circles a side (ChArUco 3x4 or 2x7 squares, circle grids 2x3)."""
+    or circles a side (ChArUco 3x4 or 2x7 squares, circle grids 2x3).
+
+    Parameters
+    ----------
+    pattern : str
+        ``"chessboard"``, ``"charuco"``, ``"circles"`` or ``"acircles"``.
+    size : (int, int)
+        ``(columns, rows)`` as :class:`BoardSpec` counts them.
+
+    Returns
+    -------
+    str
+    """
     cols, rows = size
     if pattern == "chessboard":
         if min(cols, rows) < 3:
@@ -200,7 +212,17 @@ _MIN_DETECTOR_SIDE_PX = 15
 
 def min_image_side_px(board: BoardSpec) -> int:
     """The shorter side (px) below which an image cannot show ``board``: its squares
-    across the board's narrower way, at least 3 px each."""
+    across the board's narrower way, at least 3 px each.
+
+    Parameters
+    ----------
+    board : BoardSpec
+        The board.
+
+    Returns
+    -------
+    int
+    """
     squares = min(board.size) + (0 if board.pattern == "charuco" else 1)
     return max(_MIN_DETECTOR_SIDE_PX, _MIN_SQUARE_PX * squares)
 
@@ -210,6 +232,18 @@ def subpixel_window(corners: FloatArray, size: tuple[int, int]) -> int:
 
     A quarter of the smallest corner spacing (clamped to 2..15 px): a window
     larger than a square lets the neighbouring corners pull the estimate away.
+
+    Parameters
+    ----------
+    corners : (cols * rows, 2) ndarray
+        Chessboard corners in row order (pixels).
+    size : (int, int)
+        ``(cols, rows)`` inner corners.
+
+    Returns
+    -------
+    int
+        Half-size in px.
     """
     cols, rows = size
     grid = corners.reshape(rows, cols, 2)
@@ -232,6 +266,19 @@ def detect_chessboard(gray: np.ndarray, board: BoardSpec) -> tuple[FloatArray, s
     (``findChessboardCornersSB``) runs, refined the same way. That detector draws
     from OpenCV's global RNG, which is reseeded (``cv2.setRNGSeed``) right before it
     so that an image gives the same answer on every call.
+
+    Parameters
+    ----------
+    gray : (H, W) uint8 ndarray
+        Grey image.
+    board : BoardSpec
+        A chessboard.
+
+    Returns
+    -------
+    (corners, method) or None
+        Corners ``(cols * rows, 2) float64`` (OpenCV pixels) and ``"classic"`` or
+        ``"sector"``.
     """
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
     found, corners = cv2.findChessboardCorners(gray, board.size, flags=flags)
@@ -260,6 +307,17 @@ def detect_circles(gray: np.ndarray, board: BoardSpec) -> FloatArray | None:
     centres are the blobs' centroids: under perspective a circle's image is an ellipse
     whose centroid lies a little off the projected centre, so circles should stay small
     in the image (measured on rendered boards in the calibration guide).
+
+    Parameters
+    ----------
+    gray : (H, W) uint8 ndarray
+        Grey image.
+    board : BoardSpec
+        A symmetric or asymmetric circle grid.
+
+    Returns
+    -------
+    (N, 2) float64 ndarray or None
     """
     large = cv2.SimpleBlobDetector_Params()
     large.minArea = 10.0
@@ -288,6 +346,15 @@ def detect_charuco(gray: np.ndarray, board: BoardSpec, min_corners: int = MIN_PO
     a size both layouts are tried and the one that finds more corners is kept, the
     current one on a tie (a partial view of an old board can give both the same
     corners one square apart: the same intrinsics, another board pose).
+
+    Parameters
+    ----------
+    gray : (H, W) uint8 ndarray
+        Grey image.
+    board : BoardSpec
+        A ChArUco board.
+    min_corners : int, default MIN_POINTS_PER_VIEW
+        Fewest corners accepted.
     """
     layouts = [("charuco", board.charuco_board())]
     if board.size[1] % 2 == 0:
@@ -551,7 +618,21 @@ def _check_image_size(image_size: tuple[int, int], detections: list[Detection]
 def corner_coverage(
     image_points: list[FloatArray], image_size: tuple[int, int], grid: tuple[int, int] = (8, 6)
 ) -> np.ndarray:
-    """Corners per cell of a ``grid`` (columns, rows) laid over the image: ``(rows, cols) int``."""
+    """Corners per cell of a ``grid`` (columns, rows) laid over the image: ``(rows, cols) int``.
+
+    Parameters
+    ----------
+    image_points : list of (N_v, 2) ndarray
+        Detected corners of each view (pixels).
+    image_size : (int, int)
+        ``(width, height)`` in px.
+    grid : (int, int), default (8, 6)
+        ``(columns, rows)`` of cells.
+
+    Returns
+    -------
+    (rows, cols) int ndarray
+    """
     cols, rows = grid
     counts = np.zeros((rows, cols), dtype=int)
     w, h = image_size
@@ -563,7 +644,17 @@ def corner_coverage(
 
 
 def coverage_warnings(counts: np.ndarray) -> list[str]:
-    """Warnings about empty parts of the image, from :func:`corner_coverage` counts."""
+    """Warnings about empty parts of the image, from :func:`corner_coverage` counts.
+
+    Parameters
+    ----------
+    counts : (rows, cols) int ndarray
+        Corners per cell.
+
+    Returns
+    -------
+    list of str
+    """
     warnings = []
     border = np.concatenate([counts[0], counts[-1], counts[1:-1, 0], counts[1:-1, -1]])
     empty_border = float(np.mean(border == 0))

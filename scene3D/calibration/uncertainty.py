@@ -264,12 +264,38 @@ def projection_covariance(pixels: ArrayLike, K: ArrayLike, dist: ArrayLike,
 def projection_sigma_px(pixels: ArrayLike, K: ArrayLike, dist: ArrayLike,
                         covariance: IntrinsicsCovariance) -> FloatArray:
     """1 sigma projection error in the worst direction ``(N,)``, pixels: the square root of
-    the larger eigenvalue of :func:`projection_covariance`."""
+    the larger eigenvalue of :func:`projection_covariance`.
+
+    Parameters
+    ----------
+    pixels : (N, 2) array_like
+        Image positions (pixels of the calibrated size).
+    K : (3, 3) array_like
+        The calibration's intrinsics.
+    dist : (n,) array_like
+        Its OpenCV distortion coefficients.
+    covariance : IntrinsicsCovariance
+        Of the same calibration.
+
+    Returns
+    -------
+    (N,) float64 ndarray
+    """
     return worst_direction_sigma(projection_covariance(pixels, K, dist, covariance))
 
 
 def worst_direction_sigma(cov2: ArrayLike) -> FloatArray:
-    """Square root of the larger eigenvalue of each ``(..., 2, 2)`` covariance."""
+    """Square root of the larger eigenvalue of each ``(..., 2, 2)`` covariance.
+
+    Parameters
+    ----------
+    cov2 : (..., 2, 2) array_like
+        Covariances (px^2).
+
+    Returns
+    -------
+    (...) float64 ndarray
+    """
     cov2 = np.asarray(cov2, dtype=np.float64)
     a, b, c = cov2[..., 0, 0], 0.5 * (cov2[..., 0, 1] + cov2[..., 1, 0]), cov2[..., 1, 1]
     largest = 0.5 * (a + c) + np.sqrt(0.25 * (a - c) ** 2 + b ** 2)
@@ -393,7 +419,17 @@ def uncertainty_map(K: ArrayLike, dist: ArrayLike, covariance: IntrinsicsCovaria
 
 def format_px(value: float) -> str:
     """A map value in pixels for people: ``"0.42 px"``, or ``"no ray"`` where none
-    reaches (NaN: :attr:`UncertaintyMap.unreachable_share`)."""
+    reaches (NaN: :attr:`UncertaintyMap.unreachable_share`).
+
+    Parameters
+    ----------
+    value : float
+        A value in px, or NaN.
+
+    Returns
+    -------
+    str
+    """
     return "no ray" if np.isnan(value) else f"{value:.2f} px"
 
 
@@ -404,6 +440,21 @@ def reached_by_rays(pixels: ArrayLike, K: ArrayLike, dist: ArrayLike,
     The ray through a pixel is found by inverting the distortion
     (``cv2.undistortPoints``) and projected back; a pixel that the distortion folds away
     (beyond where the distorted radius stops growing) comes back elsewhere, by pixels.
+
+    Parameters
+    ----------
+    pixels : (N, 2) array_like
+        Image positions (OpenCV pixels).
+    K : (3, 3) array_like
+        Intrinsics.
+    dist : (n,) array_like
+        OpenCV distortion coefficients.
+    tolerance_px : float, default ROUND_TRIP_TOLERANCE_PX
+        Largest round-trip error (px).
+
+    Returns
+    -------
+    (N,) bool ndarray
     """
     pixels = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
     K = np.asarray(K, dtype=np.float64)

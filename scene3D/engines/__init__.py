@@ -45,6 +45,22 @@ class Engine(Protocol):
         ``fn`` must be a module-level function (it may be sent to another process)
         without side effects; ``label`` names the tasks in progress reports. An
         exception raised by a task is raised here.
+
+        Parameters
+        ----------
+        fn : callable
+            A module-level function without side effects.
+        arguments : iterable of tuple
+            The arguments of each task.
+        label : str, default "tasks"
+            Names the tasks in progress reports.
+        progress : callable or None, default None
+            ``progress(label, done, total)``; None for no reports.
+
+        Yields
+        ------
+        object
+            Each task's result, in the order of ``arguments``.
         """
         ...
 
@@ -53,6 +69,15 @@ class Engine(Protocol):
 
         Locally the value itself; on a cluster, the value is sent to the workers
         once instead of with every task that needs it.
+
+        Parameters
+        ----------
+        value : Any
+            A value taken as immutable.
+
+        Returns
+        -------
+        Any
         """
         ...
 
@@ -64,6 +89,24 @@ class LocalEngine:
 
     def map(self, fn: Callable[..., R], arguments: Iterable[tuple], *, label: str = "tasks",
             progress: Progress | None = None) -> Iterator[R]:
+        """``fn(*a)`` for each tuple ``a`` of ``arguments``, in this process, in order.
+
+        Parameters
+        ----------
+        fn : callable
+            A function without side effects.
+        arguments : iterable of tuple
+            The arguments of each task.
+        label : str, default "tasks"
+            Names the tasks in progress reports.
+        progress : callable or None, default None
+            ``progress(label, done, total)`` after each task; None for no reports.
+
+        Yields
+        ------
+        object
+            Each task's result.
+        """
         arguments = list(arguments)
         for done, args in enumerate(arguments, start=1):
             result = fn(*args)
@@ -72,6 +115,17 @@ class LocalEngine:
             yield result
 
     def share(self, value: Any) -> Any:
+        """``value`` itself (nothing to send in one process).
+
+        Parameters
+        ----------
+        value : Any
+            A value taken as immutable.
+
+        Returns
+        -------
+        Any
+        """
         return value
 
 

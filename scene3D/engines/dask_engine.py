@@ -300,6 +300,22 @@ class DaskEngine:
         Waits up to ``wait_for_workers_s`` for a first worker, then checks that the
         workers run the client's scene3D.
 
+        Parameters
+        ----------
+        address : str
+            The scheduler's address (``tcp://host:port``).
+        timeout_s : float, default 10.0
+            Seconds to wait for the scheduler.
+        wait_for_workers_s : float, default NO_WORKER_TIMEOUT_S
+            Seconds to wait for a first worker.
+        **options
+            Passed to :class:`DaskEngine` (``files``, ``opencv_threads``, ``name``, ...).
+
+        Returns
+        -------
+        DaskEngine
+
+
         Raises
         ------
         MissingExtraError
@@ -357,7 +373,28 @@ class DaskEngine:
     def local(cls, workers: int, *, threads_per_worker: int = 1, **options: Any) -> DaskEngine:
         """Start ``workers`` worker processes on this machine (a ``distributed.LocalCluster``
         on 127.0.0.1; its web server on a free port, the workers' profiler off) and use
-        them."""
+        them.
+
+        Parameters
+        ----------
+        workers : int
+            Number of worker processes (>= 1).
+        threads_per_worker : int, default 1
+            Threads per worker.
+        **options
+            Passed to :class:`DaskEngine`.
+
+        Returns
+        -------
+        DaskEngine
+
+        Raises
+        ------
+        ValueError
+            If ``workers`` is below 1.
+        MissingExtraError
+            Dask is not installed.
+        """
         if workers < 1:
             raise ValueError(f"`workers` must be at least 1, got {workers}")
         distributed = require_distributed()
@@ -431,6 +468,22 @@ class DaskEngine:
         ``progress(label, done, total)`` is called on this thread as tasks finish, in
         any order. A task's exception is raised when its turn comes; the tasks not
         yet yielded are then cancelled.
+
+        Parameters
+        ----------
+        fn : callable
+            A module-level function without side effects.
+        arguments : iterable of tuple
+            The arguments of each task.
+        label : str, default "tasks"
+            Names the tasks in progress reports.
+        progress : callable or None, default None
+            ``progress(label, done, total)``; None for no reports.
+
+        Yields
+        ------
+        object
+            Each task's result, in the order of ``arguments``.
         """
         calls = [self._prepare(tuple(args)) for args in arguments]
         token = uuid.uuid4().hex[:12]
@@ -450,6 +503,16 @@ class DaskEngine:
         value (a map result's part, or one built on the client) is sent once, as a
         task that returns it: the scheduler keeps it, so that it too can be made
         again after a worker's death. Shared values are taken as immutable.
+
+        Parameters
+        ----------
+        value : Any
+            A value taken as immutable.
+
+        Returns
+        -------
+        Any
+            A future for it.
         """
         origin = self._origins.get(id(value))
         if origin is not None and origin[0]() is value:

@@ -73,6 +73,18 @@ def pose_auc(max_errors_deg: ArrayLike, threshold_deg: float = 5.0) -> float:
     """Area under the recall curve of ``max_errors_deg`` from 0 to ``threshold_deg``, in percent.
 
     Failed pairs should be passed as ``inf``.
+
+    Parameters
+    ----------
+    max_errors_deg : (N,) array_like
+        Per-pair error (deg), the larger of rotation and translation direction.
+    threshold_deg : float, default 5.0
+        Upper end of the curve (deg).
+
+    Returns
+    -------
+    float
+        Percent; NaN for no pairs.
     """
     errors = np.sort(np.asarray(max_errors_deg, dtype=np.float64))
     n = len(errors)
@@ -142,6 +154,17 @@ def summarize_pose_errors(
     1 deg flagged), ``wrong_unflagged`` (poses more than 5 deg off, failures
     included, not flagged), ``off2`` and ``off2_flagged`` (pairs more than 2 deg
     off or failed, and how many of them were flagged).
+
+    Parameters
+    ----------
+    rotation_deg, translation_deg : (N,) array_like
+        Per-pair rotation and translation-direction errors (deg), inf for failures.
+    flagged : (N,) bool array_like or None, default None
+        Pairs refused or marked untrusted.
+
+    Returns
+    -------
+    dict[str, float]
     """
     # A failed pair (inf) is as wrong as an angle can be: 180 deg, so percentiles stay finite.
     rot = np.minimum(np.asarray(rotation_deg, dtype=np.float64), 180.0)
@@ -175,6 +198,15 @@ def sigma_calibration(rotation_chi2: ArrayLike, translation_chi2: ArrayLike) -> 
     (counted) and ``rotation_within90`` / ``translation_within90``, the shares within
     the chi-square 90 % quantiles of 3 and 2 degrees of freedom: about 0.9 when the
     covariances are calibrated, less when they are optimistic.
+
+    Parameters
+    ----------
+    rotation_chi2, translation_chi2 : (N,) array_like
+        Squared Mahalanobis distances of the errors, NaN where no pose came back.
+
+    Returns
+    -------
+    dict[str, float]
     """
     rot = np.asarray(rotation_chi2, dtype=np.float64)
     tdir = np.asarray(translation_chi2, dtype=np.float64)
@@ -248,6 +280,24 @@ def camera_set_error(
     a line the roll about it is hardly constrained, and the rotation errors then carry
     that ill-determined roll (Herz-Jesus-P8: a COLMAP model's rotations 0.03 deg off
     under the first alignment, 0.14 deg under the second).
+
+    Parameters
+    ----------
+    R_est, R_true : (V, 3, 3) array_like
+        Estimated and true world-to-camera rotations (``x_cam = R X + t``).
+    centers_est, centers_true : (V, 3) array_like
+        Estimated and true camera centres, each in its own world frame.
+    align : {"orientations", "centres"}, default "orientations"
+        What the similarity's rotation comes from.
+
+    Returns
+    -------
+    CameraSetError
+
+    Raises
+    ------
+    ValueError
+        For another ``align``.
     """
     R_est, R_true = np.asarray(R_est, np.float64), np.asarray(R_true, np.float64)
     c_est, c_true = np.asarray(centers_est, np.float64), np.asarray(centers_true, np.float64)

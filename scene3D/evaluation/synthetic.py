@@ -25,7 +25,17 @@ from ..geometry.conventions import FloatArray, rotation_about_axis
 
 
 def asymmetric_camera(width: int = 640, height: int = 480) -> FloatArray:
-    """Intrinsics with fx != fy and the principal point off centre."""
+    """Intrinsics with fx != fy and the principal point off centre.
+
+    Parameters
+    ----------
+    width, height : int, default 640 and 480
+        Image size (px).
+
+    Returns
+    -------
+    (3, 3) float64 ndarray
+    """
     return np.array([[0.82 * width * 1.25, 0.0, 0.52 * width],
                      [0.0, 0.80 * width * 1.25, 0.47 * height],
                      [0.0, 0.0, 1.0]])
@@ -36,6 +46,18 @@ def asymmetric_pose(angle_deg: float = 8.0, baseline: float = 1.0) -> tuple[Floa
 
     Camera 2 sits at ``C2`` (mostly to the right, a little down and forward) and
     turns back towards the scene; ``|t| = baseline``.
+
+    Parameters
+    ----------
+    angle_deg : float, default 8.0
+        Rotation angle (deg).
+    baseline : float, default 1.0
+        ``|t|``.
+
+    Returns
+    -------
+    R : (3, 3) float64 ndarray
+    t : (3,) float64 ndarray
     """
     R = rotation_about_axis([0.25, 1.0, 0.12], angle_deg)
     center = np.array([1.0, 0.18, 0.25])
@@ -44,7 +66,21 @@ def asymmetric_pose(angle_deg: float = 8.0, baseline: float = 1.0) -> tuple[Floa
 
 
 def random_points(n: int, seed: int = 0, depth: tuple[float, float] = (4.0, 9.0)) -> FloatArray:
-    """``(n, 3)`` points spread in front of camera 1 (camera-1 frame)."""
+    """``(n, 3)`` points spread in front of camera 1 (camera-1 frame).
+
+    Parameters
+    ----------
+    n : int
+        Number of points.
+    seed : int, default 0
+        Random seed.
+    depth : (float, float), default (4.0, 9.0)
+        Range of ``z``.
+
+    Returns
+    -------
+    (n, 3) float64 ndarray
+    """
     rng = np.random.default_rng(seed)
     z = rng.uniform(*depth, n)
     x = rng.uniform(-0.5, 0.5, n) * z
@@ -57,6 +93,17 @@ def texture(size: int = 512, seed: int = 0) -> np.ndarray:
     """A grey ``uint8`` texture with blobs at several scales and sharp-edged shapes (corners).
 
     Cached: the same ``(size, seed)`` returns the same read-only array.
+
+    Parameters
+    ----------
+    size : int, default 512
+        Side (px).
+    seed : int, default 0
+        Random seed.
+
+    Returns
+    -------
+    (size, size) uint8 ndarray
     """
     rng = np.random.default_rng(seed)
     img = np.zeros((size, size), np.float32)
@@ -136,6 +183,18 @@ def orbit_poses(n: int, radius: float = 9.0) -> tuple[FloatArray, FloatArray]:
 
     Camera ``k`` stands at angle ``360 k / n`` deg on a wavy circle (radius and height
     vary), looking at the boxes; cameras are upright (image y along world y, down).
+
+    Parameters
+    ----------
+    n : int
+        Number of cameras.
+    radius : float, default 9.0
+        Mean radius of the circle.
+
+    Returns
+    -------
+    R : (n, 3, 3) float64 ndarray
+    t : (n, 3) float64 ndarray
     """
     angles = 2 * np.pi * np.arange(n) / n
     Rs, ts = np.empty((n, 3, 3)), np.empty((n, 3))
@@ -172,6 +231,20 @@ def render_planes(
     supersample: int = 2,
 ) -> tuple[np.ndarray, FloatArray]:
     """Ray-cast textured rectangles seen by the camera ``x_cam = R X + t``.
+
+    Parameters
+    ----------
+    K : (3, 3) ndarray
+        Intrinsics (OpenCV pixels).
+    R, t : (3, 3), (3,) ndarray
+        World-to-camera pose.
+    size : (int, int), default (640, 480)
+        ``(width, height)`` in px.
+    rectangles : list of Rectangle or None, default None
+        The scene; None for :func:`box_scene`.
+    supersample : int, default 2
+        Rays per pixel along each axis.
+
 
     Returns
     -------
@@ -276,6 +349,27 @@ def render_board(
     The board lies on ``z = 0`` of its frame with inner corner ``(i, j)`` at
     ``(i, j, 0) * square_size``; ``rvec, tvec`` map board to camera coordinates.
     A white margin of one square surrounds the squares.
+
+    Parameters
+    ----------
+    K : (3, 3) ndarray
+        Intrinsics (OpenCV pixels).
+    dist : (n,) ndarray
+        OpenCV distortion coefficients.
+    rvec, tvec : (3,) ndarray
+        Board-to-camera rotation vector and translation (``x_cam = R(rvec) X + tvec``).
+    inner_corners : (int, int), default (9, 6)
+        ``(columns, rows)`` of inner corners.
+    square_size : float, default 1.0
+        Side of a square, in the units of ``tvec``.
+    size : (int, int), default (640, 480)
+        ``(width, height)`` in px.
+    supersample : int, default 3
+        Samples per pixel along each axis.
+
+    Returns
+    -------
+    (H, W) uint8 ndarray
     """
     hit, front = _board_plane_hits(K, dist, rvec, tvec, size, supersample)
     a = hit[:, 0] / square_size + 1.0  # squares from the outer board edge
@@ -305,6 +399,29 @@ def render_circles_board(
     spacing`` for a symmetric grid, ``(2 j + i % 2, i, 0) * spacing`` for an asymmetric
     one (its rows offset by half a column); radius ``0.3 * spacing`` and ``0.5 *
     spacing``, with a white margin of two spacings around the centres.
+
+    Parameters
+    ----------
+    K : (3, 3) ndarray
+        Intrinsics (OpenCV pixels).
+    dist : (n,) ndarray
+        OpenCV distortion coefficients.
+    rvec, tvec : (3,) ndarray
+        Board-to-camera rotation vector and translation (``x_cam = R(rvec) X + tvec``).
+    circles : (int, int), default (4, 11)
+        ``(columns, rows)`` of circles.
+    spacing : float, default 1.0
+        Centre spacing, in the units of ``tvec``.
+    asymmetric : bool, default True
+        An asymmetric grid.
+    size : (int, int), default (640, 480)
+        ``(width, height)`` in px.
+    supersample : int, default 3
+        Samples per pixel along each axis.
+
+    Returns
+    -------
+    (H, W) uint8 ndarray
     """
     hit, front = _board_plane_hits(K, dist, rvec, tvec, size, supersample)
     a, b = hit[:, 0] / spacing, hit[:, 1] / spacing
@@ -332,7 +449,21 @@ def lens_photo(img: np.ndarray, K: FloatArray, k1: float) -> np.ndarray:
     """The photo ``img`` ``(H, W[, C])`` of a pinhole camera ``K`` ``(3, 3)`` as a lens with
     radial distortion ``k1`` (``r_d = r_u (1 + k1 r_u^2)`` in normalised coordinates
     about the principal point) would have taken it: the distortion the two-view
-    distortion check looks for (:mod:`scene3D.twoview.distortion_fit`)."""
+    distortion check looks for (:mod:`scene3D.twoview.distortion_fit`).
+
+    Parameters
+    ----------
+    img : (H, W) or (H, W, C) ndarray
+        The pinhole photo.
+    K : (3, 3) ndarray
+        Its intrinsics.
+    k1 : float
+        Radial coefficient.
+
+    Returns
+    -------
+    (H, W) or (H, W, C) ndarray
+    """
     h, w = img.shape[:2]
     xs, ys = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
     xd, yd = (xs - K[0, 2]) / K[0, 0], (ys - K[1, 2]) / K[1, 1]

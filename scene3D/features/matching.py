@@ -67,7 +67,22 @@ class Matches:
 
 
 def normalize_feature_mode(mode: str) -> str:
-    """Return the canonical spelling of a feature mode, or raise ``ValueError``."""
+    """Return the canonical spelling of a feature mode, or raise ``ValueError``.
+
+    Parameters
+    ----------
+    mode : str
+        A feature mode of :data:`FEATURE_MODES`, any case.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    ValueError
+        For an unknown mode.
+    """
     for valid in FEATURE_MODES:
         if isinstance(mode, str) and mode.lower() == valid.lower():
             return valid
@@ -81,6 +96,15 @@ def resolve_feature_mode(mode: str) -> str:
     when this OpenCV build lacks it (it is patented; warned once), else ``mode``'s own.
 
     Raises ``ValueError`` for an unknown mode.
+
+    Parameters
+    ----------
+    mode : str
+        A feature mode of :data:`FEATURE_MODES`, any case.
+
+    Returns
+    -------
+    str
     """
     global _warned_surf
     mode = normalize_feature_mode(mode)
@@ -109,6 +133,14 @@ def surf_available() -> bool:
 
 def create_detector(mode: str, max_features: int = 8000) -> tuple[cv2.Feature2D, int, str]:
     """Build the detector for a descriptor mode.
+
+    Parameters
+    ----------
+    mode : str
+        A descriptor mode of :data:`FEATURE_MODES`.
+    max_features : int, default 8000
+        Keypoint budget of SIFT and ORB.
+
 
     Returns
     -------
@@ -146,7 +178,21 @@ def _detect(gray: np.ndarray, detector: cv2.Feature2D
 
 
 def detect_features(gray: np.ndarray, detector: cv2.Feature2D) -> tuple[FloatArray, np.ndarray]:
-    """Keypoint pixels ``(N, 2)`` float64 and descriptors ``(N, D)`` of one grey image."""
+    """Keypoint pixels ``(N, 2)`` float64 and descriptors ``(N, D)`` of one grey image.
+
+    Parameters
+    ----------
+    gray : (H, W) uint8 ndarray
+        Grey image.
+    detector : cv2.Feature2D
+        From :func:`create_detector`.
+
+    Returns
+    -------
+    pixels : (N, 2) float64 ndarray
+        OpenCV pixel convention.
+    descriptors : (N, D) ndarray
+    """
     _, pixels, descriptors = _detect(gray, detector)
     return pixels, descriptors
 
@@ -157,7 +203,21 @@ def detect_keypoints(gray: np.ndarray, detector: cv2.Feature2D
     sizes ``(N,)`` float64 (``cv2.KeyPoint.size``, the diameter in pixels of the
     region described, which grows with the keypoint's scale) and descriptors ``(N, D)``.
     The many-view pipeline weighs its observations by the size
-    (:mod:`scene3D.multiview.weights`); the two-view path does not need it."""
+    (:mod:`scene3D.multiview.weights`); the two-view path does not need it.
+
+    Parameters
+    ----------
+    gray : (H, W) uint8 ndarray
+        Grey image.
+    detector : cv2.Feature2D
+        From :func:`create_detector`.
+
+    Returns
+    -------
+    pixels : (N, 2) float64 ndarray
+    sizes : (N,) float64 ndarray
+    descriptors : (N, D) ndarray
+    """
     keypoints, pixels, descriptors = _detect(gray, detector)
     return pixels, np.array([k.size for k in keypoints], dtype=np.float64), descriptors
 
@@ -193,6 +253,19 @@ def image_features(img: np.ndarray, mode: str = "SIFT", max_features: int = 8000
 
     ``mode`` is a descriptor mode of :data:`FEATURE_MODES` (not ``"flow"``, which
     tracks between two images); ``max_features`` is the budget of SIFT and ORB.
+
+    Parameters
+    ----------
+    img : (H, W, 3) or (H, W) uint8 ndarray
+        BGR or grey image.
+    mode : str, default "SIFT"
+        Descriptor mode.
+    max_features : int, default 8000
+        Keypoint budget.
+
+    Returns
+    -------
+    ImageFeatures
     """
     img = check_image(img, "img")
     t0 = time.perf_counter()
@@ -206,6 +279,23 @@ def match_features(f1: ImageFeatures, f2: ImageFeatures, ratio: float = 0.8) -> 
 
     ``timings_s["features"]`` is the detection time of both images, whether or not
     it was spent for this pair alone.
+
+    Parameters
+    ----------
+    f1, f2 : ImageFeatures
+        Features of images 1 and 2, of one detector.
+    ratio : float, default 0.8
+        Lowe's ratio test threshold.
+
+    Returns
+    -------
+    Matches
+        ``pts1, pts2`` ``(N, 2)`` pixels.
+
+    Raises
+    ------
+    ValueError
+        If the features come from different detectors.
     """
     if (f1.feature, f1.norm) != (f2.feature, f2.norm):
         raise ValueError(f"cannot match {f1.feature} features with {f2.feature} features")
@@ -310,6 +400,16 @@ def track_flow(
     A track is kept only when tracking it back from image 2 lands within
     ``max_fb_error_px`` of where it started (forward-backward check).
 
+    Parameters
+    ----------
+    gray1, gray2 : (H, W) uint8 ndarray
+        Grey images 1 and 2.
+    max_corners : int, default 4000
+        Most corners detected in image 1.
+    max_fb_error_px : float, default 1.0
+        Largest forward-backward error (px).
+
+
     Returns
     -------
     pts1, pts2 : (N, 2) float64
@@ -336,6 +436,18 @@ def track_flow(
 
 def check_image(img: np.ndarray, name: str = "img") -> np.ndarray:
     """``img`` once it is known to be a BGR ``(H, W, 3)`` or grey ``(H, W)`` ``uint8`` image.
+
+    Parameters
+    ----------
+    img : ndarray
+        The image to check.
+    name : str, default "img"
+        Its name in messages.
+
+    Returns
+    -------
+    ndarray
+
 
     Raises
     ------
@@ -364,7 +476,17 @@ def check_image(img: np.ndarray, name: str = "img") -> np.ndarray:
 
 
 def to_gray(img: np.ndarray) -> np.ndarray:
-    """BGR or grey ``uint8`` to grey."""
+    """BGR or grey ``uint8`` to grey.
+
+    Parameters
+    ----------
+    img : (H, W, 3) or (H, W) uint8 ndarray
+        BGR or grey image.
+
+    Returns
+    -------
+    (H, W) uint8 ndarray
+    """
     return img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
 
 

@@ -36,6 +36,16 @@ MAX_SKEW_OF_FOCAL = 0.1
 def validate_intrinsics(K: ArrayLike) -> FloatArray:
     """Return ``K`` as a ``(3, 3) float64`` camera matrix after checking it.
 
+    Parameters
+    ----------
+    K : (3, 3) array_like
+        Camera matrix ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]`` in pixels.
+
+    Returns
+    -------
+    (3, 3) float64 ndarray
+
+
     Raises
     ------
     TypeError
@@ -73,7 +83,20 @@ def check_intrinsics_for_size(K: FloatArray, image_size: tuple[int, int]) -> Non
     (width, height): a principal point more than half the image beyond its edges (it lies
     near the centre; a crop moves it, but within the image the calibration holds for), a
     focal length outside :data:`FOCAL_RANGE_OF_SIDE` times the longer side, or pixels
-    more than :data:`MAX_PIXEL_ASPECT` times longer one way than the other."""
+    more than :data:`MAX_PIXEL_ASPECT` times longer one way than the other.
+
+    Parameters
+    ----------
+    K : (3, 3) float64 ndarray
+        Intrinsics (pixels, OpenCV convention).
+    image_size : (int, int)
+        ``(width, height)`` of the images in px.
+
+    Raises
+    ------
+    ValueError
+        If ``K`` cannot be a camera's for that size.
+    """
     w, h = image_size
     cx, cy = K[0, 2], K[1, 2]
     if not (-0.5 * w <= cx <= 1.5 * w and -0.5 * h <= cy <= 1.5 * h):
@@ -94,7 +117,19 @@ def larger_photos_factor(K: FloatArray, image_size: tuple[int, int]) -> float | 
     """How many times larger the photos ``K`` seems made for are than ``image_size``
     (width, height), or None: its principal point lies where a ``K`` for larger photos
     puts it, as far beyond the centre in x as in y (at least 1.5 times the centre's
-    coordinates, the two within 15 % of each other), rounded to a half when near one."""
+    coordinates, the two within 15 % of each other), rounded to a half when near one.
+
+    Parameters
+    ----------
+    K : (3, 3) float64 ndarray
+        Intrinsics (pixels, OpenCV convention).
+    image_size : (int, int)
+        ``(width, height)`` of the images in px.
+
+    Returns
+    -------
+    float or None
+    """
     w, h = image_size
     ratios = np.array([K[0, 2] / (w / 2), K[1, 2] / (h / 2)])
     if not (ratios.min() > 1.5 and ratios.max() < 1.15 * ratios.min()):
@@ -106,7 +141,19 @@ def larger_photos_factor(K: FloatArray, image_size: tuple[int, int]) -> float | 
 
 def larger_photos_hint(K: FloatArray, image_size: tuple[int, int]) -> str:
     """A question naming the factor of :func:`larger_photos_factor` and how to rescale
-    ``K``, or '' when its principal point does not suggest larger photos."""
+    ``K``, or '' when its principal point does not suggest larger photos.
+
+    Parameters
+    ----------
+    K : (3, 3) float64 ndarray
+        Intrinsics (pixels, OpenCV convention).
+    image_size : (int, int)
+        ``(width, height)`` of the images in px.
+
+    Returns
+    -------
+    str
+    """
     s = larger_photos_factor(K, image_size)
     if s is None:
         return ""
@@ -127,7 +174,19 @@ def principal_point_hint(K: FloatArray, image_size: tuple[int, int]) -> str:
     height), as a question with a hint, or '': when it lies where a ``K`` for larger
     photos puts it (:func:`larger_photos_hint`), where one for the photos turned by 90
     degrees does, or otherwise more than :data:`MAX_PRINCIPAL_OFFSET_OF_SIDE` of a side
-    from the centre."""
+    from the centre.
+
+    Parameters
+    ----------
+    K : (3, 3) float64 ndarray
+        Intrinsics (pixels, OpenCV convention).
+    image_size : (int, int)
+        ``(width, height)`` of the images in px.
+
+    Returns
+    -------
+    str
+    """
     w, h = image_size
     cx, cy = float(K[0, 2]), float(K[1, 2])
     offsets = np.abs([cx - (w - 1) / 2, cy - (h - 1) / 2]) / np.array([w, h])
@@ -151,7 +210,22 @@ def check_intrinsics_for_native_size(K: FloatArray, image_size: tuple[int, int],
     """:func:`check_intrinsics_for_size` for a ``K`` given with images (the library's
     ``K`` is for their native, stored size): the ``ValueError`` says so, and when the
     principal point sits where a ``K`` for larger photos puts it, by how much to scale
-    it (:func:`larger_photos_hint`)."""
+    it (:func:`larger_photos_hint`).
+
+    Parameters
+    ----------
+    K : (3, 3) float64 ndarray
+        Intrinsics for the images' native (stored) size.
+    image_size : (int, int)
+        ``(width, height)`` of the images in px.
+    what : str, default "`K`"
+        How the message names ``K``.
+
+    Raises
+    ------
+    ValueError
+        If ``K`` cannot be a camera's for that size.
+    """
     try:
         check_intrinsics_for_size(K, image_size)
     except ValueError as exc:
@@ -166,6 +240,20 @@ def validate_distortion(dist: ArrayLike | None) -> FloatArray:
     """Return OpenCV distortion coefficients as a flat ``(n,) float64`` array.
 
     ``None`` means no distortion. Valid lengths are 0, 4, 5, 8, 12 and 14.
+
+    Parameters
+    ----------
+    dist : array_like or None
+        OpenCV distortion coefficients ``(k1, k2, p1, p2[, k3[, ...]])``; None for none.
+
+    Returns
+    -------
+    (n,) float64 ndarray
+
+    Raises
+    ------
+    ValueError
+        For another length, or non-finite values.
     """
     if dist is None:
         return np.zeros(0)
@@ -180,7 +268,17 @@ def validate_distortion(dist: ArrayLike | None) -> FloatArray:
 
 
 def has_distortion(dist: FloatArray) -> bool:
-    """True when any distortion coefficient is non-zero."""
+    """True when any distortion coefficient is non-zero.
+
+    Parameters
+    ----------
+    dist : (n,) ndarray
+        OpenCV distortion coefficients.
+
+    Returns
+    -------
+    bool
+    """
     return bool(np.any(dist != 0))
 
 
@@ -189,6 +287,17 @@ def scale_intrinsics(K: FloatArray, sx: float, sy: float) -> FloatArray:
 
     With pixel centres at integer coordinates, ``x' = sx (x + 0.5) - 0.5``: what
     ``cv2.resize`` and area averaging (and JPEG's scaled decoding) do.
+
+    Parameters
+    ----------
+    K : (3, 3) array_like
+        Intrinsics of the original image (pixels, OpenCV convention).
+    sx, sy : float
+        Scale factors along x (width) and y (height).
+
+    Returns
+    -------
+    (3, 3) float64 ndarray
     """
     K2 = np.array(K, dtype=np.float64)
     K2[0, :2] *= sx
@@ -199,7 +308,19 @@ def scale_intrinsics(K: FloatArray, sx: float, sy: float) -> FloatArray:
 
 
 def with_focal(K: ArrayLike, focal_px: float) -> FloatArray:
-    """``K`` ``(3, 3)`` with both focal lengths set to ``focal_px`` (principal point kept)."""
+    """``K`` ``(3, 3)`` with both focal lengths set to ``focal_px`` (principal point kept).
+
+    Parameters
+    ----------
+    K : (3, 3) array_like
+        Intrinsics.
+    focal_px : float
+        Focal length (px) for both ``fx`` and ``fy``.
+
+    Returns
+    -------
+    (3, 3) float64 ndarray
+    """
     K = np.array(K, dtype=np.float64)
     K[0, 0] = K[1, 1] = focal_px
     return K
@@ -210,6 +331,17 @@ def scale_intrinsics_halved(K: FloatArray, levels: int) -> FloatArray:
 
     See :func:`scene3D.io.images.halve`: one output pixel averages a
     ``2^levels`` square of input pixels.
+
+    Parameters
+    ----------
+    K : (3, 3) array_like
+        Intrinsics of the full-size image.
+    levels : int
+        Number of halvings.
+
+    Returns
+    -------
+    (3, 3) float64 ndarray
     """
     s = 0.5**levels
     return scale_intrinsics(K, s, s)
@@ -218,7 +350,19 @@ def scale_intrinsics_halved(K: FloatArray, levels: int) -> FloatArray:
 def scale_intrinsics_resize(
     K: FloatArray, from_size: tuple[int, int], to_size: tuple[int, int]
 ) -> FloatArray:
-    """Intrinsics of an image resized from ``from_size`` to ``to_size`` (width, height)."""
+    """Intrinsics of an image resized from ``from_size`` to ``to_size`` (width, height).
+
+    Parameters
+    ----------
+    K : (3, 3) array_like
+        Intrinsics at ``from_size``.
+    from_size, to_size : (int, int)
+        ``(width, height)`` in px.
+
+    Returns
+    -------
+    (3, 3) float64 ndarray
+    """
     return scale_intrinsics(K, to_size[0] / from_size[0], to_size[1] / from_size[1])
 
 
@@ -236,7 +380,23 @@ def different_sizes_message(name: str, size: tuple[int, int], first_name: str,
     ``first_size`` (width, height): one camera matrix holds for one size, whether it comes
     from a calibration or from the photos. Says what to do: store a rotated photo the
     same way round, give a resized one (the same aspect ratio) the other's size, replace
-    a cropped one by the camera's original."""
+    a cropped one by the camera's original.
+
+    Parameters
+    ----------
+    name : str
+        The photo whose size differs.
+    size : (int, int)
+        Its ``(width, height)`` in px.
+    first_name : str
+        The photo it is compared with.
+    first_size : (int, int)
+        Its ``(width, height)`` in px.
+
+    Returns
+    -------
+    str
+    """
     (w, h), (w0, h0) = size, first_size
     head = f"'{name}' is {w}x{h} but '{first_name}' is {w0}x{h0}"
     if (w, h) == (h0, w0):
@@ -262,6 +422,22 @@ def adapt_intrinsics_to_size(
     (within ``aspect_tolerance``, relative): ``K`` scaled. Otherwise the
     calibration does not describe these images; the error names ``what`` gave ``K``
     and says whether the images are turned by 90 degrees from it.
+
+    Parameters
+    ----------
+    K : (3, 3) float64 ndarray
+        Intrinsics at ``calib_size``.
+    calib_size, image_size : (int, int)
+        ``(width, height)`` in px of the calibration and of the images.
+    aspect_tolerance : float, default 0.01
+        Relative tolerance on the aspect ratios.
+    what : str, default "the calibration"
+        How the message names where ``K`` came from.
+
+    Returns
+    -------
+    (3, 3) float64 ndarray
+
 
     Raises
     ------

@@ -229,6 +229,16 @@ def fundamental_8point(pts1: ArrayLike, pts2: ArrayLike) -> FloatArray:
 
     A least-squares fit over all the given correspondences (N >= 8): use it on
     inliers only.
+
+    Parameters
+    ----------
+    pts1, pts2 : (N, 2) array_like
+        Corresponding pixels in images 1 and 2, N >= 8.
+
+    Returns
+    -------
+    (3, 3) float64 ndarray
+        ``F`` with ``x2^T F x1 = 0``, rank 2 and unit Frobenius norm.
     """
     p1, p2 = check_correspondences(pts1, pts2, 8)
     T1, T2 = _hartley_normalization(p1), _hartley_normalization(p2)
@@ -247,6 +257,19 @@ def essential_distances(E: ArrayLike, pts1: ArrayLike, pts2: ArrayLike,
     """Sampson distances ``(N,)`` in pixels of correspondences to the epipolar geometry of ``E``.
 
     A correspondence is an inlier of ``E`` when its distance is at most the threshold.
+
+    Parameters
+    ----------
+    E : (3, 3) array_like
+        Essential matrix, ``x2n^T E x1n = 0``.
+    pts1, pts2 : (N, 2) array_like
+        Corresponding pixels in images 1 and 2.
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+
+    Returns
+    -------
+    (N,) float64 ndarray
     """
     return np.abs(sampson_residuals(fundamental_from_essential(E, K), pts1, pts2))
 
@@ -261,6 +284,20 @@ def estimate_homography(
     ``2 * threshold_px`` (noise in both images adds up in the transfer).
 
     Returns ``(H, inliers)``; ``H`` is NaN when no homography was found.
+
+    Parameters
+    ----------
+    pts1, pts2 : (N, 2) array_like
+        Corresponding pixels in images 1 and 2, N >= 4.
+    threshold_px : float, default 1.0
+        RANSAC threshold (px).
+    confidence : float, default 0.999
+        RANSAC confidence.
+
+    Returns
+    -------
+    H : (3, 3) float64 ndarray
+    inliers : (N,) bool ndarray
     """
     p1, p2 = check_correspondences(pts1, pts2, 4)
     H, mask = cv2.findHomography(p1, p2, ROBUST_METHOD, threshold_px, maxIters=10000,
@@ -276,7 +313,20 @@ def estimate_homography(
 
 
 def homography_transfer_errors(H: ArrayLike, pts1: ArrayLike, pts2: ArrayLike) -> FloatArray:
-    """Distances ``(N,)`` in pixels between ``x2`` and ``H x1``."""
+    """Distances ``(N,)`` in pixels between ``x2`` and ``H x1``.
+
+    Parameters
+    ----------
+    H : (3, 3) array_like
+        Homography ``x2 ~ H x1``.
+    pts1, pts2 : (N, 2) array_like
+        Corresponding pixels in images 1 and 2.
+
+    Returns
+    -------
+    (N,) float64 ndarray
+        inf where ``H x1`` is at infinity.
+    """
     mapped = to_homogeneous(np.asarray(pts1, dtype=np.float64)) @ np.asarray(H).T
     with np.errstate(divide="ignore", invalid="ignore"):
         mapped = mapped[:, :2] / mapped[:, 2:3]
@@ -332,6 +382,17 @@ def epipolar_residuals(F: ArrayLike, pts1: ArrayLike, pts2: ArrayLike) -> FloatA
     """Symmetric point-to-epipolar-line distances in pixels, ``(N,)``.
 
     The mean of the distance of ``x2`` to ``F x1`` and of ``x1`` to ``F^T x2``.
+
+    Parameters
+    ----------
+    F : (3, 3) array_like
+        Fundamental matrix, ``x2^T F x1 = 0``.
+    pts1, pts2 : (N, 2) array_like
+        Corresponding pixels in images 1 and 2.
+
+    Returns
+    -------
+    (N,) float64 ndarray
     """
     p1, p2 = check_correspondences(pts1, pts2, 1)
     F = np.asarray(F, dtype=np.float64)
@@ -351,6 +412,19 @@ def epipolar_lines(F: ArrayLike, points: ArrayLike, which_image: int) -> FloatAr
     ``which_image=2``: ``points`` are in image 2 and the lines ``F^T x2`` in image 1.
 
     Raises ``ValueError`` for an ``F`` that is not a finite 3x3 matrix, or is zero.
+
+    Parameters
+    ----------
+    F : (3, 3) array_like
+        Fundamental matrix, ``x2^T F x1 = 0``.
+    points : (N, 2) array_like
+        Pixels in the image ``which_image``.
+    which_image : {1, 2}
+        The image ``points`` are in.
+
+    Returns
+    -------
+    (N, 3) float64 ndarray
     """
     if which_image not in (1, 2):
         raise ValueError(f"`which_image` must be 1 or 2, got {which_image}")

@@ -162,14 +162,41 @@ class FocalPrior:
 
 
 def principal_point_at_centre(image_size: tuple[int, int]) -> tuple[float, float]:
-    """The image centre ``((w - 1) / 2, (h - 1) / 2)``: pixel centres at integer coordinates."""
+    """The image centre ``((w - 1) / 2, (h - 1) / 2)``: pixel centres at integer coordinates.
+
+    Parameters
+    ----------
+    image_size : (int, int)
+        ``(width, height)`` of the images in px.
+
+    Returns
+    -------
+    (float, float)
+    """
     w, h = image_size
     return (w - 1) / 2.0, (h - 1) / 2.0
 
 
 def intrinsics_from_focal(focal_px: float, image_size: tuple[int, int]) -> FloatArray:
     """``K`` ``(3, 3)`` with focal length ``focal_px`` (square pixels), the principal point at
-    the centre of an image of ``image_size`` (width, height), no skew."""
+    the centre of an image of ``image_size`` (width, height), no skew.
+
+    Parameters
+    ----------
+    focal_px : float
+        Focal length (px), positive.
+    image_size : (int, int)
+        ``(width, height)`` of the images in px.
+
+    Returns
+    -------
+    (3, 3) float64 ndarray
+
+    Raises
+    ------
+    ValueError
+        If ``focal_px`` is not a positive number.
+    """
     if not (math.isfinite(focal_px) and focal_px > 0):
         raise ValueError(f"`focal_px` must be a positive number, got {focal_px}")
     cx, cy = principal_point_at_centre(image_size)
@@ -177,17 +204,54 @@ def intrinsics_from_focal(focal_px: float, image_size: tuple[int, int]) -> Float
 
 
 def default_focal_px(image_size: tuple[int, int]) -> float:
-    """COLMAP's default focal length, :data:`DEFAULT_FOCAL_FACTOR` times the longer side."""
+    """COLMAP's default focal length, :data:`DEFAULT_FOCAL_FACTOR` times the longer side.
+
+    Parameters
+    ----------
+    image_size : (int, int)
+        ``(width, height)`` of the images in px.
+
+    Returns
+    -------
+    float
+        Focal length (px).
+    """
     return DEFAULT_FOCAL_FACTOR * max(image_size)
 
 
 def focal_35mm_from_px(focal_px: float, image_size: tuple[int, int]) -> float:
-    """The 35 mm-equivalent focal length (CIPA, diagonal) of ``focal_px`` on ``image_size``."""
+    """The 35 mm-equivalent focal length (CIPA, diagonal) of ``focal_px`` on ``image_size``.
+
+    Parameters
+    ----------
+    focal_px : float
+        Focal length (px).
+    image_size : (int, int)
+        ``(width, height)`` of the images in px.
+
+    Returns
+    -------
+    float
+        Focal length (mm, 35 mm equivalent).
+    """
     return focal_px * CIPA_DIAGONAL_MM / math.hypot(*image_size)
 
 
 def focal_px_from_35mm(focal_35mm: float, image_size: tuple[int, int]) -> float:
-    """Pixels from a 35 mm-equivalent focal length: ``f35 / 43.27 * diagonal`` (CIPA)."""
+    """Pixels from a 35 mm-equivalent focal length: ``f35 / 43.27 * diagonal`` (CIPA).
+
+    Parameters
+    ----------
+    focal_35mm : float
+        Focal length (mm, 35 mm equivalent).
+    image_size : (int, int)
+        ``(width, height)`` of the images in px.
+
+    Returns
+    -------
+    float
+        Focal length (px).
+    """
     return focal_35mm / CIPA_DIAGONAL_MM * math.hypot(*image_size)
 
 
@@ -233,6 +297,17 @@ def focal_from_exif(exif: ExifCamera, image_size: tuple[int, int]) -> ExifFocal:
     cropped: the 35 mm equivalent describes the recorded frame, so its diagonal is
     used (a crop keeps the focal length in pixels) and the description says so.
     Values outside :data:`PLAUSIBLE_FOCAL_35MM` are refused.
+
+    Parameters
+    ----------
+    exif : ExifCamera
+        The photo's EXIF values.
+    image_size : (int, int)
+        ``(width, height)`` of the images in px.
+
+    Returns
+    -------
+    ExifFocal
     """
     if exif.error is not None:
         return ExifFocal(None, f"the EXIF block is corrupt ({exif.error})", True)
@@ -322,6 +397,17 @@ def check_one_camera(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, i
     ``FocalLengthIn35mmFilm`` values with each other. A photo whose EXIF focal length
     cannot be used (a corrupt block, 0, an implausible value: :func:`focal_from_exif`)
     is left out of that comparison; :func:`camera_prior` warns about it and ignores it.
+
+    Parameters
+    ----------
+    photos : sequence of (str, ExifCamera or None, (int, int))
+        Each photo's name, EXIF values and ``(width, height)`` in px.
+
+    Raises
+    ------
+    ValueError
+        No photos, or photos of different sizes; :class:`CameraMismatchError` for two
+        cameras or zoom settings.
     """
     if not photos:
         raise ValueError("no photos given")
@@ -354,6 +440,16 @@ def camera_prior(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, int]]
     sets it (they agree, as checked); otherwise the default ``1.2 * max(w, h)``.
     What was wrong with an EXIF block on the way is kept in ``warnings``, each
     naming the photo.
+
+    Parameters
+    ----------
+    photos : sequence of (str, ExifCamera or None, (int, int))
+        Each photo's name, EXIF values and ``(width, height)`` in px.
+
+    Returns
+    -------
+    FocalPrior
+
 
     Raises
     ------

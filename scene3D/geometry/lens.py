@@ -29,6 +29,16 @@ COLMAP_MODEL_NAMES: dict[str, str] = {"pinhole": "SIMPLE_PINHOLE",
 def radial_coefficients(camera_model: str) -> int:
     """How many radial coefficients ``camera_model`` has (0, 1 or 2).
 
+    Parameters
+    ----------
+    camera_model : str
+        A key of :data:`CAMERA_MODELS`.
+
+    Returns
+    -------
+    int
+
+
     Raises
     ------
     ValueError
@@ -132,7 +142,21 @@ def undistort_pixels(xy: ArrayLike, K: ArrayLike, k: ArrayLike) -> FloatArray:
 
 def distort_pixels(xy: ArrayLike, K: ArrayLike, k: ArrayLike) -> FloatArray:
     """The inverse of :func:`undistort_pixels`: pinhole pixels of ``K`` as the distorting
-    camera sees them ``(N, 2)``."""
+    camera sees them ``(N, 2)``.
+
+    Parameters
+    ----------
+    xy : (N, 2) array_like
+        Pinhole pixels of ``K`` (OpenCV convention).
+    K : (3, 3) array_like
+        Its focal length ``K[0, 0]`` (square pixels, no skew) and principal point.
+    k : (0,), (1,) or (2,) array_like
+        The distorting camera's radial coefficients.
+
+    Returns
+    -------
+    (N, 2) float64 ndarray
+    """
     K = np.asarray(K, np.float64)
     return distort_normalized(_normalized(xy, K), k) * K[0, 0] + K[:2, 2]
 
@@ -145,6 +169,14 @@ def rescaled_coefficients(k: ArrayLike, focal_from_px: float, focal_to_px: float
     focal length ``focal_to_px`` are an exact radial camera of focal length
     ``focal_to_px`` and coefficients ``k1 s^2, k2 s^4`` with ``s = focal_to_px /
     focal_from_px``.
+
+    Parameters
+    ----------
+    k : (m,) array_like
+        Radial coefficients about ``focal_from_px``.
+    focal_from_px, focal_to_px : float
+        Focal lengths (px) before and after.
+
 
     Returns
     -------
@@ -197,5 +229,19 @@ def folds_within(K: ArrayLike, k: ArrayLike, image_size: tuple[int, int]) -> boo
 
 def max_shift_px(K: ArrayLike, k: ArrayLike, image_size: tuple[int, int]) -> float:
     """How far the distortion ``k`` moves the image's farthest corner, in pixels
-    (:func:`corner_shifts_px`)."""
+    (:func:`corner_shifts_px`).
+
+    Parameters
+    ----------
+    K : (3, 3) array_like
+        Focal length ``K[0, 0]`` (square pixels, no skew) and principal point.
+    k : (0,), (1,) or (2,) array_like
+        Radial coefficients.
+    image_size : (int, int)
+        ``(width, height)`` of the images in px.
+
+    Returns
+    -------
+    float
+    """
     return float(np.max(np.linalg.norm(corner_shifts_px(K, k, image_size), axis=1)))

@@ -27,6 +27,12 @@ _W = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 def decompose_essential(E: ArrayLike) -> list[tuple[FloatArray, FloatArray]]:
     """The four ``(R, t)`` candidates of an essential matrix.
 
+    Parameters
+    ----------
+    E : (3, 3) array_like
+        Essential matrix, ``E = [t]x R`` with ``x_cam2 = R x_cam1 + t``.
+
+
     Returns
     -------
     list of (R, t)
@@ -50,7 +56,21 @@ def nearest_decomposition(E: ArrayLike, R: ArrayLike, t: ArrayLike
                           ) -> tuple[FloatArray, FloatArray]:
     """The ``(R, t)`` of :func:`decompose_essential` ``(E)`` nearest to the pose ``R`` (3, 3),
     ``t`` (3,) by :func:`scene3D.geometry.pose_angle_deg`. To compare another essential
-    matrix's pose with a chosen one without a cheirality test of its own."""
+    matrix's pose with a chosen one without a cheirality test of its own.
+
+    Parameters
+    ----------
+    E : (3, 3) array_like
+        Essential matrix.
+    R, t : (3, 3), (3,) array_like
+        Reference pose ``x_cam2 = R x_cam1 + t``.
+
+    Returns
+    -------
+    R : (3, 3) float64 ndarray
+    t : (3,) float64 ndarray
+        Unit norm.
+    """
     return min(decompose_essential(E), key=lambda pose: pose_angle_deg(*pose, R, t))
 
 

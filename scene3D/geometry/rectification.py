@@ -42,7 +42,28 @@ def rectifying_transforms(
     K: FloatArray, R: FloatArray, t: FloatArray, size: tuple[int, int], alpha: float = 1.0,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
     """``R1, R2, P1, P2, Q`` of ``cv2.stereoRectify`` with zero disparity at infinity
-    (both rectified cameras share ``f`` and the principal point); ``size`` is (W, H)."""
+    (both rectified cameras share ``f`` and the principal point); ``size`` is (W, H).
+
+    Parameters
+    ----------
+    K : (3, 3) array_like
+        Intrinsics shared by both (undistorted) images.
+    R, t : (3, 3), (3,) array_like
+        Relative pose ``x_cam2 = R x_cam1 + t``.
+    size : (int, int)
+        ``(width, height)`` in px.
+    alpha : float, default 1.0
+        ``cv2.stereoRectify``'s free scaling (0: valid pixels only, 1: all pixels kept).
+
+    Returns
+    -------
+    R1, R2 : (3, 3) float64 ndarray
+        Rectifying rotations of cameras 1 and 2.
+    P1, P2 : (3, 4) float64 ndarray
+        Projection matrices of the rectified cameras.
+    Q : (4, 4) float64 ndarray
+        Disparity-to-depth matrix.
+    """
     no_dist = np.zeros(5)
     R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(
         K, no_dist, K, no_dist, size, np.asarray(R, np.float64),
@@ -54,7 +75,17 @@ def rectifying_transforms(
 def baseline_axis(P2: FloatArray) -> int:
     """0 when rectified image 2 lies beside image 1 (rows correspond, disparities along
     x), 1 when OpenCV rectified a mostly vertical baseline (columns correspond,
-    disparities along y); read off ``P2``'s translation column."""
+    disparities along y); read off ``P2``'s translation column.
+
+    Parameters
+    ----------
+    P2 : (3, 4) array_like
+        Rectified projection matrix of camera 2.
+
+    Returns
+    -------
+    int
+    """
     return int(abs(P2[1, 3]) > abs(P2[0, 3]))
 
 
@@ -107,7 +138,23 @@ def rectify_pair(
 def rectify_points(
     points: FloatArray, K: FloatArray, R_rect: FloatArray, P_rect: FloatArray
 ) -> FloatArray:
-    """Map pixels ``(N, 2)`` of an undistorted image to its rectified image."""
+    """Map pixels ``(N, 2)`` of an undistorted image to its rectified image.
+
+    Parameters
+    ----------
+    points : (N, 2) ndarray
+        Pixels of the undistorted image.
+    K : (3, 3) array_like
+        Its intrinsics.
+    R_rect : (3, 3) array_like
+        Its rectifying rotation.
+    P_rect : (3, 4) array_like
+        Its rectified projection matrix.
+
+    Returns
+    -------
+    (N, 2) float64 ndarray
+    """
     if len(points) == 0:
         return np.zeros((0, 2))
     out = cv2.undistortPoints(points.reshape(-1, 1, 2), K, None, R=R_rect, P=P_rect)

@@ -56,7 +56,19 @@ def triangulate_points(
 
 
 def depths(points3d: FloatArray, R: FloatArray, t: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Depths ``(N,)`` of camera-1-frame points in camera 1 and camera 2."""
+    """Depths ``(N,)`` of camera-1-frame points in camera 1 and camera 2.
+
+    Parameters
+    ----------
+    points3d : (N, 3) array_like
+        Points in the camera-1 frame.
+    R, t : (3, 3), (3,) array_like
+        Relative pose ``x_cam2 = R x_cam1 + t``.
+
+    Returns
+    -------
+    z1, z2 : (N,) float64 ndarray
+    """
     z1 = points3d[:, 2]
     z2 = (points3d @ np.asarray(R).T + np.reshape(t, (1, 3)))[:, 2]
     return z1, z2
@@ -70,7 +82,23 @@ def reprojection_errors(
     R: FloatArray,
     t: FloatArray,
 ) -> FloatArray:
-    """Per-point reprojection errors in pixels, ``(N, 2)``: column 0 image 1, column 1 image 2."""
+    """Per-point reprojection errors in pixels, ``(N, 2)``: column 0 image 1, column 1 image 2.
+
+    Parameters
+    ----------
+    points3d : (N, 3) array_like
+        Points in the camera-1 frame.
+    pts1, pts2 : (N, 2) array_like
+        Observed pixels in images 1 and 2.
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    R, t : (3, 3), (3,) array_like
+        Relative pose ``x_cam2 = R x_cam1 + t``.
+
+    Returns
+    -------
+    (N, 2) float64 ndarray
+    """
     e1 = np.linalg.norm(project(points3d, K, np.eye(3), np.zeros(3)) - pts1, axis=1)
     e2 = np.linalg.norm(project(points3d, K, R, t) - pts2, axis=1)
     return np.column_stack([e1, e2])
@@ -80,6 +108,17 @@ def parallax_angles_deg(points3d: FloatArray, R: FloatArray, t: FloatArray) -> F
     """Angle ``(N,)`` in degrees between the two viewing rays of each point.
 
     Camera 1 sits at the origin, camera 2 at ``C2 = -R^T t`` (camera-1 frame).
+
+    Parameters
+    ----------
+    points3d : (N, 3) array_like
+        Points in the camera-1 frame.
+    R, t : (3, 3), (3,) array_like
+        Relative pose ``x_cam2 = R x_cam1 + t``.
+
+    Returns
+    -------
+    (N,) float64 ndarray
     """
     c2 = -np.asarray(R).T @ np.reshape(t, 3)
     ray1 = points3d
@@ -91,7 +130,19 @@ def parallax_angles_deg(points3d: FloatArray, R: FloatArray, t: FloatArray) -> F
 
 
 def in_front_mask(points3d: FloatArray, R: FloatArray, t: FloatArray) -> np.ndarray:
-    """``(N,) bool``: finite points with positive depth in both cameras (cheirality)."""
+    """``(N,) bool``: finite points with positive depth in both cameras (cheirality).
+
+    Parameters
+    ----------
+    points3d : (N, 3) array_like
+        Points in the camera-1 frame.
+    R, t : (3, 3), (3,) array_like
+        Relative pose ``x_cam2 = R x_cam1 + t``.
+
+    Returns
+    -------
+    (N,) bool ndarray
+    """
     finite = np.all(np.isfinite(points3d), axis=1)
     z1, z2 = depths(np.where(finite[:, None], points3d, 0.0), R, t)
     return finite & (z1 > 0) & (z2 > 0)
@@ -148,6 +199,19 @@ def behind_at_scene_parallax(parallax_deg: FloatArray, behind: np.ndarray,
     far below the scene's (0.02-0.25 deg against a median of 5.5 deg in a rendered
     scene with a backdrop, where a focal length 2-5 % short put a third of the matches
     behind): it is not a wrong match.
+
+    Parameters
+    ----------
+    parallax_deg : (N,) ndarray
+        Angle between each point's rays (deg).
+    behind : (N,) bool ndarray
+        Points behind a camera beyond the noise.
+    front : (N,) bool ndarray
+        Points in front of both cameras.
+
+    Returns
+    -------
+    (N,) bool ndarray
     """
     if not front.any():
         return behind.copy()

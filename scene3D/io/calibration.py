@@ -62,6 +62,17 @@ def _not_file_storage(path: Path) -> str:
 def load_calibration(path: str | os.PathLike) -> CameraCalibration:
     """Read a calibration file.
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+        An OpenCV FileStorage file (``.yaml``, ``.yml``, ``.xml`` or ``.json``).
+
+    Returns
+    -------
+    CameraCalibration
+        ``K`` ``(3, 3)`` and OpenCV distortion for images of its ``(width, height)``.
+
+
     Raises
     ------
     FileNotFoundError
@@ -132,6 +143,23 @@ def save_calibration(
     """Write a calibration atomically; refuse to replace a file unless ``overwrite``.
 
     ``extras`` adds fields: numbers, strings, or arrays (written as matrices).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Target file, ending in .yaml, .yml, .xml or .json.
+    camera : CameraCalibration
+        The calibration to write.
+    extras : dict or None, default None
+        Further fields by name.
+    overwrite : bool, default False
+        Replace an existing file.
+
+    Returns
+    -------
+    Path
+        The file written.
+
 
     Raises
     ------

@@ -119,6 +119,20 @@ class ColmapCamera:
         RADIAL with ``k1[, k2]`` only and square pixels, OPENCV with ``k1, k2, p1, p2``,
         FULL_OPENCV with ``k3``..``k6``.
 
+        Parameters
+        ----------
+        K : (3, 3) array_like
+            Intrinsics (OpenCV pixels, no skew).
+        dist : array_like or None
+            OpenCV distortion coefficients; None for none.
+        image_size : (int, int)
+            ``(width, height)`` in px.
+
+        Returns
+        -------
+        ColmapCamera
+
+
         Raises
         ------
         ValueError
@@ -203,7 +217,17 @@ class ColmapModel:
         return camera_centers(self.R, self.t)
 
     def camera(self, view: int) -> ColmapCamera:
-        """The camera of image ``view`` (an index into ``names``)."""
+        """The camera of image ``view`` (an index into ``names``).
+
+        Parameters
+        ----------
+        view : int
+            Index into ``names``.
+
+        Returns
+        -------
+        ColmapCamera
+        """
         return self.cameras[int(self.camera_ids[view])]
 
     def reprojection_errors_px(self) -> FloatArray:
@@ -232,7 +256,23 @@ class ColmapModel:
 def project_points(points3d: FloatArray, K: FloatArray, dist: FloatArray, R: FloatArray,
                    t: FloatArray) -> FloatArray:
     """Pixels ``(N, 2)`` of world points ``(N, 3)`` in a camera ``x_cam = R X + t`` with
-    intrinsics ``K`` and OpenCV distortion ``dist`` (OpenCV pixel convention)."""
+    intrinsics ``K`` and OpenCV distortion ``dist`` (OpenCV pixel convention).
+
+    Parameters
+    ----------
+    points3d : (N, 3) array_like
+        World points.
+    K : (3, 3) array_like
+        Intrinsics (OpenCV pixels).
+    dist : (n,) array_like
+        OpenCV distortion coefficients (empty for none).
+    R, t : (3, 3), (3,) array_like
+        World-to-camera pose.
+
+    Returns
+    -------
+    (N, 2) float64 ndarray
+    """
     if len(points3d) == 0:
         return np.zeros((0, 2))
     cam = np.asarray(points3d, np.float64) @ np.asarray(R).T + np.asarray(t)
@@ -259,6 +299,20 @@ def model_for_photos(model: ColmapModel, photo_size: tuple[int, int],
     (OpenCV coefficients) the lens distortion put back into the camera (OPENCV or
     FULL_OPENCV) and the observations. Poses and points are unchanged; ``errors_px`` is
     recomputed at the photos' size.
+
+    Parameters
+    ----------
+    model : ColmapModel
+        A model with pinhole cameras of resized, undistorted images.
+    photo_size : (int, int)
+        The photos' ``(width, height)`` in px.
+    dist : array_like or None, default None
+        The photos' OpenCV distortion coefficients; None for none.
+
+    Returns
+    -------
+    ColmapModel
+
 
     Raises
     ------
@@ -308,6 +362,16 @@ def _numbers(path: Path, line: int, fields: list[str], what: str) -> list[float]
 
 def read_cameras_text(path: str | os.PathLike) -> dict[int, ColmapCamera]:
     """The cameras of a ``cameras.txt``, by id.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A COLMAP ``cameras.txt``.
+
+    Returns
+    -------
+    dict[int, ColmapCamera]
+
 
     Raises
     ------
@@ -374,6 +438,18 @@ def read_colmap_text(folder: str | os.PathLike) -> ColmapModel:
 
     Observations come from the points' tracks, image by image in the order of their 2D
     points; 2D points that belong to no 3D point are not kept.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        Folder holding ``cameras.txt``, ``images.txt`` and ``points3D.txt``.
+
+    Returns
+    -------
+    ColmapModel
+        World-to-camera poses (``x_cam = R X + t``) and OpenCV pixels (COLMAP's half-pixel
+        offset removed).
+
 
     Raises
     ------
@@ -450,7 +526,18 @@ def read_colmap_text(folder: str | os.PathLike) -> ColmapModel:
 
 def colmap_text(model: ColmapModel) -> dict[str, str]:
     """``model`` as the three files of a COLMAP text model (name -> text), every number
-    to full precision (a model read back is the same)."""
+    to full precision (a model read back is the same).
+
+    Parameters
+    ----------
+    model : ColmapModel
+        The model to write.
+
+    Returns
+    -------
+    dict[str, str]
+        ``cameras.txt``, ``images.txt`` and ``points3D.txt`` by name.
+    """
     from .export import colmap_image_name
 
     def num(x: float) -> str:
@@ -497,7 +584,17 @@ def cameras_json(model: ColmapModel) -> dict[str, dict]:
     """Each image's camera as JSON-ready values, by image name: world-to-camera ``R``
     ``(3, 3)`` and ``t`` ``(3,)``, the centre ``(3,)``, ``K`` ``(3, 3)`` (OpenCV pixels),
     the OpenCV ``distortion`` coefficients, ``image_size`` ``[width, height]`` and COLMAP's
-    ``camera_model``."""
+    ``camera_model``.
+
+    Parameters
+    ----------
+    model : ColmapModel
+        The model.
+
+    Returns
+    -------
+    dict[str, dict]
+    """
     centers = model.centers
     out = {}
     for v, name in enumerate(model.names):
@@ -510,7 +607,19 @@ def cameras_json(model: ColmapModel) -> dict[str, dict]:
 
 def write_colmap_text(folder: str | os.PathLike, model: ColmapModel) -> list[Path]:
     """Write ``model`` as a COLMAP text model into ``folder`` (created if needed), each
-    file atomically; returns the paths written."""
+    file atomically; returns the paths written.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        Target folder.
+    model : ColmapModel
+        The model to write.
+
+    Returns
+    -------
+    list of Path
+    """
     return write_text_files(folder, colmap_text(model))
 
 
@@ -523,7 +632,35 @@ def colmap_model_from_views(names: list[str] | tuple[str, ...], K: ArrayLike,
     are ``registered`` ``(V,)`` among ``names``, image ids ``view + 1``, point ids
     ``point + 1``; poses ``R`` ``(V, 3, 3)``, ``t`` ``(V, 3)`` world-to-camera; the
     observations ``obs_view`` (indices into ``names``), ``obs_point``, ``obs_xy``
-    ``(O, 2)`` OpenCV pixels."""
+    ``(O, 2)`` OpenCV pixels.
+
+    Parameters
+    ----------
+    names : list or tuple of str
+        The views' image names, ``V`` of them.
+    K : (3, 3) array_like
+        Intrinsics shared by the views (OpenCV pixels).
+    image_size : (int, int)
+        ``(width, height)`` in px.
+    registered : (V,) bool array_like
+        Views in the model.
+    R : (V, 3, 3) array_like
+        World-to-camera rotations.
+    t : (V, 3) array_like
+        World-to-camera translations.
+    points3d : (P, 3) array_like
+        World points.
+    colors : (P, 3) uint8 array_like
+        RGB colours.
+    obs_view, obs_point : (O,) int array_like
+        View and point of each observation.
+    obs_xy : (O, 2) array_like
+        Observed pixels (OpenCV convention).
+
+    Returns
+    -------
+    ColmapModel
+    """
     registered = np.asarray(registered, dtype=bool)
     views = np.nonzero(registered)[0]
     index = np.full(len(registered), -1)

@@ -94,7 +94,17 @@ def default_cache_dir() -> Path:
 
 
 def sha256_of(path: Path) -> str:
-    """Hex SHA-256 of a file."""
+    """Hex SHA-256 of a file.
+
+    Parameters
+    ----------
+    path : Path
+        A file.
+
+    Returns
+    -------
+    str
+    """
     import hashlib  # only when verifying: it costs ~5 ms to import
 
     digest = hashlib.sha256()
@@ -237,6 +247,16 @@ def strecha_views(dataset: str | os.PathLike) -> list[tuple[Path, Path]]:
     An image counts when ``gt_dense_cameras/`` holds its ``NAME.camera``; the others are
     named in a warning.
 
+    Parameters
+    ----------
+    dataset : str or os.PathLike
+        Folder holding ``images/`` and ``gt_dense_cameras/``.
+
+    Returns
+    -------
+    list of (Path, Path)
+
+
     Raises
     ------
     FileNotFoundError
@@ -292,7 +312,22 @@ class StrechaScene:
 
 def read_strecha_scene(dataset: str | os.PathLike) -> StrechaScene:
     """The images of a Strecha-format dataset and their cameras (:func:`strecha_views`,
-    :func:`read_strecha_camera`): what a benchmark compares a reconstruction with."""
+    :func:`read_strecha_camera`): what a benchmark compares a reconstruction with.
+
+    Parameters
+    ----------
+    dataset : str or os.PathLike
+        Folder holding ``images/`` and ``gt_dense_cameras/``.
+
+    Returns
+    -------
+    StrechaScene
+
+    Raises
+    ------
+    FileNotFoundError, ValueError
+        As :func:`strecha_views` and :func:`read_strecha_camera`.
+    """
     views = strecha_views(dataset)
     return StrechaScene([image for image, _ in views],
                         [read_strecha_camera(camera) for _, camera in views])
@@ -305,6 +340,16 @@ ROTATION_TOLERANCE = 1e-5
 
 def read_strecha_camera(path: str | os.PathLike) -> StrechaCamera:
     """Read a Strecha ``.camera`` file (see the module docstring for the layout).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A ``NAME.camera`` file.
+
+    Returns
+    -------
+    StrechaCamera
+
 
     Raises
     ------

@@ -67,6 +67,16 @@ def read_exif(path: str | os.PathLike) -> ExifCamera | None:
     rather than silently use a default. A file Pillow cannot open at all is taken
     as having no EXIF (reading the image itself will report the problem).
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+        An image file.
+
+    Returns
+    -------
+    ExifCamera or None
+
+
     Raises
     ------
     FileNotFoundError

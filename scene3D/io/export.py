@@ -69,7 +69,15 @@ def all_or_nothing() -> Iterator[None]:
 
 def place_file(tmp: Path, path: Path) -> None:
     """Rename the complete file ``tmp`` over ``path`` now, or at the end of the enclosing
-    :func:`all_or_nothing` block."""
+    :func:`all_or_nothing` block.
+
+    Parameters
+    ----------
+    tmp : Path
+        The complete temporary file.
+    path : Path
+        Its target.
+    """
     staged = _staged.get()
     if staged is not None:
         staged.append((tmp, path))
@@ -82,7 +90,17 @@ def place_file(tmp: Path, path: Path) -> None:
 
 def written_bytes(path: str | os.PathLike) -> bytes:
     """The content of a file this module wrote: within :func:`all_or_nothing`, from its
-    temporary file while the rename waits; else from ``path``."""
+    temporary file while the rename waits; else from ``path``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A file this module wrote.
+
+    Returns
+    -------
+    bytes
+    """
     path = Path(path)
     for tmp, target in reversed(_staged.get() or []):
         if target == path:
@@ -92,14 +110,37 @@ def written_bytes(path: str | os.PathLike) -> bytes:
 
 def check_target(path: Path) -> None:
     """Raise ``IsADirectoryError`` when a folder stands where the file ``path`` is to go
-    (the rename over it would fail only after every other file was written)."""
+    (the rename over it would fail only after every other file was written).
+
+    Parameters
+    ----------
+    path : Path
+        Where a file is to be written.
+
+    Raises
+    ------
+    IsADirectoryError
+        A folder stands at ``path``.
+    """
     if path.is_dir():
         raise IsADirectoryError(21, "a folder stands where this file is to be written",
                                 str(path))
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
-    """Write ``data`` to ``path`` through a temporary file and a rename."""
+    """Write ``data`` to ``path`` through a temporary file and a rename.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Target file.
+    data : bytes
+        Its content.
+
+    Returns
+    -------
+    Path
+    """
     return atomic_write_pieces(path, (data,))
 
 
@@ -110,6 +151,17 @@ def atomic_write_pieces(path: str | os.PathLike, pieces: Iterable[bytes | Path])
     Files are copied by the kernel where it can (``os.copy_file_range`` on Linux), never
     read into Python: a report's 4.8 MB plotly.js costs 2 ms that way against 15-60 ms
     read, decoded, joined, encoded and written (measured on this project's machine).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Target file.
+    pieces : iterable of bytes or Path
+        Its content, in order.
+
+    Returns
+    -------
+    Path
     """
     path = Path(path)
     check_target(path)
@@ -165,6 +217,22 @@ def ply_bytes(points3d: np.ndarray, colors: np.ndarray | None = None) -> bytes:
     """Binary little-endian PLY of ``(N, 3)`` points with ``(N, 3) uint8`` RGB colours.
 
     Points without colours are written white. Coordinates are float32.
+
+    Parameters
+    ----------
+    points3d : (N, 3) array_like
+        Points.
+    colors : (N, 3) uint8 array_like or None, default None
+        RGB colours; None for white.
+
+    Returns
+    -------
+    bytes
+
+    Raises
+    ------
+    ValueError
+        If the shapes are wrong.
     """
     points3d = np.asarray(points3d, dtype=np.float64)
     if points3d.ndim != 2 or points3d.shape[1] != 3:
@@ -192,12 +260,42 @@ def ply_bytes(points3d: np.ndarray, colors: np.ndarray | None = None) -> bytes:
 def write_ply(
     path: str | os.PathLike, points3d: np.ndarray, colors: np.ndarray | None = None
 ) -> Path:
-    """Write a coloured point cloud as binary PLY (MeshLab, Open3D, CloudCompare read it)."""
+    """Write a coloured point cloud as binary PLY (MeshLab, Open3D, CloudCompare read it).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Target file.
+    points3d : (N, 3) array_like
+        Points.
+    colors : (N, 3) uint8 array_like or None, default None
+        RGB colours; None for white.
+
+    Returns
+    -------
+    Path
+    """
     return atomic_write_bytes(path, ply_bytes(points3d, colors))
 
 
 def read_ply(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
-    """Read a PLY written by :func:`write_ply`: ``(N, 3) float64`` points, ``(N, 3) uint8`` RGB."""
+    """Read a PLY written by :func:`write_ply`: ``(N, 3) float64`` points, ``(N, 3) uint8`` RGB.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A PLY file.
+
+    Returns
+    -------
+    points : (N, 3) float64 ndarray
+    colors : (N, 3) uint8 ndarray
+
+    Raises
+    ------
+    ValueError
+        If it is not a binary little-endian PLY file.
+    """
     data = Path(path).read_bytes()
     end = data.find(b"end_header\n")
     if not data.startswith(b"ply\n") or end < 0:
@@ -231,13 +329,39 @@ def _jsonable(value: Any) -> Any:
 
 
 def write_json(path: str | os.PathLike, obj: dict) -> Path:
-    """Write ``obj`` (numpy arrays allowed; NaN and infinity as null) as indented JSON."""
+    """Write ``obj`` (numpy arrays allowed; NaN and infinity as null) as indented JSON.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Target file.
+    obj : dict
+        The values.
+
+    Returns
+    -------
+    Path
+    """
     text = json.dumps(_jsonable(obj), indent=2, allow_nan=False) + "\n"
     return atomic_write_bytes(path, text.encode("utf-8"))
 
 
 def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = 100) -> Path:
-    """Render a matplotlib figure to PNG and write it atomically."""
+    """Render a matplotlib figure to PNG and write it atomically.
+
+    Parameters
+    ----------
+    fig : Figure
+        A matplotlib figure.
+    path : str or os.PathLike
+        Target PNG file.
+    dpi : int, default 100
+        Resolution.
+
+    Returns
+    -------
+    Path
+    """
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=dpi, bbox_inches="tight")
     return atomic_write_bytes(path, buffer.getvalue())
@@ -245,6 +369,18 @@ def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = 100) -> Path:
 
 def write_png(path: str | os.PathLike, image: np.ndarray) -> Path:
     """Write a BGR ``(H, W, 3) uint8`` (or grey ``(H, W)``) image as PNG, atomically.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Target file.
+    image : (H, W, 3) or (H, W) uint8 ndarray
+        BGR or grey image.
+
+    Returns
+    -------
+    Path
+
 
     Raises
     ------
@@ -264,6 +400,15 @@ def colmap_image_name(name: str) -> str:
 
     ``images.txt`` separates its fields by spaces and has no quoting, so COLMAP and
     pycolmap read a name with a space only up to it (``'IMG 1.jpg'`` as ``'IMG'``).
+
+    Parameters
+    ----------
+    name : str
+        An image name.
+
+    Returns
+    -------
+    str
     """
     return "".join("_" if c.isspace() else c for c in name)
 
@@ -289,6 +434,35 @@ def colmap_text_files(
     2D points are shifted by half a pixel from the OpenCV convention used elsewhere.
     Image names are written as :func:`colmap_image_name` gives them: a space, which
     the format cannot hold, becomes '_' (so such a name no longer matches its file).
+
+    Parameters
+    ----------
+    names : list of str
+        The views' image names, ``V`` of them.
+    K : (3, 3) ndarray
+        Intrinsics shared by the views (OpenCV pixels).
+    image_size : (int, int)
+        ``(width, height)`` in px.
+    registered : (V,) bool ndarray
+        Views in the model.
+    R : (V, 3, 3) ndarray
+        World-to-camera rotations.
+    t : (V, 3) ndarray
+        World-to-camera translations.
+    points3d : (P, 3) ndarray
+        World points.
+    colors : (P, 3) uint8 ndarray
+        RGB colours.
+    obs_view, obs_point : (O,) int ndarray
+        View and point of each observation.
+    obs_xy : (O, 2) ndarray
+        Observed pixels (OpenCV convention).
+    errors_px : (P,) ndarray
+        Each point's reprojection error (px).
+
+    Returns
+    -------
+    dict[str, str]
     """
     from ..geometry.conventions import quaternion_from_rotation
 
@@ -325,7 +499,19 @@ def colmap_text_files(
 
 
 def write_text_files(folder: str | os.PathLike, files: dict[str, str]) -> list[Path]:
-    """Write several text files into ``folder`` (created if needed), each atomically."""
+    """Write several text files into ``folder`` (created if needed), each atomically.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        Target folder.
+    files : dict[str, str]
+        Text by file name.
+
+    Returns
+    -------
+    list of Path
+    """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     return [atomic_write_bytes(folder / name, text.encode("utf-8"))

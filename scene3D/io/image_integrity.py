@@ -44,6 +44,18 @@ def intact_image_data(data: np.ndarray, path: str | os.PathLike) -> np.ndarray:
     warning naming the file. PNG: chunks up to ``IEND``. TIFF: the first directory and the
     image data it points to within the file. Other formats pass unchecked.
 
+    Parameters
+    ----------
+    data : (n,) uint8 ndarray
+        The file's bytes.
+    path : str or os.PathLike
+        The file, for messages.
+
+    Returns
+    -------
+    (n',) uint8 ndarray
+
+
     Raises
     ------
     ValueError
@@ -61,7 +73,19 @@ def intact_image_data(data: np.ndarray, path: str | os.PathLike) -> np.ndarray:
 
 def jpeg_cut_short(data: np.ndarray, path: str | os.PathLike) -> ValueError | None:
     """The error for a JPEG file ``data`` that its decoder refused and that does not end
-    with an end-of-image marker (cut short); None for any other file."""
+    with an end-of-image marker (cut short); None for any other file.
+
+    Parameters
+    ----------
+    data : (n,) uint8 ndarray
+        The file's bytes.
+    path : str or os.PathLike
+        The file, for the message.
+
+    Returns
+    -------
+    ValueError or None
+    """
     if data[:2].tobytes() == b"\xff\xd8" and data[-2:].tobytes() != b"\xff\xd9":
         return _truncated(path, "JPEG", "it ends before its end-of-image marker")
     return None

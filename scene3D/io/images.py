@@ -38,19 +38,49 @@ IMAGE_SUFFIXES = frozenset({".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".
 def is_folder_image(path: Path) -> bool:
     """Whether a file found in a folder is taken as an image: its ending is one of
     :data:`IMAGE_SUFFIXES` and it is not hidden (a name starting with '.', such as the
-    ``._IMG_0001.jpg`` files macOS leaves on other disks)."""
+    ``._IMG_0001.jpg`` files macOS leaves on other disks).
+
+    Parameters
+    ----------
+    path : Path
+        A file.
+
+    Returns
+    -------
+    bool
+    """
     return path.suffix.lower() in IMAGE_SUFFIXES and not path.name.startswith(".")
 
 
 def folder_images(folder: Path) -> list[Path]:
-    """The images of ``folder`` (:func:`is_folder_image`), sorted."""
+    """The images of ``folder`` (:func:`is_folder_image`), sorted.
+
+    Parameters
+    ----------
+    folder : Path
+        A folder.
+
+    Returns
+    -------
+    list of Path
+    """
     return sorted(p for p in Path(folder).iterdir() if is_folder_image(p))
 
 
 def glob_patterns(spec: str) -> list[str]:
     """The patterns a glob ``spec`` is read as: itself, then, when its folder part exists
     as written (``'photos [2024]/*.jpg'``, whose brackets a glob reads as a set of
-    characters), the same with that folder taken literally (:func:`glob.escape`)."""
+    characters), the same with that folder taken literally (:func:`glob.escape`).
+
+    Parameters
+    ----------
+    spec : str
+        A glob pattern.
+
+    Returns
+    -------
+    list of str
+    """
     head, tail = os.path.split(spec)
     if head and glob.has_magic(head) and os.path.isdir(head):
         return [spec, os.path.join(glob.escape(head), tail)]
@@ -59,7 +89,17 @@ def glob_patterns(spec: str) -> list[str]:
 
 def glob_files(spec: str) -> list[Path]:
     """The files a glob ``spec`` matches, sorted, by the first of :func:`glob_patterns`
-    that matches any."""
+    that matches any.
+
+    Parameters
+    ----------
+    spec : str
+        A glob pattern.
+
+    Returns
+    -------
+    list of Path
+    """
     for pattern in glob_patterns(spec):
         files = sorted(Path(p) for p in glob.glob(pattern) if Path(p).is_file())
         if files:
@@ -81,6 +121,16 @@ _HEADER_BYTES = 1 << 18
 def check_image_file(path: str | os.PathLike) -> Path:
     """``path`` as a :class:`~pathlib.Path`, once it is known to name a file.
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+        An image file.
+
+    Returns
+    -------
+    Path
+
+
     Raises
     ------
     FileNotFoundError
@@ -95,7 +145,22 @@ def check_image_file(path: str | os.PathLike) -> Path:
 
 def refuse_single_path(value: object, name: str, accepted: str = "image paths") -> None:
     """Raise ``TypeError`` when ``value``, where a list of paths is expected, is one path
-    (a str would otherwise be taken character by character)."""
+    (a str would otherwise be taken character by character).
+
+    Parameters
+    ----------
+    value : object
+        The argument.
+    name : str
+        Its name, for the message.
+    accepted : str, default "image paths"
+        What the list holds, for the message.
+
+    Raises
+    ------
+    TypeError
+        ``value`` is one path.
+    """
     if isinstance(value, (str, bytes, os.PathLike)):
         raise TypeError(f"`{name}` must be a list of {accepted}, got one path "
                         f"'{os.fsdecode(value)}'; for a folder list its photos, e.g. "
@@ -123,7 +188,17 @@ _AVIF_BRANDS = {b"avif", b"avis"}
 def is_heif(head: bytes | np.ndarray) -> bool:
     """Whether the first bytes of a file are those of a HEIC/HEIF photo: an ISO media
     ``ftyp`` box naming a HEIF brand and no AVIF one (an AVIF file may name ``mif1``
-    first and ``avif`` among its compatible brands)."""
+    first and ``avif`` among its compatible brands).
+
+    Parameters
+    ----------
+    head : bytes or uint8 ndarray
+        The file's first bytes (64 suffice).
+
+    Returns
+    -------
+    bool
+    """
     head = bytes(memoryview(head).cast("B")[:64])
     if head[4:8] != b"ftyp":
         return False
@@ -235,6 +310,12 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     default) are read with ``pillow-heif`` when it is installed (``scene3D[heic]``), in
     8 bits, with the rotation their EXIF orientation records undone likewise.
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+        An image file.
+
+
     Returns
     -------
     (H, W) or (H, W, 3) ndarray
@@ -262,6 +343,15 @@ def header_size(head: bytes | np.ndarray) -> tuple[int, int] | None:
 
     Reads the JPEG frame header (SOFn marker) or the PNG IHDR chunk; None for
     other formats, or when the header is not within ``head``.
+
+    Parameters
+    ----------
+    head : bytes or uint8 ndarray
+        The file's first bytes.
+
+    Returns
+    -------
+    (int, int) or None
     """
     head = memoryview(head).cast("B")
     if bytes(head[:8]) == b"\x89PNG\r\n\x1a\n" and len(head) >= 24:
@@ -347,6 +437,15 @@ def read_image_size(path: str | os.PathLike) -> tuple[int, int]:
     TIFF, WebP and others through Pillow), else by decoding it.
 
     Raises ``FileNotFoundError`` / ``ValueError`` like :func:`read_image`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        An image file.
+
+    Returns
+    -------
+    (int, int)
     """
     path = Path(path)
     if path.is_file():
@@ -388,6 +487,18 @@ def to_bgr8(img: np.ndarray, name: str = "image") -> np.ndarray:
     and the 12-bit data of many machine-vision cameras (stored in ``uint16``, at most
     4095) by 16.06, instead of coming out nearly black.
 
+    Parameters
+    ----------
+    img : (H, W), (H, W, 1), (H, W, 3) or (H, W, 4) ndarray
+        Grey, BGR or BGRA image, ``uint8`` or ``uint16``.
+    name : str, default "image"
+        The image's name in messages.
+
+    Returns
+    -------
+    (H, W, 3) uint8 ndarray
+
+
     Raises
     ------
     TypeError
@@ -416,14 +527,43 @@ def to_bgr8(img: np.ndarray, name: str = "image") -> np.ndarray:
 
 
 def load_bgr(source: ImageSource, name: str = "image") -> np.ndarray:
-    """Load a path or take an array, and return it as BGR ``uint8`` ``(H, W, 3)``."""
+    """Load a path or take an array, and return it as BGR ``uint8`` ``(H, W, 3)``.
+
+    Parameters
+    ----------
+    source : str, os.PathLike or ndarray
+        An image file or an image array (:func:`to_bgr8`).
+    name : str, default "image"
+        An array's name in messages.
+
+    Returns
+    -------
+    (H, W, 3) uint8 ndarray
+    """
     if isinstance(source, (str, os.PathLike)):
         return to_bgr8(read_image(source), name=str(source))
     return to_bgr8(source, name=name)
 
 
 def halving_levels(width: int, max_width: int | None = BOOK_MAX_WIDTH_PX) -> int:
-    """How many halvings bring ``width`` to at most ``max_width`` (the book's rule); None: 0."""
+    """How many halvings bring ``width`` to at most ``max_width`` (the book's rule); None: 0.
+
+    Parameters
+    ----------
+    width : int
+        Image width (px).
+    max_width : int or None, default BOOK_MAX_WIDTH_PX
+        Largest working width (px); None for no limit.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ValueError
+        If ``max_width`` is below 1.
+    """
     if max_width is not None and max_width < 1:
         raise ValueError(f"max_width must be at least 1 px, got {max_width}")
     levels = 0
@@ -439,6 +579,22 @@ def halve(img: np.ndarray, levels: int) -> np.ndarray:
     Each output pixel is the mean of a ``2^L`` square block; rows and columns that
     do not fill a block (at the bottom and right) are dropped, so that the
     scaling is exact (:func:`scene3D.geometry.camera.scale_intrinsics_halved`).
+
+    Parameters
+    ----------
+    img : (H, W) or (H, W, C) ndarray
+        The image.
+    levels : int
+        Number of halvings ``L``.
+
+    Returns
+    -------
+    (H >> L, W >> L) or (H >> L, W >> L, C) ndarray
+
+    Raises
+    ------
+    ValueError
+        If the image is too small to be halved that often.
     """
     if levels == 0:
         return img
@@ -473,6 +629,20 @@ def load_working_image(
     ``max_width`` (None: never). A JPEG file without distortion to remove is
     decoded straight at the reduced size, which is faster and needs less memory
     than decoding it whole.
+
+    Parameters
+    ----------
+    source : str, os.PathLike or ndarray
+        An image file or array at its native size.
+    K : (3, 3) ndarray
+        Native intrinsics (OpenCV pixels).
+    dist : (n,) ndarray
+        OpenCV distortion coefficients (empty for none).
+    max_width : int or None, default BOOK_MAX_WIDTH_PX
+        Largest working width (px); None for no halving.
+    name : str, default "image"
+        An array's name in messages.
+
 
     Returns
     -------
@@ -516,6 +686,26 @@ def iter_working_images(
 
     Yields ``(image, native_size, levels)`` per source.
 
+    Parameters
+    ----------
+    sources : sequence of str, os.PathLike or ndarray
+        Image files or arrays of one camera at their native size.
+    K : (3, 3) ndarray
+        Native intrinsics (OpenCV pixels).
+    dist : (n,) ndarray
+        OpenCV distortion coefficients.
+    max_width : int or None, default BOOK_MAX_WIDTH_PX
+        Largest working width (px); None for no halving.
+    names : sequence of str or None, default None
+        Names of the sources in messages; None for "image i".
+
+    Yields
+    ------
+    image : (h, w, 3) uint8 ndarray
+    native_size : (int, int)
+    levels : int
+
+
     Raises
     ------
     ValueError
@@ -554,6 +744,25 @@ def load_working_images(
     native ``(width, height)`` (None for no sources) and the number of halvings.
 
     Raises ``ValueError`` when the sources differ in size.
+
+    Parameters
+    ----------
+    sources : sequence of str, os.PathLike or ndarray
+        Image files or arrays of one camera at their native size.
+    K : (3, 3) ndarray
+        Native intrinsics (OpenCV pixels).
+    dist : (n,) ndarray
+        OpenCV distortion coefficients.
+    max_width : int or None, default BOOK_MAX_WIDTH_PX
+        Largest working width (px); None for no halving.
+    names : sequence of str or None, default None
+        Names of the sources in messages.
+
+    Returns
+    -------
+    images : list of (h, w, 3) uint8 ndarray
+    native_size : (int, int) or None
+    levels : int
     """
     loaded = list(iter_working_images(sources, K, dist, max_width, names))
     if not loaded:
@@ -562,5 +771,17 @@ def load_working_images(
 
 
 def source_label(source: ImageSource, name: str) -> str:
-    """How messages name an image: a path as given, an array by ``name``."""
+    """How messages name an image: a path as given, an array by ``name``.
+
+    Parameters
+    ----------
+    source : str, os.PathLike or ndarray
+        An image file or array.
+    name : str
+        An array's name.
+
+    Returns
+    -------
+    str
+    """
     return os.fspath(source) if isinstance(source, (str, os.PathLike)) else name

@@ -32,7 +32,23 @@ def save_model(folder: str | os.PathLike, model: ColmapModel,
     """Write ``model``'s files into ``folder`` (created if needed), each atomically: the
     points as ``points_file``, ``cameras.json``, ``colmap/cameras.txt``, ``images.txt``,
     ``points3D.txt`` and, when ``images`` (their folder, or each image's path by its name
-    in the model) is given, ``transforms.json``. Returns the paths written."""
+    in the model) is given, ``transforms.json``. Returns the paths written.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        Target folder.
+    model : ColmapModel
+        The model.
+    images : path, mapping of str to path, or None, default None
+        The images' folder, or each image's path by name; None for no ``transforms.json``.
+    points_file : str, default "points.ply"
+        Name of the point cloud.
+
+    Returns
+    -------
+    list of Path
+    """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     written = [write_ply(folder / points_file, model.points3d, model.colors),

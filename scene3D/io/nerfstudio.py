@@ -41,7 +41,17 @@ INTRINSICS_KEYS = ("camera_model", "fl_x", "fl_y", "cx", "cy", "w", "h", "k1", "
 def camera_to_world_opengl(R: FloatArray, t: FloatArray) -> FloatArray:
     """The ``(4, 4)`` camera-to-world matrix in OpenGL camera axes of a world-to-camera
     pose ``x_cam = R X + t`` (OpenCV axes): ``[[R^T diag(1, -1, -1), C], [0, 1]]`` with the
-    centre ``C = -R^T t``."""
+    centre ``C = -R^T t``.
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array_like
+        World-to-camera pose, ``x_cam = R X + t`` (OpenCV axes).
+
+    Returns
+    -------
+    (4, 4) float64 ndarray
+    """
     R = np.asarray(R, dtype=np.float64)
     t = np.asarray(t, dtype=np.float64)
     M = np.eye(4)
@@ -52,6 +62,16 @@ def camera_to_world_opengl(R: FloatArray, t: FloatArray) -> FloatArray:
 
 def nerfstudio_intrinsics(camera: ColmapCamera) -> dict[str, float | int | str]:
     """A camera as nerfstudio's intrinsics keys (``camera_model`` ``"OPENCV"``).
+
+    Parameters
+    ----------
+    camera : ColmapCamera
+        The camera (OpenCV pixels; nerfstudio's principal point is shifted by half a pixel).
+
+    Returns
+    -------
+    dict[str, float or int or str]
+
 
     Raises
     ------
@@ -137,6 +157,22 @@ def write_nerfstudio(path: str | os.PathLike, model: ColmapModel,
                      images: str | os.PathLike | Mapping[str, str | os.PathLike],
                      ply_file: str | os.PathLike | None = None) -> Path:
     """Write ``model`` as nerfstudio's ``transforms.json`` at ``path`` (atomically):
-    :func:`nerfstudio_transforms` with the paths relative to ``path``'s folder."""
+    :func:`nerfstudio_transforms` with the paths relative to ``path``'s folder.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Target ``transforms.json``.
+    model : ColmapModel
+        The model.
+    images : path or mapping of str to path
+        The images' folder, or each image's path by name.
+    ply_file : str, os.PathLike or None, default None
+        The point cloud to name in the file; None for none.
+
+    Returns
+    -------
+    Path
+    """
     path = Path(path)
     return write_json(path, nerfstudio_transforms(model, images, path.parent, ply_file))

@@ -33,7 +33,24 @@ MAJORITY = 0.5
 def pair_residual_px(R_i: FloatArray, t_i: FloatArray, R_j: FloatArray, t_j: FloatArray,
                      pts_i: FloatArray, pts_j: FloatArray, K: FloatArray) -> float:
     """Median Sampson distance (px) of matches ``(N, 2)`` to the epipolar geometry of two
-    world-to-camera poses; NaN when the centres coincide (no epipolar geometry)."""
+    world-to-camera poses; NaN when the centres coincide (no epipolar geometry).
+
+    Parameters
+    ----------
+    R_i, t_i : (3, 3) and (3,) array_like
+        World-to-camera pose of view ``i`` (``x_cam = R_i X + t_i``).
+    R_j, t_j : (3, 3) and (3,) array_like
+        World-to-camera pose of view ``j``.
+    pts_i, pts_j : (N, 2) array_like
+        Matched pixels (OpenCV convention) in views ``i`` and ``j``.
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+
+    Returns
+    -------
+    float
+        Median Sampson distance in px, or NaN.
+    """
     R_ji = R_j @ R_i.T
     t_ji = t_j - R_ji @ t_i
     scale = np.linalg.norm(t_ji)

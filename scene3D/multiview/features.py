@@ -21,7 +21,23 @@ from .models import ViewFeatures
 def extract_features(img: np.ndarray, feature: str = "SIFT",
                      max_features: int = 8000) -> ViewFeatures:
     """Keypoints, descriptors, colours and keypoint sizes of one BGR image
-    ``(H, W, 3) uint8`` (the detector of :func:`scene3D.features.image_features`)."""
+    ``(H, W, 3) uint8`` (the detector of :func:`scene3D.features.image_features`).
+
+    Parameters
+    ----------
+    img : (H, W, 3) uint8 ndarray
+        BGR image as cv2 loads it.
+    feature : str, default "SIFT"
+        Detector name (:func:`scene3D.features.create_detector`).
+    max_features : int, default 8000
+        Most keypoints kept.
+
+    Returns
+    -------
+    ViewFeatures
+        Keypoints ``(N, 2) float64`` in pixels (OpenCV convention), descriptors, RGB
+        colours and sizes.
+    """
     detector, norm, _ = create_detector(feature, max_features)
     pixels, sizes, descriptors = detect_keypoints(to_gray(img), detector)
     return ViewFeatures(pixels, descriptors, sample_colors(img, pixels), norm, sizes=sizes)
@@ -53,7 +69,18 @@ def view_features(source: ImageSource, K: FloatArray, dist: FloatArray,
 
 def content_key(features: ViewFeatures) -> bytes:
     """A digest of a view's keypoints and descriptors: the same image gives the same key
-    whatever its file is called, so sorting by it orders views independently of names."""
+    whatever its file is called, so sorting by it orders views independently of names.
+
+    Parameters
+    ----------
+    features : ViewFeatures
+        The view's keypoints and descriptors.
+
+    Returns
+    -------
+    bytes
+        A 16-byte BLAKE2b digest.
+    """
     digest = hashlib.blake2b(digest_size=16)
     digest.update(np.ascontiguousarray(features.keypoints).tobytes())
     digest.update(np.ascontiguousarray(features.descriptors).tobytes())

@@ -174,7 +174,21 @@ def start_estimate(calibration: SelfCalibration | None, settings: FocalSettings,
                    pair: PairMatches | None) -> FocalEstimate:
     """The focal length a pair's self-calibration gives (the prior's without one), as a
     :class:`FocalEstimate`: where the mapping starts, and what a model too small to
-    refine its focal length keeps."""
+    refine its focal length keeps.
+
+    Parameters
+    ----------
+    calibration : SelfCalibration or None
+        The start pair's self-calibration; None when no pair self-calibrated.
+    settings : FocalSettings
+        The focal prior (``prior_focal_px``, ``prior_sigma_log``) and trust limits.
+    pair : PairMatches or None
+        The pair that was self-calibrated.
+
+    Returns
+    -------
+    FocalEstimate
+    """
     if calibration is None:
         sigma = settings.prior_sigma_log
         return FocalEstimate(
@@ -199,6 +213,21 @@ def focal_estimate(adjustment: FocalAdjustment, settings: FocalSettings,
     left without it, and their standard deviation adds the principal point's share and
     ``jackknife_sigma_log``, the spread of ``log f`` over the views
     (:meth:`scene3D.multiview.state.GrowingModel.focal_jackknife_sigma_log`).
+
+    Parameters
+    ----------
+    adjustment : FocalAdjustment
+        The model's final adjustment of its focal length (px) and ``sigma_log``.
+    settings : FocalSettings
+        The focal prior and trust limits.
+    start : FocalEstimate
+        Where the model started (:func:`start_estimate`).
+    jackknife_sigma_log : float, default 0.0
+        Spread of ``log f`` over the views, added to the data's standard deviation.
+
+    Returns
+    -------
+    FocalEstimate
     """
     prior_sigma = settings.prior_sigma_log
     data_information = 1.0 / adjustment.sigma_log**2 - 1.0 / prior_sigma**2
@@ -241,10 +270,33 @@ def focal_estimate(adjustment: FocalAdjustment, settings: FocalSettings,
 
 
 def prior_intrinsics(K: FloatArray, settings: FocalSettings) -> FloatArray:
-    """``K`` with the prior's focal length (the principal point kept)."""
+    """``K`` with the prior's focal length (the principal point kept).
+
+    Parameters
+    ----------
+    K : (3, 3) array_like
+        Intrinsics whose principal point is kept.
+    settings : FocalSettings
+        Gives ``prior_focal_px``.
+
+    Returns
+    -------
+    (3, 3) float64 ndarray
+    """
     return with_focal(K, settings.prior_focal_px)
 
 
 def longer_side_px(K: FloatArray) -> float:
-    """The longer side of the working images, from ``K``'s centred principal point."""
+    """The longer side of the working images, from ``K``'s centred principal point.
+
+    Parameters
+    ----------
+    K : (3, 3) array_like
+        Intrinsics with the principal point at the image centre (OpenCV pixels).
+
+    Returns
+    -------
+    float
+        The longer image side in px.
+    """
     return 2.0 * max(float(K[0, 2]), float(K[1, 2])) + 1.0

@@ -48,7 +48,22 @@ K_PRIOR_SIGMA = 0.5
 
 def model_lens(lens: FloatArray, lens_focal_px: float, model_focal_px: float) -> FloatArray:
     """The coefficients about a model's focal length of keypoints undistorted with
-    ``(lens_focal_px, lens)``: the model's exact camera (``(m,)``)."""
+    ``(lens_focal_px, lens)``: the model's exact camera (``(m,)``).
+
+    Parameters
+    ----------
+    lens : (m,) array_like
+        Radial coefficients the keypoints were undistorted with, about ``lens_focal_px``.
+    lens_focal_px : float
+        Focal length (px) the coefficients ``lens`` refer to.
+    model_focal_px : float
+        The model's focal length (px).
+
+    Returns
+    -------
+    (m,) float64 ndarray
+        The coefficients about ``model_focal_px``.
+    """
     return rescaled_coefficients(lens, lens_focal_px, model_focal_px)
 
 
@@ -88,7 +103,23 @@ def refine_lens(model: SfMModel, K_model: FloatArray, lens: FloatArray,
 def undistorted_features(features: Sequence[ViewFeatures], raw_keypoints: Sequence[FloatArray],
                          K_lens: FloatArray, lens: FloatArray) -> list[ViewFeatures]:
     """The views' features with their photographed keypoints undistorted by ``(K_lens,
-    lens)`` (everything else as it is)."""
+    lens)`` (everything else as it is).
+
+    Parameters
+    ----------
+    features : sequence of ViewFeatures
+        The views' features.
+    raw_keypoints : sequence of (N_v, 2) array_like
+        Each view's keypoints as photographed (pixels, OpenCV convention).
+    K_lens : (3, 3) array_like
+        Intrinsics the coefficients refer to.
+    lens : (m,) array_like
+        Radial coefficients (:mod:`scene3D.geometry.lens`).
+
+    Returns
+    -------
+    list of ViewFeatures
+    """
     return [dataclasses.replace(f, keypoints=undistort_pixels(raw, K_lens, lens))
             for f, raw in zip(features, raw_keypoints)]
 
@@ -106,6 +137,18 @@ def pair_lens_guess(pairs: Sequence[PairMatches], features: Sequence[ViewFeature
     pinhole geometry); undistorted with this guess, the start's self-calibration and
     checks see the geometry again, and the models' adjustments refine the lens
     (:func:`refine_lens`).
+
+    Parameters
+    ----------
+    pairs : sequence of PairMatches
+        Verified pairs.
+    features : sequence of ViewFeatures
+        The views' features (keypoints as photographed).
+    K : (3, 3) array_like
+        Intrinsics (the prior's focal length).
+    candidates : int, default 3
+        Number of pairs with most inliers that are fitted.
+
 
     Returns
     -------

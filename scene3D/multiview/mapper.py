@@ -114,6 +114,27 @@ def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches],
     status ok); then, when no candidate is trusted, quoting the doubt about the
     best-scoring one. ``K_source`` names where ``K`` came from in the pairs' warnings
     (:data:`scene3D.twoview.trust.K_SOURCES`).
+
+    Parameters
+    ----------
+    features : sequence of ViewFeatures
+        The views' features.
+    pairs : sequence of PairMatches
+        Verified pairs.
+    K : (3, 3) array_like
+        Intrinsics shared by the views.
+    candidates : int, default 6
+        Number of pairs with most inliers that are tried.
+    calibrated : bool, default False
+        ``K``'s focal length comes from a calibration file.
+    K_source : str, default "calibration"
+        Where ``K`` came from (:data:`scene3D.twoview.trust.K_SOURCES`).
+
+    Returns
+    -------
+    (PairMatches, TwoViewGeometry) or str
+        The pair and its geometry (``x_cam2 = R x_cam1 + t``, ``|t| = 1``: the scale is
+        unknown), or the reason there is none.
     """
     ranked = sorted(pairs, key=lambda p: (-p.num_inliers, p.i, p.j))
     best, best_score = None, -1.0
@@ -205,6 +226,41 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
     (:mod:`scene3D.multiview.focal`).
 
     Returns the model and, for the allowed views left out, why.
+
+    Parameters
+    ----------
+    features : sequence of ViewFeatures
+        The views' features.
+    pairs : list of PairMatches
+        Verified pairs.
+    K : (3, 3) array_like
+        Intrinsics shared by the views.
+    settings : SfMSettings
+        Thresholds of registration, triangulation and checks.
+    allowed : (V,) bool ndarray
+        Views this model may register.
+    start : (PairMatches, TwoViewGeometry)
+        The initial pair and its two-view geometry (:func:`initial_pair`); its first view
+        becomes the reference ``[I | 0]``.
+    more_pairs : MorePairs or None
+        Matches more pairs on demand; None to use ``pairs`` only.
+    say : callable
+        Receives one progress line at a time.
+    timings : dict[str, float]
+        Seconds per stage, added to in place.
+    names : sequence of str
+        View names used in progress lines.
+    focal : FocalSettings or None, default None
+        Refine one focal length (photos without a calibration).
+    focal_start : FocalEstimate or None, default None
+        Where ``K``'s focal length comes from.
+
+    Returns
+    -------
+    model : SfMModel
+        World-to-camera poses (``x_cam = R X + t``) in the reference view's frame.
+    reasons : dict[int, str]
+        For each allowed view left out, why.
     """
     s = settings
     model = GrowingModel(features, pairs, K, s, allowed, timings, focal)
@@ -335,6 +391,28 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
     ended with. With ``focal`` and ``start_from`` (a model of the same views made before,
     whose focal length ``K`` carries: :mod:`scene3D.multiview.lens`), the first model
     starts as a further one does, without self-calibrating a pair again.
+
+    Parameters
+    ----------
+    features : sequence of ViewFeatures
+        The views' features.
+    pairs : list of PairMatches
+        Verified pairs.
+    K : (3, 3) array_like
+        Intrinsics: the calibration's, or the prior's with ``focal``.
+    settings : SfMSettings or None, default None
+        None for the defaults.
+    more_pairs : MorePairs or None, default None
+        Matches more pairs on demand.
+    progress : callable or None, default None
+        Receives progress lines; None logs them at INFO.
+    names : sequence of str or None, default None
+        View names for progress lines; None for the indices.
+    focal : FocalSettings or None, default None
+        Refine one focal length per model (photos without a calibration).
+    start_from : FocalEstimate or None, default None
+        A previous model's focal estimate the first model starts from.
+
 
     Returns
     -------

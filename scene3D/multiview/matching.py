@@ -129,6 +129,20 @@ def match_views(f_i: ViewFeatures, f_j: ViewFeatures, num_words: int, ratio: flo
     Float descriptors with words go through :func:`match_by_words`; others (binary
     descriptors, or no vocabulary) through the exhaustive
     :func:`scene3D.features.match_descriptors`.
+
+    Parameters
+    ----------
+    f_i, f_j : ViewFeatures
+        The two views' features.
+    num_words : int
+        Vocabulary size; 0 for exhaustive matching.
+    ratio : float, default 0.8
+        Lowe's ratio test threshold.
+
+    Returns
+    -------
+    idx_i, idx_j : (M,) intp ndarray
+        Keypoint indices of the matches in ``f_i`` and ``f_j``.
     """
     if len(f_i.descriptors) < 2 or len(f_j.descriptors) < 2:  # a blank view
         return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
@@ -149,6 +163,22 @@ def verify_matches(pts_i: FloatArray, pts_j: FloatArray, K: FloatArray, threshol
     ``pts_i, pts_j`` ``(N, 2)`` must come best first: PROSAC draws its early samples
     from the top of the list. Inliers are those within ``threshold_px`` (Sampson
     distance) of the essential matrix found.
+
+    Parameters
+    ----------
+    pts_i, pts_j : (N, 2) float64 array_like
+        Matched pixels (OpenCV convention), best first.
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    threshold_px : float
+        Inlier threshold (px).
+    max_iterations : int
+        Most RANSAC iterations.
+
+    Returns
+    -------
+    (N,) bool ndarray
+        All False when no essential matrix is found.
     """
     params = cv2.UsacParams()
     params.confidence = 0.999
@@ -169,7 +199,25 @@ def verify_matches(pts_i: FloatArray, pts_j: FloatArray, K: FloatArray, threshol
 def verify_pair(f_i: ViewFeatures, f_j: ViewFeatures, K: FloatArray, settings: SfMSettings,
                 i: int = 0, j: int = 1, num_words: int = 0) -> PairMatches | None:
     """The task of one pair: match views ``i`` and ``j`` and keep the matches one essential
-    matrix explains; None when fewer than ``settings.min_pair_inliers`` remain."""
+    matrix explains; None when fewer than ``settings.min_pair_inliers`` remain.
+
+    Parameters
+    ----------
+    f_i, f_j : ViewFeatures
+        The two views' features.
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    settings : SfMSettings
+        Gives ``min_pair_inliers``, ``threshold_px`` and ``max_verify_iterations``.
+    i, j : int, default 0 and 1
+        The views' indices stored in the result.
+    num_words : int, default 0
+        Vocabulary size; 0 for exhaustive matching.
+
+    Returns
+    -------
+    PairMatches or None
+    """
     idx_i, idx_j = match_views(f_i, f_j, num_words)
     if len(idx_i) < max(settings.min_pair_inliers, 5):
         return None

@@ -244,7 +244,18 @@ class SfMModel:
         return float(len(self.observations.view) / max(len(self.points3d), 1))
 
     def point_errors_px(self, K: FloatArray) -> FloatArray:
-        """Mean reprojection error of each point over its observations ``(P,)``."""
+        """Mean reprojection error of each point over its observations ``(P,)``.
+
+        Parameters
+        ----------
+        K : (3, 3) ndarray
+            The model's intrinsics (:meth:`MultiViewReconstruction.model_K`).
+
+        Returns
+        -------
+        (P,) float64 ndarray
+            Pixels; 0 for a point without observations.
+        """
         err = np.linalg.norm(reprojection_residuals(self.R, self.t, self.points3d,
                                                     self.observations, K), axis=1)
         sums = np.bincount(self.observations.point, err, minlength=len(self.points3d))
@@ -370,7 +381,18 @@ class MultiViewReconstruction:
         return None if self.main.focal is None else self.main.focal.sigma_px
 
     def model_K(self, model: SfMModel) -> FloatArray:
-        """The intrinsics of ``model`` (its own when it refined its focal length)."""
+        """The intrinsics of ``model`` (its own when it refined its focal length).
+
+        Parameters
+        ----------
+        model : SfMModel
+            One of :attr:`models`.
+
+        Returns
+        -------
+        (3, 3) float64 ndarray
+            Intrinsics of the working images.
+        """
         return self.K if model.K is None else model.K
 
     @property
@@ -427,6 +449,18 @@ class MultiViewReconstruction:
         After a focal refit (:attr:`focal_refits`) of distorted photos the distortion
         is put back with the refitted focal length, an approximation of what the
         undistortion with the calibration's did.
+
+        Parameters
+        ----------
+        model : SfMModel or None, default None
+            One of :attr:`models`; None for the largest.
+        photos : bool, default True
+            The camera of the photos as stored, rather than of the working images.
+
+        Returns
+        -------
+        ColmapModel
+            World-to-camera poses (``x_cam = R X + t``).
         """
         model = self.main if model is None else model
         obs = model.observations
@@ -446,7 +480,20 @@ class MultiViewReconstruction:
         ``points.ply``, ``cameras.json`` and ``colmap/`` at the photos' size
         (:meth:`colmap_model`, :func:`scene3D.io.model_files.save_model`) and, given the
         photos (their folder, or each one's path by its name), ``transforms.json``.
-        Returns the paths written."""
+        Returns the paths written.
+
+        Parameters
+        ----------
+        folder : str or os.PathLike
+            Target folder (created if needed).
+        images : path, mapping of str to path, or None, default None
+            The photos' folder, or each photo's path by name; None for no
+            ``transforms.json``.
+
+        Returns
+        -------
+        list of Path
+        """
         folder = Path(folder)
         written: list[Path] = []
         with all_or_nothing():
@@ -474,7 +521,17 @@ class MultiViewReconstruction:
         return self.calibration_source != "file"
 
     def model_ok(self, model: SfMModel) -> bool:
-        """``model`` passed its consistency check and has ``min_model_points`` points."""
+        """``model`` passed its consistency check and has ``min_model_points`` points.
+
+        Parameters
+        ----------
+        model : SfMModel
+            One of :attr:`models`.
+
+        Returns
+        -------
+        bool
+        """
         return model.check.ok and len(model.points3d) >= self.min_model_points
 
     @property

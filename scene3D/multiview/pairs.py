@@ -27,6 +27,18 @@ SEQUENCE_EVIDENCE = 0.75
 
 
 def all_pairs(num_views: int) -> list[tuple[int, int]]:
+    """Every pair of ``num_views`` views (exhaustive matching).
+
+    Parameters
+    ----------
+    num_views : int
+        Number of views.
+
+    Returns
+    -------
+    list of (int, int)
+        Every pair ``(i, j)`` with ``i < j``, sorted.
+    """
     return [(i, j) for i in range(num_views) for j in range(i + 1, num_views)]
 
 
@@ -35,20 +47,61 @@ def _ordered(pairs: set[tuple[int, int]]) -> list[tuple[int, int]]:
 
 
 def sequential_pairs(sequence: Sequence[int], neighbours: int) -> list[tuple[int, int]]:
-    """Each view with its ``neighbours`` followers in ``sequence`` (view indices in order)."""
+    """Each view with its ``neighbours`` followers in ``sequence`` (view indices in order).
+
+    Parameters
+    ----------
+    sequence : sequence of int
+        View indices in capture order.
+    neighbours : int
+        Number of following views each view is paired with.
+
+    Returns
+    -------
+    list of (int, int)
+        Pairs ``(i, j)`` with ``i < j``, sorted.
+    """
     return _ordered({(sequence[a], sequence[b]) for a in range(len(sequence))
                      for b in range(a + 1, min(len(sequence), a + 1 + neighbours))})
 
 
 def retrieval_pairs(ranking: np.ndarray, k: int) -> list[tuple[int, int]]:
     """Each view with its ``k`` most similar views (``ranking`` as from
-    :func:`scene3D.multiview.retrieval.similarity_ranking`)."""
+    :func:`scene3D.multiview.retrieval.similarity_ranking`).
+
+    Parameters
+    ----------
+    ranking : (V, V') int ndarray
+        Row ``i``: the other views, most similar first.
+    k : int
+        Number of most similar views each view is paired with.
+
+    Returns
+    -------
+    list of (int, int)
+        Pairs ``(i, j)`` with ``i < j``, sorted.
+    """
     return _ordered({(i, int(j)) for i in range(len(ranking)) for j in ranking[i, :k]})
 
 
 def sequence_evidence(sequence: Sequence[int], ranking: np.ndarray, k: int) -> float:
     """Share of consecutive views of ``sequence`` that are among each other's ``k`` most
-    similar views (one way or the other)."""
+    similar views (one way or the other).
+
+    Parameters
+    ----------
+    sequence : sequence of int
+        View indices in capture order.
+    ranking : (V, V') int ndarray
+        Row ``i``: the other views, most similar first.
+    k : int
+        How many of the most similar views count.
+
+    Returns
+    -------
+    float
+        In ``[0, 1]``; 0 for fewer than two views.
+    """
     if len(sequence) < 2:
         return 0.0
     top = [set(int(v) for v in row[:k]) for row in ranking]

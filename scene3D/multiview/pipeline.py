@@ -87,7 +87,19 @@ def _to_input_order(model: SfMModel, order: np.ndarray) -> SfMModel:
 
 def default_focal_prior(images: Sequence[ImageSource], names: Sequence[str]) -> FocalPrior:
     """The prior of photos without a calibration: from their EXIF when they are files
-    (:func:`scene3D.io.exif.read_camera_prior`, one camera checked), else the default."""
+    (:func:`scene3D.io.exif.read_camera_prior`, one camera checked), else the default.
+
+    Parameters
+    ----------
+    images : sequence of path or (H, W, 3) uint8 ndarray
+        The images, as files or BGR arrays.
+    names : sequence of str
+        Their names, one per image.
+
+    Returns
+    -------
+    FocalPrior
+    """
     if all(isinstance(src, (str, os.PathLike)) for src in images):
         from ..io.exif import read_camera_prior
 
@@ -152,6 +164,16 @@ def image_sources(images: str | os.PathLike | Sequence[ImageSource | str]
     starting with '.' left out: :func:`scene3D.io.images.folder_images`), a path that is
     neither file nor folder is read as a glob (its files, sorted), a file and an array
     stay as they are; one path or a sequence of them (and of arrays).
+
+    Parameters
+    ----------
+    images : path or sequence of path or (H, W, 3) uint8 ndarray
+        A folder, a glob pattern, a file, or a sequence of files and BGR arrays.
+
+    Returns
+    -------
+    list of path or ndarray
+
 
     Raises
     ------

@@ -64,6 +64,19 @@ def observation_errors(X: FloatArray, R: FloatArray, t: FloatArray, xy: FloatArr
     """Reprojection error (px) and depth of each observation of its point ``X`` ``(M, 3)``.
 
     Returns ``errors (M,)`` and ``depths (M,)``; NaN points give NaN errors.
+
+    Parameters
+    ----------
+    X : (M, 3) array_like
+        World point of each observation.
+    R : (M, 3, 3) array_like
+        World-to-camera rotation of each observation's view (``x_cam = R X + t``).
+    t : (M, 3) array_like
+        Its translation.
+    xy : (M, 2) array_like
+        The observed pixels (OpenCV convention).
+    K : (3, 3) array_like
+        Intrinsics.
     """
     cam = np.einsum("mij,mj->mi", R, X) + t
     proj = cam @ K.T
@@ -77,6 +90,22 @@ def max_parallax_deg(group: np.ndarray, X: FloatArray, centers: FloatArray,
     """Largest angle (deg) between two rays of each group ``(G,)`` (0 for fewer than two).
 
     ``X`` ``(M, 3)``: the point of each observation; ``centers`` ``(M, 3)``: its camera.
+
+    Parameters
+    ----------
+    group : (M,) int ndarray
+        The group (point) of each observation, in ``[0, num_groups)``.
+    X : (M, 3) array_like
+        World point of each observation.
+    centers : (M, 3) array_like
+        World position of each observation's camera centre.
+    num_groups : int
+        Number of groups ``G``.
+
+    Returns
+    -------
+    (G,) float64 ndarray
+        Angles in degrees.
     """
     order = np.argsort(group, kind="stable")
     g = group[order]

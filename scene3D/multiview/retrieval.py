@@ -46,7 +46,19 @@ class Vocabulary:
 
 
 def descriptor_space(descriptors: np.ndarray, binary: bool) -> np.ndarray:
-    """Descriptors as ``(N, D) float32`` rows of the space the vocabulary lives in."""
+    """Descriptors as ``(N, D) float32`` rows of the space the vocabulary lives in.
+
+    Parameters
+    ----------
+    descriptors : (N, D0) ndarray
+        float32 descriptors, or uint8 binary ones (unpacked to ``D = 8 D0`` bits).
+    binary : bool
+        The descriptors are binary.
+
+    Returns
+    -------
+    (N, D) float32 ndarray
+    """
     if binary:
         return np.unpackbits(np.asarray(descriptors, np.uint8), axis=1).astype(np.float32)
     return np.asarray(descriptors, np.float32)
@@ -68,6 +80,21 @@ def kmeans(samples: np.ndarray, k: int, iterations: int = 15, seed: int = 0) -> 
     order give the same centres. A centre left without samples moves to the sample
     farthest from its centre. Fewer samples than ``k`` give as many centres as samples
     (none without samples: images without keypoints).
+
+    Parameters
+    ----------
+    samples : (M, D) array_like
+        Rows to cluster (converted to float32).
+    k : int
+        Number of centres wanted.
+    iterations : int, default 15
+        Lloyd iterations.
+    seed : int, default 0
+        Seed of the k-means++ start.
+
+    Returns
+    -------
+    (min(k, M), D) float32 ndarray
     """
     samples = np.asarray(samples, np.float32)
     rng = np.random.default_rng(seed)
@@ -107,6 +134,21 @@ def train_vocabulary(features: Sequence[ViewFeatures], words: int = 64,
 
     Each view gives an equal share of the ``words * samples_per_word`` samples,
     taken at evenly spaced rows of its descriptors, in the order of ``features``.
+
+    Parameters
+    ----------
+    features : sequence of ViewFeatures
+        The views' features (all float or all binary descriptors).
+    words : int, default 64
+        Vocabulary size.
+    samples_per_word : int, default 200
+        Samples per word drawn in total.
+    seed : int, default 0
+        Seed of :func:`kmeans`.
+
+    Returns
+    -------
+    Vocabulary
     """
     binary = features[0].descriptors.dtype == np.uint8
     share = max(1, words * samples_per_word // len(features))
@@ -121,6 +163,16 @@ def train_vocabulary(features: Sequence[ViewFeatures], words: int = 64,
 def describe_view(features: ViewFeatures, vocabulary: Vocabulary,
                   probe_words: int = 3) -> tuple[np.ndarray, np.ndarray]:
     """The task of one view once the vocabulary is known: its words and its VLAD vector.
+
+    Parameters
+    ----------
+    features : ViewFeatures
+        The view's features.
+    vocabulary : Vocabulary
+        ``C`` centres of dimension ``D`` (:func:`train_vocabulary`).
+    probe_words : int, default 3
+        Number of nearest words kept per descriptor.
+
 
     Returns
     -------

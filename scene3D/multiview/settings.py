@@ -158,7 +158,24 @@ def refutes_calibration(focal_scale: float, sigma_log: float, views: int,
     (:attr:`ModelCheck.focal_scale`): beyond ``s.max_focal_mismatch`` in log and beyond
     ``s.focal_mismatch_sigmas`` standard deviations, ``sigma_log`` widened by
     :data:`FOCAL_SPREAD_LOG`; with fewer than ``s.min_focal_test_views`` views, beyond
-    the two-view check's limits (:func:`scene3D.twoview.trust.focal_mismatch`)."""
+    the two-view check's limits (:func:`scene3D.twoview.trust.focal_mismatch`).
+
+    Parameters
+    ----------
+    focal_scale : float
+        Focal length the model calls for, over the calibration's.
+    sigma_log : float
+        Standard deviation of ``log(focal_scale)``.
+    views : int
+        Number of views in the model.
+    s : SfMSettings
+        The limits.
+
+    Returns
+    -------
+    bool
+        True when the model refutes the calibration.
+    """
     if views < s.min_focal_test_views:
         return focal_mismatch(focal_scale, sigma_log, TwoViewSettings())
     log_scale = abs(float(np.log(focal_scale)))

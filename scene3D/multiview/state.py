@@ -76,7 +76,13 @@ class GrowingModel:
         self.timings["tracks"] = self.timings.get("tracks", 0.0) + time.perf_counter() - t0
 
     def add_pairs(self, new: list[PairMatches]) -> None:
-        """Take further verified pairs: rebuild the tracks, keep every point."""
+        """Take further verified pairs: rebuild the tracks, keep every point.
+
+        Parameters
+        ----------
+        new : list of PairMatches
+            Verified pairs; those with a view outside ``allowed`` are ignored.
+        """
         self.pairs += [p for p in new if self.allowed[p.i] and self.allowed[p.j]]
         self._build_tracks()
         self._relink_tracks()
@@ -85,7 +91,13 @@ class GrowingModel:
         """Forget pairs that contradict the model (false verifications, e.g. two different
         windows): rebuild the tracks without them and keep, of each point, only the
         observations in the track that holds most of them, so that nothing stays attached
-        through a false pair."""
+        through a false pair.
+
+        Parameters
+        ----------
+        bad : set of (int, int)
+            The pairs ``(i, j)``, ``i < j``, to forget.
+        """
         self.pairs = [p for p in self.pairs if (p.i, p.j) not in bad]
         self._build_tracks()
         obs = np.flatnonzero(self.node_point >= 0)
@@ -145,7 +157,17 @@ class GrowingModel:
 
     def triangulate(self, tracks: np.ndarray | None = None) -> int:
         """Triangulate tracks without a point that two registered views see
-        (``tracks``: only these). Returns the number of new points."""
+        (``tracks``: only these). Returns the number of new points.
+
+        Parameters
+        ----------
+        tracks : (T,) int ndarray or None, default None
+            Track indices to consider; None for all.
+
+        Returns
+        -------
+        int
+        """
         candidates = np.flatnonzero(self.track_point < 0) if tracks is None else tracks[
             self.track_point[tracks] < 0]
         if len(candidates) == 0:
@@ -198,7 +220,20 @@ class GrowingModel:
     # -- registration ------------------------------------------------------------------------
 
     def correspondences(self, view: int) -> tuple[np.ndarray, np.ndarray]:
-        """Nodes of ``view`` whose track has a point, and those points."""
+        """Nodes of ``view`` whose track has a point, and those points.
+
+        Parameters
+        ----------
+        view : int
+            A view index.
+
+        Returns
+        -------
+        nodes : (M,) int ndarray
+            Keypoint nodes of ``view``.
+        points : (M,) int ndarray
+            Their points (rows of ``X``, world frame).
+        """
         nodes = np.arange(self.tracks.offsets[view], self.tracks.offsets[view + 1])
         tr = self.tracks.node_track[nodes]
         nodes, tr = nodes[tr >= 0], tr[tr >= 0]
@@ -209,7 +244,18 @@ class GrowingModel:
         """Register ``view`` by PnP on its 2D-3D matches. A pose from fewer than
         ``min_registration_inliers`` inliers (but at least
         ``min_confirmed_registration_inliers``) counts only when a verified pair with a
-        registered view confirms it (:meth:`pair_confirms`)."""
+        registered view confirms it (:meth:`pair_confirms`).
+
+        Parameters
+        ----------
+        view : int
+            A view index, not yet registered.
+
+        Returns
+        -------
+        bool
+            True when the view was registered (its world-to-camera pose set).
+        """
         nodes, points = self.correspondences(view)
         need = min(self.s.min_registration_inliers, self.s.min_confirmed_registration_inliers)
         if len(nodes) < need:
@@ -237,7 +283,19 @@ class GrowingModel:
         ``min_confirmed_share`` of them, within ``pnp_threshold_px`` of the epipolar
         geometry the two poses give (Sampson distance). A view whose matches with the
         model's points are few (a corner turned) but whose pair with a registered view is
-        strong registers so; a wrong pose from a few 2D-3D matches explains no pair."""
+        strong registers so; a wrong pose from a few 2D-3D matches explains no pair.
+
+        Parameters
+        ----------
+        view : int
+            The view being registered.
+        R, t : (3, 3), (3,) ndarray
+            Its world-to-camera pose (``x_cam = R X + t``).
+
+        Returns
+        -------
+        bool
+        """
         for p in self.pairs:
             other = p.j if p.i == view else p.i if p.j == view else -1
             if other < 0 or not self.registered[other] or p.num_inliers < self.s.min_pair_inliers:
@@ -257,6 +315,13 @@ class GrowingModel:
         return False
 
     def deregister(self, view: int) -> None:
+        """Take ``view`` out of the model: its observations go, its pose becomes NaN.
+
+        Parameters
+        ----------
+        view : int
+            A registered view.
+        """
         nodes = np.arange(self.tracks.offsets[view], self.tracks.offsets[view + 1])
         self._remove_observations(nodes[self.node_point[nodes] >= 0])
         self.registered[view] = False
@@ -285,6 +350,15 @@ class GrowingModel:
         views: when one of them observes fewer than ``min_multiview_observations``
         of them, or they do not join the two (two parts of the model). The other
         two-view points follow the cameras (:meth:`_adjust`).
+
+        Parameters
+        ----------
+        nodes : (M,) int ndarray
+            Observations (keypoint nodes that have a point).
+
+        Returns
+        -------
+        (M,) bool ndarray
         """
         point, view = self.node_point[nodes], self.node_view[nodes]
         ids, local, counts = np.unique(point, return_inverse=True, return_counts=True)
@@ -372,7 +446,13 @@ class GrowingModel:
     def adjust_local(self, view: int) -> None:
         """The new view and its most co-visible views, with the points they see; of the
         other views that see those points, the most co-visible hold them fixed (as many
-        as are free), so that the cost does not grow with the tracks' lengths."""
+        as are free), so that the cost does not grow with the tracks' lengths.
+
+        Parameters
+        ----------
+        view : int
+            The view just registered.
+        """
         obs_nodes = np.flatnonzero(self.node_point >= 0)
         obs_view, obs_point = self.node_view[obs_nodes], self.node_point[obs_nodes]
         seen = np.zeros(len(self.X) + 1, dtype=bool)
@@ -397,6 +477,18 @@ class GrowingModel:
         self._adjust(nodes, fixed, max_iterations=8, tolerance=1e-5, anchors=anchors)
 
     def adjust_global(self, max_iterations: int, tolerance: float = 1e-5) -> None:
+        """Bundle-adjust every point and every view but the fixed reference view.
+
+        With a focal length to refine (``focal``) and at least ``focal.min_views`` views,
+        the shared focal length is adjusted too (``K`` changes).
+
+        Parameters
+        ----------
+        max_iterations : int
+            Most Levenberg-Marquardt iterations.
+        tolerance : float, default 1e-5
+            Stop when an iteration gains less than this share of the cost.
+        """
         nodes = np.flatnonzero(self.node_point >= 0)
         refine = self.focal is not None and self.registered.sum() >= self.focal.min_views
         if len(nodes):
@@ -422,7 +514,19 @@ class GrowingModel:
         The adjustment's covariance sees the noise of the observations only; views that
         call for different focal lengths (a principal point or a distortion that the
         model lacks, seen differently from each) show here. A group whose refit fails
-        (a singular system) is left out of the spread."""
+        (a singular system) is left out of the spread.
+
+        Parameters
+        ----------
+        groups : int, default 4
+            Number of groups of views.
+        max_iterations : int, default 3
+            Iterations of each group's refit.
+
+        Returns
+        -------
+        float
+        """
         views = np.flatnonzero(self.registered)
         groups = min(groups, len(views) // 2)
         nodes = np.flatnonzero(self.node_point >= 0)
@@ -453,7 +557,17 @@ class GrowingModel:
         """``check`` with the focal length the model's observations call for, for a model
         with a calibration file (:attr:`ModelCheck.focal_scale`): one bundle adjustment
         of copies with the focal length free (a prior of no weight to speak of, 1 in
-        log), the model itself unchanged."""
+        log), the model itself unchanged.
+
+        Parameters
+        ----------
+        check : ModelCheck
+            The model's consistency check.
+
+        Returns
+        -------
+        ModelCheck
+        """
         nodes = np.flatnonzero(self.node_point >= 0)
         if self.focal is not None or self.registered.sum() < 3 or not len(nodes):
             return check
@@ -474,6 +588,19 @@ class GrowingModel:
                                        scale, sigma_log, int(self.registered.sum()), self.s))
 
     def result(self, check: ModelCheck) -> SfMModel:
+        """The finished model: ``check`` with :meth:`focal_test`, the points compacted.
+
+        Parameters
+        ----------
+        check : ModelCheck
+            The model's consistency check.
+
+        Returns
+        -------
+        SfMModel
+            World-to-camera poses (``x_cam = R X + t``), points and their colours (of each
+            point's first observation), and the reprojection RMSE (px).
+        """
         check = self.focal_test(check)
         self.compact()
         nodes, obs = self.observations()

@@ -63,6 +63,17 @@ def connected_components(num_nodes: int, u: np.ndarray, v: np.ndarray) -> np.nda
 
     ``u, v`` ``(E,)`` are the edges. Each round hooks every component onto the smallest
     label across its edges, then jumps pointers until every label is a root.
+
+    Parameters
+    ----------
+    num_nodes : int
+        Number of nodes.
+    u, v : (E,) int ndarray
+        Edge end points, nodes in ``[0, num_nodes)``.
+
+    Returns
+    -------
+    (num_nodes,) int ndarray
     """
     label = np.arange(num_nodes)
     while True:

@@ -140,7 +140,17 @@ class VideoFrames:
 
 
 def sharpness(grey: np.ndarray) -> float:
-    """The variance of the Laplacian of a grey ``(H, W) uint8`` image (higher: sharper)."""
+    """The variance of the Laplacian of a grey ``(H, W) uint8`` image (higher: sharper).
+
+    Parameters
+    ----------
+    grey : (H, W) uint8 ndarray
+        A grey image.
+
+    Returns
+    -------
+    float
+    """
     return float(cv2.Laplacian(grey, cv2.CV_64F).var())
 
 

@@ -59,7 +59,25 @@ class Observations:
 def whitened_residuals(R: FloatArray, t: FloatArray, points3d: FloatArray, obs: Observations,
                        K: FloatArray) -> FloatArray:
     """:func:`reprojection_residuals` divided by each observation's ``obs.sigma`` ``(O, 2)``
-    (the residuals themselves when ``sigma`` is None)."""
+    (the residuals themselves when ``sigma`` is None).
+
+    Parameters
+    ----------
+    R : (V, 3, 3) ndarray
+        World-to-camera rotations (``x_cam = R X + t``).
+    t : (V, 3) ndarray
+        World-to-camera translations.
+    points3d : (P, 3) ndarray
+        World points.
+    obs : Observations
+        ``O`` observations: view, point, pixel (OpenCV convention), optional sigma.
+    K : (3, 3) ndarray
+        Intrinsics shared by the views.
+
+    Returns
+    -------
+    (O, 2) float64 ndarray
+    """
     r = reprojection_residuals(R, t, points3d, obs, K)
     return r if obs.sigma is None else r / obs.sigma[:, None]
 
@@ -76,7 +94,25 @@ def _whitened_reweighting(r: FloatArray, obs: Observations, loss: str,
 def reprojection_residuals(
     R: FloatArray, t: FloatArray, points3d: FloatArray, obs: Observations, K: FloatArray
 ) -> FloatArray:
-    """Reprojection errors ``(O, 2)`` in pixels (projection minus observation)."""
+    """Reprojection errors ``(O, 2)`` in pixels (projection minus observation).
+
+    Parameters
+    ----------
+    R : (V, 3, 3) ndarray
+        World-to-camera rotations (``x_cam = R X + t``).
+    t : (V, 3) ndarray
+        World-to-camera translations.
+    points3d : (P, 3) ndarray
+        World points.
+    obs : Observations
+        ``O`` observations: view, point, pixel (OpenCV convention), optional sigma.
+    K : (3, 3) ndarray
+        Intrinsics shared by the views.
+
+    Returns
+    -------
+    (O, 2) float64 ndarray
+    """
     cam = np.einsum("oij,oj->oi", R[obs.view], points3d[obs.point]) + t[obs.view]
     pix = cam @ K.T
     return pix[:, :2] / pix[:, 2:3] - obs.xy
@@ -86,6 +122,20 @@ def reprojection_jacobians(
     R: FloatArray, t: FloatArray, points3d: FloatArray, obs: Observations, K: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Derivatives of :func:`reprojection_residuals` at each observation.
+
+    Parameters
+    ----------
+    R : (V, 3, 3) ndarray
+        World-to-camera rotations (``x_cam = R X + t``).
+    t : (V, 3) ndarray
+        World-to-camera translations.
+    points3d : (P, 3) ndarray
+        World points.
+    obs : Observations
+        ``O`` observations: view, point, pixel (OpenCV convention), optional sigma.
+    K : (3, 3) ndarray
+        Intrinsics shared by the views.
+
 
     Returns
     -------
@@ -332,6 +382,32 @@ def focal_uncertainty(
     loss's weights, residuals in units of their robust standard deviation, the prior
     on ``log f`` added) are reduced to the three global unknowns, cameras and points
     marginalised (:func:`scene3D.optim.schur.global_information`).
+
+    Parameters
+    ----------
+    R : (V, 3, 3) ndarray
+        World-to-camera rotations (``x_cam = R X + t``).
+    t : (V, 3) ndarray
+        World-to-camera translations.
+    points3d : (P, 3) ndarray
+        World points.
+    obs : Observations
+        ``O`` observations: view, point, pixel (OpenCV convention), optional sigma.
+    K : (3, 3) ndarray
+        Intrinsics shared by the views.
+    fixed_view : int or sequence of int
+        Views held fixed (the gauge).
+    prior_focal_px : float
+        Prior focal length (px).
+    prior_sigma_log : float
+        Prior standard deviation of ``log f``.
+    loss : str, default "soft_l1"
+        Robust loss (:func:`scene3D.optim.least_squares.robust_loss`).
+    scale_px : float, default 1.0
+        Its scale (px).
+    principal_point_shift_px : float, default 0.0
+        Assumed error of the principal point (px).
+
 
     Returns
     -------

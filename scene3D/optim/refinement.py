@@ -270,6 +270,23 @@ def pose_intrinsics_sensitivity(
     (:func:`scene3D.optim.uncertainty.nuisance_sensitivity`). With a covariance of
     ``theta`` it turns the pose's covariance under a known ``K`` into one for a
     ``K`` known only that well (:func:`scene3D.optim.uncertainty.marginal_covariance`).
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array_like
+        Refined relative pose, ``x_cam2 = R x_cam1 + t`` (``|t| = 1``).
+    pts1, pts2 : (N, 2) array_like
+        Inlier pixels in images 1 and 2.
+    K : (3, 3) array_like
+        Intrinsics the pose was refined under (both views).
+    loss : str, default "cauchy"
+        Robust loss of the refinement.
+    scale_px : float, default 0.5
+        Its scale (px).
+
+    Returns
+    -------
+    (5, 3) float64 ndarray
     """
     at = _sampson_at(R, t, pts1, pts2, K)
     K = np.asarray(K, dtype=np.float64)

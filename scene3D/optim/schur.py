@@ -152,6 +152,23 @@ def schur_product_dense(Y: FloatArray, W: FloatArray, camera: np.ndarray, point:
     chunk; a camera sees a point at most once, so the blocks never collide. The cost
     grows with the square of the cameras times the points: fast (BLAS) for tens of
     cameras, slow for hundreds.
+
+    Parameters
+    ----------
+    Y, W : (O, c, 3) ndarray
+        Per-observation blocks (``Y[o] = W[o] V_p^-1`` in the Schur complement).
+    camera : (O,) int ndarray
+        Camera of each observation, in ``[0, num_cameras)``.
+    point : (O,) int ndarray
+        Point of each observation.
+    num_cameras : int
+        Number of cameras ``C``.
+    chunk_entries : int, default 2**22
+        Most numbers per dense chunk.
+
+    Returns
+    -------
+    (C c, C c) float64 ndarray
     """
     c = Y.shape[1]
     size = num_cameras * c
@@ -179,6 +196,15 @@ def pairs_within_groups(starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
     Groups are consecutive runs ``starts[g] <= k < starts[g + 1]`` of some sorted
     array; returns the member indices ``a, b`` ``(M,)`` with ``M = sum n_g^2``.
+
+    Parameters
+    ----------
+    starts : (G + 1,) int ndarray
+        Start of each group, then the end of the last.
+
+    Returns
+    -------
+    a, b : (M,) int ndarray
     """
     counts = np.diff(starts)
     squares = counts * counts
@@ -201,6 +227,23 @@ def schur_product_sparse(Y: FloatArray, W: FloatArray, camera: np.ndarray, point
     in the Schur complement), so the block ``(b, a)`` is the transpose of ``(a, b)``.
     The work grows with the points times the square of their track lengths, not with
     the square of the cameras; no block per pair of observations is stored.
+
+    Parameters
+    ----------
+    Y, W : (O, c, 3) ndarray
+        Per-observation blocks (``Y[o] = W[o] V_p^-1`` in the Schur complement).
+    camera : (O,) int ndarray
+        Camera of each observation, in ``[0, num_cameras)``.
+    point : (O,) int ndarray
+        Point of each observation.
+    num_cameras : int
+        Number of cameras ``C``.
+    chunk_entries : int, default 2**22
+        Most table entries per chunk.
+
+    Returns
+    -------
+    (C c, C c) float64 ndarray
     """
     c = Y.shape[1]
     size = num_cameras * c
@@ -251,6 +294,21 @@ def schur_product(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.nd
     Dense chunked products for a few cameras (BLAS is fastest there), one product per
     pair of cameras that share points for many (the dense layout grows with the square
     of the cameras): both give the same sum.
+
+    Parameters
+    ----------
+    Y, W : (O, c, 3) ndarray
+        Per-observation blocks (``Y[o] = W[o] V_p^-1`` in the Schur complement).
+    camera : (O,) int ndarray
+        Camera of each observation, in ``[0, num_cameras)``.
+    point : (O,) int ndarray
+        Point of each observation.
+    num_cameras : int
+        Number of cameras ``C``.
+
+    Returns
+    -------
+    (C c, C c) float64 ndarray
     """
     if num_cameras * Y.shape[1] <= SPARSE_SCHUR_UNKNOWNS:
         return schur_product_dense(Y, W, camera, point, num_cameras)
@@ -302,6 +360,19 @@ def solve_damped_global(ne: NormalEquations, damping: float
 
     Levenberg-Marquardt's damping scales the diagonals: ``U + damping diag(U)``
     and likewise ``V`` and ``U_gg``.
+
+    Parameters
+    ----------
+    ne : NormalEquations
+        The blocks of ``J^T J`` and ``J^T r``.
+    damping : float
+        Levenberg-Marquardt damping (0: Gauss-Newton).
+
+    Returns
+    -------
+    step_camera : (C, c) float64 ndarray
+    step_global : (g,) float64 ndarray
+    step_point : (P, 3) float64 ndarray
     """
     num_cameras, c = ne.g_camera.shape
     V_inv = _damped_inverse_points(ne, damping)
@@ -319,7 +390,20 @@ def solve_damped_global(ne: NormalEquations, damping: float
 
 def solve_damped(ne: NormalEquations, damping: float) -> tuple[FloatArray, FloatArray]:
     """Steps ``(C, c)`` for the cameras and ``(P, 3)`` for the points
-    (:func:`solve_damped_global` without global unknowns)."""
+    (:func:`solve_damped_global` without global unknowns).
+
+    Parameters
+    ----------
+    ne : NormalEquations
+        The blocks of ``J^T J`` and ``J^T r``, without global unknowns.
+    damping : float
+        Levenberg-Marquardt damping (0: Gauss-Newton).
+
+    Returns
+    -------
+    step_camera : (C, c) float64 ndarray
+    step_point : (P, 3) float64 ndarray
+    """
     step_camera, _, step_point = solve_damped_global(ne, damping)
     return step_camera, step_point
 
@@ -332,6 +416,20 @@ def global_information(ne: NormalEquations) -> FloatArray:
     The cameras' block may be singular along the gauge (the scale a single fixed camera
     leaves free); a gauge direction moves no residual, so it does not couple to the
     global unknowns and a pseudo-inverse there gives the same marginal as any gauge fixing.
+
+    Parameters
+    ----------
+    ne : NormalEquations
+        The blocks of ``J^T J`` and ``J^T r``, with global unknowns.
+
+    Returns
+    -------
+    (g, g) float64 ndarray
+
+    Raises
+    ------
+    ValueError
+        If ``ne`` has no global unknowns.
     """
     if ne.U_global is None:
         raise ValueError("the normal equations have no global unknowns")

@@ -68,6 +68,15 @@ def tangent_basis(t: ArrayLike) -> FloatArray:
 
     The basis of the translation-direction step of the pose parametrisation (module
     docstring); a deterministic function of ``t``.
+
+    Parameters
+    ----------
+    t : (3,) array_like
+        Translation direction (normalised here).
+
+    Returns
+    -------
+    (2, 3) float64 ndarray
     """
     t = np.asarray(t, dtype=np.float64).reshape(3)
     t = t / np.linalg.norm(t)
@@ -199,6 +208,20 @@ def marginal_covariance(covariance: ArrayLike, sensitivity: ArrayLike,
     is the ``(k, k)`` block of the joint ``(k + m)`` covariance (exactly, when the
     sandwich reduces to ``H^-1``); a larger variance (a jackknife's, or a prior's
     when the data do not determine it) widens it accordingly.
+
+    Parameters
+    ----------
+    covariance : (k, k) array_like
+        The fit's conditional covariance.
+    sensitivity : (k, m) array_like
+        How the optimum moves with the nuisance parameters.
+    nuisance_covariance : (m, m) array_like
+        Their covariance.
+
+    Returns
+    -------
+    (k, k) float64 ndarray
+        Infinite when an input is not finite.
     """
     C = np.asarray(covariance, dtype=np.float64)
     S = np.asarray(sensitivity, dtype=np.float64)
@@ -245,6 +268,17 @@ def truncated_noise(distances: ArrayLike, threshold_px: float) -> TruncatedNoise
     the threshold or more (distances spread evenly up to it: the threshold holds no
     recognisable part of a Gaussian), the noise is unknown: ``sigma_px`` infinite,
     ``cut_share`` 1, ``variance_factor`` 0; likewise with fewer than six distances.
+
+    Parameters
+    ----------
+    distances : (N,) array_like
+        Sampson distances (px); those beyond ``threshold_px`` are ignored.
+    threshold_px : float
+        The inlier threshold (px).
+
+    Returns
+    -------
+    TruncatedNoise
     """
     d = np.abs(np.asarray(distances, dtype=np.float64).ravel())
     d = d[d <= threshold_px]
@@ -277,6 +311,15 @@ def largest_sigma_deg(block: FloatArray) -> float:
     """Square root of the largest eigenvalue of a covariance block (radians^2), in degrees.
 
     The 1-sigma angle along the worst direction; infinite when the block is not finite.
+
+    Parameters
+    ----------
+    block : (k, k) ndarray
+        Covariance block of angles (radians^2).
+
+    Returns
+    -------
+    float
     """
     if not np.all(np.isfinite(block)):
         return float("inf")
@@ -325,6 +368,24 @@ def angular_bound_deg(sigma_deg: float, dof: int, probability: float = 0.9) -> f
     (``chi2_dof(probability)`` in Mahalanobis distance) lies inside the ball of radius
     ``sqrt(chi2) * sigma``, ``sigma`` along the worst axis (:func:`largest_sigma_deg`).
     Only ``probability = 0.9`` is tabulated (:data:`CHI2_90`).
+
+    Parameters
+    ----------
+    sigma_deg : float
+        1-sigma angle along the worst axis (deg).
+    dof : int
+        Degrees of freedom, 2 or 3.
+    probability : float, default 0.9
+        Only 0.9 is tabulated.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ValueError
+        For another ``probability`` or ``dof``.
     """
     if probability != 0.9 or dof not in CHI2_90:
         raise ValueError(f"only the 90 % bound of 2 or 3 dof is tabulated, got "
@@ -333,7 +394,17 @@ def angular_bound_deg(sigma_deg: float, dof: int, probability: float = 0.9) -> f
 
 
 def rotation_vector(R: ArrayLike) -> FloatArray:
-    """The rotation vector ``w`` (3,) with ``exp([w]x) = R`` (radians, angle below pi)."""
+    """The rotation vector ``w`` (3,) with ``exp([w]x) = R`` (radians, angle below pi).
+
+    Parameters
+    ----------
+    R : (3, 3) array_like
+        Rotation matrix.
+
+    Returns
+    -------
+    (3,) float64 ndarray
+    """
     R = np.asarray(R, dtype=np.float64)
     axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
     sin_angle = 0.5 * np.linalg.norm(axis)
@@ -357,6 +428,13 @@ def pose_error_coordinates(R_est: ArrayLike, t_est: ArrayLike, R_true: ArrayLike
     seen from ``t_true`` along :func:`tangent_basis` ``(t_est)`` (the gnomonic step
     from the truth to the estimate; ``|d|`` is the tangent of their angle). Both
     poses ``x_cam2 = R x_cam1 + t``.
+
+    Parameters
+    ----------
+    R_est, t_est : (3, 3), (3,) array_like
+        Estimated relative pose.
+    R_true, t_true : (3, 3), (3,) array_like
+        Reference pose.
     """
     R_est, R_true = np.asarray(R_est, np.float64), np.asarray(R_true, np.float64)
     t_est = np.asarray(t_est, np.float64).reshape(3)
@@ -378,6 +456,19 @@ def pose_error_chi2(R_est: ArrayLike, t_est: ArrayLike, R_true: ArrayLike,
     degrees of freedom, and the translation direction's under the ``(2, 2)`` block
     (2 degrees of freedom). The error is within the predicted 90 % bound when each
     is at most :data:`CHI2_90` of its degrees of freedom.
+
+    Parameters
+    ----------
+    R_est, t_est : (3, 3), (3,) array_like
+        Estimated relative pose, ``x_cam2 = R x_cam1 + t``.
+    R_true, t_true : (3, 3), (3,) array_like
+        True pose.
+    covariance : (5, 5) array_like
+        The estimate's covariance.
+
+    Returns
+    -------
+    rotation, direction : float
     """
     w, d = pose_error_coordinates(R_est, t_est, R_true, t_true)
     covariance = np.asarray(covariance, dtype=np.float64)
@@ -399,6 +490,19 @@ def pose_difference_chi2(R: ArrayLike, t: ArrayLike, R_other: ArrayLike, t_other
     under the ``(5, 5)`` covariance of ``R, t`` (module docstring, basis
     :func:`tangent_basis` of ``t``), rotation and translation direction jointly; compare
     with :data:`CHI2_99_POSE`. 0 when the covariance is not finite (no region to leave).
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array_like
+        The pose, ``x_cam2 = R x_cam1 + t``.
+    R_other, t_other : (3, 3), (3,) array_like
+        The other pose.
+    covariance : (5, 5) array_like
+        Covariance of ``R, t``.
+
+    Returns
+    -------
+    float
     """
     covariance = np.asarray(covariance, dtype=np.float64)
     if not np.all(np.isfinite(covariance)):
@@ -480,6 +584,23 @@ def depth_sigmas(points3d: ArrayLike, K: ArrayLike, R: ArrayLike, t: ArrayLike,
     ``G^-1`` alone, by cofactors); divide by the depth (``points3d[:, 2]``) for a
     relative uncertainty. Infinite for a point whose two rays are parallel (on the
     line through both camera centres): nothing fixes its depth.
+
+    Parameters
+    ----------
+    points3d : (N, 3) array_like
+        Points in the camera-1 frame, the baseline ``|t| = 1``.
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    R, t : (3, 3), (3,) array_like
+        Relative pose, ``x_cam2 = R x_cam1 + t``.
+    pose_covariance : (5, 5) array_like
+        Covariance of the pose.
+    noise_px : float
+        Keypoint noise per coordinate (px).
+
+    Returns
+    -------
+    (N,) float64 ndarray
     """
     C = np.asarray(pose_covariance, dtype=np.float64)
     G, M = _triangulation_normals(points3d, K, R, t)

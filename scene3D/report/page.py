@@ -46,14 +46,34 @@ footer { margin-top: 2em; font-size: 0.8em; color: #777; }
 
 
 def esc(text: Any) -> str:
-    """HTML-escaped ``str(text)``."""
+    """HTML-escaped ``str(text)``.
+
+    Parameters
+    ----------
+    text : Any
+        A value.
+
+    Returns
+    -------
+    str
+    """
     return html.escape(str(text), quote=True)
 
 
 def format_value(value: Any) -> str:
     """A number or value as the report prints it: floats to 4 significant digits with their
     trailing zeros, so that a ratio of 0.99998 reads ``1.000`` (not ``1``, an exact or whole
-    value), 2.0 ``2.000`` and 1234.56 ``1235``; ints as they are."""
+    value), 2.0 ``2.000`` and 1234.56 ``1235``; ints as they are.
+
+    Parameters
+    ----------
+    value : Any
+        None, a bool, a float, an int, a list or tuple of them, or another value.
+
+    Returns
+    -------
+    str
+    """
     if value is None:
         return "-"
     if isinstance(value, bool):
@@ -68,7 +88,22 @@ def format_value(value: Any) -> str:
 
 
 def image_data_url(data: bytes) -> str:
-    """``data:image/png;base64,...`` (or ``image/jpeg`` for JPEG bytes)."""
+    """``data:image/png;base64,...`` (or ``image/jpeg`` for JPEG bytes).
+
+    Parameters
+    ----------
+    data : bytes
+        PNG or JPEG bytes.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    ValueError
+        For other bytes.
+    """
     if data[:8] == b"\x89PNG\r\n\x1a\n":
         mime = "image/png"
     elif data[:3] == b"\xff\xd8\xff":
@@ -118,19 +153,51 @@ class Page:
     _scripts: list[str | Path] = field(default_factory=list)
 
     def heading(self, text: str) -> None:
+        """A section heading.
+
+        Parameters
+        ----------
+        text : str
+            Its text (escaped).
+        """
         self.parts.append(f"<h2>{esc(text)}</h2>")
 
     def paragraph(self, text: str, css: str = "") -> None:
+        """A paragraph of text.
+
+        Parameters
+        ----------
+        text : str
+            Its text (escaped).
+        css : str, default ""
+            A CSS class; "" for none.
+        """
         cls = f' class="{css}"' if css else ""
         self.parts.append(f"<p{cls}>{esc(text)}</p>")
 
     def lines(self, lines: Iterable[str]) -> None:
-        """Pre-formatted lines (what the command printed)."""
+        """Pre-formatted lines (what the command printed).
+
+        Parameters
+        ----------
+        lines : iterable of str
+            The lines (escaped).
+        """
         self.parts.append(f'<div class="lines" id="summary-lines">'
                           f'{esc(chr(10).join(lines))}</div>')
 
     def verdict(self, good: bool, headline: str, warnings: Iterable[str] = ()) -> None:
-        """A green or orange box with a headline and the warnings."""
+        """A green or orange box with a headline and the warnings.
+
+        Parameters
+        ----------
+        good : bool
+            Green (True) or orange.
+        headline : str
+            The headline.
+        warnings : iterable of str, default ()
+            The warnings listed under it.
+        """
         items = "".join(f"<li>{esc(w)}</li>" for w in warnings)
         self.parts.append(f'<div class="verdict {"ok" if good else "warn"}" id="verdict">'
                           f"<strong>{esc(headline)}</strong>"
@@ -138,7 +205,17 @@ class Page:
 
     def table(self, rows: Iterable[Iterable[Any]], header: Iterable[str] | None = None,
               table_id: str = "") -> None:
-        """A table; floats and ints are right-aligned, formatted by :func:`format_value`."""
+        """A table; floats and ints are right-aligned, formatted by :func:`format_value`.
+
+        Parameters
+        ----------
+        rows : iterable of iterable
+            The cells of each row.
+        header : iterable of str or None, default None
+            Column headings; None for none.
+        table_id : str, default ""
+            The element's id; "" for none.
+        """
         out = [f'<table{f" id={chr(34)}{esc(table_id)}{chr(34)}" if table_id else ""}>']
         if header is not None:
             out.append("<tr>" + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr>")
@@ -152,18 +229,46 @@ class Page:
         self.parts.append("".join(out))
 
     def key_values(self, values: Mapping[str, Any], table_id: str = "") -> None:
-        """A two-column table of names and values."""
+        """A two-column table of names and values.
+
+        Parameters
+        ----------
+        values : mapping of str to Any
+            Values by name.
+        table_id : str, default ""
+            The element's id; "" for none.
+        """
         self.table(((k, v) for k, v in values.items()), table_id=table_id)
 
     def figure(self, image: bytes, caption: str, alt: str = "") -> None:
-        """An embedded figure (PNG or JPEG bytes)."""
+        """An embedded figure (PNG or JPEG bytes).
+
+        Parameters
+        ----------
+        image : bytes
+            PNG or JPEG bytes.
+        caption : str
+            The caption.
+        alt : str, default ""
+            Alternative text; "" for the caption.
+        """
         self.parts.append(f'<figure><img src="{image_data_url(image)}" '
                           f'alt="{esc(alt or caption)}">'
                           f"<figcaption>{esc(caption)}</figcaption></figure>")
 
     def view3d(self, plotly_js: Path, figure_json: str, notes: Iterable[str] = ()) -> None:
         """The interactive 3D view: the file ``plotly_js`` (plotly.min.js) inlined once, the
-        figure as JSON data."""
+        figure as JSON data.
+
+        Parameters
+        ----------
+        plotly_js : Path
+            The plotly.min.js file.
+        figure_json : str
+            The figure as JSON (:func:`scene3D.report.viewer.scene_figure_json`).
+        notes : iterable of str, default ()
+            Notes shown above the view.
+        """
         for note in notes:
             self.paragraph(note, "note")
         self.parts.append('<div id="view3d"></div>')
@@ -178,13 +283,31 @@ class Page:
             "})();")
 
     def raw_json(self, obj: Any, summary: str = "All numbers (JSON)") -> None:
-        """A collapsed block with ``obj`` as indented JSON."""
+        """A collapsed block with ``obj`` as indented JSON.
+
+        Parameters
+        ----------
+        obj : Any
+            JSON-serialisable values (others as ``str``).
+        summary : str, default "All numbers (JSON)"
+            The block's title.
+        """
         text = json.dumps(obj, indent=2, default=str, allow_nan=True)
         self.parts.append(f"<details><summary>{esc(summary)}</summary><pre>{esc(text)}</pre>"
                           "</details>")
 
     def render(self, footer: str = "") -> Html:
-        """The whole page."""
+        """The whole page.
+
+        Parameters
+        ----------
+        footer : str, default ""
+            A footer line; "" for none.
+
+        Returns
+        -------
+        Html
+        """
         pieces: list[str | Path] = [
             "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
             f'<meta http-equiv="Content-Security-Policy" content="{_CSP}">\n'

@@ -113,7 +113,21 @@ class PreparedView:
 
 def prepare_view(layers: list[CloudLayer], cameras: CameraLayer | None = None,
                  max_points: int = MAX_VIEW_POINTS) -> PreparedView:
-    """plotly.js and the figure JSON of ``layers`` and ``cameras``."""
+    """plotly.js and the figure JSON of ``layers`` and ``cameras``.
+
+    Parameters
+    ----------
+    layers : list of CloudLayer
+        Point clouds to show.
+    cameras : CameraLayer or None, default None
+        Cameras to draw.
+    max_points : int, default MAX_VIEW_POINTS
+        Most points shown over all layers (decimated beyond).
+
+    Returns
+    -------
+    PreparedView
+    """
     js, version = plotly_js()
     figure_json, notes = scene_figure_json(layers, cameras, max_points)
     return PreparedView(js, version, figure_json, notes,
@@ -154,7 +168,17 @@ _HEX = np.frombuffer(b"0123456789abcdef", dtype=np.uint8)
 
 
 def hex_colors_json(rgb: np.ndarray) -> str:
-    """A JSON array of ``"#rrggbb"`` strings for ``(N, 3) uint8`` colours, built in numpy."""
+    """A JSON array of ``"#rrggbb"`` strings for ``(N, 3) uint8`` colours, built in numpy.
+
+    Parameters
+    ----------
+    rgb : (N, 3) uint8 array_like
+        RGB colours.
+
+    Returns
+    -------
+    str
+    """
     rgb = np.asarray(rgb, dtype=np.uint8).reshape(-1, 3)
     if len(rgb) == 0:
         return "[]"
@@ -186,6 +210,16 @@ def _decimate(layers: list[CloudLayer], max_points: int
 def scene_figure_json(layers: list[CloudLayer], cameras: CameraLayer | None = None,
                       max_points: int = MAX_VIEW_POINTS) -> tuple[str, list[str]]:
     """The plotly.js figure (``{"data": ..., "layout": ...}``) as JSON text, and notes.
+
+    Parameters
+    ----------
+    layers : list of CloudLayer
+        Point clouds to show.
+    cameras : CameraLayer or None, default None
+        Cameras to draw.
+    max_points : int, default MAX_VIEW_POINTS
+        Most points shown over all layers.
+
 
     Returns
     -------

@@ -61,6 +61,25 @@ def focal_profile(pts1: FloatArray, pts2: FloatArray, K: FloatArray, factors: Fl
     times the smallest robust noise sigma of their inliers (the fit nearest the
     truth has the least spread), at least ``min_threshold_px`` and at most
     ``threshold_px``. Pixels, and so the costs, are comparable across focal lengths.
+
+    Parameters
+    ----------
+    pts1, pts2 : (N, 2) array_like
+        Matched pixels in images 1 and 2.
+    K : (3, 3) array_like
+        Intrinsics whose focal length is scaled.
+    factors : (F,) array_like
+        Focal-length factors.
+    threshold_px : float
+        Inlier threshold (px).
+    min_threshold_px : float
+        Smallest scoring threshold (px).
+    min_inliers : int, default 15
+        Fewest inliers for a fit to measure the noise.
+
+    Returns
+    -------
+    FocalProfile
     """
     focal = K[0, 0] * np.asarray(factors, dtype=np.float64)
     fits, noise = [], []
@@ -92,6 +111,26 @@ def converge_focal(pts1: FloatArray, pts2: FloatArray, K: FloatArray,
     ``K`` is the one it was estimated with), the rounds run and whether the change
     fell below ``tolerance_log``.
 
+    Parameters
+    ----------
+    pts1, pts2 : (N, 2) array_like
+        Matched pixels in images 1 and 2.
+    K : (3, 3) array_like
+        Starting intrinsics.
+    settings : TwoViewSettings
+        The two-view settings.
+    max_iterations : int
+        Most rounds.
+    tolerance_log : float
+        Convergence tolerance on ``log f``.
+
+    Returns
+    -------
+    geometry : TwoViewGeometry
+    rounds : int
+    converged : bool
+
+
     Raises
     ------
     ReconstructionError
@@ -112,6 +151,13 @@ def combine_log_normal(focal1: float, sigma1: float, focal2: float,
     """Inverse-variance combination of two focal lengths known to ``sigma`` in ``log f``.
 
     Returns ``(focal, sigma_log)``. An infinite sigma contributes nothing.
+
+    Parameters
+    ----------
+    focal1, focal2 : float
+        Focal lengths (px).
+    sigma1, sigma2 : float
+        Their standard deviations in ``log f``.
     """
     w1 = 0.0 if not math.isfinite(sigma1) else 1.0 / sigma1**2
     w2 = 0.0 if not math.isfinite(sigma2) else 1.0 / sigma2**2

@@ -57,7 +57,19 @@ class FocalUncertainty(NamedTuple):
 
 def image_cells(pts: FloatArray, cells: int = 3) -> np.ndarray:
     """The cell ``(N,) int`` of each pixel ``(N, 2)`` among ``cells`` x ``cells`` equal
-    cells of the points' bounding box."""
+    cells of the points' bounding box.
+
+    Parameters
+    ----------
+    pts : (N, 2) ndarray
+        Pixels.
+    cells : int, default 3
+        Cells per side.
+
+    Returns
+    -------
+    (N,) int ndarray
+    """
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     cell = np.minimum(((pts - lo) / np.maximum(hi - lo, 1e-9) * cells).astype(int), cells - 1)
     return cell[:, 0] * cells + cell[:, 1]
@@ -73,6 +85,17 @@ def blocked_difference_z(differences: ArrayLike, blocks: ArrayLike) -> float:
     sums ``D_b``: ``se^2 = g / (g - 1) * sum (D_b - mean D_b)^2``. Returns
     ``sum / se``: small (below about 2) when the data do not tell the two models apart;
     inf when fewer than three blocks hold matches.
+
+    Parameters
+    ----------
+    differences : (N,) array_like
+        Per-match cost differences.
+    blocks : (N,) int array_like
+        Block of each match.
+
+    Returns
+    -------
+    float
     """
     d = np.asarray(differences, dtype=np.float64)
     b = np.asarray(blocks)
@@ -122,6 +145,29 @@ def focal_rivals(pts1: FloatArray, pts2: FloatArray, chosen: TwoViewGeometry,
     castle-P19 14-15, 15-16, 16-17 ended 6 to 10 deg off with the focal length 20 to
     28 % off and its sigma 2 to 3 %). Each rival's pose is decomposed with cheirality
     on its inliers and compared with the chosen one (``Rival.pose_difference_deg``).
+
+    Parameters
+    ----------
+    pts1, pts2 : (N, 2) ndarray
+        All the matches (pixels).
+    chosen : TwoViewGeometry
+        The selected geometry.
+    focal_px : float
+        Its focal length (px).
+    sigma_log : float
+        Its standard deviation in ``log f``.
+    fits : list of (float, (3, 3) ndarray)
+        ``(focal_px, E)`` of the other fits.
+    threshold_px : float
+        Scoring threshold (px).
+    max_z : float
+        Largest :func:`blocked_difference_z` of a rival.
+    cells : int, default 3
+        Cells per side of the blocks.
+
+    Returns
+    -------
+    list of Rival
     """
     base = essential_costs(chosen.E, pts1, pts2, chosen.K, threshold_px)
     blocks = image_cells(pts1, cells)
@@ -155,6 +201,21 @@ def focal_uncertainty(geometry: TwoViewGeometry, settings: TwoViewSettings,
     ``var = (g - 1) / g * sum (theta_i - mean)^2``) and (b) with the principal
     point moved by ``principal_point_shift_px`` in x, then in y. See
     :class:`FocalUncertainty`.
+
+    Parameters
+    ----------
+    geometry : TwoViewGeometry
+        The pair's geometry.
+    settings : TwoViewSettings
+        Gives ``threshold_px``.
+    principal_point_shift_px : float
+        Assumed principal point error (px).
+    cells : int, default 3
+        Cells per side of the jackknife.
+
+    Returns
+    -------
+    FocalUncertainty
     """
     K, in1, in2 = geometry.K, geometry.inlier_pts1, geometry.inlier_pts2
     if len(in1) < 6:
@@ -203,6 +264,21 @@ def intrinsics_covariance(focal_sigma_log: float, principal_point_sigma_px: floa
     correlated: ``cov(log f, c_x) = weight * shift_x * sigma_pp``. ``weight`` is the
     photos' share of a focal length combined with a prior
     (``sigma_combined^2 / sigma_photos^2``; 0 when the value is the prior's).
+
+    Parameters
+    ----------
+    focal_sigma_log : float
+        Standard deviation of ``log f``.
+    principal_point_sigma_px : float
+        Standard deviation of each principal point coordinate (px).
+    focal_shifts : (float, float), default (0.0, 0.0)
+        Moves of ``log f`` for a one-sigma principal point shift along x and y.
+    weight : float, default 1.0
+        The photos' share of the focal length.
+
+    Returns
+    -------
+    (3, 3) float64 ndarray
     """
     sigma_pp = principal_point_sigma_px
     cov = np.diag([focal_sigma_log**2, sigma_pp**2, sigma_pp**2])
@@ -226,6 +302,19 @@ def marginal_pose_covariance(geometry: TwoViewGeometry, intrinsics_cov: FloatArr
     (:func:`intrinsics_covariance`; :func:`scene3D.optim.uncertainty.marginal_covariance`).
     Parametrisation and frames of :mod:`scene3D.optim.uncertainty` (rotation vector in the
     camera-2 frame, then the direction step along ``tangent_basis(geometry.t)``).
+
+    Parameters
+    ----------
+    geometry : TwoViewGeometry
+        The pair's geometry (``x_cam2 = R x_cam1 + t``).
+    intrinsics_cov : (3, 3) ndarray
+        Covariance of ``(log f, c_x, c_y)``.
+    settings : TwoViewSettings
+        Gives ``threshold_px``.
+
+    Returns
+    -------
+    (5, 5) float64 ndarray
     """
     in1, in2, K = geometry.inlier_pts1, geometry.inlier_pts2, geometry.K
     if len(in1) < 6:

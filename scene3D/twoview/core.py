@@ -69,7 +69,20 @@ logger = logging.getLogger(__name__)
 
 def sample_colors(img_bgr: np.ndarray, points: FloatArray) -> np.ndarray:
     """RGB ``uint8`` colours ``(N, 3)`` of a BGR ``(H, W, 3)`` image at pixels ``(N, 2)``
-    (nearest pixel); a grey ``(H, W)`` image gives its value in all three channels."""
+    (nearest pixel); a grey ``(H, W)`` image gives its value in all three channels.
+
+    Parameters
+    ----------
+    img_bgr : (H, W, 3) or (H, W) uint8 ndarray
+        BGR or grey image.
+    points : (N, 2) array_like
+        Pixels (OpenCV convention), clipped to the image.
+
+    Returns
+    -------
+    (N, 3) uint8 ndarray
+        RGB colours.
+    """
     h, w = img_bgr.shape[:2]
     x = np.clip(np.rint(points[:, 0]).astype(int), 0, w - 1)
     y = np.clip(np.rint(points[:, 1]).astype(int), 0, h - 1)
@@ -122,6 +135,28 @@ def pose_covariance(R: FloatArray, t: FloatArray, in1: FloatArray, in2: FloatArr
 
     ``R, t`` ``x_cam2 = R x_cam1 + t`` (``|t| = 1``) is the refined pose and
     ``loss_scale_px`` the scale of its Cauchy loss.
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array_like
+        Relative pose ``x_cam2 = R x_cam1 + t`` (``|t| = 1``: the scale is unknown).
+    in1, in2 : (N, 2) array_like
+        Inlier pixels in images 1 and 2.
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    behind : (N,) bool ndarray
+        Inliers that triangulate behind a camera beyond the noise.
+    loss_scale_px : float
+        Scale of the Cauchy loss (px).
+    variance_factor : float, default 1.0
+        Variance of the cut inlier residuals over the noise's; <= 0 gives an infinite
+        covariance.
+
+    Returns
+    -------
+    (5, 5) float64 ndarray
+        In the parametrisation of :mod:`scene3D.optim.uncertainty` (rotation 3, translation
+        direction 2).
     """
     if variance_factor <= 0:
         return np.full((5, 5), np.inf)
@@ -406,6 +441,21 @@ def check_against_flow(geometry: TwoViewGeometry, img1: np.ndarray, img2: np.nda
     near a pose that a wrong focal length, a zoom or a moving object put wrong. About
     0.05 s: the flow is taken at 768 px at most (docs/benchmarks.md).
 
+    Parameters
+    ----------
+    geometry : TwoViewGeometry
+        The pose found from sparse matches.
+    img1, img2 : (H, W, 3) or (H, W) uint8 ndarray
+        The working images, one size.
+    settings : TwoViewSettings or None, default None
+        None for the defaults.
+
+    Returns
+    -------
+    TwoViewGeometry
+        ``geometry``, or a copy with ``flow_gain`` and any warning.
+
+
     Raises
     ------
     TypeError, ValueError
@@ -434,6 +484,14 @@ def require_enough_matches(matches: Matches, settings: TwoViewSettings | None = 
     :func:`reconstruct_from_matches` refuses it too; this also says whether an image
     had too few keypoints for that many matches (a blank, blurred or tiny photo) or
     the images had keypoints that did not match (not the same scene, or too far apart).
+
+    Parameters
+    ----------
+    matches : Matches
+        The pair's matches and keypoint counts.
+    settings : TwoViewSettings or None, default None
+        Gives ``min_matches``; None for the defaults.
+
 
     Raises
     ------

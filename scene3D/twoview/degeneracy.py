@@ -42,6 +42,19 @@ def is_rotation_homography(H: FloatArray, K: FloatArray, tolerance: float = 0.02
     ``K^-1 H K`` is then a rotation up to scale: its singular values are equal
     (within ``tolerance``, relative). A plane seen from two centres gives
     ``R + t n^T / d`` instead, whose singular values differ by about ``|t| / d``.
+
+    Parameters
+    ----------
+    H : (3, 3) array_like
+        Homography ``x2 ~ H x1`` in pixels.
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    tolerance : float, default 0.02
+        Relative tolerance on the singular values' ratio.
+
+    Returns
+    -------
+    bool
     """
     if not np.all(np.isfinite(H)):
         return False
@@ -56,6 +69,20 @@ def plane_poses(H: FloatArray, K: FloatArray, pts1: FloatArray,
     ``cv2.decomposeHomographyMat`` gives up to four; those that put the plane's
     points ``pts1, pts2`` ``(N, 2)`` in front of both cameras remain (two for a
     plane seen with a baseline, Faugeras & Lustman 1988).
+
+    Parameters
+    ----------
+    H : (3, 3) array_like
+        The plane's homography ``x2 ~ H x1`` in pixels.
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    pts1, pts2 : (N, 2) array_like
+        Pixels of the plane's matches.
+
+    Returns
+    -------
+    list of ((3, 3), (3,)) float64 ndarray
+        Poses ``x_cam2 = R x_cam1 + t``, ``|t| = 1``.
     """
     _, rotations, translations, _ = cv2.decomposeHomographyMat(H, K)
     poses = []
@@ -88,6 +115,22 @@ def warped_copy_residual(H: FloatArray, pts1: FloatArray, pts2: FloatArray,
     keypoints of an image shifted along its rows miss the homography by their rounding,
     yet fit a sideways translation to 1e-8 px. Exact synthetic matches of a scene with
     depth fit an essential matrix as well, but no homography explains most of them.
+
+    Parameters
+    ----------
+    H : (3, 3) array_like
+        Homography ``x2 ~ H x1`` fitted to the matches.
+    pts1, pts2 : (N, 2) array_like
+        Matched pixels (OpenCV convention) in images 1 and 2.
+    on_plane : (N,) bool ndarray
+        The matches ``H`` explains.
+    sampson_px : (N,) array_like
+        Sampson distances (px) to the essential matrix.
+
+    Returns
+    -------
+    float or None
+        The fit in px, or None.
     """
     errors = [float(np.median(np.abs(sampson_px)))]
     if np.all(np.isfinite(H)) and on_plane.any():
@@ -142,6 +185,28 @@ def lower_cost_plane_pose(E: FloatArray, inliers: np.ndarray, on_plane: np.ndarr
     matches count (:func:`scene3D.twoview.essential_fit.polish_essential` gives the costs).
     ``inliers`` are those of ``E`` among ``p1, p2``; ``on_plane`` those of ``H``
     among them.
+
+    Parameters
+    ----------
+    E : (3, 3) array_like
+        The essential matrix found.
+    inliers : (N,) bool ndarray
+        Inliers of ``E`` among ``p1, p2``.
+    on_plane : (n_inliers,) bool ndarray
+        Inliers of ``H`` among ``E``'s inliers.
+    H : (3, 3) array_like
+        The plane's homography ``x2 ~ H x1``.
+    p1, p2 : (N, 2) array_like
+        All the correspondences (pixels, OpenCV convention).
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    threshold_px : float
+        Inlier threshold on the Sampson distance (px).
+
+    Returns
+    -------
+    (E, inliers) or None
+        The better essential matrix ``(3, 3)`` and its ``(N,) bool`` inliers.
     """
     best_cost, better = essential_cost(E, p1, p2, K, threshold_px), None
     in1, in2 = p1[inliers], p2[inliers]
@@ -178,6 +243,24 @@ def fit_rotation(pts1: FloatArray, pts2: FloatArray, K: FloatArray, scale_px: fl
     viewing rays (Kabsch's SVD) and, given a homography ``H`` fitted to the same
     matches, the one nearest to ``K^-1 H K``. ``pts1, pts2`` ``(N, 2)`` (N >= 2) are
     matches, the inliers of the essential matrix.
+
+    Parameters
+    ----------
+    pts1, pts2 : (N, 2) array_like
+        Matched pixels (OpenCV convention) in images 1 and 2.
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    scale_px : float, default 1.0
+        Scale of the Cauchy loss (px).
+    H : (3, 3) array_like or None, default None
+        Homography ``x2 ~ H x1`` fitted to the same matches, for a second start.
+    iterations : int, default 4
+        Gauss-Newton iterations.
+
+    Returns
+    -------
+    (3, 3) float64 ndarray
+        Rotation ``x_cam2 = R x_cam1``.
     """
     K_inv = np.linalg.inv(K)
     rays1 = to_homogeneous(pts1) @ K_inv.T
@@ -232,6 +315,28 @@ def fit_rotation_and_focal(pts1: FloatArray, pts2: FloatArray, K: FloatArray,
     from the best of three factors (1, 0.7 and 1.4), each with its :func:`fit_rotation`,
     then Gauss-Newton on the rotation vector and ``log s`` (the ``log s`` column of the
     Jacobian by central differences).
+
+    Parameters
+    ----------
+    pts1, pts2 : (N, 2) array_like
+        Matched pixels (OpenCV convention) in images 1 and 2.
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    scale_px : float
+        Scale of the Cauchy loss (px).
+    H : (3, 3) array_like or None, default None
+        Homography ``x2 ~ H x1`` fitted to the same matches.
+    max_log_scale : float, default log(2)
+        Bound on ``|log s|``.
+    iterations : int, default 6
+        Gauss-Newton iterations.
+
+    Returns
+    -------
+    R : (3, 3) float64 ndarray
+        Rotation ``x_cam2 = R x_cam1``.
+    s : float
+        Focal-length factor.
     """
     def residuals(R: FloatArray, log_s: float) -> tuple[FloatArray, FloatArray]:
         Ks = _with_focal_scale(K, float(np.exp(log_s)))
@@ -274,6 +379,18 @@ def homography_errors(H: FloatArray, pts1: FloatArray, pts2: FloatArray) -> Floa
     variety, to first order where ``H`` is nearly an isometry (as a rotation's is
     near the image centre, and a plane's seen from nearby views), the noise shared
     by both images.
+
+    Parameters
+    ----------
+    H : (3, 3) array_like
+        Homography ``x2 ~ H x1`` in pixels.
+    pts1, pts2 : (N, 2) array_like
+        Matched pixels (OpenCV convention) in images 1 and 2.
+
+    Returns
+    -------
+    (N,) float64 ndarray
+        Errors in px; inf where a point maps to infinity.
     """
     mapped = to_homogeneous(pts1) @ H.T
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -289,6 +406,21 @@ def gric(errors: FloatArray, sigma: float, dimension: int, parameters: int) -> f
     variety has dimension ``d`` and which has ``k`` parameters (P. Torr, "Geometric
     motion segmentation and model selection", Phil. Trans. R. Soc. A 356, 1998).
     The capped residual term keeps outliers from deciding.
+
+    Parameters
+    ----------
+    errors : (n,) array_like
+        Errors of the matches (px).
+    sigma : float
+        Noise standard deviation (px).
+    dimension : int
+        Dimension ``d`` of the relation's variety (3 for E, 2 for a homography).
+    parameters : int
+        Number ``k`` of the relation's parameters.
+
+    Returns
+    -------
+    float
     """
     n = len(errors)
     z = (np.asarray(errors, dtype=np.float64) / sigma) ** 2
@@ -363,6 +495,25 @@ def motion_model_choice(pts1: FloatArray, pts2: FloatArray, K: FloatArray,
     calibration for another zoom, fits it, while the essential matrix explains its
     matches with an invented translation (the caller asks for it where a homography
     explains the matches, as the rotation's does).
+
+    Parameters
+    ----------
+    pts1, pts2 : (N, 2) array_like
+        Inlier pixels of the essential matrix in images 1 and 2.
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    sampson_px : (N,) array_like
+        Their Sampson distances (px).
+    noise_px : float
+        Noise per coordinate (px).
+    H : (3, 3) array_like
+        Homography ``x2 ~ H x1`` fitted to the same matches.
+    free_focal : bool, default False
+        Also fit the rotation with a free focal length.
+
+    Returns
+    -------
+    MotionModelChoice
     """
     sigma = noise_px
     R = fit_rotation(pts1, pts2, K, 3.0 * sigma, H)

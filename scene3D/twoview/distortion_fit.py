@@ -40,7 +40,21 @@ MAX_ABS_K = 1.0
 
 def undistort_division(pts: ArrayLike, K: ArrayLike, k: float) -> FloatArray:
     """Pixels ``(N, 2)`` as a pinhole camera ``K`` would have seen the pixels ``pts``
-    ``(N, 2)`` of a lens with the division-model coefficient ``k`` (module docstring)."""
+    ``(N, 2)`` of a lens with the division-model coefficient ``k`` (module docstring).
+
+    Parameters
+    ----------
+    pts : (N, 2) array_like
+        Photographed pixels (OpenCV convention).
+    K : (3, 3) array_like
+        Intrinsics; the distortion centre is the principal point.
+    k : float
+        Division-model coefficient.
+
+    Returns
+    -------
+    (N, 2) float64 ndarray
+    """
     h = to_homogeneous(np.asarray(pts, dtype=np.float64).reshape(-1, 2))
     return undistort_homogeneous(h, np.asarray(K, dtype=np.float64), k).u[:, :2]
 
@@ -59,6 +73,20 @@ def undistort_homogeneous(h: FloatArray, K: FloatArray, k: float) -> Undistorted
 
     ``u = c + (p - c) g`` with ``g = 1 / (1 + k rho^2)`` and ``rho^2 = |K^-1 p|^2``, so
     ``du/dk = -(u - c) rho^2 g`` and ``dg/dk = -rho^2 g^2``.
+
+    Parameters
+    ----------
+    h : (N, 3) float64 ndarray
+        Homogeneous photographed pixels (last coordinate 1).
+    K : (3, 3) float64 ndarray
+        Intrinsics.
+    k : float
+        Division-model coefficient.
+
+    Returns
+    -------
+    Undistorted
+        ``u`` ``(N, 3)``, ``du/dk`` ``(N, 3)``, ``g`` ``(N,)`` and ``dg/dk`` ``(N,)``.
     """
     c, f = K[:2, 2], np.diag(K)[:2]
     offset = h[:, :2] - c
@@ -84,6 +112,20 @@ def observed_sampson(F: FloatArray, p1: Undistorted,
     image about the principal point, would shrink every distance with it, and the fit
     would prefer it on matches of a lens without distortion (a review: ``k`` ran to the
     bound on noisy matches of distant points).
+
+    Parameters
+    ----------
+    F : (3, 3) float64 ndarray
+        Fundamental matrix, ``x2^T F x1 = 0``.
+    p1, p2 : Undistorted
+        Undistorted correspondences (:func:`undistort_homogeneous`).
+
+    Returns
+    -------
+    distances : (N,) float64 ndarray
+        Signed Sampson distances (px).
+    terms : tuple
+        ``(l, m, a, n)`` for :func:`observed_sampson_jacobian`.
     """
     line2 = p1.u @ F.T  # l = F x1, the epipolar line in image 2
     line1 = p2.u @ F  # m = F^T x2, in image 1
@@ -102,6 +144,21 @@ def observed_sampson_jacobian(F: FloatArray, dF: FloatArray, p1: Undistorted,
     ``d(n^2)/2 = g2^2 l' . dF x1 + g1^2 x2^T dF m'`` (``l', m'``: ``l, m`` with the third
     entry zeroed). Along ``k``: ``da = m . du1 + l . du2`` and ``d(n^2)/2 =
     g1 dg1 |m'|^2 + g1^2 m' . F^T du2 + g2 dg2 |l'|^2 + g2^2 l' . F du1``.
+
+    Parameters
+    ----------
+    F : (3, 3) float64 ndarray
+        Fundamental matrix.
+    dF : (k, 3, 3) float64 ndarray
+        Derivatives of ``F`` along its ``k`` parameters.
+    p1, p2 : Undistorted
+        Undistorted correspondences.
+    terms : tuple
+        As returned by :func:`observed_sampson`.
+
+    Returns
+    -------
+    (N, k + 1) float64 ndarray
     """
     line2, line1, a, n = terms
     lp, mp = line2.copy(), line1.copy()
@@ -148,7 +205,19 @@ class DistortionFit(NamedTuple):
     def residuals(self, K: ArrayLike, pts1: ArrayLike, pts2: ArrayLike) -> FloatArray:
         """Signed Sampson distances ``(N,)`` of the correspondences ``pts1, pts2`` ``(N, 2)``,
         undistorted with ``k``, to the fitted pose under ``K``, in the pixels given
-        (:func:`observed_sampson`)."""
+        (:func:`observed_sampson`).
+
+        Parameters
+        ----------
+        K : (3, 3) array_like
+            The calibration's intrinsics.
+        pts1, pts2 : (N, 2) array_like
+            Photographed pixels in images 1 and 2.
+
+        Returns
+        -------
+        (N,) float64 ndarray
+        """
         K = np.asarray(K, dtype=np.float64)
         K_inv = np.linalg.inv(K)
         F = K_inv.T @ skew(self.t) @ self.R @ K_inv
@@ -158,7 +227,19 @@ class DistortionFit(NamedTuple):
 
     def shift_px(self, K: ArrayLike, pixel: ArrayLike) -> float:
         """How far, in pixels, undistorting with ``k`` moves ``pixel`` ``(2,)`` (an image
-        corner: the largest shift in the image)."""
+        corner: the largest shift in the image).
+
+        Parameters
+        ----------
+        K : (3, 3) array_like
+            The calibration's intrinsics.
+        pixel : (2,) array_like
+            A pixel (OpenCV convention).
+
+        Returns
+        -------
+        float
+        """
         pixel = np.asarray(pixel, dtype=np.float64).reshape(1, 2)
         return float(np.linalg.norm(undistort_division(pixel, K, self.k) - pixel))
 

@@ -269,6 +269,25 @@ def widening_shift_chi2(E: FloatArray, inliers: np.ndarray, E_wide: FloatArray, 
     the same noise's tail, the wider fit would be the same pose known a little better,
     and its shift would lie well within that covariance (the covariance of the
     difference is smaller still: this is a conservative Hausman test).
+
+    Parameters
+    ----------
+    E : (3, 3) array_like
+        Optimum at ``threshold_px``.
+    inliers : (N,) bool ndarray
+        Its inliers among ``p1, p2``.
+    E_wide : (3, 3) array_like
+        Refinement at a wider threshold.
+    p1, p2 : (N, 2) array_like
+        All the correspondences (pixels, OpenCV convention).
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    threshold_px : float
+        Inlier threshold on the Sampson distance (px).
+
+    Returns
+    -------
+    float
     """
     R, t = decompose_essential(E)[0]
     in1, in2 = p1[inliers], p2[inliers]
@@ -302,6 +321,21 @@ def estimate_essential(
         Essential matrix with unit Frobenius norm, ``x2n^T E x1n = 0`` for
         normalised coordinates ``xn = K^-1 x``.
     inliers : (N,) bool
+
+    Parameters
+    ----------
+    pts1, pts2 : (N, 2) array_like
+        Corresponding pixels (OpenCV convention), N >= 5.
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    threshold_px : float, default 1.0
+        Inlier threshold (px).
+    confidence : float, default 0.999
+        RANSAC confidence.
+    max_iters : int, default 10000
+        Most RANSAC iterations.
+    refine : bool, default True
+        Polish the estimate by local optimisation.
     """
     if refine:
         fit = fit_essential(pts1, pts2, K, threshold_px, confidence, max_iters, max_starts=1)
@@ -333,7 +367,23 @@ def _robust_essential(p1: FloatArray, p2: FloatArray, K: FloatArray, threshold_p
 
 def essential_costs(E: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: ArrayLike,
                     threshold_px: float) -> FloatArray:
-    """Each correspondence's share ``(N,)`` of :func:`essential_cost`."""
+    """Each correspondence's share ``(N,)`` of :func:`essential_cost`.
+
+    Parameters
+    ----------
+    E : (3, 3) array_like
+        Essential matrix, ``x2n^T E x1n = 0``.
+    pts1, pts2 : (N, 2) array_like
+        Matched pixels (OpenCV convention) in images 1 and 2.
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    threshold_px : float
+        Inlier threshold on the Sampson distance (px).
+
+    Returns
+    -------
+    (N,) float64 ndarray
+    """
     distances = np.minimum(essential_distances(E, pts1, pts2, K), threshold_px)
     scale = LOSS_SCALE_OF_THRESHOLD * threshold_px
     return robust_loss((distances / scale) ** 2, "cauchy")[0]
@@ -347,6 +397,21 @@ def essential_cost(E: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: ArrayLike,
     for every model) on the Sampson distances, each capped at the threshold, so
     that an outlier costs the same whatever its distance (an MSAC-style score): it
     compares models that were refined on different inlier sets.
+
+    Parameters
+    ----------
+    E : (3, 3) array_like
+        Essential matrix, ``x2n^T E x1n = 0``.
+    pts1, pts2 : (N, 2) array_like
+        All the correspondences (pixels).
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    threshold_px : float
+        Cap of the Sampson distances (px).
+
+    Returns
+    -------
+    float
     """
     return float(np.sum(essential_costs(E, pts1, pts2, K, threshold_px)))
 
@@ -360,6 +425,25 @@ def polish_essential(E: FloatArray, p1: FloatArray, p2: FloatArray, K: FloatArra
     ``p1, p2`` (default: those of ``E`` within the threshold). Returns
     ``(cost, E, inliers)`` with ``E`` of unit norm and the cost of :func:`essential_cost`,
     so that models polished from different starts can be compared.
+
+    Parameters
+    ----------
+    E : (3, 3) array_like
+        Start.
+    p1, p2 : (N, 2) array_like
+        All the correspondences (pixels, OpenCV convention).
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    threshold_px : float
+        Inlier threshold on the Sampson distance (px).
+    inliers : (N,) bool ndarray or None, default None
+        Starting inliers; None for those of ``E``.
+
+    Returns
+    -------
+    cost : float
+    E : (3, 3) float64 ndarray
+    inliers : (N,) bool ndarray
     """
     if inliers is None:
         inliers = essential_distances(E, p1, p2, K) <= threshold_px
@@ -381,6 +465,16 @@ def rival_spread_deg(optima: list[tuple[float, FloatArray]]) -> float:
     :func:`essential_cost` at one threshold). Returns the largest
     :func:`essential_angle_deg` between the lowest-cost ``E`` and the others whose
     cost is within :data:`COMPARABLE_COST` of it; 0 when no other is that close.
+
+    Parameters
+    ----------
+    optima : list of (float, (3, 3) ndarray)
+        ``(cost, E)`` of the refined starts.
+
+    Returns
+    -------
+    float
+        Degrees.
     """
     best_cost, best_E = min(optima, key=lambda optimum: optimum[0])
     return max(essential_angle_deg(best_E, E) for cost, E in optima
@@ -395,6 +489,16 @@ def essential_angle_deg(E1: ArrayLike, E2: ArrayLike) -> float:
     (:func:`scene3D.geometry.pose.decompose_essential`); 0 for the same matrix up to scale.
     Both rotations of each are tried: the pose and its twisted pair (turned 180 deg
     about the baseline) lie about 180 deg apart, so the minimum pairs like with like.
+
+    Parameters
+    ----------
+    E1, E2 : (3, 3) array_like
+        Essential matrices.
+
+    Returns
+    -------
+    float
+        Degrees.
     """
     poses1 = decompose_essential(E1)
     t1 = poses1[0][1]
@@ -410,6 +514,16 @@ def noise_sigma_px(distances: FloatArray) -> float:
     With Gaussian noise of ``sigma`` px on each coordinate of both images, a Sampson
     distance is ``|N(0, sigma^2)|`` to first order, so ``1.4826`` times their median
     estimates ``sigma`` and ignores the outliers' tail.
+
+    Parameters
+    ----------
+    distances : (N,) array_like
+        Sampson distances (px).
+
+    Returns
+    -------
+    float
+        Noise standard deviation per coordinate (px).
     """
     return 1.4826 * median(np.abs(distances))
 
@@ -421,6 +535,18 @@ def loss_scale_px(distances: FloatArray, threshold_px: float) -> float:
     noise of the images at hand (sharp or blurred, large or small) instead of a fixed
     fraction of the threshold. It is capped at the threshold, and floored at a
     thousandth of it so that noise-free data keep the loss defined.
+
+    Parameters
+    ----------
+    distances : (N,) array_like
+        Inliers' Sampson distances (px).
+    threshold_px : float
+        Inlier threshold on the Sampson distance (px).
+
+    Returns
+    -------
+    float
+        Cauchy scale (px).
     """
     sigma = noise_sigma_px(distances)
     return float(np.clip(CAUCHY_SCALE_OF_SIGMA * sigma, 1e-3 * threshold_px, threshold_px))
@@ -435,6 +561,18 @@ def inlier_threshold_px(distances: FloatArray, threshold_px: float) -> float:
     fit), and never beyond :data:`MAX_THRESHOLD_GROWTH` times it, so that a set
     of outliers, whose distances spread up to the threshold, cannot widen it
     round after round.
+
+    Parameters
+    ----------
+    distances : (N,) array_like
+        Inliers' Sampson distances (px).
+    threshold_px : float
+        Inlier threshold on the Sampson distance (px).
+
+    Returns
+    -------
+    float
+        Threshold (px).
     """
     raised = THRESHOLD_OF_SIGMA * noise_sigma_px(distances)
     return float(np.clip(raised, threshold_px, MAX_THRESHOLD_GROWTH * threshold_px))
@@ -452,6 +590,18 @@ def comparison_threshold_px(distances: FloatArray, threshold_px: float) -> float
     matches) and ``threshold_px`` (noisier matches than the threshold allows for:
     the threshold is the user's word), and is ``threshold_px`` when fewer than
     five distances lie within it.
+
+    Parameters
+    ----------
+    distances : (N,) array_like
+        Sampson distances (px) of all correspondences.
+    threshold_px : float
+        Inlier threshold on the Sampson distance (px).
+
+    Returns
+    -------
+    float
+        Threshold (px).
     """
     distances = np.asarray(distances, dtype=np.float64)
     near = distances[distances <= threshold_px]
@@ -476,6 +626,26 @@ def refine_essential(
     the noise's tail weigh little, however noisy the images are; the inliers are
     then re-selected at :func:`inlier_threshold_px`, ``threshold_px`` unless the
     noise calls for more.
+
+    Parameters
+    ----------
+    E : (3, 3) array_like
+        Start.
+    p1, p2 : (N, 2) array_like
+        All the correspondences (pixels, OpenCV convention).
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    inliers : (N,) bool ndarray
+        Current inliers.
+    threshold_px : float
+        Inlier threshold on the Sampson distance (px).
+    rounds : int, default 3
+        Most refine/re-select rounds.
+
+    Returns
+    -------
+    E : (3, 3) float64 ndarray
+    inliers : (N,) bool ndarray
     """
     R, t = decompose_essential(E)[0]  # any of the four gives the same E up to sign
     for _ in range(rounds):

@@ -74,6 +74,18 @@ def flow_correspondences(gray1: np.ndarray, gray2: np.ndarray, pts1: FloatArray,
     it is textured, its flow lands inside image 2 and the backward flow returns within
     :data:`MAX_FORWARD_BACKWARD_PX`. No pose enters: the same correspondences judge any.
     Empty when no homography can be fitted.
+
+    Parameters
+    ----------
+    gray1, gray2 : (H, W) uint8 ndarray
+        Grey working images, one size.
+    pts1, pts2 : (N, 2) array_like
+        Matched pixels (OpenCV convention) in images 1 and 2.
+
+    Returns
+    -------
+    q1, q2 : (M, 2) float64 ndarray
+        Flow correspondences (pixels).
     """
     h, w = gray1.shape
     H, _ = cv2.findHomography(pts2, pts1, cv2.RANSAC, 8.0)  # image 2 -> image 1
@@ -146,6 +158,19 @@ def check_pose_against_flow(R: FloatArray, t: FloatArray, K: FloatArray, q1: Flo
     measures, for both poses, the share of all of them within that band of the
     epipolar lines. None with fewer than :data:`MIN_FLOW_POINTS` correspondences
     (too little texture to judge).
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array_like
+        Relative pose ``x_cam2 = R x_cam1 + t`` (``|t| = 1``: the scale is unknown).
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    q1, q2 : (M, 2) array_like
+        Flow correspondences (pixels).
+
+    Returns
+    -------
+    FlowCheck or None
     """
     if len(q1) < MIN_FLOW_POINTS:
         return None
@@ -163,6 +188,21 @@ def check_pose_against_images(R: FloatArray, t: FloatArray, K: FloatArray, gray1
     ``(N, 2)``: :func:`flow_correspondences` and :func:`check_pose_against_flow`, on the
     images halved while wider than :data:`MAX_FLOW_WIDTH_PX` (the pose does not depend on
     the size).
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array_like
+        Relative pose ``x_cam2 = R x_cam1 + t`` (``|t| = 1``: the scale is unknown).
+    K : (3, 3) array_like
+        Intrinsics shared by both views.
+    gray1, gray2 : (H, W) uint8 ndarray
+        Grey working images, one size.
+    pts1, pts2 : (N, 2) array_like
+        Matched pixels (OpenCV convention) in images 1 and 2.
+
+    Returns
+    -------
+    FlowCheck or None
     """
     levels = halving_levels(gray1.shape[1], MAX_FLOW_WIDTH_PX)
     scale = 0.5**levels

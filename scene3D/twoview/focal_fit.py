@@ -49,7 +49,23 @@ def _scaled_inverses(x: float, weights: tuple[float, float],
 
 def scaled_fundamental(R: FloatArray, t: FloatArray, x: float, weights: tuple[float, float],
                        K_inv: FloatArray) -> FloatArray:
-    """``F = K_2^-T [t]x R K_1^-1`` (:func:`_scaled_inverses`)."""
+    """``F = K_2^-T [t]x R K_1^-1`` (:func:`_scaled_inverses`).
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array_like
+        Relative pose ``x_cam2 = R x_cam1 + t`` (``|t| = 1``: the scale is unknown).
+    x : float
+        Focal-length parameter: ``log s_i = w_i x`` scales image ``i``'s focal length.
+    weights : (float, float)
+        Shares of ``x`` in images 1 and 2.
+    K_inv : (3, 3) array_like
+        Inverse of the calibration's intrinsics.
+
+    Returns
+    -------
+    (3, 3) float64 ndarray
+    """
     K1_inv, K2_inv = _scaled_inverses(x, weights, K_inv)
     return K2_inv.T @ skew(t) @ R @ K1_inv
 
@@ -61,6 +77,20 @@ def focal_fundamental_derivatives(R: FloatArray, t: FloatArray, x: float,
     :func:`scene3D.optim.uncertainty.update_pose` (5), then ``x``.
 
     ``d(K_i^-1) / dx = -w_i P K_i^-1`` with ``P = diag(1, 1, 0)``.
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array_like
+        Relative pose ``x_cam2 = R x_cam1 + t`` (``|t| = 1``: the scale is unknown).
+    x : float
+        Focal-length parameter: ``log s_i = w_i x`` scales image ``i``'s focal length.
+    weights : (float, float)
+        Shares of ``x`` in images 1 and 2.
+    basis : (2, 3) array_like
+        Orthonormal rows spanning the tangent plane of ``t``
+        (:func:`scene3D.optim.uncertainty.tangent_basis`).
+    K_inv : (3, 3) array_like
+        Inverse of the calibration's intrinsics.
     """
     K1_inv, K2_inv = _scaled_inverses(x, weights, K_inv)
     E = skew(t) @ R
@@ -100,13 +130,36 @@ class FocalFit(NamedTuple):
 
     def residuals(self, K: ArrayLike, pts1: ArrayLike, pts2: ArrayLike) -> FloatArray:
         """Signed Sampson distances ``(N,)`` in pixels of the correspondences ``pts1, pts2``
-        ``(N, 2)`` to the fitted pose and focal lengths (:meth:`fundamental`)."""
+        ``(N, 2)`` to the fitted pose and focal lengths (:meth:`fundamental`).
+
+        Parameters
+        ----------
+        K : (3, 3) array_like
+            The calibration the fit started from.
+        pts1, pts2 : (N, 2) array_like
+            Pixels in images 1 and 2.
+
+        Returns
+        -------
+        (N,) float64 ndarray
+        """
         return sampson_residuals(self.fundamental(K), np.asarray(pts1, dtype=np.float64),
                                  np.asarray(pts2, dtype=np.float64))
 
     def fundamental(self, K: ArrayLike) -> FloatArray:
         """``(3, 3)`` the fundamental matrix of the fitted pose and focal lengths, for
-        the calibration ``K`` the fit started from."""
+        the calibration ``K`` the fit started from.
+
+        Parameters
+        ----------
+        K : (3, 3) array_like
+            The calibration the fit started from.
+
+        Returns
+        -------
+        (3, 3) float64 ndarray
+            ``F`` with ``x2^T F x1 = 0``.
+        """
         K_inv = np.linalg.inv(np.asarray(K, dtype=np.float64))
         return scaled_fundamental(self.R, self.t, float(np.log(self.scale)), self.weights,
                                   K_inv)
@@ -198,6 +251,23 @@ def fit_focal_ratio(
     photo cropped and enlarged, shows as ``r`` far from 1: with one ``K`` for both, such
     a pair came back trusted 20-50 deg off in translation direction
     (docs/benchmarks.md), the zoom taken for a move along the optical axis.
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array_like
+        Pose found with ``K``, ``x_cam2 = R x_cam1 + t``.
+    pts1, pts2 : (N, 2) array_like
+        Inlier pixels (N >= 6).
+    K : (3, 3) array_like
+        The calibration's intrinsics (both views).
+    loss, scale_px : str, float
+        Robust loss and its scale in pixels, as for
+        :func:`scene3D.optim.refinement.refine_relative_pose`.
+    max_iterations : int, default 30
+        Most Levenberg-Marquardt iterations.
+    initial_ratio : float, default 1.0
+        Start of ``r``.
+
 
     Returns
     -------

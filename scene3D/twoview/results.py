@@ -423,7 +423,23 @@ class TwoViewReconstruction(TwoViewGeometry):
 
         ``image_size`` (width, height) is that of the working images ``K`` is for; with
         ``photo_size`` the model is that of the photos they came from (``K`` scaled back,
-        ``dist`` put back: :func:`scene3D.io.colmap.model_for_photos`)."""
+        ``dist`` put back: :func:`scene3D.io.colmap.model_for_photos`).
+
+        Parameters
+        ----------
+        image_size : (int, int)
+            ``(width, height)`` of the working images (px).
+        names : (str, str), default ("image1", "image2")
+            The two images' names.
+        photo_size : (int, int) or None, default None
+            ``(width, height)`` of the photos; None for the working images' model.
+        dist : array_like or None, default None
+            The photos' OpenCV distortion coefficients.
+
+        Returns
+        -------
+        ColmapModel
+        """
         n = len(self.points3d)
         model = colmap_model_from_views(
             list(names), self.K, image_size, np.ones(2, bool),
@@ -443,7 +459,28 @@ class TwoViewReconstruction(TwoViewGeometry):
         ``chapter4.py`` names it), ``cameras.json`` and ``colmap/`` of
         :meth:`colmap_model` and, given the images (their folder, or each one's path by
         its name), ``transforms.json`` (:func:`scene3D.io.model_files.save_model`).
-        Returns the paths written."""
+        Returns the paths written.
+
+        Parameters
+        ----------
+        folder : str or os.PathLike
+            Target folder (created if needed).
+        image_size : (int, int)
+            ``(width, height)`` of the working images (px).
+        names : (str, str), default ("image1", "image2")
+            The two images' names.
+        photo_size : (int, int) or None, default None
+            ``(width, height)`` of the photos; None to write the working images' model.
+        dist : array_like or None, default None
+            The photos' OpenCV distortion coefficients.
+        images : path, mapping of str to path, or None, default None
+            The images' folder, or each image's path by name; None for no
+            ``transforms.json``.
+
+        Returns
+        -------
+        list of Path
+        """
         with all_or_nothing():
             return save_model(folder, self.colmap_model(image_size, names, photo_size, dist),
                               images, points_file="point_cloud.ply")

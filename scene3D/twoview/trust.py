@@ -57,7 +57,22 @@ K_SOURCES: dict[str, _KWords] = {
 
 def k_words(K_source: str) -> _KWords:
     """The words for ``K_source`` (a key of :data:`K_SOURCES`); ``ValueError`` naming the
-    argument for another."""
+    argument for another.
+
+    Parameters
+    ----------
+    K_source : str
+        A key of :data:`K_SOURCES`.
+
+    Returns
+    -------
+    _KWords
+
+    Raises
+    ------
+    ValueError
+        For another ``K_source``.
+    """
     if K_source not in K_SOURCES:
         raise ValueError(f"`K_source` must be one of {', '.join(map(repr, K_SOURCES))}, "
                          f"got {K_source!r}")
@@ -71,7 +86,17 @@ def _deg(angle: float) -> str:
 
 def sigmas_text(rotation_sigma_deg: float, translation_sigma_deg: float) -> str:
     """'translation direction +-2.4 deg, rotation +-0.31 deg (1 sigma)': how warnings quote
-    a pose's uncertainty."""
+    a pose's uncertainty.
+
+    Parameters
+    ----------
+    rotation_sigma_deg, translation_sigma_deg : float
+        1-sigma uncertainties (deg).
+
+    Returns
+    -------
+    str
+    """
     return (f"translation direction +-{_deg(translation_sigma_deg)} deg, rotation "
             f"+-{_deg(rotation_sigma_deg)} deg (1 sigma)")
 
@@ -79,7 +104,19 @@ def sigmas_text(rotation_sigma_deg: float, translation_sigma_deg: float) -> str:
 def beyond_uncertainty_limit(rotation_sigma_deg: float, translation_sigma_deg: float,
                              s: TwoViewSettings) -> bool:
     """``s.uncertainty_sigmas`` standard deviations of the rotation or the translation
-    direction exceed ``s.uncertainty_limit_deg``: too uncertain for the purpose."""
+    direction exceed ``s.uncertainty_limit_deg``: too uncertain for the purpose.
+
+    Parameters
+    ----------
+    rotation_sigma_deg, translation_sigma_deg : float
+        1-sigma uncertainties (deg).
+    s : TwoViewSettings
+        The limits.
+
+    Returns
+    -------
+    bool
+    """
     limit = s.uncertainty_limit_deg / s.uncertainty_sigmas
     return max(rotation_sigma_deg, translation_sigma_deg) > limit
 
@@ -92,6 +129,19 @@ def rival_chi2(fit: EssentialFit, R: FloatArray, t: FloatArray, covariance: Floa
     its decomposition nearest to ``R, t``); 0 when there are none. Within
     :data:`scene3D.optim.uncertainty.CHI2_99_POSE` a rival is one the ``(5, 5)``
     ``covariance`` allows for: the sigmas already say the pose is known no better.
+
+    Parameters
+    ----------
+    fit : EssentialFit
+        The robust fit, with its ``rivals``.
+    R, t : (3, 3), (3,) array_like
+        Relative pose ``x_cam2 = R x_cam1 + t`` (``|t| = 1``: the scale is unknown).
+    covariance : (5, 5) array_like
+        The pose's covariance.
+
+    Returns
+    -------
+    float
     """
     worst = 0.0
     for E in fit.rivals:
@@ -147,6 +197,39 @@ def trust_warnings(uncertainty: PoseUncertainty, num_matches: int, num_inliers: 
       the pose itself may rest on wrong matches that agree.
 
     Every warning quotes the uncertainty.
+
+    Parameters
+    ----------
+    uncertainty : PoseUncertainty
+        The pose's uncertainty.
+    num_matches, num_inliers : int
+        Matches and inliers of the pair.
+    median_parallax_deg : float
+        Median triangulation angle (deg).
+    homography_ratio : float
+        Share of the inliers a homography explains.
+    s : TwoViewSettings
+        The limits.
+    fit : EssentialFit or None, default None
+        The robust fit and its restarts.
+    focal : FocalFit or None, default None
+        Focal length the matches call for.
+    rotation_share : float, default 0.0
+        Share of inliers a pure rotation explains.
+    rivals_chi2 : float, default inf
+        :func:`rival_chi2`.
+    rotation_focal_scale : float, default 1.0
+        Focal factor of the rotation that fitted.
+    focal_ratio : FocalFit or None, default None
+        Image 2's focal length against image 1's.
+    behind_share : float, default 0.0
+        Share of inliers behind a camera beyond the noise.
+    K_source : str, default "calibration"
+        Where ``K`` came from.
+
+    Returns
+    -------
+    list of str
     """
     words = k_words(K_source)
     sigmas = sigmas_text(uncertainty.rotation_sigma_deg, uncertainty.translation_sigma_deg)
@@ -219,7 +302,21 @@ def focal_mismatch(scale: float, sigma_log: float, s: TwoViewSettings) -> bool:
     """A focal length ``scale`` times the calibration's, ``sigma_log`` the standard deviation
     of its log (:class:`scene3D.twoview.focal_fit.FocalFit`), that refutes the calibration: beyond
     ``1 + s.max_focal_mismatch`` either way, by more than ``s.focal_mismatch_sigmas``
-    standard deviations."""
+    standard deviations.
+
+    Parameters
+    ----------
+    scale : float
+        Focal length over the calibration's.
+    sigma_log : float
+        Standard deviation of ``log(scale)``.
+    s : TwoViewSettings
+        The limits.
+
+    Returns
+    -------
+    bool
+    """
     log_scale = abs(np.log(scale))
     return (log_scale > np.log1p(s.max_focal_mismatch)
             and log_scale > s.focal_mismatch_sigmas * sigma_log)
@@ -230,7 +327,21 @@ def focal_agreement(scale: float, sigma_log: float, s: TwoViewSettings) -> bool:
     ``1 + s.max_focal_mismatch`` either way, and known well enough to tell
     (``s.focal_mismatch_sigmas`` standard deviations of its log, ``sigma_log``, inside that
     band). A pair whose matches leave the focal length wide open neither confirms nor
-    refutes (:func:`focal_mismatch`) the calibration."""
+    refutes (:func:`focal_mismatch`) the calibration.
+
+    Parameters
+    ----------
+    scale : float
+        Focal length over the calibration's.
+    sigma_log : float
+        Standard deviation of ``log(scale)``.
+    s : TwoViewSettings
+        The limits.
+
+    Returns
+    -------
+    bool
+    """
     band = np.log1p(s.max_focal_mismatch)
     return bool(abs(np.log(scale)) <= band and s.focal_mismatch_sigmas * sigma_log < band)
 
@@ -248,6 +359,19 @@ def principal_point_warning(K: FloatArray, pts1: FloatArray, pts2: FloatArray,
     of it, far off: the mark of a ``K`` for larger photos (a ``K`` for 3072 px photos
     with matches of a 768 px copy gives a trusted pose 40 deg off). A crop of a corner
     keeps the principal point within half its extent of it.
+
+    Parameters
+    ----------
+    K : (3, 3) array_like
+        Intrinsics.
+    pts1, pts2 : (N, 2) array_like
+        Matched pixels (OpenCV convention) in images 1 and 2.
+    image_size : (int, int) or None, default None
+        ``(width, height)`` in px.
+
+    Returns
+    -------
+    str or None
     """
     if image_size is not None:
         return principal_point_hint(K, image_size) or None
@@ -275,6 +399,29 @@ def check_focal_length(R: FloatArray, t: FloatArray, p1: FloatArray, p2: FloatAr
     are re-selected under the fitted focal lengths (at ``threshold_px``) and the fit
     repeated (as :func:`scene3D.twoview.essential_fit.refine_essential` does for the pose), under
     a Cauchy loss of scale ``scale_px``.
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array_like
+        Relative pose ``x_cam2 = R x_cam1 + t`` (``|t| = 1``: the scale is unknown).
+    p1, p2 : (N, 2) array_like
+        All the correspondences (pixels, OpenCV convention).
+    inliers : (N,) bool ndarray
+        Inliers of the pose.
+    K : (3, 3) array_like
+        The calibration's intrinsics.
+    threshold_px : float
+        Inlier threshold on the Sampson distance (px).
+    scale_px : float
+        Scale of the Cauchy loss (px).
+    rounds : int, default 3
+        Re-selection rounds.
+    fit : callable, default fit_focal_scale
+        :func:`scene3D.twoview.focal_fit.fit_focal_scale` or ``fit_focal_ratio``.
+
+    Returns
+    -------
+    FocalFit
     """
     return _reselected_fit(fit, R, t, p1, p2, inliers, K, threshold_px, scale_px, rounds)
 
@@ -284,7 +431,29 @@ def check_distortion(R: FloatArray, t: FloatArray, p1: FloatArray, p2: FloatArra
                      scale_px: float, rounds: int = 3) -> DistortionFit:
     """The radial lens distortion the matches call for, and the pose with it
     (:func:`scene3D.twoview.distortion_fit.fit_radial_distortion`), the inliers re-selected
-    under it as :func:`check_focal_length` does."""
+    under it as :func:`check_focal_length` does.
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array_like
+        Relative pose ``x_cam2 = R x_cam1 + t`` (``|t| = 1``: the scale is unknown).
+    p1, p2 : (N, 2) array_like
+        All the correspondences (pixels, OpenCV convention).
+    inliers : (N,) bool ndarray
+        Inliers of the pose.
+    K : (3, 3) array_like
+        The calibration's intrinsics.
+    threshold_px : float
+        Inlier threshold on the Sampson distance (px).
+    scale_px : float
+        Scale of the Cauchy loss (px).
+    rounds : int, default 3
+        Re-selection rounds.
+
+    Returns
+    -------
+    DistortionFit
+    """
     return _reselected_fit(fit_radial_distortion, R, t, p1, p2, inliers, K, threshold_px,
                            scale_px, rounds)
 
@@ -330,6 +499,29 @@ def distortion_warning(R: FloatArray, t: FloatArray, fit: DistortionFit, K: Floa
     image corner farthest from the principal point: "the image's corners"); the pose's
     ``uncertainty``, when given, is quoted too; ``K_source`` (:data:`K_SOURCES`) names
     where ``K`` came from.
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array_like
+        Relative pose ``x_cam2 = R x_cam1 + t`` (``|t| = 1``: the scale is unknown).
+    fit : DistortionFit
+        The pose refined with one radial distortion.
+    K : (3, 3) array_like
+        The calibration's intrinsics.
+    far_pixel : (2,) array_like
+        Pixel where the distortion's shift is quoted.
+    where : str
+        Words for ``far_pixel``.
+    s : TwoViewSettings
+        The limits.
+    uncertainty : PoseUncertainty or None, default None
+        Quoted when given.
+    K_source : str, default "calibration"
+        Where ``K`` came from.
+
+    Returns
+    -------
+    str or None
     """
     words = k_words(K_source)
     apart = pose_angle_deg(fit.R, fit.t, R, t)
@@ -364,6 +556,19 @@ def flow_warning(R: FloatArray, t: FloatArray, flow: FlowCheck | None,
     castle-P19 pairs whose second photo shows a strip of the first's scene, trusted 8 and
     11 deg off, their flow poses 7 and 11 deg away with gains of 0.03 and 0.08:
     docs/benchmarks.md).
+
+    Parameters
+    ----------
+    R, t : (3, 3), (3,) array_like
+        Relative pose ``x_cam2 = R x_cam1 + t`` (``|t| = 1``: the scale is unknown).
+    flow : FlowCheck or None
+        The flow's verdict.
+    s : TwoViewSettings
+        The limits.
+
+    Returns
+    -------
+    str or None
     """
     if flow is None or s.max_flow_gain >= 1.0:
         return None

@@ -55,7 +55,19 @@ class Raster:
 def subsample_indices(n: int, at_most: int) -> np.ndarray:
     """Indices of at most ``at_most`` of ``n`` items, evenly spaced (all of them when
     ``n <= at_most``): the same subset every time, spread over the whole list (a dense
-    cloud is stored row by row, so this thins it evenly over the image)."""
+    cloud is stored row by row, so this thins it evenly over the image).
+
+    Parameters
+    ----------
+    n : int
+        Number of items.
+    at_most : int
+        Most indices returned.
+
+    Returns
+    -------
+    (min(n, at_most),) int ndarray
+    """
     if n <= at_most:
         return np.arange(n)
     return (np.arange(max(at_most, 0), dtype=np.int64) * n) // max(at_most, 1)
@@ -73,7 +85,19 @@ def _point(p: np.ndarray) -> tuple[int, int]:
 
 
 def draw_optic_flow(img1: np.ndarray, pts1: FloatArray, pts2: FloatArray) -> Raster:
-    """Arrows from each point of image 1 to its match in image 2, over image 1 in grey."""
+    """Arrows from each point of image 1 to its match in image 2, over image 1 in grey.
+
+    Parameters
+    ----------
+    img1 : (H, W, 3) or (H, W) uint8 ndarray
+        Image 1, BGR or grey.
+    pts1, pts2 : (N, 2) array_like
+        Matched pixels in images 1 and 2 (OpenCV convention).
+
+    Returns
+    -------
+    Raster
+    """
     grey = img1 if img1.ndim == 2 else cv2.cvtColor(img1, cv2.COLOR_BGR2GRAY)
     canvas = cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR)
     for p, q in zip(np.asarray(pts1), np.asarray(pts2)):
@@ -86,7 +110,17 @@ def draw_optic_flow(img1: np.ndarray, pts1: FloatArray, pts2: FloatArray) -> Ras
 
 
 def epipolar_colors(count: int) -> np.ndarray:
-    """``(count, 3)`` distinct bright colours (RGB in [0, 1]): hues a golden angle apart."""
+    """``(count, 3)`` distinct bright colours (RGB in [0, 1]): hues a golden angle apart.
+
+    Parameters
+    ----------
+    count : int
+        Number of colours.
+
+    Returns
+    -------
+    (count, 3) float64 ndarray
+    """
     return np.array([colorsys.hsv_to_rgb((0.1 + 0.618034 * i) % 1.0, 0.85, 0.95)
                      for i in range(count)]).reshape(-1, 3)
 
@@ -97,6 +131,21 @@ def draw_epipolar_lines(img1: np.ndarray, img2: np.ndarray, F: FloatArray, pts1:
 
     Left: image 1 with the lines ``F^T x2`` and the points ``x1``; right: image 2 with
     the lines ``F x1`` and the points ``x2``.
+
+    Parameters
+    ----------
+    img1, img2 : (H, W, 3) or (H, W) uint8 ndarray
+        Images 1 and 2, BGR or grey.
+    F : (3, 3) array_like
+        Fundamental matrix, ``x2^T F x1 = 0``.
+    pts1, pts2 : (N, 2) array_like
+        Matched pixels in images 1 and 2.
+    num_lines : int, default 20
+        Number of matches drawn.
+
+    Returns
+    -------
+    Raster
     """
     idx = subsample_indices(len(pts1), require_whole_number(num_lines, "num_lines"))
     colors = [tuple(int(255 * v) for v in c[::-1]) for c in epipolar_colors(len(idx))]
@@ -119,7 +168,19 @@ def draw_epipolar_lines(img1: np.ndarray, img2: np.ndarray, F: FloatArray, pts1:
 
 
 def draw_rectified(rectified: RectifiedPair, num_rows: int = 20) -> Raster:
-    """The rectified images side by side with horizontal guide lines."""
+    """The rectified images side by side with horizontal guide lines.
+
+    Parameters
+    ----------
+    rectified : RectifiedPair
+        The rectified images.
+    num_rows : int, default 20
+        Number of guide lines.
+
+    Returns
+    -------
+    Raster
+    """
     pair = np.hstack([_bgr(rectified.img1), _bgr(rectified.img2)])
     for y in np.linspace(0, pair.shape[0] - 1, num_rows + 2)[1:-1]:
         yi = int(round(y))
@@ -129,7 +190,17 @@ def draw_rectified(rectified: RectifiedPair, num_rows: int = 20) -> Raster:
 
 def draw_disparity(disparity: np.ndarray) -> Raster:
     """The disparity map (viridis, 1st to 99th percentile), invalid pixels (NaN) white, with
-    a colour bar labelled in pixels on the right."""
+    a colour bar labelled in pixels on the right.
+
+    Parameters
+    ----------
+    disparity : (H, W) ndarray
+        Disparity map (px), NaN where invalid.
+
+    Returns
+    -------
+    Raster
+    """
     finite = np.isfinite(disparity)
     values = disparity[finite]
     lo, hi = (np.percentile(values, [1, 99]) if values.size else (0.0, 1.0))
@@ -155,7 +226,25 @@ def frustum_corners(R: FloatArray, t: FloatArray, K: FloatArray, image_size: tup
                     depth: float) -> FloatArray:
     """World positions ``(V, 5, 3)`` of each camera's centre and its image corners at
     ``depth`` along the optical axis (the frustum to draw), poses ``x_cam = R X + t``.
-    Views with NaN poses give NaN."""
+    Views with NaN poses give NaN.
+
+    Parameters
+    ----------
+    R : (V, 3, 3) array_like
+        World-to-camera rotations.
+    t : (V, 3) array_like
+        World-to-camera translations.
+    K : (3, 3) array_like
+        Intrinsics (OpenCV pixels).
+    image_size : (int, int)
+        ``(width, height)`` in px.
+    depth : float
+        Distance of the corners along the optical axis, in world units.
+
+    Returns
+    -------
+    (V, 5, 3) float64 ndarray
+    """
     R = np.asarray(R, dtype=np.float64).reshape(-1, 3, 3)
     t = np.asarray(t, dtype=np.float64).reshape(-1, 3)
     w, h = image_size
@@ -169,7 +258,17 @@ def frustum_corners(R: FloatArray, t: FloatArray, K: FloatArray, image_size: tup
 
 def robust_extent(points3d: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Lower and upper corners ``(3,), (3,)`` of the 2nd to 98th percentile box of the points
-    (nearest rank; a few far points do not flatten a view). An empty set gives the unit box."""
+    (nearest rank; a few far points do not flatten a view). An empty set gives the unit box.
+
+    Parameters
+    ----------
+    points3d : (N, 3) array_like
+        Points.
+
+    Returns
+    -------
+    low, high : (3,) float64 ndarray
+    """
     points3d = np.asarray(points3d, dtype=np.float64).reshape(-1, 3)
     n = len(points3d)
     if n == 0:
@@ -274,7 +373,19 @@ def render_point_cloud(
 
 
 def titled(raster: Raster, band_px: int = 30) -> np.ndarray:
-    """The raster's image with its title written in a white band above it."""
+    """The raster's image with its title written in a white band above it.
+
+    Parameters
+    ----------
+    raster : Raster
+        A BGR drawing and its title.
+    band_px : int, default 30
+        Height of the title band (px).
+
+    Returns
+    -------
+    (band_px + H, W, 3) uint8 ndarray
+    """
     img = raster.image
     band = np.full((band_px, img.shape[1], 3), 255, np.uint8)
     scale = 0.6
@@ -287,7 +398,24 @@ def titled(raster: Raster, band_px: int = 30) -> np.ndarray:
 
 def encode_png(image: np.ndarray, fast: bool = True) -> bytes:
     """PNG bytes of a BGR (or grey) ``uint8`` image (``cv2.imencode``, which releases the
-    GIL); ``fast`` uses :data:`PNG_FAST_PARAMS`, otherwise OpenCV's defaults."""
+    GIL); ``fast`` uses :data:`PNG_FAST_PARAMS`, otherwise OpenCV's defaults.
+
+    Parameters
+    ----------
+    image : (H, W, 3) or (H, W) uint8 ndarray
+        BGR or grey image.
+    fast : bool, default True
+        Fast compression.
+
+    Returns
+    -------
+    bytes
+
+    Raises
+    ------
+    ValueError
+        If OpenCV cannot encode it.
+    """
     ok, buffer = cv2.imencode(".png", image, list(PNG_FAST_PARAMS) if fast else [])
     if not ok:
         raise ValueError("cv2.imencode could not encode the image as PNG")
@@ -296,7 +424,24 @@ def encode_png(image: np.ndarray, fast: bool = True) -> bytes:
 
 def encode_jpeg(image: np.ndarray, quality: int = 90) -> bytes:
     """JPEG bytes of a BGR (or grey) ``uint8`` image (for embedding in a report: a tenth
-    of the PNG's size for photographs)."""
+    of the PNG's size for photographs).
+
+    Parameters
+    ----------
+    image : (H, W, 3) or (H, W) uint8 ndarray
+        BGR or grey image.
+    quality : int, default 90
+        JPEG quality, 0 to 100.
+
+    Returns
+    -------
+    bytes
+
+    Raises
+    ------
+    ValueError
+        If OpenCV cannot encode it.
+    """
     ok, buffer = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     if not ok:
         raise ValueError("cv2.imencode could not encode the image as JPEG")

@@ -57,7 +57,21 @@ def _axes(ax: Axes | None, ncols: int = 1, figsize: tuple[float, float] = (8, 6)
 
 
 def plot_raster(raster: Raster, ax: Axes | None = None, width_in: float = 10.0) -> Figure:
-    """Show a :class:`scene3D.viz.drawing.Raster` (an OpenCV drawing) with its title."""
+    """Show a :class:`scene3D.viz.drawing.Raster` (an OpenCV drawing) with its title.
+
+    Parameters
+    ----------
+    raster : Raster
+        A BGR drawing and its title.
+    ax : Axes or None, default None
+        Axes to draw in; None for a new figure.
+    width_in : float, default 10.0
+        Width of a new figure (inches).
+
+    Returns
+    -------
+    Figure
+    """
     h, w = raster.image.shape[:2]
     fig, (ax,) = _axes(ax, figsize=(width_in, width_in * h / w + 0.5))
     ax.imshow(raster.image[..., ::-1])
@@ -69,7 +83,21 @@ def plot_raster(raster: Raster, ax: Axes | None = None, width_in: float = 10.0) 
 def plot_optic_flow(
     img1: np.ndarray, pts1: FloatArray, pts2: FloatArray, ax: Axes | None = None
 ) -> Figure:
-    """Arrows from each point of image 1 to its match in image 2, drawn over image 1."""
+    """Arrows from each point of image 1 to its match in image 2, drawn over image 1.
+
+    Parameters
+    ----------
+    img1 : (H, W, 3) or (H, W) uint8 ndarray
+        Image 1, BGR or grey.
+    pts1, pts2 : (N, 2) array_like
+        Matched pixels in images 1 and 2 (OpenCV convention).
+    ax : Axes or None, default None
+        Axes to draw in; None for a new figure.
+
+    Returns
+    -------
+    Figure
+    """
     return plot_raster(draw_optic_flow(img1, pts1, pts2), ax)
 
 
@@ -86,6 +114,23 @@ def plot_epipolar_lines(
 
     Left: image 1 with the lines ``F^T x2`` and the points ``x1``; right: image 2
     with the lines ``F x1`` and the points ``x2``.
+
+    Parameters
+    ----------
+    img1, img2 : (H, W, 3) or (H, W) uint8 ndarray
+        Images 1 and 2, BGR or grey.
+    F : (3, 3) array_like
+        Fundamental matrix, ``x2^T F x1 = 0``.
+    pts1, pts2 : (N, 2) array_like
+        Matched pixels in images 1 and 2.
+    num_lines : int, default 20
+        Number of matches drawn.
+    ax : Axes or None, default None
+        Axes to draw in; None for a new figure.
+
+    Returns
+    -------
+    Figure
     """
     return plot_raster(draw_epipolar_lines(img1, img2, F, pts1, pts2, num_lines), ax,
                        width_in=14.0)
@@ -93,7 +138,21 @@ def plot_epipolar_lines(
 
 def plot_rectified(rectified: RectifiedPair, num_rows: int = 20,
                    ax: Axes | None = None) -> Figure:
-    """The rectified images side by side with horizontal guide lines."""
+    """The rectified images side by side with horizontal guide lines.
+
+    Parameters
+    ----------
+    rectified : RectifiedPair
+        The rectified images.
+    num_rows : int, default 20
+        Number of guide lines.
+    ax : Axes or None, default None
+        Axes to draw in; None for a new figure.
+
+    Returns
+    -------
+    Figure
+    """
     return plot_raster(draw_rectified(rectified, num_rows), ax, width_in=14.0)
 
 
@@ -179,6 +238,21 @@ def plot_calibration_coverage(
 
     Empty cells (especially at the border, where distortion is largest) mean the
     distortion there is extrapolated, not measured.
+
+    Parameters
+    ----------
+    image_points : list of (N_v, 2) ndarray
+        Detected corners of each view (pixels).
+    image_size : (int, int)
+        ``(width, height)`` in px.
+    counts : (rows, cols) int ndarray
+        Corners per cell (:func:`scene3D.calibration.board.corner_coverage`).
+    ax : Axes or None, default None
+        Axes to draw in; None for a new figure.
+
+    Returns
+    -------
+    Figure
     """
     fig, (ax,) = _axes(ax, figsize=(8, 6))
     w, h = image_size
@@ -202,7 +276,21 @@ def plot_view_errors(
     per_view_errors_px: dict[str, float], rejected_views: dict[str, float] | None = None,
     ax: Axes | None = None,
 ) -> Figure:
-    """Bar chart of the RMS reprojection error of each view (dropped views in red)."""
+    """Bar chart of the RMS reprojection error of each view (dropped views in red).
+
+    Parameters
+    ----------
+    per_view_errors_px : dict[str, float]
+        RMS reprojection error (px) of each kept view, by name.
+    rejected_views : dict[str, float] or None, default None
+        Those of the dropped views.
+    ax : Axes or None, default None
+        Axes to draw in; None for a new figure.
+
+    Returns
+    -------
+    Figure
+    """
     rejected_views = rejected_views or {}
     fig, (ax,) = _axes(ax, figsize=(max(6, 0.4 * (len(per_view_errors_px) + 4)), 4))
     names = list(per_view_errors_px) + list(rejected_views)
@@ -220,7 +308,19 @@ def plot_view_errors(
 
 
 def plot_disparity(disparity: np.ndarray, ax: Axes | None = None) -> Figure:
-    """The disparity map (pixels) with a colour bar; invalid pixels (NaN) are white."""
+    """The disparity map (pixels) with a colour bar; invalid pixels (NaN) are white.
+
+    Parameters
+    ----------
+    disparity : (H, W) ndarray
+        Disparity map (px), NaN where invalid.
+    ax : Axes or None, default None
+        Axes to draw in; None for a new figure.
+
+    Returns
+    -------
+    Figure
+    """
     return plot_raster(draw_disparity(disparity), ax)
 
 
@@ -293,7 +393,19 @@ def plot_cameras_and_points(
 
 def plot_uncertainty_map(umap: UncertaintyMap, ax: Axes | None = None) -> Figure:
     """Heat map of the projection uncertainty (1 sigma, worst direction, pixels) over the
-    image, with contours, its median and worst values, and the corners' values."""
+    image, with contours, its median and worst values, and the corners' values.
+
+    Parameters
+    ----------
+    umap : UncertaintyMap
+        The projection uncertainty over the image.
+    ax : Axes or None, default None
+        Axes to draw in; None for a new figure.
+
+    Returns
+    -------
+    Figure
+    """
     w, h = umap.image_size
     # The image's aspect, with room for the title above and the colour bar beside it.
     fig, (ax,) = _axes(ax, figsize=(9, min(7.2 * h / w, 9.0) + 1.3))
