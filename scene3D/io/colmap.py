@@ -20,272 +20,28 @@ its own camera pose.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
-import cv2
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ..geometry.camera import scale_intrinsics_resize, validate_distortion
 from ..geometry.conventions import (
     FloatArray,
-    camera_centers,
     quaternion_from_rotation,
     rotation_from_quaternion,
 )
+from .colmap_model import (  # noqa: F401 - the model's types, from here as before
+    CAMERA_MODELS,
+    MODEL_FILES,
+    ColmapCamera,
+    ColmapFormatError,
+    ColmapModel,
+    distorted_pixels,
+    project_points,
+)
 from .export import write_text_files
-
-#: The COLMAP camera models read and written, with their parameters in file order.
-CAMERA_MODELS: dict[str, tuple[str, ...]] = {
-    "SIMPLE_PINHOLE": ("f", "cx", "cy"),
-    "PINHOLE": ("fx", "fy", "cx", "cy"),
-    "SIMPLE_RADIAL": ("f", "cx", "cy", "k"),
-    "RADIAL": ("f", "cx", "cy", "k1", "k2"),
-    "OPENCV": ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2"),
-    "FULL_OPENCV": ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"),
-}
-
-#: The names of the three files of a text model.
-MODEL_FILES = ("cameras.txt", "images.txt", "points3D.txt")
-
-
-class ColmapFormatError(ValueError):
-    """A COLMAP text file that cannot be read: the message names the file and line."""
-
-
-@dataclass(frozen=True)
-class ColmapCamera:
-    """One camera of a COLMAP model.
-
-    Attributes
-    ----------
-    model : str
-        COLMAP's model name, one of :data:`CAMERA_MODELS`.
-    width, height : int
-        Size of the images in pixels.
-    params : tuple[float, ...]
-        The parameters as COLMAP stores them (principal point with pixel centres at
-        +0.5), in the order of ``CAMERA_MODELS[model]``.
-    """
-
-    model: str
-    width: int
-    height: int
-    params: tuple[float, ...]
-
-    def __post_init__(self) -> None:
-        if self.model not in CAMERA_MODELS:
-            raise ValueError(f"camera model '{self.model}' is not supported (supported: "
-                             f"{', '.join(CAMERA_MODELS)})")
-        if len(self.params) != len(CAMERA_MODELS[self.model]):
-            raise ValueError(f"camera model {self.model} has {len(CAMERA_MODELS[self.model])} "
-                             f"parameters, got {len(self.params)}")
-
-    @property
-    def image_size(self) -> tuple[int, int]:
-        """(width, height) in pixels."""
-        return (self.width, self.height)
-
-    @property
-    def _named(self) -> dict[str, float]:
-        return dict(zip(CAMERA_MODELS[self.model], self.params))
-
-    @property
-    def K(self) -> FloatArray:
-        """Intrinsics ``(3, 3)`` in the OpenCV pixel convention."""
-        p = self._named
-        fx, fy = p.get("fx", p.get("f")), p.get("fy", p.get("f"))
-        return np.array([[fx, 0.0, p["cx"] - 0.5], [0.0, fy, p["cy"] - 0.5], [0.0, 0.0, 1.0]])
-
-    @property
-    def dist(self) -> FloatArray:
-        """OpenCV distortion coefficients: ``(0,)`` for the pinhole models, else
-        ``(k1, k2, p1, p2)`` or, for FULL_OPENCV, ``(k1, k2, p1, p2, k3, k4, k5, k6)``."""
-        p = self._named
-        if self.model in ("SIMPLE_PINHOLE", "PINHOLE"):
-            return np.zeros(0)
-        if self.model == "SIMPLE_RADIAL":
-            return np.array([p["k"], 0.0, 0.0, 0.0])
-        if self.model == "RADIAL":
-            return np.array([p["k1"], p["k2"], 0.0, 0.0])
-        return np.array([p[name] for name in CAMERA_MODELS[self.model][4:]])
-
-    @classmethod
-    def from_opencv(cls, K: ArrayLike, dist: ArrayLike | None,
-                    image_size: tuple[int, int]) -> ColmapCamera:
-        """The camera of OpenCV's ``K`` ``(3, 3)`` and ``dist`` for images of
-        ``image_size`` (width, height): PINHOLE without distortion, SIMPLE_RADIAL or
-        RADIAL with ``k1[, k2]`` only and square pixels, OPENCV with ``k1, k2, p1, p2``,
-        FULL_OPENCV with ``k3``..``k6``.
-
-        Parameters
-        ----------
-        K : (3, 3) array_like
-            Intrinsics (OpenCV pixels, no skew).
-        dist : array_like or None
-            OpenCV distortion coefficients; None for none.
-        image_size : (int, int)
-            ``(width, height)`` in px.
-
-        Returns
-        -------
-        ColmapCamera
-
-
-        Raises
-        ------
-        ValueError
-            ``K`` has a skew, or ``dist`` has thin-prism or tilt terms (COLMAP's
-            perspective models have neither).
-        """
-        K = np.asarray(K, dtype=np.float64)
-        if K.shape != (3, 3):
-            raise ValueError(f"`K` must have shape (3, 3), got {K.shape}")
-        if K[0, 1] != 0:
-            raise ValueError(f"`K` has a skew ({K[0, 1]:g}), which COLMAP's models cannot hold")
-        d = np.zeros(14)
-        given = validate_distortion(dist)
-        d[:given.size] = given
-        if np.any(d[8:] != 0):
-            raise ValueError("`dist` has thin-prism or tilt coefficients, which COLMAP's "
-                             "perspective models cannot hold")
-        base = (K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5)
-        width, height = (int(v) for v in image_size)
-        if np.any(d[4:8] != 0):
-            return cls("FULL_OPENCV", width, height, tuple(float(v) for v in (*base, *d[:8])))
-        if np.any(d[:4] != 0):
-            if K[0, 0] == K[1, 1] and not np.any(d[2:4]):  # radial only, square pixels
-                simple = (K[0, 0], *base[2:], d[0]) + ((d[1],) if d[1] else ())
-                return cls("RADIAL" if d[1] else "SIMPLE_RADIAL", width, height,
-                           tuple(float(v) for v in simple))
-            return cls("OPENCV", width, height, tuple(float(v) for v in (*base, *d[:4])))
-        return cls("PINHOLE", width, height, tuple(float(v) for v in base))
-
-
-@dataclass(frozen=True)
-class ColmapModel:
-    """Cameras, image poses and points of a COLMAP model, in scene3D's conventions.
-
-    ``V`` images (in the order of their ids), ``P`` points, ``O`` observations.
-
-    Attributes
-    ----------
-    cameras : dict[int, ColmapCamera]
-        By camera id.
-    image_ids : (V,) int
-    names : tuple[str, ...]
-        The image names (paths relative to the image folder).
-    camera_ids : (V,) int
-        The camera of each image.
-    R : (V, 3, 3) float64
-        World-to-camera rotations, ``x_cam = R @ X + t``.
-    t : (V, 3) float64
-        World-to-camera translations.
-    point_ids : (P,) int
-    points3d : (P, 3) float64
-        Points in the world frame.
-    colors : (P, 3) uint8
-        RGB colour of each point.
-    errors_px : (P,) float64
-        The mean reprojection error of each point, as the file says.
-    obs_view : (O,) int
-        Index (into ``names``) of the image of each observation.
-    obs_point : (O,) int
-        Index (into ``points3d``) of its point.
-    obs_xy : (O, 2) float64
-        Its pixel, OpenCV convention.
-    """
-
-    cameras: dict[int, ColmapCamera]
-    image_ids: np.ndarray
-    names: tuple[str, ...]
-    camera_ids: np.ndarray
-    R: FloatArray
-    t: FloatArray
-    point_ids: np.ndarray
-    points3d: FloatArray
-    colors: np.ndarray
-    errors_px: FloatArray
-    obs_view: np.ndarray
-    obs_point: np.ndarray
-    obs_xy: FloatArray
-
-    @property
-    def centers(self) -> FloatArray:
-        """Camera centres ``C = -R^T t`` ``(V, 3)`` in the world frame."""
-        return camera_centers(self.R, self.t)
-
-    def camera(self, view: int) -> ColmapCamera:
-        """The camera of image ``view`` (an index into ``names``).
-
-        Parameters
-        ----------
-        view : int
-            Index into ``names``.
-
-        Returns
-        -------
-        ColmapCamera
-        """
-        return self.cameras[int(self.camera_ids[view])]
-
-    def reprojection_errors_px(self) -> FloatArray:
-        """The distance in pixels between each observation and its point projected with
-        its image's camera (distortion included) ``(O,)``."""
-        errors = np.empty(len(self.obs_view))
-        for v in range(len(self.names)):
-            mine = np.nonzero(self.obs_view == v)[0]
-            if mine.size == 0:
-                continue
-            camera = self.camera(v)
-            projected = project_points(self.points3d[self.obs_point[mine]], camera.K,
-                                       camera.dist, self.R[v], self.t[v])
-            errors[mine] = np.linalg.norm(projected - self.obs_xy[mine], axis=1)
-        return errors
-
-    def point_errors_px(self) -> FloatArray:
-        """The mean of :meth:`reprojection_errors_px` over each point's observations
-        ``(P,)`` (0 for a point without any)."""
-        sums = np.bincount(self.obs_point, self.reprojection_errors_px(),
-                           minlength=len(self.points3d))
-        counts = np.bincount(self.obs_point, minlength=len(self.points3d))
-        return sums / np.maximum(counts, 1)
-
-
-def project_points(points3d: FloatArray, K: FloatArray, dist: FloatArray, R: FloatArray,
-                   t: FloatArray) -> FloatArray:
-    """Pixels ``(N, 2)`` of world points ``(N, 3)`` in a camera ``x_cam = R X + t`` with
-    intrinsics ``K`` and OpenCV distortion ``dist`` (OpenCV pixel convention).
-
-    Parameters
-    ----------
-    points3d : (N, 3) array_like
-        World points.
-    K : (3, 3) array_like
-        Intrinsics (OpenCV pixels).
-    dist : (n,) array_like
-        OpenCV distortion coefficients (empty for none).
-    R, t : (3, 3), (3,) array_like
-        World-to-camera pose.
-
-    Returns
-    -------
-    (N, 2) float64 ndarray
-    """
-    if len(points3d) == 0:
-        return np.zeros((0, 2))
-    cam = np.asarray(points3d, np.float64) @ np.asarray(R).T + np.asarray(t)
-    return _distorted_pixels(cam[:, :2] / cam[:, 2:], K, dist)
-
-
-def _distorted_pixels(normalized: FloatArray, K: FloatArray, dist: FloatArray) -> FloatArray:
-    """Pixels of normalized image coordinates ``(N, 2)`` through ``dist`` and ``K``."""
-    if dist.size == 0 or not np.any(dist):
-        return normalized @ K[:2, :2].T + K[:2, 2]
-    rays = np.column_stack([normalized, np.ones(len(normalized))])
-    pixels, _ = cv2.projectPoints(rays.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K, dist)
-    return pixels.reshape(-1, 2).astype(np.float64)
 
 
 def model_for_photos(model: ColmapModel, photo_size: tuple[int, int],
@@ -334,7 +90,7 @@ def model_for_photos(model: ColmapModel, photo_size: tuple[int, int],
         cameras[cam_id] = ColmapCamera.from_opencv(K, dist, photo_size)
         mine = np.isin(model.obs_view, np.nonzero(model.camera_ids == cam_id)[0])
         normalized = (xy[mine] - camera.K[:2, 2]) / np.diag(camera.K)[:2]
-        xy[mine] = _distorted_pixels(normalized, K, dist)
+        xy[mine] = distorted_pixels(normalized, K, dist)
     scaled = replace(model, cameras=cameras, obs_xy=xy)
     return replace(scaled, errors_px=scaled.point_errors_px())
 

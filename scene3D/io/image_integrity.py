@@ -211,3 +211,113 @@ def _check_tiff(data: np.ndarray, path: str | os.PathLike) -> None:
             if end > n:
                 raise _truncated(path, "TIFF", f"its image data runs to byte {end}, past its "
                                                f"{n} bytes")
+
+
+# -- headers: the size a file claims, and whether its bytes can hold it ------------------
+
+def header_size(head: bytes | np.ndarray) -> tuple[int, int] | None:
+    """``(width, height)`` from the first bytes of a JPEG or PNG file, or None.
+
+    Reads the JPEG frame header (SOFn marker) or the PNG IHDR chunk; None for
+    other formats, or when the header is not within ``head``.
+
+    Parameters
+    ----------
+    head : bytes or uint8 ndarray
+        The file's first bytes.
+
+    Returns
+    -------
+    (int, int) or None
+    """
+    head = memoryview(head).cast("B")
+    if bytes(head[:8]) == b"\x89PNG\r\n\x1a\n" and len(head) >= 24:
+        return (int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big"))
+    frame = _jpeg_frame(head)
+    return frame[1] if frame is not None else None
+
+
+def _jpeg_frame(head: memoryview) -> tuple[int, tuple[int, int], list[tuple[int, int]]] | None:
+    """The first JPEG frame header in ``head``: ``(marker, (width, height), sampling)``.
+
+    ``sampling`` holds each component's ``(H, V)`` sampling factors (empty when the
+    header is cut off within them); None when ``head`` is not a JPEG or holds no frame.
+    """
+    if bytes(head[:2]) != b"\xff\xd8":
+        return None
+    i = 2
+    while i + 9 <= len(head):
+        if head[i] != 0xFF:
+            return None
+        marker = head[i + 1]
+        if marker == 0xFF:  # fill byte
+            i += 1
+            continue
+        if marker == 0x01 or 0xD0 <= marker <= 0xD7:  # TEM, RSTn: no length field
+            i += 2
+            continue
+        # Frame headers SOF0..SOF15, except DHT (C4), JPG (C8) and DAC (CC).
+        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+            height = int.from_bytes(head[i + 5:i + 7], "big")
+            width = int.from_bytes(head[i + 7:i + 9], "big")
+            if not (width and height):
+                return None
+            count = head[i + 9] if i + 9 < len(head) else 0
+            end = i + 10 + 3 * count
+            sampling = ([(head[j] >> 4, head[j] & 15) for j in range(i + 11, end, 3)]
+                        if end <= len(head) else [])
+            return marker, (width, height), sampling
+        i += 2 + int.from_bytes(head[i + 2:i + 4], "big")
+    return None
+
+
+#: JPEG frame markers of Huffman coding (the arithmetic-coded ones, C9-CF, can be
+#: smaller than one bit per block).
+_HUFFMAN_FRAMES = frozenset({0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7})
+
+
+def _ceil_div(a: int, b: int) -> int:
+    return -(-a // b)
+
+
+def _jpeg_min_bytes(frame: tuple[int, tuple[int, int], list[tuple[int, int]]]) -> int:
+    """A lower bound on the size of a complete Huffman-coded JPEG with this frame header.
+
+    Every 8x8 block of every component carries at least its DC code, a Huffman code
+    of at least one bit. Halved for safety; 0 when the bound does not apply.
+    """
+    marker, (width, height), sampling = frame
+    if marker not in _HUFFMAN_FRAMES or not sampling or min(min(s) for s in sampling) < 1:
+        return 0
+    h_max = max(h for h, _ in sampling)
+    v_max = max(v for _, v in sampling)
+    blocks = sum(_ceil_div(_ceil_div(width * h, h_max), 8)
+                 * _ceil_div(_ceil_div(height * v, v_max), 8) for h, v in sampling)
+    return blocks // 16
+
+
+def check_header(head: bytes | np.ndarray, file_bytes: int, path: str | os.PathLike) -> None:
+    """Raise ``ValueError`` when a JPEG's header claims more pixels than its
+    ``file_bytes`` can hold (a damaged or tampered header), naming ``path``.
+
+    Cheap: no pixel is decoded.
+
+    Parameters
+    ----------
+    head : bytes or uint8 ndarray
+        The file's first bytes.
+    file_bytes : int
+        The file's size in bytes.
+    path : path
+        The file, for the message.
+
+    Raises
+    ------
+    ValueError
+        The header claims more pixels than the file can hold.
+    """
+    frame = _jpeg_frame(memoryview(head).cast("B"))
+    if frame is not None and file_bytes < _jpeg_min_bytes(frame):
+        w, h = frame[1]
+        raise ValueError(f"cannot read image '{path}': a damaged JPEG file (its header says "
+                         f"{w}x{h} pixels, more than its {file_bytes} bytes can hold)")

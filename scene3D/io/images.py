@@ -11,7 +11,6 @@ Pixel centres map as ``x' = (x + 0.5) / 2^L - 0.5`` (see
 from __future__ import annotations
 
 import glob
-import io
 import logging
 import os
 from collections import deque
@@ -22,10 +21,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..errors import first_line
 from ..geometry.camera import different_sizes_message, has_distortion, undistort_image
 from ..geometry.conventions import image_size
-from .image_integrity import intact_image_data, jpeg_cut_short
+from .heif import (  # noqa: F401 - register_heif_opener, from here as before
+    decode_heif,
+    heif_size,
+    is_heif,
+    register_heif_opener,
+)
+from .image_integrity import check_header, header_size, intact_image_data, jpeg_cut_short
 
 logger = logging.getLogger(__name__)
 
@@ -176,116 +180,11 @@ def _read_bytes(path: str | os.PathLike) -> np.ndarray:
     return data
 
 
-#: Major brands of the ISO media file box ("ftyp") of HEIC/HEIF photos (as iPhones take
-#: them), which OpenCV cannot decode (AVIF, another brand of that container, it can).
-_HEIF_BRANDS = {b"heic", b"heix", b"heim", b"heis", b"hevc", b"hevx", b"mif1", b"msf1"}
-
-
-#: Brands of that container that mark AV1 images (AVIF), which OpenCV decodes itself.
-_AVIF_BRANDS = {b"avif", b"avis"}
-
-
-def is_heif(head: bytes | np.ndarray) -> bool:
-    """Whether the first bytes of a file are those of a HEIC/HEIF photo: an ISO media
-    ``ftyp`` box naming a HEIF brand and no AVIF one (an AVIF file may name ``mif1``
-    first and ``avif`` among its compatible brands).
-
-    Parameters
-    ----------
-    head : bytes or uint8 ndarray
-        The file's first bytes (64 suffice).
-
-    Returns
-    -------
-    bool
-    """
-    head = bytes(memoryview(head).cast("B")[:64])
-    if head[4:8] != b"ftyp":
-        return False
-    end = min(int.from_bytes(head[:4], "big"), len(head))
-    brands = {head[8:12]} | {head[i:i + 4] for i in range(16, end - 3, 4)}
-    return head[8:12] in _HEIF_BRANDS and not brands & _AVIF_BRANDS
-
-
-def register_heif_opener() -> bool:
-    """Let Pillow open HEIC/HEIF files; False when ``pillow-heif`` is not installed."""
-    try:
-        from pillow_heif import register_heif_opener as register
-    except ImportError:
-        return False
-    register()
-    return True
-
-
-def _require_heif_opener(path: str | os.PathLike) -> None:
-    """:func:`register_heif_opener`, or a ``ValueError`` naming ``path`` and how to get
-    ``pillow-heif``."""
-    if not register_heif_opener():
-        raise ValueError(f"cannot read image '{path}': a HEIC/HEIF photo, which needs "
-                         "pillow-heif (pip install 'scene3D[heic]'), or convert it to JPEG "
-                         "(heif-convert, or export as JPEG from the photo app)")
-
-
-def _damaged_heif(path: str | os.PathLike, exc: Exception) -> ValueError:
-    """The error for a HEIC/HEIF file libheif cannot read, with its reason."""
-    return ValueError(f"cannot read image '{path}': a damaged HEIC/HEIF file "
-                      f"({first_line(exc)})")
-
-
-#: How to undo each EXIF orientation (1-8) on an (H, W, ...) array: what libheif applied
-#: to the stored pixels to show them (2, 4, 5, 7 mirror; 3, 6, 8 turn).
-_UNDO_ORIENTATION = {
-    2: lambda a: a[:, ::-1], 3: lambda a: a[::-1, ::-1], 4: lambda a: a[::-1],
-    5: lambda a: a.swapaxes(0, 1), 6: lambda a: np.rot90(a, 1),
-    7: lambda a: a[::-1, ::-1].swapaxes(0, 1), 8: lambda a: np.rot90(a, -1),
-}
-
-
-def _open_heif(source, path: str | os.PathLike):
-    """The Pillow image of a HEIC/HEIF file (``source``: its path or a file object) and
-    the EXIF orientation libheif applied."""
-    from PIL import Image
-
-    _require_heif_opener(path)
-    try:
-        img = Image.open(source)
-        img.size  # noqa: B018 - the header is read here
-    except Exception as exc:  # noqa: BLE001 - libheif's errors come as several types
-        raise _damaged_heif(path, exc) from None
-    return img, img.info.get("original_orientation") or 1
-
-
-def _decode_heif(data: np.ndarray, path: str | os.PathLike) -> np.ndarray:
-    """A HEIC/HEIF photo's primary image as stored, BGR ``uint8`` (grey ``(H, W)``),
-    alpha dropped. libheif turns the pixels as the file says they are shown; the
-    turn its EXIF orientation records is undone, so that a portrait photo's pixels keep
-    the sensor's layout as a JPEG's do (:func:`read_image`)."""
-    img, orientation = _open_heif(io.BytesIO(data.tobytes()), path)
-    try:
-        with img:
-            grey = img.mode in ("L", "I;16", "I")
-            pixels = np.asarray(img.convert("L" if grey else "RGB"))
-    except Exception as exc:  # noqa: BLE001 - as in _open_heif
-        raise _damaged_heif(path, exc) from None
-    if not grey:
-        pixels = pixels[:, :, ::-1]  # RGB -> BGR
-    undo = _UNDO_ORIENTATION.get(orientation)
-    return np.ascontiguousarray(undo(pixels) if undo else pixels)
-
-
-def _heif_size(path: str | os.PathLike) -> tuple[int, int]:
-    """``(width, height)`` of a HEIC/HEIF photo as stored, from its header."""
-    img, orientation = _open_heif(path, path)
-    with img:
-        w, h = img.size
-    return (h, w) if orientation in (5, 6, 7, 8) else (w, h)
-
-
 def _decode(data: np.ndarray, flags: int, path: str | os.PathLike) -> np.ndarray:
     head = data[:_HEADER_BYTES]
     if is_heif(head):
-        return _decode_heif(data, path)
-    _check_header(head, data.size, path)
+        return decode_heif(data, path)
+    check_header(head, data.size, path)
     data = intact_image_data(data, path)
     try:
         img = cv2.imdecode(data, flags | cv2.IMREAD_IGNORE_ORIENTATION)
@@ -338,100 +237,6 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     return _decode(_read_bytes(path), _AS_STORED, path)
 
 
-def header_size(head: bytes | np.ndarray) -> tuple[int, int] | None:
-    """``(width, height)`` from the first bytes of a JPEG or PNG file, or None.
-
-    Reads the JPEG frame header (SOFn marker) or the PNG IHDR chunk; None for
-    other formats, or when the header is not within ``head``.
-
-    Parameters
-    ----------
-    head : bytes or uint8 ndarray
-        The file's first bytes.
-
-    Returns
-    -------
-    (int, int) or None
-    """
-    head = memoryview(head).cast("B")
-    if bytes(head[:8]) == b"\x89PNG\r\n\x1a\n" and len(head) >= 24:
-        return (int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big"))
-    frame = _jpeg_frame(head)
-    return frame[1] if frame is not None else None
-
-
-def _jpeg_frame(head: memoryview) -> tuple[int, tuple[int, int], list[tuple[int, int]]] | None:
-    """The first JPEG frame header in ``head``: ``(marker, (width, height), sampling)``.
-
-    ``sampling`` holds each component's ``(H, V)`` sampling factors (empty when the
-    header is cut off within them); None when ``head`` is not a JPEG or holds no frame.
-    """
-    if bytes(head[:2]) != b"\xff\xd8":
-        return None
-    i = 2
-    while i + 9 <= len(head):
-        if head[i] != 0xFF:
-            return None
-        marker = head[i + 1]
-        if marker == 0xFF:  # fill byte
-            i += 1
-            continue
-        if marker == 0x01 or 0xD0 <= marker <= 0xD7:  # TEM, RSTn: no length field
-            i += 2
-            continue
-        # Frame headers SOF0..SOF15, except DHT (C4), JPG (C8) and DAC (CC).
-        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
-            height = int.from_bytes(head[i + 5:i + 7], "big")
-            width = int.from_bytes(head[i + 7:i + 9], "big")
-            if not (width and height):
-                return None
-            count = head[i + 9] if i + 9 < len(head) else 0
-            end = i + 10 + 3 * count
-            sampling = ([(head[j] >> 4, head[j] & 15) for j in range(i + 11, end, 3)]
-                        if end <= len(head) else [])
-            return marker, (width, height), sampling
-        i += 2 + int.from_bytes(head[i + 2:i + 4], "big")
-    return None
-
-
-#: JPEG frame markers of Huffman coding (the arithmetic-coded ones, C9-CF, can be
-#: smaller than one bit per block).
-_HUFFMAN_FRAMES = frozenset({0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7})
-
-
-def _ceil_div(a: int, b: int) -> int:
-    return -(-a // b)
-
-
-def _jpeg_min_bytes(frame: tuple[int, tuple[int, int], list[tuple[int, int]]]) -> int:
-    """A lower bound on the size of a complete Huffman-coded JPEG with this frame header.
-
-    Every 8x8 block of every component carries at least its DC code, a Huffman code
-    of at least one bit. Halved for safety; 0 when the bound does not apply.
-    """
-    marker, (width, height), sampling = frame
-    if marker not in _HUFFMAN_FRAMES or not sampling or min(min(s) for s in sampling) < 1:
-        return 0
-    h_max = max(h for h, _ in sampling)
-    v_max = max(v for _, v in sampling)
-    blocks = sum(_ceil_div(_ceil_div(width * h, h_max), 8)
-                 * _ceil_div(_ceil_div(height * v, v_max), 8) for h, v in sampling)
-    return blocks // 16
-
-
-def _check_header(head: bytes | np.ndarray, file_bytes: int, path: str | os.PathLike) -> None:
-    """Raise ``ValueError`` when a JPEG's header claims more pixels than its
-    ``file_bytes`` can hold (a damaged or tampered header), naming ``path``.
-
-    ``head`` is the first bytes of the file. Cheap: no pixel is decoded.
-    """
-    frame = _jpeg_frame(memoryview(head).cast("B"))
-    if frame is not None and file_bytes < _jpeg_min_bytes(frame):
-        w, h = frame[1]
-        raise ValueError(f"cannot read image '{path}': a damaged JPEG file (its header says "
-                         f"{w}x{h} pixels, more than its {file_bytes} bytes can hold)")
-
-
 def read_image_size(path: str | os.PathLike) -> tuple[int, int]:
     """``(width, height)`` of an image file as stored: from its header (JPEG and PNG here,
     TIFF, WebP and others through Pillow), else by decoding it.
@@ -451,9 +256,9 @@ def read_image_size(path: str | os.PathLike) -> tuple[int, int]:
     if path.is_file():
         with open(path, "rb") as f:
             head = f.read(_HEADER_BYTES)
-            _check_header(head, os.fstat(f.fileno()).st_size, path)  # JPEG only
+            check_header(head, os.fstat(f.fileno()).st_size, path)  # JPEG only
         if is_heif(head):  # read from its header, without decoding
-            return _heif_size(path)
+            return heif_size(path)
         size = header_size(head) or _pillow_size(path)
         if size is not None:
             return size
