@@ -15,7 +15,8 @@ from scene3D.geometry.lens import (
     undistort_normalized,
     undistort_pixels,
 )
-from scene3D.optim.bundle import Observations, bundle_adjust_radial, radial_projection
+from scene3D.optim.bundle import Observations
+from scene3D.optim.bundle_radial import bundle_adjust_radial, radial_projection
 
 K = np.array([[700.0, 0, 320.0], [0, 700.0, 240.0], [0, 0, 1]])
 

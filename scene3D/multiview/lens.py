@@ -11,7 +11,7 @@ estimate:
    the keypoints are undistorted with a first guess from the pairs with most matches
    (:func:`pair_lens_guess`) and the views reconstructed again.
 2. The largest model is adjusted on the photographed keypoints with the focal length and
-   the coefficients free (:func:`scene3D.optim.bundle.bundle_adjust_radial`), starting from
+   the coefficients free (:func:`scene3D.optim.bundle_radial.bundle_adjust_radial`), starting from
    the lens its keypoints were undistorted with (exact: pixels undistorted with one
    focal length and taken by a pinhole camera of another are an exact radial camera,
    :func:`scene3D.geometry.lens.rescaled_coefficients`).
@@ -36,7 +36,8 @@ import numpy as np
 
 from ..geometry.conventions import FloatArray
 from ..geometry.lens import distort_pixels, rescaled_coefficients, undistort_pixels
-from ..optim.bundle import Observations, RadialAdjustment, bundle_adjust_radial
+from ..optim.bundle import Observations
+from ..optim.bundle_radial import RadialAdjustment, bundle_adjust_radial
 from ..twoview.distortion_fit import fit_radial_distortion
 from .focal import FocalSettings
 from .models import PairMatches, SfMModel, ViewFeatures

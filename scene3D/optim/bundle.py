@@ -82,11 +82,25 @@ def whitened_residuals(R: FloatArray, t: FloatArray, points3d: FloatArray, obs: 
     return r if obs.sigma is None else r / obs.sigma[:, None]
 
 
-def _whitened_reweighting(r: FloatArray, obs: Observations, loss: str,
-                          scale_px: float) -> tuple[FloatArray, FloatArray]:
-    """:func:`scene3D.optim.least_squares.reweighting` of the whitened residuals ``r`` ``(O, 2)``
-    (:func:`whitened_residuals`), its row scales divided by ``obs.sigma`` too: the
-    whitened residuals' derivatives are the plain ones over it."""
+def whitened_reweighting(r: FloatArray, obs: Observations, loss: str,
+                         scale_px: float) -> tuple[FloatArray, FloatArray]:
+    """:func:`scene3D.optim.least_squares.reweighting` of the whitened residuals, its row
+    scales divided by ``obs.sigma`` too: the whitened residuals' derivatives are the
+    plain ones over it.
+
+    Parameters
+    ----------
+    r : (O, 2) float64
+        Whitened residuals (:func:`whitened_residuals`).
+    obs : Observations
+    loss, scale_px : str, float
+        As in :func:`bundle_adjust`.
+
+    Returns
+    -------
+    row_scale, reweighted : (O, 2) float64, (O, 2) float64
+        As :func:`scene3D.optim.least_squares.reweighting` returns them.
+    """
     row_scale, rw = reweighting(r, loss, scale_px)
     return (row_scale, rw) if obs.sigma is None else (row_scale / obs.sigma[:, None], rw)
 
@@ -199,8 +213,19 @@ class FocalAdjustment:
         return float(np.hypot(self.sigma_log, self.principal_point_sigma_log))
 
 
-def _robust_noise_px(r: FloatArray) -> float:
-    """Robust standard deviation of residual coordinates (1.4826 MAD about zero)."""
+def robust_noise_px(r: FloatArray) -> float:
+    """Robust standard deviation of residual coordinates (1.4826 MAD about zero).
+
+    Parameters
+    ----------
+    r : (O, 2) float64
+        Residuals in pixels (or whitened).
+
+    Returns
+    -------
+    float
+        At least 1e-6; 1 without residuals.
+    """
     return float(max(1.4826 * np.median(np.abs(r)), 1e-6)) if r.size else 1.0
 
 
@@ -235,7 +260,7 @@ def _adjust(R: FloatArray, t: FloatArray, points3d: FloatArray, obs: Observation
         R_, t_, X_, log_f, r_ = state
         K_ = K if focal_prior is None else with_focal(K, float(np.exp(log_f)))
         J_camera, J_point, J_focal = reprojection_jacobians(R_, t_, X_, obs, K_)
-        row_scale, rw = _whitened_reweighting(r_, obs, loss, scale_px)
+        row_scale, rw = whitened_reweighting(r_, obs, loss, scale_px)
         J_global = None if focal_prior is None else J_focal * row_scale[:, :, None]
         ne = normal_equations(J_camera * row_scale[:, :, None], camera,
                               J_point * row_scale[:, :, None], obs.point, rw, len(free),
@@ -353,14 +378,14 @@ def bundle_adjust_focal(
                          f"+-{prior_sigma_log} (log)")
     R, t = np.asarray(R, np.float64), np.asarray(t, np.float64)
     X = np.asarray(points3d, np.float64)
-    noise = _robust_noise_px(whitened_residuals(R, t, X, obs, K))
+    noise = robust_noise_px(whitened_residuals(R, t, X, obs, K))
     # The prior's weight needs the noise of the converged residuals; a start far off
     # inflates it (and the prior's pull with it), so adjust again once it is known.
     for _ in range(3):
         R, t, X, focal = _adjust(R, t, X, obs, K, fixed_view, loss, scale_px, max_iterations,
                                  tolerance, (prior_focal_px, prior_sigma_log, noise))
         K = with_focal(K, focal)
-        settled = _robust_noise_px(whitened_residuals(R, t, X, obs, K))
+        settled = robust_noise_px(whitened_residuals(R, t, X, obs, K))
         if settled > 0.5 * noise:
             break
         noise = settled
@@ -424,9 +449,9 @@ def focal_uncertainty(
     slot = np.full(len(R), -1, dtype=int)
     slot[free] = np.arange(len(free))
     r = whitened_residuals(R, t, points3d, obs, K)
-    noise = _robust_noise_px(r)
+    noise = robust_noise_px(r)
     J_camera, J_point, J_focal = reprojection_jacobians(R, t, points3d, obs, K)
-    row_scale, rw = _whitened_reweighting(r, obs, loss, scale_px)
+    row_scale, rw = whitened_reweighting(r, obs, loss, scale_px)
     J_pp = np.broadcast_to(np.eye(2), (len(r), 2, 2))
     J_global = np.concatenate([J_focal, J_pp], axis=2) * row_scale[:, :, None]
     ne = normal_equations(J_camera * row_scale[:, :, None], slot[obs.view],
@@ -439,191 +464,3 @@ def focal_uncertainty(
     response = info[0, 1:] / info[0, 0]
     pp = float(np.linalg.norm(response) * principal_point_shift_px)
     return float(1.0 / np.sqrt(info[0, 0])), pp, noise
-
-
-def radial_projection(
-    R: FloatArray, t: FloatArray, points3d: FloatArray, obs: Observations, K: FloatArray,
-    k: FloatArray,
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Pixels of a radially distorting camera (:mod:`scene3D.geometry.lens`) at each
-    observation and their derivatives.
-
-    Parameters
-    ----------
-    R, t, points3d, obs
-        As in :func:`bundle_adjust`.
-    K : (3, 3)
-        Focal length ``K[0, 0]`` (square pixels, no skew) and principal point.
-    k : (m,)
-        Radial coefficients ``k1[, k2]`` (m = 1 or 2).
-
-    Returns
-    -------
-    pixels : (O, 2)
-    J_camera, J_point : (O, 2, 6), (O, 2, 3)
-        As in :func:`reprojection_jacobians`.
-    J_global : (O, 2, 1 + m)
-        By ``log f`` and each coefficient.
-    """
-    f, c = float(K[0, 0]), K[:2, 2]
-    R_obs = R[obs.view]
-    rotated = np.einsum("oij,oj->oi", R_obs, points3d[obs.point])
-    cam = rotated + t[obs.view]
-    z = cam[:, 2:3]
-    n = cam[:, :2] / z
-    r2 = np.sum(n * n, axis=1)
-    powers = np.stack([r2 ** (i + 1) for i in range(len(k))], axis=1)  # (O, m)
-    d = 1.0 + powers @ k
-    dd_dr2 = sum((i + 1) * k[i] * r2**i for i in range(len(k)))
-    # pixel = c + f d(r2) n: d pixel / d n = f (d I + 2 d'(r2) n n^T).
-    J_n = f * (d[:, None, None] * np.eye(2) + 2.0 * dd_dr2[:, None, None]
-               * n[:, :, None] * n[:, None, :])
-    dn_dcam = np.zeros((len(n), 2, 3))
-    dn_dcam[:, 0, 0] = dn_dcam[:, 1, 1] = 1.0 / z[:, 0]
-    dn_dcam[:, :, 2] = -n / z
-    J = J_n @ dn_dcam
-    J_camera = np.concatenate([J @ -skews(rotated), J], axis=2)
-    pixels = c + f * d[:, None] * n
-    J_global = np.concatenate([(pixels - c)[:, :, None],
-                               f * n[:, :, None] * powers[:, None, :]], axis=2)
-    return pixels, J_camera, J @ R_obs, J_global
-
-
-@dataclass(frozen=True)
-class RadialAdjustment:
-    """What :func:`bundle_adjust_radial` returns.
-
-    Attributes
-    ----------
-    R, t, points3d : (V, 3, 3), (V, 3), (P, 3)
-        Refined copies.
-    K : (3, 3)
-        The intrinsics with the refined focal length (principal point kept).
-    k : (m,)
-        The refined radial coefficients.
-    sigma : (1 + m,)
-        Standard deviations of ``log f`` and each coefficient (cameras and points
-        marginalised, the priors included), in the noise of the residuals.
-    noise_px : float
-        Robust standard deviation of the final residuals.
-    """
-
-    R: FloatArray
-    t: FloatArray
-    points3d: FloatArray
-    K: FloatArray
-    k: FloatArray
-    sigma: FloatArray
-    noise_px: float
-
-
-def bundle_adjust_radial(
-    R: FloatArray, t: FloatArray, points3d: FloatArray, obs: Observations, K: FloatArray,
-    k: FloatArray, fixed_view: int | Sequence[int], prior_focal_px: float,
-    prior_sigma_log: float, k_sigma: float = 0.5, loss: str = "soft_l1",
-    scale_px: float = 1.0, max_iterations: int = 50, tolerance: float = 1e-10,
-) -> RadialAdjustment:
-    """:func:`bundle_adjust_focal` with radial distortion coefficients refined too.
-
-    The observations are pixels of the distorting camera (as photographed); the
-    unknowns besides the cameras and points are ``log f`` and ``k1[, k2]``, global
-    unknowns of the normal equations. Priors: ``log f`` as in
-    :func:`bundle_adjust_focal`, each coefficient ``N(0, k_sigma^2)`` (weak: it holds
-    the coefficients only where the views do not determine them), both in units of the
-    reprojection noise.
-
-    Parameters
-    ----------
-    R, t, points3d, obs, fixed_view, loss, scale_px, max_iterations, tolerance
-        As in :func:`bundle_adjust`.
-    K : (3, 3)
-        Starting intrinsics (square pixels, no skew; the principal point is held).
-    k : (m,)
-        Starting coefficients, m = 1 (``simple_radial``) or 2 (``radial``).
-    prior_focal_px, prior_sigma_log : float
-        The focal length's prior, as in :func:`bundle_adjust_focal`.
-    k_sigma : float
-        The coefficients' prior standard deviation.
-
-    Returns
-    -------
-    RadialAdjustment
-    """
-    K = np.asarray(K, np.float64)
-    k0 = np.atleast_1d(np.asarray(k, np.float64))
-    if k0.size not in (1, 2):
-        raise ValueError(f"one or two radial coefficients, got {k0.size}")
-    if not (np.isfinite(prior_focal_px) and prior_focal_px > 0 and prior_sigma_log > 0
-            and k_sigma > 0):
-        raise ValueError(f"the priors must be positive, got {prior_focal_px} px "
-                         f"+-{prior_sigma_log} (log), k +-{k_sigma}")
-    free = np.setdiff1d(np.unique(obs.view), np.atleast_1d(np.asarray(fixed_view, dtype=int)))
-    slot = np.full(len(R), -1, dtype=int)
-    slot[free] = np.arange(len(free))
-    camera = slot[obs.view]
-    prior_mean = np.concatenate([[np.log(prior_focal_px)], np.zeros(k0.size)])
-    prior_sigma = np.concatenate([[prior_sigma_log], np.full(k0.size, k_sigma)])
-
-    def whitened(pixels: FloatArray) -> FloatArray:
-        r = pixels - obs.xy
-        return r if obs.sigma is None else r / obs.sigma[:, None]
-
-    def intrinsics(g: FloatArray) -> FloatArray:
-        return with_focal(K, float(np.exp(g[0])))
-
-    R0, t0 = np.array(R, np.float64), np.array(t, np.float64)
-    X0 = np.array(points3d, np.float64)
-    g0 = np.concatenate([[np.log(K[0, 0])], k0])
-    noise = _robust_noise_px(whitened(radial_projection(R0, t0, X0, obs, K, k0)[0]))
-    prior_weight = noise / prior_sigma  # rebound below, as the noise settles
-
-    def evaluate(R_: FloatArray, t_: FloatArray, X_: FloatArray, g: FloatArray):
-        projected = radial_projection(R_, t_, X_, obs, intrinsics(g), g[1:])
-        r_ = whitened(projected[0])
-        cost = robust_cost(r_, loss, scale_px) + float(
-            np.sum((prior_weight * (g - prior_mean)) ** 2))
-        return (R_, t_, X_, g, r_, projected), cost
-
-    def system(state: tuple):
-        R_, t_, X_, g, r_, (_, J_camera, J_point, J_global) = state
-        row_scale, rw = _whitened_reweighting(r_, obs, loss, scale_px)
-        scale = row_scale[:, :, None]
-        ne = normal_equations(J_camera * scale, camera, J_point * scale, obs.point, rw,
-                              len(free), len(X_), J_global * scale)
-        return dataclasses.replace(
-            ne, U_global=ne.U_global + np.diag(prior_weight**2),
-            g_global=ne.g_global + prior_weight**2 * (g - prior_mean))
-
-    def linearize(state: tuple) -> Callable[[float], tuple]:
-        R_, t_, X_, g = state[:4]
-        ne = system(state)
-
-        def try_step(damping: float) -> tuple[tuple, float]:
-            step_camera, step_global, step_point = solve_damped_global(ne, damping)
-            R_new, t_new = R_.copy(), t_.copy()
-            R_new[free] = rotations_from_vectors(step_camera[:, :3]) @ R_[free]
-            t_new[free] = t_[free] + step_camera[:, 3:]
-            return evaluate(R_new, t_new, X_ + step_point, g + step_global)
-
-        return try_step
-
-    # The priors weigh as one observation of the residuals' noise; a start far off
-    # inflates it (and the priors' pull), so adjust again once it is known, as
-    # bundle_adjust_focal does.
-    for _ in range(3):
-        state, cost = evaluate(R0, t0, X0, g0)
-        state = levenberg_marquardt(state, cost, linearize, max_iterations, tolerance)
-        R0, t0, X0, g0 = state[:4]
-        settled = _robust_noise_px(state[4])
-        if settled > 0.5 * noise:
-            break
-        noise = settled
-        prior_weight = noise / prior_sigma
-    R_, t_, X_, g, r_, _ = state
-    # The priors' rows are in units of the last noise; the data's information is in
-    # the settled noise's, and the priors add theirs (the Schur complement leaves the
-    # diagonal priors of global unknowns as they are).
-    data = global_information(system(state)) - np.diag(prior_weight**2)
-    info = data / max(settled, 1e-9) ** 2 + np.diag(1.0 / prior_sigma**2)
-    sigma = np.sqrt(np.diag(np.linalg.pinv(info)))
-    return RadialAdjustment(R_, t_, X_, intrinsics(g), g[1:].copy(), sigma, settled)
