@@ -30,10 +30,10 @@ from .tracks import connected_components
 MAJORITY = 0.5
 
 
-def pair_residual_px(R_i: FloatArray, t_i: FloatArray, R_j: FloatArray, t_j: FloatArray,
-                     pts_i: FloatArray, pts_j: FloatArray, K: FloatArray) -> float:
-    """Median Sampson distance (px) of matches ``(N, 2)`` to the epipolar geometry of two
-    world-to-camera poses; NaN when the centres coincide (no epipolar geometry).
+def pair_distances_px(R_i: FloatArray, t_i: FloatArray, R_j: FloatArray, t_j: FloatArray,
+                      pts_i: FloatArray, pts_j: FloatArray, K: FloatArray) -> FloatArray | None:
+    """Sampson distances (px) of matches ``(N, 2)`` to the epipolar geometry of two
+    world-to-camera poses; None when the centres coincide (no epipolar geometry).
 
     Parameters
     ----------
@@ -48,17 +48,34 @@ def pair_residual_px(R_i: FloatArray, t_i: FloatArray, R_j: FloatArray, t_j: Flo
 
     Returns
     -------
-    float
-        Median Sampson distance in px, or NaN.
+    (N,) float64 or None
+        Sampson distances in px.
     """
     R_ji = R_j @ R_i.T
     t_ji = t_j - R_ji @ t_i
     scale = np.linalg.norm(t_ji)
     if not np.isfinite(scale) or scale < 1e-12 * max(np.linalg.norm(t_i), np.linalg.norm(t_j),
                                                       1e-300):
-        return float("nan")
-    E = skew(t_ji / scale) @ R_ji
-    return median(essential_distances(E, pts_i, pts_j, K))
+        return None
+    return essential_distances(skew(t_ji / scale) @ R_ji, pts_i, pts_j, K)
+
+
+def pair_residual_px(R_i: FloatArray, t_i: FloatArray, R_j: FloatArray, t_j: FloatArray,
+                     pts_i: FloatArray, pts_j: FloatArray, K: FloatArray) -> float:
+    """Median of :func:`pair_distances_px` (px); NaN when the centres coincide.
+
+    Parameters
+    ----------
+    R_i, t_i, R_j, t_j, pts_i, pts_j, K
+        As in :func:`pair_distances_px`.
+
+    Returns
+    -------
+    float
+        Median Sampson distance in px, or NaN.
+    """
+    distances = pair_distances_px(R_i, t_i, R_j, t_j, pts_i, pts_j, K)
+    return float("nan") if distances is None else median(distances)
 
 
 def check_model(registered: np.ndarray, R: FloatArray, t: FloatArray,

@@ -47,27 +47,6 @@ from .models import PairMatches, SfMModel, ViewFeatures
 K_PRIOR_SIGMA = 0.5
 
 
-def model_lens(lens: FloatArray, lens_focal_px: float, model_focal_px: float) -> FloatArray:
-    """The coefficients about a model's focal length of keypoints undistorted with
-    ``(lens_focal_px, lens)``: the model's exact camera (``(m,)``).
-
-    Parameters
-    ----------
-    lens : (m,) array_like
-        Radial coefficients the keypoints were undistorted with, about ``lens_focal_px``.
-    lens_focal_px : float
-        Focal length (px) the coefficients ``lens`` refer to.
-    model_focal_px : float
-        The model's focal length (px).
-
-    Returns
-    -------
-    (m,) float64 ndarray
-        The coefficients about ``model_focal_px``.
-    """
-    return rescaled_coefficients(lens, lens_focal_px, model_focal_px)
-
-
 def refine_lens(model: SfMModel, K_model: FloatArray, lens: FloatArray,
                 K_lens: FloatArray, focal: FocalSettings) -> RadialAdjustment:
     """The focal length and radial coefficients a model calls for, on the photographed
@@ -95,7 +74,7 @@ def refine_lens(model: SfMModel, K_model: FloatArray, lens: FloatArray,
     # The model's world is its initial pair's first camera, [I | 0]: it stays.
     views = np.flatnonzero(model.registered)
     reference = int(views[np.argmin(np.linalg.norm(model.t[views], axis=1))])
-    start = model_lens(lens, float(K_lens[0, 0]), float(K_model[0, 0]))
+    start = rescaled_coefficients(lens, float(K_lens[0, 0]), float(K_model[0, 0]))
     return bundle_adjust_radial(model.R, model.t, model.points3d, raw, K_model, start,
                                 reference, focal.prior_focal_px, focal.prior_sigma_log,
                                 K_PRIOR_SIGMA)

@@ -33,7 +33,13 @@ from ..geometry.camera import (
     validate_intrinsics,
 )
 from ..geometry.intrinsics_prior import FocalPrior, camera_prior
-from ..geometry.lens import corner_shifts_px, folds_within, max_shift_px, radial_coefficients
+from ..geometry.lens import (
+    corner_shifts_px,
+    folds_within,
+    max_shift_px,
+    radial_coefficients,
+    rescaled_coefficients,
+)
 from ..io.images import (
     BOOK_MAX_WIDTH_PX,
     ImageSource,
@@ -44,7 +50,7 @@ from ..io.images import (
 from ..optim.bundle import Observations
 from .features import content_key, view_features
 from .focal import FocalSettings
-from .lens import model_lens, pair_lens_guess, refine_lens, undistorted_features
+from .lens import pair_lens_guess, refine_lens, undistorted_features
 from .mapper import reconstruct_models
 from .matching import verify_pair
 from .models import (
@@ -459,13 +465,13 @@ def reconstruct_views(
         t0 = time.perf_counter()
         K_model = models[0].K if models[0].K is not None else K_work
         fit = refine_lens(models[0], K_model, lens, K_lens, focal)
-        current = model_lens(lens, float(K_lens[0, 0]), float(K_model[0, 0]))
+        current = rescaled_coefficients(lens, float(K_lens[0, 0]), float(K_model[0, 0]))
         moved = float(np.max(np.linalg.norm(
             corner_shifts_px(fit.K, fit.k, working_size)
             - corner_shifts_px(K_model, current, working_size), axis=1)))
         timings["lens"] = timings.get("lens", 0.0) + time.perf_counter() - t0
-        negligible = (max_shift_px(fit.K, fit.k, working_size)
-                      <= s.min_lens_shift * float(np.hypot(*working_size)))
+        shift = max_shift_px(fit.K, fit.k, working_size)
+        negligible = shift <= s.min_lens_shift * float(np.hypot(*working_size))
         if moved <= s.lens_tolerance_px or (negligible and not lens_passes):
             break
         if folds_within(fit.K, fit.k, working_size):  # no lens of a photo: a wrong fit
@@ -473,7 +479,7 @@ def reconstruct_views(
                 "inside the image: keeping the last")
             break
         say(f"lens distortion: k1 {fit.k[0]:+.3f} moves the image corners "
-            f"{max_shift_px(fit.K, fit.k, working_size):.1f} px; reconstructing with the "
+            f"{shift:.1f} px; reconstructing with the "
             "keypoints undistorted")
         kept = features, handles
         features = undistorted_features(features, raw_keypoints, fit.K, fit.k)
@@ -498,7 +504,7 @@ def reconstruct_views(
     if focal is not None:
         K_work = models[0].K if models[0].K is not None else K_work
     if lens_passes:  # the lens about the final K: OpenCV's (k1, k2, p1, p2)
-        k = model_lens(lens, float(K_lens[0, 0]), float(K_work[0, 0]))
+        k = rescaled_coefficients(lens, float(K_lens[0, 0]), float(K_work[0, 0]))
         dist = np.concatenate([k, np.zeros(4 - k.size)])
     return MultiViewReconstruction(
         names=names, K=np.asarray(K_work, np.float64), image_size=working_size,

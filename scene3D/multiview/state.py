@@ -16,10 +16,9 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
-from ..geometry.conventions import FloatArray, camera_centers, relative_pose
-from ..geometry.epipolar import essential_distances, essential_from_pose
+from ..geometry.conventions import FloatArray, camera_centers
 from ..optim.bundle import Observations, bundle_adjust, bundle_adjust_focal, reprojection_residuals
-from .checks import check_model
+from .checks import check_model, pair_distances_px
 from .focal import FocalSettings, longer_side_px
 from .models import (
     ModelCheck,
@@ -301,13 +300,11 @@ class GrowingModel:
             if other < 0 or not self.registered[other] or p.num_inliers < self.s.min_pair_inliers:
                 continue
             poses = {view: (R, t), other: (self.R[other], self.t[other])}
-            R_ij, t_ij = relative_pose(*poses[p.i], *poses[p.j])
-            if not np.linalg.norm(t_ij) > 0:
+            distances = pair_distances_px(*poses[p.i], *poses[p.j],
+                                          self.features[p.i].keypoints[p.idx_i],
+                                          self.features[p.j].keypoints[p.idx_j], self.K)
+            if distances is None:
                 continue
-            distances = essential_distances(
-                essential_from_pose(R_ij, t_ij / np.linalg.norm(t_ij)),
-                self.features[p.i].keypoints[p.idx_i], self.features[p.j].keypoints[p.idx_j],
-                self.K)
             explained = int(np.sum(distances <= self.s.pnp_threshold_px))
             if (explained >= self.s.min_pair_inliers
                     and explained >= self.s.min_confirmed_share * p.num_inliers):
