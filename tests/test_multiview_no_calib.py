@@ -206,10 +206,12 @@ def _exif(make, model):
 
 
 @pytest.mark.parametrize("second, message", [
-    ({"exif": _exif("Apple", "iPhone 12")}, "one camera is needed"),
+    ({"exif": _exif("Apple", "iPhone 12")}, "one camera is needed with --camera-mode single"),
     ({"size": (300, 200)}, "photos of one camera at one size are needed"),
 ])
-def test_photos_of_two_cameras_are_refused(tmp_path, second, message):
+def test_photos_of_two_cameras_are_refused_as_one_camera(tmp_path, second, message):
+    """With --camera-mode single the photos must share a camera (by default they are two
+    cameras: tests/test_multiview_cameras.py)."""
     rng = np.random.default_rng(0)
     pixels = rng.integers(0, 255, (240, 320, 3), dtype=np.uint8)
     Image.fromarray(pixels).save(tmp_path / "a.jpg", exif=_exif("Canon", "EOS 5D"))
@@ -217,7 +219,8 @@ def test_photos_of_two_cameras_are_refused(tmp_path, second, message):
     if "size" in second:
         b = b.resize(second["size"])
     b.save(tmp_path / "b.jpg", exif=second.get("exif", _exif("Canon", "EOS 5D")))
-    proc = _run([tmp_path / "a.jpg", tmp_path / "b.jpg", "--out", tmp_path / "out"])
+    proc = _run([tmp_path / "a.jpg", tmp_path / "b.jpg", "--out", tmp_path / "out",
+                 "--camera-mode", "single"])
     assert proc.returncode == 2 and message in proc.stderr, proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1 and "Traceback" not in proc.stderr
     assert not (tmp_path / "out" / "reconstruction.json").exists()

@@ -27,6 +27,8 @@ from ..errors import (
 )
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from ..geometry.intrinsics_prior import FocalPrior
 
 EXIT_OK = 0
@@ -164,6 +166,21 @@ def read_camera_prior(paths: list[Path]) -> FocalPrior:
     except CameraMismatchError as exc:
         raise UsageError(f"{exc.problem}; or, if one calibration holds for them all, give it "
                          "with --calib FILE") from None
+
+
+def read_camera_priors(paths: list[Path], mode: str) -> tuple[np.ndarray, list[FocalPrior]]:
+    """:func:`scene3D.io.exif.read_camera_priors` for a command run without ``--calib``:
+    with ``mode`` ``"single"``, photos of two cameras or zoom settings are a
+    :class:`UsageError` that names ``--calib`` and ``--camera-mode``."""
+    from ..geometry.intrinsics_prior import CameraMismatchError
+    from ..io.exif import read_camera_priors as read_priors
+
+    try:
+        return read_priors(paths, mode)
+    except CameraMismatchError as exc:
+        raise UsageError(f"{exc.problem} with --camera-mode single; drop it to give each "
+                         "camera its own focal length, or, if one calibration holds for "
+                         "them all, give it with --calib FILE") from None
 
 
 def check_image_paths(paths: list[Path]) -> None:

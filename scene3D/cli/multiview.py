@@ -15,6 +15,7 @@ from ..calibration.views import VIDEO_SUFFIXES
 from ..errors import plural
 from ..features.matching import FEATURE_MODES
 from ..geometry.camera import adapt_intrinsics_to_size
+from ..geometry.intrinsics_prior import CAMERA_MODES
 from ..geometry.lens import CAMERA_MODELS, max_shift_px, radial_coefficients
 from ..io.calibration import load_calibration
 from ..io.datasets import CameraFilesError, StrechaCamera, read_strecha_cameras
@@ -26,6 +27,7 @@ from ..io.nerfstudio import write_nerfstudio
 from ..io.paths import image_files
 from ..multiview import (
     PAIR_MODES,
+    CameraIntrinsics,
     FocalEstimate,
     MultiViewReconstruction,
     SfMModel,
@@ -53,7 +55,7 @@ from .common import (
     open_engine,
     path_arg,
     positive_int,
-    read_camera_prior,
+    read_camera_priors,
     run_command,
 )
 from .outputs import FILES_KEY, SUMMARY_FILE, OutputFolder
@@ -69,6 +71,7 @@ MIN_MODEL_POINTS = SfMSettings.min_model_points
 #: What --export can write, and nerfstudio's file in a model's folder.
 EXPORT_FORMATS = ("nerfstudio",)
 CAMERA_MODEL_CHOICES = ("auto", *CAMERA_MODELS)
+CAMERA_MODE_CHOICES = tuple(mode.replace("_", "-") for mode in CAMERA_MODES)
 NERFSTUDIO_FILE = "transforms.json"
 
 
@@ -127,11 +130,10 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
     parser.add_argument("--calib", type=Path, metavar="FILE",
                         help="camera calibration (OpenCV YAML/XML as calibrate.py writes it; "
                              "a focal length the photos refute by more than 2 %% is replaced "
-                             "by the one they call for, with a warning); without it the "
-                             "photos must come from one camera (one size, EXIF make, model "
-                             "and focal length) and one focal length is "
-                             "found from them (principal point at the centre, with the "
-                             "lens distortion of --camera-model; the documentation's page "
+                             "by the one they call for, with a warning); without it each "
+                             "camera's focal length is found from the photos (cameras as "
+                             "--camera-mode groups them; principal point at the centre, with "
+                             "the lens distortion of --camera-model; the documentation's page "
                              "'Photos without a calibration file')")
     parser.add_argument("--camera-model", choices=CAMERA_MODEL_CHOICES, default="auto",
                         help="without --calib: 'simple_radial' (a focal length and one "
@@ -139,6 +141,13 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
                              "'auto', the default, means), 'radial' (two coefficients) or "
                              "'pinhole' (no distortion); with --calib the file gives the "
                              "camera")
+    parser.add_argument("--camera-mode", choices=CAMERA_MODE_CHOICES, default="auto",
+                        help="without --calib, which photos share a camera: 'auto', the "
+                             "default (one camera per image size, EXIF make and model and "
+                             "EXIF focal length, as COLMAP groups them), 'single' (all "
+                             "photos, which must then be of one size) or 'per-photo' (every "
+                             "photo its own focal length and lens: internet photos, a zoom "
+                             "changed between shots)")
     add_size_args(parser, 2 * BOOK_MAX_WIDTH_PX, "3072 -> 1536, half resolution")
     parser.add_argument("--pairs", choices=PAIR_MODES, default="auto",
                         help="which pairs to match: 'retrieval' (each view with its "
@@ -304,6 +313,23 @@ def _lens_line(recon: MultiViewReconstruction) -> str:
             f"again {plural(recon.lens_passes, 'time')})")
 
 
+def _camera_line(c: int, camera: CameraIntrinsics, recon: MultiViewReconstruction) -> str:
+    """'camera 2 (Canon ..., 3 views, 2074x1382): focal length 2070.7 px, k1 -0.0016'."""
+    views = int(np.sum(recon.camera_of_view == c))
+    scale = camera.photo_size[0] / camera.image_size[0]
+    name = f"{camera.name}, " if camera.name else ""
+    if not camera.estimated:
+        return (f"camera {c + 1} ({name}{plural(views, 'view')}, {camera.photo_size[0]}x"
+                f"{camera.photo_size[1]}): in no view of the largest model, focal length "
+                f"{camera.K[0, 0] * scale:.1f} px as it started ({camera.prior_description})")
+    lens = ", ".join(f"k{i + 1} {v:+.4f}" for i, v in
+                     enumerate(camera.dist[:radial_coefficients(recon.camera_model)]))
+    return (f"camera {c + 1} ({name}{plural(views, 'view')}, {camera.photo_size[0]}x"
+            f"{camera.photo_size[1]}): focal length {camera.K[0, 0] * scale:.1f} px at the "
+            f"photos' size" + (f", {lens}" if lens else "")
+            + f" (started from {camera.prior_description})")
+
+
 def _result_lines(names: list[str], recon: MultiViewReconstruction, models: list[dict]
                   ) -> list[str]:
     """What the command prints of its result (the report shows the same lines)."""
@@ -316,14 +342,16 @@ def _result_lines(names: list[str], recon: MultiViewReconstruction, models: list
         placed = sum(entry["registered"] for entry in models)
         lines = [f"{placed} of {len(names)} views registered in {len(models)} models; the "
                  f"largest, {main['registered']} views: {numbers}"]
-    if recon.focal is not None:
+    if recon.cameras:
+        lines += [_camera_line(c, camera, recon) for c, camera in enumerate(recon.cameras)]
+    elif recon.focal is not None:
         how = "refined by the photos" if recon.focal.determined else \
             "kept: the photos could not refine it"
         sigma = focal_sigma_text(recon.focal.focal_px, recon.focal.sigma_px)
         lines.append(f"focal length {recon.K[0, 0]:.1f} px {sigma} at the working size "
                      f"({recon.prior_description}; {how}"
                      + ("" if recon.focal.trusted else "; untrusted") + ")")
-    if recon.focal is not None and recon.camera_model != "pinhole":
+    if not recon.cameras and recon.focal is not None and recon.camera_model != "pinhole":
         lines.append(_lens_line(recon))
     if recon.focal_refits:
         lines.append(f"focal length {recon.K[0, 0]:.1f} px at the working size, "
@@ -392,8 +420,10 @@ def run(args: argparse.Namespace) -> int:
     prior = None
     if args.calib is not None:
         camera = load_calibration(args.calib)
-    elif video is None:
-        prior = read_camera_prior(paths)  # one camera, or a one-line error (exit code 2)
+    elif video is None:  # the cameras, or a one-line error (exit code 2)
+        camera_mode = args.camera_mode.replace("-", "_")
+        _, priors = read_camera_priors(paths, camera_mode)
+        prior = priors[0] if len(priors) == 1 else None
     names = [p.name for p in paths]
     truth = None if args.ground_truth is None else read_ground_truth(args.ground_truth, paths)
     model_names = (*MODEL_FILES, MODEL_FIGURE, NERFSTUDIO_FILE)
@@ -437,7 +467,7 @@ def run(args: argparse.Namespace) -> int:
             settings=SfMSettings(neighbours=args.neighbours,
                                  retrieval_neighbours=args.retrieval_neighbours),
             progress=progress, engine=engine, focal_prior=prior,
-            camera_model=args.camera_model)
+            camera_model=args.camera_model, camera_mode=args.camera_mode.replace("-", "_"))
     # The files of every model, all or none: a write that fails leaves the earlier run's.
     with all_or_nothing():
         written: list[Path] = []

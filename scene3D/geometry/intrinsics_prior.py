@@ -487,3 +487,96 @@ def camera_prior(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, int]]
     return FocalPrior(default_focal_px(size), size, DEFAULT_PRIOR_SIGMA_LOG, "prior",
                       f"{why_none}: {DEFAULT_FOCAL_FACTOR:g} x the longer side "
                       "(COLMAP's default)", tuple(warnings), camera)
+
+
+#: How photos are grouped into cameras (:func:`camera_groups`).
+CAMERA_MODES = ("auto", "single", "per_photo")
+
+
+def _same_camera(exif: ExifCamera | None, size: tuple[int, int], other: ExifCamera | None,
+                 other_size: tuple[int, int]) -> bool:
+    """Whether two photos can share a camera: one stored size, and no EXIF value that
+    both record (make and model, a focal length of one kind) differs."""
+    if tuple(size) != tuple(other_size):
+        return False
+    if exif is None or other is None:
+        return True
+    if exif.camera_name and other.camera_name and exif.camera_name != other.camera_name:
+        return False
+    for field, _ in _FOCAL_KINDS:
+        a, b = getattr(exif, field), getattr(other, field)
+        if _usable(a) and _usable(b) and abs(float(a) / float(b) - 1.0) > SAME_FOCAL_TOLERANCE:
+            return False
+    return True
+
+
+def camera_groups(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, int]]],
+                  mode: str = "auto") -> np.ndarray:
+    """Which camera took each photo, as a user expects: ``(V,) int``, cameras numbered in
+    the order of their first photo.
+
+    ``"auto"``: one camera per stored size, EXIF make and model and EXIF focal length
+    (a zoom lens at two settings is two cameras, as in COLMAP's automatic camera mode);
+    a photo that records none of these shares the camera of the first photo of its size.
+    Photos without EXIF of different sizes are so each their own camera. ``"single"``:
+    one camera for all (:func:`check_one_camera` then says when they cannot share one).
+    ``"per_photo"``: a camera for every photo (internet photos, zoom changing shot to shot).
+
+    Parameters
+    ----------
+    photos : sequence of (str, ExifCamera or None, (int, int))
+        Each photo's name, EXIF values and ``(width, height)`` in px.
+    mode : str, default "auto"
+        One of :data:`CAMERA_MODES`.
+
+    Returns
+    -------
+    (V,) int ndarray
+    """
+    if mode not in CAMERA_MODES:
+        raise ValueError(f"camera mode {mode!r} is not one of {', '.join(CAMERA_MODES)}")
+    if mode == "single":
+        return np.zeros(len(photos), dtype=int)
+    if mode == "per_photo":
+        return np.arange(len(photos))
+    firsts: list[int] = []
+    out = np.empty(len(photos), dtype=int)
+    for v, (_, exif, size) in enumerate(photos):
+        for c, u in enumerate(firsts):
+            if _same_camera(exif, size, photos[u][1], photos[u][2]):
+                out[v] = c
+                break
+        else:
+            out[v] = len(firsts)
+            firsts.append(v)
+    return out
+
+
+def camera_priors(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, int]]],
+                  mode: str = "auto") -> tuple[np.ndarray, list[FocalPrior]]:
+    """The cameras of photos (:func:`camera_groups`) and a focal-length prior for each
+    (:func:`camera_prior` of its photos).
+
+    Parameters
+    ----------
+    photos : sequence of (str, ExifCamera or None, (int, int))
+        Each photo's name, EXIF values and ``(width, height)`` in px.
+    mode : str, default "auto"
+        One of :data:`CAMERA_MODES`.
+
+    Returns
+    -------
+    view_camera : (V,) int ndarray
+        The camera of each photo.
+    priors : list of FocalPrior
+        One per camera.
+
+    Raises
+    ------
+    ValueError
+        An unknown ``mode``; with ``"single"``, photos that cannot share a camera.
+    """
+    view_camera = camera_groups(photos, mode)
+    priors = [camera_prior([photos[v] for v in np.flatnonzero(view_camera == c)])
+              for c in range(int(view_camera.max()) + 1 if len(photos) else 0)]
+    return view_camera, priors

@@ -20,6 +20,7 @@ its own camera pose.
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -44,8 +45,9 @@ from .colmap_model import (  # noqa: F401 - the model's types, from here as befo
 from .export import write_text_files
 
 
-def model_for_photos(model: ColmapModel, photo_size: tuple[int, int],
-                     dist: ArrayLike | None = None) -> ColmapModel:
+def model_for_photos(model: ColmapModel,
+                     photo_size: tuple[int, int] | Mapping[int, tuple[int, int]],
+                     dist: ArrayLike | Mapping[int, ArrayLike] | None = None) -> ColmapModel:
     """The model of undistorted images resized, as one of the photos they came from.
 
     Every camera of ``model`` (pinhole, of images that were resized from the photos and
@@ -60,10 +62,11 @@ def model_for_photos(model: ColmapModel, photo_size: tuple[int, int],
     ----------
     model : ColmapModel
         A model with pinhole cameras of resized, undistorted images.
-    photo_size : (int, int)
-        The photos' ``(width, height)`` in px.
-    dist : array_like or None, default None
-        The photos' OpenCV distortion coefficients; None for none.
+    photo_size : (int, int) or mapping of int to (int, int)
+        The photos' ``(width, height)`` in px; by camera id for cameras of several sizes.
+    dist : array_like, mapping of int to array_like, or None, default None
+        The photos' OpenCV distortion coefficients (by camera id for several cameras);
+        None for none.
 
     Returns
     -------
@@ -75,10 +78,13 @@ def model_for_photos(model: ColmapModel, photo_size: tuple[int, int],
     ValueError
         A camera of ``model`` with distortion, or another aspect ratio than ``photo_size``.
     """
-    dist = validate_distortion(dist)
+    sizes = photo_size if isinstance(photo_size, Mapping) else dict.fromkeys(model.cameras,
+                                                                               photo_size)
+    lenses = dist if isinstance(dist, Mapping) else dict.fromkeys(model.cameras, dist)
     cameras = {}
     xy = model.obs_xy.copy()
     for cam_id, camera in model.cameras.items():
+        photo_size, dist = tuple(sizes[cam_id]), validate_distortion(lenses[cam_id])
         if camera.dist.size:
             raise ValueError(f"camera {cam_id} of the model is {camera.model}: only "
                              "undistorted (pinhole) cameras are taken to the photos' size")
@@ -380,10 +386,12 @@ def write_colmap_text(folder: str | os.PathLike, model: ColmapModel) -> list[Pat
 
 
 def colmap_model_from_views(names: list[str] | tuple[str, ...], K: ArrayLike,
-                            image_size: tuple[int, int], registered: ArrayLike,
+                            image_size: tuple[int, int] | Sequence[tuple[int, int]],
+                            registered: ArrayLike,
                             R: ArrayLike, t: ArrayLike, points3d: ArrayLike,
                             colors: ArrayLike, obs_view: ArrayLike, obs_point: ArrayLike,
-                            obs_xy: ArrayLike) -> ColmapModel:
+                            obs_xy: ArrayLike, view_camera: ArrayLike | None = None
+                            ) -> ColmapModel:
     """A one-camera model (PINHOLE ``K`` for images of ``image_size``) of the views that
     are ``registered`` ``(V,)`` among ``names``, image ids ``view + 1``, point ids
     ``point + 1``; poses ``R`` ``(V, 3, 3)``, ``t`` ``(V, 3)`` world-to-camera; the
@@ -412,6 +420,10 @@ def colmap_model_from_views(names: list[str] | tuple[str, ...], K: ArrayLike,
         View and point of each observation.
     obs_xy : (O, 2) array_like
         Observed pixels (OpenCV convention).
+    view_camera : (V,) int array_like or None, default None
+        Views of several cameras: the camera of each view; ``K`` is then ``(C, 3, 3)``
+        and ``image_size`` one size per camera, camera ids ``camera + 1`` (those of the
+        registered views).
 
     Returns
     -------
@@ -424,10 +436,17 @@ def colmap_model_from_views(names: list[str] | tuple[str, ...], K: ArrayLike,
     obs_view = np.asarray(obs_view, dtype=np.int64)
     keep = registered[obs_view]
     points3d = np.asarray(points3d, dtype=np.float64).reshape(-1, 3)
+    if view_camera is None:
+        cameras = {1: ColmapCamera.from_opencv(K, None, image_size)}
+        camera_ids = np.ones(len(views), dtype=np.int64)
+    else:
+        camera_ids = np.asarray(view_camera, dtype=np.int64)[views] + 1
+        Ks = np.asarray(K, np.float64).reshape(-1, 3, 3)
+        cameras = {int(c): ColmapCamera.from_opencv(Ks[c - 1], None, tuple(image_size[c - 1]))
+                   for c in np.unique(camera_ids)}
     model = ColmapModel(
-        cameras={1: ColmapCamera.from_opencv(K, None, image_size)},
-        image_ids=views.astype(np.int64) + 1, names=tuple(names[v] for v in views),
-        camera_ids=np.ones(len(views), dtype=np.int64),
+        cameras=cameras, image_ids=views.astype(np.int64) + 1,
+        names=tuple(names[v] for v in views), camera_ids=camera_ids,
         R=np.asarray(R, np.float64)[views].reshape(-1, 3, 3),
         t=np.asarray(t, np.float64)[views].reshape(-1, 3),
         point_ids=np.arange(1, len(points3d) + 1, dtype=np.int64), points3d=points3d,

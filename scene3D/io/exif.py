@@ -15,7 +15,9 @@ import os
 import warnings
 from collections.abc import Sequence
 
-from ..geometry.intrinsics_prior import ExifCamera, FocalPrior, camera_prior
+import numpy as np
+
+from ..geometry.intrinsics_prior import ExifCamera, FocalPrior, camera_prior, camera_priors
 from .images import (
     check_image_file,
     read_image_size,
@@ -164,3 +166,41 @@ def read_camera_prior(paths: Sequence[str | os.PathLike]) -> FocalPrior:
     for message in prior.warnings:
         logger.warning("%s", message)
     return prior
+
+
+def read_camera_priors(paths: Sequence[str | os.PathLike], mode: str = "auto"
+                       ) -> tuple[np.ndarray, list[FocalPrior]]:
+    """The cameras that took photos and a focal-length prior for each, from their EXIF
+    and sizes (:func:`scene3D.geometry.intrinsics_prior.camera_priors`).
+
+    Parameters
+    ----------
+    paths : sequence of str or PathLike
+        The photos' files.
+    mode : str, default "auto"
+        How photos are grouped into cameras
+        (:data:`scene3D.geometry.intrinsics_prior.CAMERA_MODES`).
+
+    Returns
+    -------
+    view_camera : (V,) int ndarray
+        The camera of each photo, numbered in the order of their first photo.
+    priors : list of FocalPrior
+        One per camera; their warnings are logged.
+
+    Raises
+    ------
+    FileNotFoundError
+        A photo does not exist.
+    ValueError
+        A file is not an image, an unknown ``mode``, or with ``mode="single"`` photos
+        from different cameras or sizes.
+    """
+    refuse_single_path(paths, "paths")
+    sizes = [read_image_size(p) for p in paths]
+    photos = [(source_label(p, ""), read_exif(p), size) for p, size in zip(paths, sizes)]
+    view_camera, priors = camera_priors(photos, mode)
+    for prior in priors:
+        for message in prior.warnings:
+            logger.warning("%s", message)
+    return view_camera, priors

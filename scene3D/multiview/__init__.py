@@ -19,6 +19,9 @@ bundle adjustment as the missing step. One module per stage, in pipeline order:
   and global bundle adjustment, re-triangulation;
 - :mod:`~scene3D.multiview.focal`: without a calibration, one focal length for all
   views (the start pair self-calibrated, then refined in the global adjustments);
+- :mod:`~scene3D.multiview.lens`: one camera's lens distortion, found from a model;
+- :mod:`~scene3D.multiview.cameras`: photos of several cameras (sizes, zooms), each
+  with its own focal length and lens;
 - :mod:`~scene3D.multiview.checks`: the model against its pairs' own geometry;
 - :mod:`~scene3D.multiview.models`: the data (settings, features, pairs, results);
 - :mod:`~scene3D.multiview.pipeline`: :func:`reconstruct_views`, the stages in order;
@@ -38,6 +41,7 @@ from .focal import FocalSettings
 from .mapper import reconstruct_models
 from .matching import match_views, verify_pair
 from .models import (
+    CameraIntrinsics,
     FocalEstimate,
     ModelCheck,
     MultiViewReconstruction,
@@ -54,6 +58,7 @@ from .video import FrameChoice, VideoFrames, select_frames
 
 __all__ = [
     "PAIR_MODES",
+    "CameraIntrinsics",
     "FocalEstimate",
     "FocalSettings",
     "FrameChoice",

@@ -218,6 +218,7 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
                more_pairs: MorePairs | None, say: Callable[[str], None],
                timings: dict[str, float], names: Sequence[str],
                focal: FocalSettings | None = None, focal_start: FocalEstimate | None = None,
+               view_camera: np.ndarray | None = None, known_cameras: np.ndarray | None = None,
                ) -> tuple[SfMModel, dict[int, str]]:
     """Grow one model from its initial pair over the ``allowed`` views (steps 2-5).
 
@@ -254,6 +255,12 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
         Refine one focal length (photos without a calibration).
     focal_start : FocalEstimate or None, default None
         Where ``K``'s focal length comes from.
+    view_camera : (V,) int ndarray or None, default None
+        With several cameras, the camera of each view (its keypoints in the reference
+        camera's pixels: :mod:`scene3D.multiview.cameras`).
+    known_cameras : (C,) bool ndarray or None, default None
+        The cameras whose focal lengths the keypoints carry; the others' are searched for
+        at their first registration (None: only the initial pair's cameras are known).
 
     Returns
     -------
@@ -263,8 +270,11 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
         For each allowed view left out, why.
     """
     s = settings
-    model = GrowingModel(features, pairs, K, s, allowed, timings, focal)
+    model = GrowingModel(features, pairs, K, s, allowed, timings, focal, view_camera,
+                         known_cameras)
     pair, r = start
+    if view_camera is not None:
+        model.camera_known[view_camera[[pair.i, pair.j]]] = True
     model.reference = pair.i
     model.R[pair.i], model.t[pair.i] = np.eye(3), np.zeros(3)
     model.R[pair.j], model.t[pair.j] = r.R, r.t
@@ -381,6 +391,8 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
                        names: Sequence[str] | None = None,
                        focal: FocalSettings | None = None,
                        start_from: FocalEstimate | None = None,
+                       view_camera: np.ndarray | None = None,
+                       known_cameras: np.ndarray | None = None,
                        ) -> tuple[list[SfMModel], dict[int, str], dict[str, float]]:
     """Steps 1-6 on verified pairs: every model the views allow, largest first.
 
@@ -412,6 +424,10 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
         Refine one focal length per model (photos without a calibration).
     start_from : FocalEstimate or None, default None
         A previous model's focal estimate the first model starts from.
+    view_camera, known_cameras : ndarray or None, default None
+        Several cameras: as in :func:`grow_model`. A model then starts from a pair of
+        one camera when there is one, since a pair's self-calibration finds one focal
+        length.
 
 
     Returns
@@ -440,6 +456,8 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
     while remaining.sum() >= 2:
         t0 = time.perf_counter()
         inside = [p for p in pairs if remaining[p.i] and remaining[p.j]]
+        if view_camera is not None:  # the start from a pair of one camera, where one is
+            inside = [p for p in inside if view_camera[p.i] == view_camera[p.j]] or inside
         focal_start = None
         if focal is not None and not models and inside and start_from is not None:
             focal_start = start_from
@@ -470,7 +488,7 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
             break
         model, left_out = grow_model(features, pairs, K, s, remaining.copy(), start,
                                      more_pairs if not models else None, say, timings, names,
-                                     focal, focal_start)
+                                     focal, focal_start, view_camera, known_cameras)
         if model.registered.sum() < s.min_model_views:
             if not models:
                 raise ReconstructionError("no_model", _first_model_lost(

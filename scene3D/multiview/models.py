@@ -214,6 +214,13 @@ class SfMModel:
         (photos without a calibration file); None: the reconstruction's ``K``.
     focal : FocalEstimate or None
         How its focal length was found (None with a calibration file).
+    camera_scale : (C,) float64 or None
+        With several cameras (:mod:`scene3D.multiview.cameras`): the factor by which
+        each camera's keypoints were rescaled about the principal point while the model
+        grew (its focal length found by the model, 1: as given); None with one camera.
+    camera_K : (C, 3, 3) float64 or None
+        With several cameras, each camera's working intrinsics in this model (its
+        observations are in each view's own pixels); None with one camera.
 
     The property ``centers`` ``(V, 3)`` gives the camera centres ``C = -R^T t`` in the
     world frame (NaN for views not in the model).
@@ -229,6 +236,8 @@ class SfMModel:
     check: ModelCheck
     K: FloatArray | None = None
     focal: FocalEstimate | None = None
+    camera_scale: FloatArray | None = None
+    camera_K: FloatArray | None = None
 
     @property
     def centers(self) -> FloatArray:
@@ -261,6 +270,39 @@ class SfMModel:
         sums = np.bincount(self.observations.point, err, minlength=len(self.points3d))
         counts = np.bincount(self.observations.point, minlength=len(self.points3d))
         return sums / np.maximum(counts, 1)
+
+
+@dataclass(frozen=True)
+class CameraIntrinsics:
+    """One camera of a reconstruction of photos from several cameras
+    (:mod:`scene3D.multiview.cameras`).
+
+    Attributes
+    ----------
+    K : (3, 3) float64
+        Intrinsics of its working images (its focal length as the largest model found
+        it, the principal point at the image centre).
+    dist : (k,) float64
+        OpenCV distortion coefficients about ``K`` (``(k1, k2, 0, 0)``; empty: none).
+    image_size : (int, int)
+        (width, height) of its working images.
+    photo_size : (int, int)
+        (width, height) of its photos as stored.
+    name : str or None
+        EXIF make and model, when known.
+    prior_description : str
+        Where its focal length started from.
+    estimated : bool
+        Whether the largest model holds a view of it (else ``K`` is the prior's).
+    """
+
+    K: FloatArray
+    dist: FloatArray
+    image_size: tuple[int, int]
+    photo_size: tuple[int, int]
+    name: str | None = None
+    prior_description: str = ""
+    estimated: bool = True
 
 
 @dataclass(frozen=True)
@@ -339,6 +381,14 @@ class MultiViewReconstruction:
     min_model_points : int
         ``SfMSettings.min_model_points``: a model with fewer points fails
         (:meth:`model_ok`).
+    view_camera : (V,) int ndarray or None
+        With photos of several cameras (:mod:`scene3D.multiview.cameras`): the camera of
+        each view, an index into :attr:`cameras`; None for one camera, whose ``K``,
+        ``dist``, ``image_size`` and ``photo_size`` are the attributes above (with
+        several, those are the reference camera's, ``cameras[view_camera[v]]`` is view
+        ``v``'s). The models' observations are in each view's own working pixels.
+    cameras : tuple[CameraIntrinsics, ...]
+        The cameras (empty for one camera: :meth:`view_intrinsics` gives it).
     """
 
     names: tuple[str, ...]
@@ -359,6 +409,45 @@ class MultiViewReconstruction:
     lens_passes: int = 0
     feature: str = "SIFT"
     min_model_points: int = 10
+    view_camera: np.ndarray | None = None
+    cameras: tuple[CameraIntrinsics, ...] = ()
+
+    @property
+    def camera_list(self) -> tuple[CameraIntrinsics, ...]:
+        """The cameras: :attr:`cameras`, or the one camera the attributes describe."""
+        if self.cameras:
+            return self.cameras
+        return (CameraIntrinsics(np.asarray(self.K, np.float64), np.asarray(self.dist),
+                                 tuple(self.image_size),
+                                 tuple(self.photo_size or self.image_size),
+                                 prior_description=self.prior_description),)
+
+    @property
+    def camera_of_view(self) -> np.ndarray:
+        """The camera of each view ``(V,)``, an index into :attr:`camera_list`."""
+        return (np.zeros(len(self.names), dtype=int) if self.view_camera is None
+                else np.asarray(self.view_camera, dtype=int))
+
+    def view_intrinsics(self, model: SfMModel | None = None) -> FloatArray:
+        """The working intrinsics of each view ``(V, 3, 3)`` in ``model`` (default the
+        largest): its camera's (:meth:`model_K` with one camera).
+
+        Parameters
+        ----------
+        model : SfMModel or None, default None
+            One of :attr:`models`.
+
+        Returns
+        -------
+        (V, 3, 3) float64 ndarray
+        """
+        if self.view_camera is None:
+            K = self.model_K(self.main if model is None else model)
+            return np.broadcast_to(K, (len(self.names), 3, 3)).copy()
+        model = self.main if model is None else model
+        Ks = model.camera_K if model.camera_K is not None else np.stack(
+            [c.K for c in self.cameras])
+        return Ks[self.camera_of_view]
 
     @property
     def focal_refit_scale(self) -> float:
@@ -464,6 +553,18 @@ class MultiViewReconstruction:
         """
         model = self.main if model is None else model
         obs = model.observations
+        if self.view_camera is not None:  # one camera per camera of the photos
+            Ks = model.camera_K if model.camera_K is not None else np.stack(
+                [c.K for c in self.cameras])
+            working = colmap_model_from_views(
+                self.names, Ks, [c.image_size for c in self.cameras], model.registered,
+                model.R, model.t, model.points3d, model.colors, obs.view, obs.point, obs.xy,
+                view_camera=self.view_camera)
+            if not photos:
+                return working
+            return model_for_photos(working, {c + 1: cam.photo_size for c, cam in
+                                              enumerate(self.cameras)},
+                                    {c + 1: cam.dist for c, cam in enumerate(self.cameras)})
         working = colmap_model_from_views(self.names, self.model_K(model), self.image_size,
                                           model.registered, model.R, model.t,
                                           model.points3d, model.colors, obs.view, obs.point,

@@ -32,7 +32,7 @@ from ..geometry.camera import (
     validate_distortion,
     validate_intrinsics,
 )
-from ..geometry.intrinsics_prior import FocalPrior, camera_prior
+from ..geometry.intrinsics_prior import FocalPrior, camera_prior, camera_priors
 from ..geometry.lens import (
     corner_shifts_px,
     folds_within,
@@ -47,13 +47,24 @@ from ..io.images import (
     glob_files,
     source_label,
 )
-from ..optim.bundle import Observations
+from ..optim.bundle import Observations, reprojection_residuals
+from .cameras import (
+    CameraPass,
+    camera_pixels,
+    corner_change_px,
+    implied_coefficients,
+    model_cameras,
+    reference_camera,
+    reference_features,
+    refine_cameras,
+)
 from .features import content_key, view_features
 from .focal import FocalSettings
 from .lens import pair_lens_guess, refine_lens, undistorted_features
 from .mapper import reconstruct_models
 from .matching import verify_pair
 from .models import (
+    CameraIntrinsics,
     FocalEstimate,
     MultiViewReconstruction,
     PairMatches,
@@ -91,6 +102,49 @@ def _to_input_order(model: SfMModel, order: np.ndarray) -> SfMModel:
         focal=focal)
 
 
+def _cameras_result(models: list[SfMModel], used: CameraPass, K_reference: np.ndarray,
+                    canonical_camera: np.ndarray, order: np.ndarray, reasons: dict[int, str],
+                    common: dict, priors: Sequence[FocalPrior], view_camera: np.ndarray,
+                    camera_sizes: Sequence[tuple[int, int]]) -> MultiViewReconstruction:
+    """The result of photos of several cameras: every model's observations in each
+    view's own working pixels and its cameras (``SfMModel.camera_K``), the largest
+    model's cameras as the result's, all in the input order."""
+    r = reference_camera(canonical_camera)
+    out = []
+    for model in models:
+        K_model = model.K if model.K is not None else K_reference
+        K_cameras = model_cameras(model, used, K_reference)
+        obs = camera_pixels(model, canonical_camera, K_model, K_cameras)
+        residuals = np.concatenate([reprojection_residuals(
+            model.R, model.t, model.points3d, Observations(obs.view[rows], obs.point[rows],
+                                                           obs.xy[rows]), K_cameras[c])
+            for c in range(len(priors))
+            for rows in [canonical_camera[obs.view] == c]])
+        rmse = float(np.sqrt(np.mean(residuals**2))) if len(residuals) else float("nan")
+        out.append(dataclasses.replace(model, observations=obs, reprojection_rmse_px=rmse,
+                                       K=K_cameras[r], camera_K=K_cameras))
+    main = out[0]
+    k = implied_coefficients(used, main.camera_K)
+    seen = np.zeros(len(priors), dtype=bool)
+    seen[canonical_camera[main.registered]] = True
+    dists = [np.concatenate([k[c], np.zeros(4 - k.shape[1])]) if np.any(k[c]) else np.zeros(0)
+             for c in range(len(priors))]
+    cameras = tuple(CameraIntrinsics(main.camera_K[c], dists[c], tuple(camera_sizes[c]),
+                                     tuple(prior.image_size), prior.camera_name,
+                                     prior.description, bool(seen[c]))
+                    for c, prior in enumerate(priors))
+    names = common["names"]
+    return MultiViewReconstruction(
+        K=main.camera_K[r].copy(), image_size=tuple(camera_sizes[r]),
+        models=tuple(_to_input_order(m, order) for m in out),
+        unregistered_reasons={names[order[v]]: why for v, why in sorted(
+            reasons.items(), key=lambda item: order[item[0]])},
+        calibration_source=main.focal.source if main.focal is not None else "prior",
+        prior_description=priors[r].description, photo_size=tuple(priors[r].image_size),
+        dist=dists[r], view_camera=np.asarray(view_camera, dtype=int), cameras=cameras,
+        **common)
+
+
 def default_focal_prior(images: Sequence[ImageSource], names: Sequence[str]) -> FocalPrior:
     """The prior of photos without a calibration: from their EXIF when they are files
     (:func:`scene3D.io.exif.read_camera_prior`, one camera checked), else the default.
@@ -112,6 +166,36 @@ def default_focal_prior(images: Sequence[ImageSource], names: Sequence[str]) -> 
         return read_camera_prior(images)  # type: ignore[arg-type]
     sizes = [(int(np.shape(src)[1]), int(np.shape(src)[0])) for src in images]
     return camera_prior([(name, None, size) for name, size in zip(names, sizes)])
+
+
+def default_camera_priors(images: Sequence[ImageSource], names: Sequence[str],
+                          mode: str = "auto") -> tuple[np.ndarray, list[FocalPrior]]:
+    """The cameras of photos without a calibration and a prior for each: from their EXIF
+    and sizes when they are files (:func:`scene3D.io.exif.read_camera_priors`), else
+    from their sizes (:func:`scene3D.geometry.intrinsics_prior.camera_priors`).
+
+    Parameters
+    ----------
+    images : sequence of path or (H, W, 3) uint8 ndarray
+        The images, as files or BGR arrays.
+    names : sequence of str
+        Their names, one per image.
+    mode : str, default "auto"
+        How photos are grouped into cameras
+        (:data:`scene3D.geometry.intrinsics_prior.CAMERA_MODES`).
+
+    Returns
+    -------
+    view_camera : (V,) int ndarray
+    priors : list of FocalPrior
+        One per camera.
+    """
+    if all(isinstance(src, (str, os.PathLike)) for src in images):
+        from ..io.exif import read_camera_priors
+
+        return read_camera_priors(images, mode)  # type: ignore[arg-type]
+    sizes = [(int(np.shape(src)[1]), int(np.shape(src)[0])) for src in images]
+    return camera_priors([(name, None, size) for name, size in zip(names, sizes)], mode)
 
 
 def _check_K_for_size(K: np.ndarray, size: tuple[int, int], prior: FocalPrior | None) -> None:
@@ -223,6 +307,7 @@ def reconstruct_views(
     engine: Engine | None = None,
     focal_prior: FocalPrior | None = None,
     camera_model: str = "auto",
+    camera_mode: str = "auto",
 ) -> MultiViewReconstruction:
     """Reconstruct cameras and points from several photos of one camera, calibrated or not.
 
@@ -272,6 +357,13 @@ def reconstruct_views(
         reconstructed again with their keypoints undistorted (:mod:`scene3D.multiview.lens`).
         With ``K`` the calibration gives the camera: ``"auto"`` or ``"pinhole"`` only
         (``dist`` undistorts the images first).
+    camera_mode : str
+        Without ``K`` and ``focal_prior``: how the photos are grouped into cameras
+        (:func:`scene3D.geometry.intrinsics_prior.camera_groups`): ``"auto"`` (one
+        camera per EXIF make, model, focal length and image size), ``"single"`` (one
+        camera; photos that cannot share one are refused) or ``"per_photo"``. Each
+        camera has its own focal length and lens (:mod:`scene3D.multiview.cameras`);
+        the result's ``view_camera`` and ``cameras`` say which and what.
 
     Returns
     -------
@@ -320,26 +412,42 @@ def reconstruct_views(
         if dist is not None:
             raise ValueError("`dist` needs `K`: photos without a calibration are taken as "
                              "undistorted")
-        focal_prior = focal_prior or default_focal_prior(images, names)
+        if focal_prior is None:
+            view_camera, priors = default_camera_priors(images, names, camera_mode)
+        else:
+            view_camera, priors = np.zeros(len(images), dtype=int), [focal_prior]
+        cameras = priors if len(priors) > 1 else None
+        focal_prior = priors[reference_camera(view_camera)]
         K = focal_prior.K
     else:
-        focal_prior = None
+        focal_prior = cameras = None
+        view_camera = np.zeros(len(images), dtype=int)
     K_native = validate_intrinsics(K)
     dist = validate_distortion(dist)
     timings: dict[str, float] = {}
 
     t0 = time.perf_counter()
     found = list(engine.map(view_features,
-                            [(src, K_native, dist, max_width, name, feature)
-                             for src, name in zip(images, names)], label="features"))
-    first = found[0][1]
+                            [(src, K_native if cameras is None else cameras[c].K, dist,
+                              max_width, name, feature)
+                             for src, name, c in zip(images, names, view_camera)],
+                            label="features"))
     labels = [source_label(src, name) for src, name in zip(images, names)]
-    for (_, size, _, _), label in zip(found, labels):
+    # Each camera's views share its size (one camera: all of them).
+    lead = [int(np.flatnonzero(view_camera == c)[0]) for c in range(view_camera.max() + 1)]
+    for (_, size, _, _), label, c in zip(found, labels, view_camera):
+        first = found[lead[c]][1]
         if size != first:
-            raise ValueError(different_sizes_message(label, size, labels[0], first))
+            raise ValueError(different_sizes_message(label, size, labels[lead[c]], first))
+    reference = lead[reference_camera(view_camera)]
+    first = found[reference][1]
     _check_K_for_size(K_native, first, focal_prior)
-    working_size, levels = found[0][2], found[0][3]
+    working_size, levels = found[reference][2], found[reference][3]
     K_work = scale_intrinsics_halved(K_native, levels)
+    if cameras is not None:  # each camera at its working size (scene3D.multiview.cameras)
+        K_cameras = np.stack([scale_intrinsics_halved(prior.K, found[v][3])
+                              for prior, v in zip(cameras, lead)])
+        camera_sizes = [found[v][2] for v in lead]
     focal = None if focal_prior is None else FocalSettings(
         float(K_work[0, 0]), focal_prior.sigma_log, focal_prior.source)
     timings["features"] = time.perf_counter() - t0
@@ -353,6 +461,18 @@ def reconstruct_views(
     position[order] = np.arange(len(order))
     features: list[ViewFeatures] = [found[v][0] for v in order]
     canonical_names = [names[v] for v in order]
+    canonical_camera = None if cameras is None else view_camera[order]
+    if cameras is not None:
+        camera_keypoints = [f.keypoints for f in features]
+        raw_sizes = [f.sizes for f in features]
+        used = CameraPass(K_cameras, np.zeros((len(cameras), num_radial)),
+                          np.zeros(len(cameras), dtype=bool))
+        features = reference_features(features, camera_keypoints, raw_sizes,
+                                      canonical_camera, used.K, used.k, K_work)
+        say(f"{len(cameras)} cameras: " + "; ".join(
+            f"{prior.camera_name or 'camera'} {prior.image_size[0]}x{prior.image_size[1]} "
+            f"({int(np.sum(view_camera == c))} views, f {prior.focal_px:.0f} px from "
+            f"{prior.source})" for c, prior in enumerate(cameras)))
 
     t0 = time.perf_counter()
     vocabulary = train_vocabulary(features, s.vocabulary_words)
@@ -371,7 +491,8 @@ def reconstruct_views(
 
     latest_pairs: list[PairMatches] = []  # the last pass's verified pairs
 
-    def reconstruct_with(K_work: np.ndarray, start_from: FocalEstimate | None = None
+    def reconstruct_with(K_work: np.ndarray, start_from: FocalEstimate | None = None,
+                         known_cameras: np.ndarray | None = None
                          ) -> tuple[list[SfMModel], dict[int, str], int, int]:
         """The models under ``K_work``, the reasons for the views left out, and the
         pairs matched and verified: pair verification depends on ``K``."""
@@ -406,7 +527,7 @@ def reconstruct_views(
         try:
             models, reasons, sfm_timings = reconstruct_models(
                 features, verified, K_work, s, more_pairs, say, canonical_names, focal,
-                start_from)
+                start_from, canonical_camera, known_cameras)
         except ReconstructionError as exc:
             few = _too_few_keypoints(found, labels, s.min_pair_inliers, working_size)
             if exc.reason != "no_initial_pair" or few is None:
@@ -420,14 +541,15 @@ def reconstruct_views(
     lens, K_lens, lens_passes = np.zeros(num_radial), K_work.copy(), 0
     raw_keypoints = [f.keypoints for f in features]
     try:
-        models, reasons, num_matched, num_verified = reconstruct_with(K_work)
+        models, reasons, num_matched, num_verified = reconstruct_with(
+            K_work, known_cameras=None if cameras is None else used.known)
     except ReconstructionError as exc:
         # A lens that bends the matches can leave no pair trustworthy in the pinhole
         # geometry, or make the consistency check take right poses out of the first
         # model: undistort with the lens the best pairs call for and start again.
         guess = (pair_lens_guess(latest_pairs, features, K_work)
                  if exc.reason in ("no_initial_pair", "no_model") and focal is not None
-                 and num_radial else None)
+                 and num_radial and cameras is None else None)
         if guess is None or folds_within(K_lens, [guess], working_size):
             raise
         say(f"no model with the keypoints as photographed ({exc}); the pairs with most "
@@ -461,7 +583,7 @@ def reconstruct_views(
         K_work = K_refit
     # Without a calibration: the lens the largest model calls for, its keypoints
     # undistorted with it and the views reconstructed again (scene3D.multiview.lens).
-    while focal is not None and num_radial and lens_passes < s.max_lens_passes:
+    while cameras is None and focal is not None and num_radial and lens_passes < s.max_lens_passes:
         t0 = time.perf_counter()
         K_model = models[0].K if models[0].K is not None else K_work
         fit = refine_lens(models[0], K_model, lens, K_lens, focal)
@@ -500,7 +622,64 @@ def reconstruct_views(
         say(f"no better model with the keypoints undistorted ({why}): keeping the last")
         features, handles = kept
         break
+    # Several cameras: each camera's focal length and lens the largest model calls for,
+    # its keypoints mapped with them and the views reconstructed again
+    # (scene3D.multiview.cameras), as for one camera's lens above.
+    while cameras is not None and lens_passes < s.max_lens_passes:
+        t0 = time.perf_counter()
+        fit = refine_cameras(models[0], canonical_camera, used, K_work, K_cameras[:, 0, 0],
+                             [prior.sigma_log for prior in cameras])
+        implied = model_cameras(models[0], used, K_work)
+        k_implied = implied_coefficients(used, implied)
+        seen = np.zeros(len(cameras), dtype=bool)
+        seen[canonical_camera[models[0].registered]] = True
+        moved = max(corner_change_px(implied[c], k_implied[c], fit.K[c],
+                                     fit.k[c], camera_sizes[c]) for c in np.flatnonzero(seen))
+        timings["lens"] = timings.get("lens", 0.0) + time.perf_counter() - t0
+        if moved <= s.lens_tolerance_px:
+            break
+        folding = [c for c in np.flatnonzero(seen)
+                   if folds_within(fit.K[c], fit.k[c], camera_sizes[c])]
+        if folding:
+            say(f"the lens the model calls for folds over inside the images of camera "
+                f"{folding[0] + 1}: keeping the last cameras")
+            break
+        say("cameras: " + "; ".join(
+            f"{c + 1} f {fit.K[c, 0, 0]:.1f} px" + (f", k1 {fit.k[c, 0]:+.3f}" if num_radial
+                                                   else "")
+            for c in np.flatnonzero(seen))
+            + f" (the image corners move up to {moved:.1f} px): reconstructing with them")
+        kept = features, handles, used, K_work
+        used = CameraPass(np.where(seen[:, None, None], fit.K, used.K),
+                          np.where(seen[:, None], fit.k, used.k), used.known | seen)
+        K_work = used.K[reference_camera(canonical_camera)]
+        features = reference_features(features, camera_keypoints, raw_sizes, canonical_camera,
+                                      used.K, used.k, K_work)
+        handles = [engine.share(f) for f in features]
+        start_from = None if models[0].focal is None else dataclasses.replace(
+            models[0].focal, start_focal_px=float(K_work[0, 0]))
+        try:
+            attempt = reconstruct_with(K_work, start_from, used.known)
+        except ReconstructionError as exc:
+            attempt, why = None, str(exc)
+        else:
+            why = "it registers fewer views"
+            if attempt[0][0].registered.sum() >= models[0].registered.sum():
+                models, reasons, num_matched, num_verified = attempt
+                lens_passes += 1
+                continue
+        say(f"no better model with these cameras ({why}): keeping the last")
+        features, handles, used, K_work = kept
+        break
     timings["total"] = sum(timings.values())
+    if cameras is not None:
+        return _cameras_result(models, used, K_work, canonical_camera, order, reasons,
+                               dict(names=names, pair_selection=selection,
+                                    matched_pairs=num_matched, verified_pairs=num_verified,
+                                    timings_s=timings, feature=feature,
+                                    min_model_points=s.min_model_points,
+                                    camera_model=camera_model, lens_passes=lens_passes),
+                               cameras, view_camera, camera_sizes)
     if focal is not None:
         K_work = models[0].K if models[0].K is not None else K_work
     if lens_passes:  # the lens about the final K: OpenCV's (k1, k2, p1, p2)

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..geometry.conventions import FloatArray, camera_centers
 from ..optim.bundle import Observations, bundle_adjust, bundle_adjust_focal, reprojection_residuals
+from .cameras import pnp_focal_search
 from .checks import check_model, pair_distances_px
 from .focal import FocalSettings, longer_side_px
 from .models import (
@@ -41,8 +42,19 @@ class GrowingModel:
 
     def __init__(self, features: Sequence[ViewFeatures], pairs: list[PairMatches],
                  K: FloatArray, settings: SfMSettings, allowed: np.ndarray,
-                 timings: dict[str, float], focal: FocalSettings | None = None) -> None:
-        self.features, self.K, self.s, self.timings = features, K, settings, timings
+                 timings: dict[str, float], focal: FocalSettings | None = None,
+                 view_camera: np.ndarray | None = None,
+                 known_cameras: np.ndarray | None = None) -> None:
+        self.features, self.K, self.s, self.timings = list(features), K, settings, timings
+        # Several cameras (scene3D.multiview.cameras): the camera of each view, which
+        # cameras' focal lengths are known (else searched for at their first view),
+        # and how each camera's keypoints were rescaled since.
+        self.view_camera = view_camera
+        if view_camera is not None:
+            C = int(view_camera.max()) + 1
+            self.camera_known = (np.zeros(C, dtype=bool) if known_cameras is None
+                                 else np.array(known_cameras, dtype=bool))
+            self.camera_scale = np.ones(C)
         self.focal = focal  # photos without a calibration: global adjustments refine f
         self.focal_adjustment = None  # the last one's scene3D.optim.bundle.FocalAdjustment
         self.allowed = allowed
@@ -259,6 +271,14 @@ class GrowingModel:
         need = min(self.s.min_registration_inliers, self.s.min_confirmed_registration_inliers)
         if len(nodes) < need:
             return False
+        if self.view_camera is not None and not self.camera_known[self.view_camera[view]]:
+            # A camera the model has not seen: its focal length is a guess, which the
+            # view's 2D-3D matches correct before its pose is found.
+            scale, count = pnp_focal_search(self.X[points], self.xy[nodes], self.K,
+                                            self.s.pnp_threshold_px)
+            if count < need:
+                return False
+            self.rescale_camera(int(self.view_camera[view]), 1.0 / scale)
         obj, img = self.X[points], self.xy[nodes]
         ok, rvec, tvec, inliers = cv2.solvePnPRansac(
             obj, img, self.K, None, iterationsCount=2000,
@@ -274,7 +294,33 @@ class GrowingModel:
         self.R[view], self.t[view] = R, t
         self.registered[view] = True
         self.node_point[nodes[inl]] = points[inl]
+        if self.view_camera is not None:
+            self.camera_known[self.view_camera[view]] = True
         return True
+
+    def rescale_camera(self, camera: int, factor: float) -> None:
+        """Scale the keypoints of ``camera``'s views about the principal point by
+        ``factor``: as if its focal length were ``1 / factor`` times the one its keypoints
+        were mapped with (:mod:`scene3D.multiview.cameras`).
+
+        Parameters
+        ----------
+        camera : int
+            A camera index (``view_camera``).
+        factor : float
+            Positive.
+        """
+        c = self.K[:2, 2]
+        for v in np.flatnonzero(self.view_camera == camera):
+            rows = slice(self.tracks.offsets[v], self.tracks.offsets[v + 1])
+            self.xy[rows] = c + (self.xy[rows] - c) * factor
+            f = self.features[v]
+            self.features[v] = dataclasses.replace(
+                f, keypoints=c + (f.keypoints - c) * factor,
+                sizes=None if f.sizes is None else f.sizes * factor)
+            if self.sigma is not None:
+                self.sigma[rows] *= factor
+        self.camera_scale[camera] *= factor
 
     def pair_confirms(self, view: int, R: FloatArray, t: FloatArray) -> bool:
         """Whether the pose ``(R, t)`` of ``view`` explains a verified pair with a registered
@@ -607,4 +653,5 @@ class GrowingModel:
         res = reprojection_residuals(self.R, self.t, self.X, obs, self.K)
         rmse = float(np.sqrt(np.mean(res**2))) if len(res) else float("nan")
         return SfMModel(self.registered.copy(), self.R.copy(), self.t.copy(), self.X.copy(),
-                        colors, obs, rmse, check)
+                        colors, obs, rmse, check, camera_scale=None if self.view_camera is None
+                        else self.camera_scale.copy())

@@ -255,5 +255,33 @@ def reconstruction_summary(recon: MultiViewReconstruction, camera: str | None = 
     }
     if "ground_truth" in main:
         summary["ground_truth"] = main["ground_truth"]
+    summary["cameras"] = camera_summaries(recon)
     summary["timings_s"] = dict(recon.timings_s)
     return summary
+
+
+def camera_summaries(recon: MultiViewReconstruction) -> list[dict]:
+    """Each camera of the photos (:attr:`MultiViewReconstruction.camera_list`) as plain
+    data: its views, the photos' and working sizes, ``K`` at the working size and the
+    focal length at the photos', the distortion, where the focal length started and
+    whether the largest model estimated it.
+
+    Parameters
+    ----------
+    recon : MultiViewReconstruction
+
+    Returns
+    -------
+    list of dict
+    """
+    out = []
+    for c, camera in enumerate(recon.camera_list):
+        scale = camera.photo_size[0] / camera.image_size[0]
+        out.append({
+            "camera": c + 1, "name": camera.name,
+            "views": [n for n, v in zip(recon.names, recon.camera_of_view) if v == c],
+            "photo_size": list(camera.photo_size), "image_size": list(camera.image_size),
+            "K": camera.K, "focal_px_photo": float(camera.K[0, 0] * scale),
+            "distortion": list(camera.dist), "start": camera.prior_description,
+            "estimated": camera.estimated})
+    return out

@@ -12,6 +12,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..geometry.camera import with_focal
 from ..geometry.conventions import FloatArray, rotations_from_vectors, skews
@@ -34,7 +35,7 @@ def radial_projection(
     K : (3, 3)
         Focal length ``K[0, 0]`` (square pixels, no skew) and principal point.
     k : (m,)
-        Radial coefficients ``k1[, k2]`` (m = 1 or 2).
+        Radial coefficients ``k1[, k2]`` (m = 0, 1 or 2; 0 for a pinhole camera).
 
     Returns
     -------
@@ -51,9 +52,10 @@ def radial_projection(
     z = cam[:, 2:3]
     n = cam[:, :2] / z
     r2 = np.sum(n * n, axis=1)
-    powers = np.stack([r2 ** (i + 1) for i in range(len(k))], axis=1)  # (O, m)
+    powers = (np.stack([r2 ** (i + 1) for i in range(len(k))], axis=1) if len(k)
+              else np.zeros((len(r2), 0)))  # (O, m)
     d = 1.0 + powers @ k
-    dd_dr2 = sum((i + 1) * k[i] * r2**i for i in range(len(k)))
+    dd_dr2 = sum(((i + 1) * k[i] * r2**i for i in range(len(k))), np.zeros_like(r2))
     # pixel = c + f d(r2) n: d pixel / d n = f (d I + 2 d'(r2) n n^T).
     J_n = f * (d[:, None, None] * np.eye(2) + 2.0 * dd_dr2[:, None, None]
                * n[:, :, None] * n[:, None, :])
@@ -109,7 +111,7 @@ def bundle_adjust_radial(
     unknowns of the normal equations. Priors: ``log f`` as in
     :func:`bundle_adjust_focal`, each coefficient ``N(0, k_sigma^2)`` (weak: it holds
     the coefficients only where the views do not determine them), both in units of the
-    reprojection noise.
+    reprojection noise. One camera of :func:`bundle_adjust_cameras`.
 
     Parameters
     ----------
@@ -128,36 +130,136 @@ def bundle_adjust_radial(
     -------
     RadialAdjustment
     """
-    K = np.asarray(K, np.float64)
     k0 = np.atleast_1d(np.asarray(k, np.float64))
     if k0.size not in (1, 2):
         raise ValueError(f"one or two radial coefficients, got {k0.size}")
-    if not (np.isfinite(prior_focal_px) and prior_focal_px > 0 and prior_sigma_log > 0
+    fit = bundle_adjust_cameras(
+        R, t, points3d, obs, np.asarray(K, np.float64)[None], k0[None],
+        np.zeros(len(R), dtype=int), fixed_view, [prior_focal_px], [prior_sigma_log],
+        k_sigma, loss, scale_px, max_iterations, tolerance)
+    return RadialAdjustment(fit.R, fit.t, fit.points3d, fit.K[0], fit.k[0], fit.sigma[0],
+                            fit.noise_px)
+
+
+@dataclass(frozen=True)
+class CamerasAdjustment:
+    """What :func:`bundle_adjust_cameras` returns.
+
+    Attributes
+    ----------
+    R, t, points3d : (V, 3, 3), (V, 3), (P, 3)
+        Refined copies.
+    K : (C, 3, 3)
+        Each camera's intrinsics with its refined focal length (principal point kept).
+    k : (C, m)
+        Each camera's refined radial coefficients (m = 0: pinhole cameras).
+    sigma : (C, 1 + m)
+        Standard deviations of each camera's ``log f`` and coefficients (cameras and
+        points marginalised, the priors included), in the noise of the residuals.
+    noise_px : float
+        Robust standard deviation of the final residuals.
+    """
+
+    R: FloatArray
+    t: FloatArray
+    points3d: FloatArray
+    K: FloatArray
+    k: FloatArray
+    sigma: FloatArray
+    noise_px: float
+
+
+def bundle_adjust_cameras(
+    R: FloatArray, t: FloatArray, points3d: FloatArray, obs: Observations, K: FloatArray,
+    k: FloatArray, view_camera: ArrayLike, fixed_view: int | Sequence[int],
+    prior_focal_px: ArrayLike, prior_sigma_log: ArrayLike, k_sigma: float = 0.5,
+    loss: str = "soft_l1", scale_px: float = 1.0, max_iterations: int = 50,
+    tolerance: float = 1e-10,
+) -> CamerasAdjustment:
+    """Bundle adjustment of views from several radially distorting cameras: each
+    camera's focal length and ``m`` radial coefficients refined with the poses and points.
+
+    Each view ``v`` is taken by camera ``view_camera[v]``, whose pixels are
+    :func:`radial_projection`'s (its own principal point, held). The unknowns besides
+    the poses and points are every camera's ``log f`` and coefficients, global unknowns
+    of the normal equations; priors as in :func:`bundle_adjust_radial`, per camera. A
+    camera no observation sees keeps its start (its prior holds it).
+
+    Parameters
+    ----------
+    R, t, points3d, obs, fixed_view, loss, scale_px, max_iterations, tolerance
+        As in :func:`scene3D.optim.bundle.bundle_adjust`.
+    K : (C, 3, 3)
+        Each camera's starting intrinsics (square pixels, no skew).
+    k : (C, m)
+        Each camera's starting coefficients, m = 0, 1 or 2.
+    view_camera : (V,) int array_like
+        The camera of each view.
+    prior_focal_px, prior_sigma_log : (C,) array_like
+        Each camera's focal-length prior, as in
+        :func:`scene3D.optim.bundle.bundle_adjust_focal`.
+    k_sigma : float
+        The coefficients' prior standard deviation.
+
+    Returns
+    -------
+    CamerasAdjustment
+    """
+    K = np.asarray(K, np.float64).reshape(-1, 3, 3)
+    C = len(K)
+    k0 = np.asarray(k, np.float64).reshape(C, -1)
+    m = k0.shape[1]
+    prior_f = np.asarray(prior_focal_px, np.float64).reshape(C)
+    prior_s = np.asarray(prior_sigma_log, np.float64).reshape(C)
+    if m > 2:
+        raise ValueError(f"at most two radial coefficients, got {m}")
+    if not (np.all(np.isfinite(prior_f)) and np.all(prior_f > 0) and np.all(prior_s > 0)
             and k_sigma > 0):
-        raise ValueError(f"the priors must be positive, got {prior_focal_px} px "
-                         f"+-{prior_sigma_log} (log), k +-{k_sigma}")
+        raise ValueError(f"the priors must be positive, got {prior_f.tolist()} px "
+                         f"+-{prior_s.tolist()} (log), k +-{k_sigma}")
+    camera_of_view = np.asarray(view_camera, dtype=int)
+    obs_camera = camera_of_view[obs.view]
     free = np.setdiff1d(np.unique(obs.view), np.atleast_1d(np.asarray(fixed_view, dtype=int)))
     slot = np.full(len(R), -1, dtype=int)
     slot[free] = np.arange(len(free))
     camera = slot[obs.view]
-    prior_mean = np.concatenate([[np.log(prior_focal_px)], np.zeros(k0.size)])
-    prior_sigma = np.concatenate([[prior_sigma_log], np.full(k0.size, k_sigma)])
+    width = 1 + m  # unknowns of one camera: log f, then its coefficients
+    prior_mean = np.concatenate([np.log(prior_f)[:, None], np.zeros((C, m))], axis=1).ravel()
+    prior_sigma = np.concatenate([prior_s[:, None], np.full((C, m), k_sigma)], axis=1).ravel()
 
     def whitened(pixels: FloatArray) -> FloatArray:
         r = pixels - obs.xy
         return r if obs.sigma is None else r / obs.sigma[:, None]
 
     def intrinsics(g: FloatArray) -> FloatArray:
-        return with_focal(K, float(np.exp(g[0])))
+        return np.stack([with_focal(K[c], float(np.exp(g[c * width]))) for c in range(C)])
+
+    def project(R_: FloatArray, t_: FloatArray, X_: FloatArray, g: FloatArray):
+        Ks, ks = intrinsics(g), g.reshape(C, width)[:, 1:]
+        if C == 1:
+            return radial_projection(R_, t_, X_, obs, Ks[0], ks[0])
+        pixels = np.empty_like(obs.xy, dtype=np.float64)
+        J_camera = np.empty((len(obs.xy), 2, 6))
+        J_point = np.empty((len(obs.xy), 2, 3))
+        J_global = np.zeros((len(obs.xy), 2, C * width))
+        for c in range(C):
+            rows = np.flatnonzero(obs_camera == c)
+            if not len(rows):
+                continue
+            part = Observations(obs.view[rows], obs.point[rows], obs.xy[rows])
+            p, Jc, Jp, Jg = radial_projection(R_, t_, X_, part, Ks[c], ks[c])
+            pixels[rows], J_camera[rows], J_point[rows] = p, Jc, Jp
+            J_global[rows, :, c * width:(c + 1) * width] = Jg
+        return pixels, J_camera, J_point, J_global
 
     R0, t0 = np.array(R, np.float64), np.array(t, np.float64)
     X0 = np.array(points3d, np.float64)
-    g0 = np.concatenate([[np.log(K[0, 0])], k0])
-    noise = robust_noise_px(whitened(radial_projection(R0, t0, X0, obs, K, k0)[0]))
+    g0 = np.concatenate([np.log(K[:, 0, 0])[:, None], k0], axis=1).ravel()
+    noise = robust_noise_px(whitened(project(R0, t0, X0, g0)[0]))
     prior_weight = noise / prior_sigma  # rebound below, as the noise settles
 
     def evaluate(R_: FloatArray, t_: FloatArray, X_: FloatArray, g: FloatArray):
-        projected = radial_projection(R_, t_, X_, obs, intrinsics(g), g[1:])
+        projected = project(R_, t_, X_, g)
         r_ = whitened(projected[0])
         cost = robust_cost(r_, loss, scale_px) + float(
             np.sum((prior_weight * (g - prior_mean)) ** 2))
@@ -204,5 +306,6 @@ def bundle_adjust_radial(
     # diagonal priors of global unknowns as they are).
     data = global_information(system(state)) - np.diag(prior_weight**2)
     info = data / max(settled, 1e-9) ** 2 + np.diag(1.0 / prior_sigma**2)
-    sigma = np.sqrt(np.diag(np.linalg.pinv(info)))
-    return RadialAdjustment(R_, t_, X_, intrinsics(g), g[1:].copy(), sigma, settled)
+    sigma = np.sqrt(np.diag(np.linalg.pinv(info))).reshape(C, width)
+    return CamerasAdjustment(R_, t_, X_, intrinsics(g), g.reshape(C, width)[:, 1:].copy(),
+                             sigma, settled)
