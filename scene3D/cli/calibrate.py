@@ -14,15 +14,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..calibration.board import (
-    MAX_RMS_PX,
-    PATTERNS,
-    BoardSpec,
-    board_size_problem,
-    min_image_side_px,
-    save_calibration,
-)
+from ..calibration.board import PATTERNS, BoardSpec, board_size_problem, min_image_side_px
 from ..calibration.pipeline import calibrate_views
+from ..calibration.solve import MAX_RMS_PX
 from ..calibration.uncertainty import CORNER_LIMIT_PX
 from ..calibration.views import (
     FRAMES,
@@ -38,7 +32,7 @@ from ..calibration.views import (
 from ..calibration.views import collect_views as collect_board_views
 from ..errors import CalibrationError, plural
 from ..geometry.camera import undistort_image
-from ..io.calibration import CALIBRATION_SUFFIXES
+from ..io.calibration import CALIBRATION_SUFFIXES, save_calibration
 from ..io.export import all_or_nothing, atomic_write_bytes, atomic_write_pieces
 from ..io.images import IMAGE_SUFFIXES
 from ..io.paths import lists_file
