@@ -31,9 +31,9 @@ __all__ = [
     "MAX_RMS_PX", "CalibrationResult", "calibrate", "corner_coverage", "coverage_warnings",
 ]
 
-#: Largest RMS reprojection error (px) that :func:`calibrate` accepts. Good boards give
-#: 0.2 px (OpenCV's left*.jpg) to 0.9 px (a 1280x720 car camera with motion blur); a
-#: wrong ``--board`` size gives 6-13 px on the same photos.
+#: Largest RMS reprojection error (px) that :func:`calibrate` accepts: well above what
+#: good boards give, well below what a wrong board size gives
+#: (docs/benchmarks.md#calibration).
 MAX_RMS_PX = 2.0
 
 
@@ -178,8 +178,8 @@ def calibrate(
         covariance = None
     if covariance is not None:
         # The same on a well-posed calibration; where the lens is poorly determined
-        # OpenCV's understate the distortion's (k3 +-0.10 against +-8412 on a rendered
-        # telephoto lens whose k3 came out at -17066, the truth being 0).
+        # OpenCV's understate the distortion's by orders of magnitude
+        # (docs/benchmarks.md#calibration).
         std_intrinsics = covariance.std()
     return CalibrationResult(
         K=K.astype(np.float64), dist=dist, image_size=tuple(image_size), rms_px=float(rms),

@@ -446,8 +446,8 @@ def _too_few_views(args: argparse.Namespace, board: BoardSpec, found: CollectedV
 def _max_rms_hint(board: BoardSpec, rms_px: float | None) -> str:
     """What to check when the RMS error ``rms_px`` is above ``--max-rms``: up to
     :data:`MAX_RMS_PX` (the default limit) it is what the right board gives, and only a
-    stricter ``--max-rms`` refused it; beyond, typically a wrong board (6-13 px on
-    OpenCV's left*.jpg), though blurred photos can give a few px too."""
+    stricter ``--max-rms`` refused it; beyond, typically a wrong board
+    (docs/benchmarks.md#calibration), though blurred photos can give a few px too."""
     if rms_px is not None and rms_px <= MAX_RMS_PX:
         return (f"an error below the default limit of {MAX_RMS_PX:g} px is what the right "
                 "board gives: raise --max-rms to accept it (a wrong --board gives several "

@@ -149,8 +149,8 @@ def atomic_write_pieces(path: str | os.PathLike, pieces: Iterable[bytes | Path])
     rename: bytes as they are, a :class:`~pathlib.Path` as that file's whole content.
 
     Files are copied by the kernel where it can (``os.copy_file_range`` on Linux), never
-    read into Python: a report's 4.8 MB plotly.js costs 2 ms that way against 15-60 ms
-    read, decoded, joined, encoded and written (measured on this project's machine).
+    read into Python: a report's plotly.js costs a few milliseconds that way, a tenth of
+    reading, decoding, joining, encoding and writing it (docs/benchmarks.md#whole-process-speed).
 
     Parameters
     ----------

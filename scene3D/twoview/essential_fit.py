@@ -148,8 +148,7 @@ def fit_essential(
     A generous threshold lets a pose that is off by degrees fit two sets of
     matches at once: the right ones, a little worse, and mismatches between
     repeated windows, which lie a few pixels from their true epipolar lines
-    (castle-P19 at 1536 px: 700 inliers with a median Sampson distance of 0.26 px,
-    1.6 deg off, against 560 inliers at 0.10 px for the true pose). Within the
+    (docs/benchmarks.md#castle-p19-repeated-windows). Within the
     noise only the true pose fits. So a noise probe comes first, a USAC estimation at
     :data:`NOISE_PROBE_OF_THRESHOLD` of the threshold, tight enough that no such
     compromise fits within it; the noise of the matches within ``threshold_px`` of
@@ -161,8 +160,9 @@ def fit_essential(
     region that the covariance of the optimum within the noise allows (chi-square of
     the shift, :func:`widening_shift_chi2`, above :data:`scene3D.optim.uncertainty.CHI2_99_POSE`):
     then they are not noise of the same matches but a population of their own, which
-    another pose fits (castle-P19 pair 8-9 at 768 px: 2 deg away; mismatched windows half
-    a pixel to a pixel off their epipolar lines do the same), and the optimum within the
+    another pose fits (mismatched windows half a pixel to a pixel off their epipolar
+    lines; docs/benchmarks.md#the-wider-refinement-against-the-fit-within-the-noise), and
+    the optimum within the
     noise is returned with its own inliers. Where they agree,
     the wider fit is the more precise one and is kept: a test of the efficient estimate
     against the robust one (Hausman, 1978). When the matches are as noisy as
@@ -183,10 +183,10 @@ def fit_essential(
     shift_test_min_inliers : int
         The wider refinement is tested against the fit within the noise only when that
         fit has at least this many inliers (each correspondence once): the test rests on
-        its covariance, which fewer residuals leave too uncertain (random subsets of
-        25-120 matches of the three Strecha scenes: below 50 such inliers the test
-        fired on 13-17 % of the fits and the wider refinement was the nearer to the
-        truth twice as often; ``TwoViewSettings.trusted_inliers`` is the same floor).
+        its covariance, which fewer residuals leave too uncertain (below 50 it fired
+        where the wider refinement was the nearer to the truth:
+        docs/benchmarks.md#the-wider-refinement-against-the-fit-within-the-noise;
+        ``TwoViewSettings.trusted_inliers`` is the same floor).
 
     Returns
     -------

@@ -29,7 +29,7 @@ MAX_THRESHOLD_GROWTH = 2.0
 #: compare their optima at :data:`THRESHOLD_OF_SIGMA` times that noise, never below this
 #: fraction of the threshold (:func:`comparison_threshold_px`). The default 1 px threshold
 #: leaves room for noise of a third of a pixel, more than SIFT keypoints show on the
-#: Strecha scenes (docs/benchmarks.md#keypoint-noise-on-the-strecha-scenes).
+#: Strecha scenes (docs/benchmarks.md#castle-p19-repeated-windows).
 NOISE_PROBE_OF_THRESHOLD = 0.125
 
 
