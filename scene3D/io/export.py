@@ -15,6 +15,7 @@ import json
 import math
 import os
 import time
+import warnings
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -413,6 +414,13 @@ def colmap_image_name(name: str) -> str:
     return "".join("_" if c.isspace() else c for c in name)
 
 
+#: What :func:`colmap_text_files` warns: its replacement.
+COLMAP_TEXT_FILES_DEPRECATION = (
+    "scene3D.io.export.colmap_text_files is deprecated and goes in the next release: use "
+    "scene3D.io.colmap.colmap_text(colmap_model_from_views(...)) or "
+    "scene3D.io.colmap.write_colmap_text")
+
+
 def colmap_text_files(
     names: list[str],
     K: np.ndarray,
@@ -428,6 +436,13 @@ def colmap_text_files(
     errors_px: np.ndarray,
 ) -> dict[str, str]:
     """A COLMAP text model (``cameras.txt``, ``images.txt``, ``points3D.txt``) as strings.
+
+    Deprecated, and removed in the next release: this is the first writer, kept for
+    callers of its old path. Use :func:`scene3D.io.colmap.colmap_text` of
+    :func:`scene3D.io.colmap.colmap_model_from_views` (the same arguments without
+    ``errors_px``, which it computes), or :func:`scene3D.io.colmap.write_colmap_text`:
+    every number to full precision, and read back by :func:`scene3D.io.colmap.read_colmap_text`.
+    Calling this warns once per call site (``DeprecationWarning``).
 
     One PINHOLE camera; image poses world-to-camera as quaternion ``(qw, qx, qy, qz)``
     and translation. COLMAP puts pixel centres at ``+0.5``, so principal point and
@@ -464,6 +479,9 @@ def colmap_text_files(
     -------
     dict[str, str]
     """
+    # scene3D.io.colmap imports this module (its writer shares write_text_files and
+    # colmap_image_name), so the old writer cannot call the new one: it warns instead.
+    warnings.warn(COLMAP_TEXT_FILES_DEPRECATION, DeprecationWarning, stacklevel=2)
     from ..geometry.conventions import quaternion_from_rotation
 
     fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5
