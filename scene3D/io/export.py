@@ -442,7 +442,7 @@ def colmap_text_files(
     :func:`scene3D.io.colmap.colmap_model_from_views` (the same arguments without
     ``errors_px``, which it computes), or :func:`scene3D.io.colmap.write_colmap_text`:
     every number to full precision, and read back by :func:`scene3D.io.colmap.read_colmap_text`.
-    Calling this warns once per call site (``DeprecationWarning``).
+    Calling it raises a ``DeprecationWarning`` that names them.
 
     One PINHOLE camera; image poses world-to-camera as quaternion ``(qw, qx, qy, qz)``
     and translation. COLMAP puts pixel centres at ``+0.5``, so principal point and
