@@ -188,7 +188,7 @@ class DistortionFit(NamedTuple):
         First-order standard deviation of ``k`` (inf when the matches do not
         determine it).
     R, t : (3, 3), (3,) float64
-        The pose refined with it (``|t| = 1``).
+        The pose refined with it, ``x_cam2 = R x_cam1 + t`` (``|t| = 1``).
     """
 
     k: float

@@ -124,7 +124,7 @@ class FlowCheck(NamedTuple):
     flow_share : float
         The same for the pose refined on the flow.
     R, t : (3, 3), (3,) float64
-        The pose refined on the flow (``|t| = 1``).
+        The pose refined on the flow, ``x_cam2 = R x_cam1 + t`` (``|t| = 1``).
     """
 
     points: int

@@ -112,7 +112,7 @@ class FocalFit(NamedTuple):
         First-order standard deviation of ``log(scale)`` (inf when the matches do
         not determine it, e.g. without rotation).
     R, t : (3, 3), (3,) float64
-        The pose refined with it (``|t| = 1``).
+        The pose refined with it, ``x_cam2 = R x_cam1 + t`` (``|t| = 1``).
     weights : (float, float)
         :data:`COMMON` or :data:`RATIO`: how ``scale`` applies to each image.
     """
