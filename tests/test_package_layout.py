@@ -98,8 +98,7 @@ def test_every_old_path_warns_once_with_its_new_path():
             "                       and str(w.message).startswith('scene3D.')])\n"
             "    out[old] = counts\n"
             "json.dump(out, sys.stdout)\n")
-    proc = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True,
-                          text=True)
+    proc = run_python(code)
     assert proc.returncode == 0, proc.stderr
     seen = json.loads(proc.stdout)
     expected = {old: [[[f"scene3D.{old} moved to scene3D.{new}", "<importer>"]], []]
@@ -146,13 +145,10 @@ def test_the_new_paths_import_without_a_deprecation_warning():
             "ours = [str(w.message) for w in caught if issubclass(w.category, "
             "DeprecationWarning) and 'scene3D' in str(w.message)]\n"
             "raise SystemExit('; '.join(ours) or None)\n")
-    proc = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True,
-                          text=True)
+    proc = run_python(code)
     assert proc.returncode == 0, proc.stderr
     # The check sees a shim's warning:
-    proc = subprocess.run([sys.executable, "-c", code.replace(repr(modules),
-                                                              repr(["scene3D.camera"]))],
-                          cwd=REPO, capture_output=True, text=True)
+    proc = run_python(code.replace(repr(modules), repr(["scene3D.camera"])))
     assert proc.returncode == 1 and "scene3D.camera moved to" in proc.stderr
 
 
@@ -205,6 +201,12 @@ def test_the_imports_between_scene3D_modules_make_no_cycle():
 
 
 # --- helpers -------------------------------------------------------------------------------
+
+def run_python(code: str) -> subprocess.CompletedProcess:
+    """``code`` run by a fresh interpreter in the repository (nothing imported yet)."""
+    return subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True,
+                          text=True)
+
 
 def package_files() -> list[Path]:
     return sorted(p for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.parts)
