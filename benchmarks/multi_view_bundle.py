@@ -45,8 +45,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.multi_view import ORBIT_VIEWS, render_orbit  # noqa: E402
 from scene3D.evaluation import camera_set_error  # noqa: E402
 from scene3D.geometry import camera_centers  # noqa: E402
+from scene3D.io.colmap import colmap_model_from_views, colmap_text  # noqa: E402
 from scene3D.io.datasets import default_data_root, read_strecha_scene  # noqa: E402
-from scene3D.io.export import colmap_text_files  # noqa: E402
 from scene3D.multiview import reconstruct_views, state  # noqa: E402
 from scene3D.optim import bundle  # noqa: E402
 from scene3D.optim.bundle import reprojection_residuals  # noqa: E402
@@ -138,9 +138,9 @@ def solve_ceres(p: dict, loss: str, iterations: int, solver: str) -> tuple:
     registered = np.zeros(len(p["R"]), dtype=bool)
     registered[seen] = True
     names = [f"{v}.png" for v in range(len(p["R"]))]
-    files = colmap_text_files(names, p["K"], p["size"], registered, p["R"], p["t"], p["X"],
-                              np.zeros((len(p["X"]), 3), np.uint8), p["obs"].view,
-                              p["obs"].point, p["obs"].xy, np.zeros(len(p["X"])))
+    files = colmap_text(colmap_model_from_views(
+        names, p["K"], p["size"], registered, p["R"], p["t"], p["X"],
+        np.zeros((len(p["X"]), 3), np.uint8), p["obs"].view, p["obs"].point, p["obs"].xy))
     with tempfile.TemporaryDirectory() as tmp:
         for name, text in files.items():
             (Path(tmp) / name).write_text(text)

@@ -53,7 +53,7 @@ def run(scene: str, width: int, threads: int, folder: Path) -> str:
         img, _, levels = load_working_image(p, K, np.zeros(5), width)
         cv2.imwrite(str(images / f"{p.stem}.png"), img)
     K_work = scale_intrinsics_halved(K, levels)
-    # COLMAP puts pixel centres at +0.5 (scene3D.io.export.colmap_text_files).
+    # COLMAP puts pixel centres at +0.5 (scene3D.io.colmap.ColmapCamera.from_opencv).
     reader = pycolmap.ImageReaderOptions()
     reader.camera_model = "PINHOLE"
     reader.camera_params = (f"{K_work[0, 0]},{K_work[1, 1]},{K_work[0, 2] + 0.5},"

@@ -1,8 +1,10 @@
-"""Moved to :mod:`scene3D.io.calibration`; this alias goes in the next release."""
+"""Deprecated: moved to :mod:`scene3D.io.calibration`.
 
-import warnings
+This alias of the old path goes in the next release; importing it warns once
+(``DeprecationWarning``) with the new path.
+"""
 
+from .errors import warn_moved
 from .io.calibration import *  # noqa: F401,F403
 
-warnings.warn("scene3D.calibration_io moved to scene3D.io.calibration",
-              DeprecationWarning, stacklevel=2)
+warn_moved(__name__, "scene3D.io.calibration")

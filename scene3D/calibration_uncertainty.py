@@ -1,6 +1,8 @@
-"""Moved to :mod:`scene3D.calibration.uncertainty`; this alias goes in the next release."""
+"""Deprecated: moved to :mod:`scene3D.calibration.uncertainty`.
 
-import warnings
+This alias of the old path goes in the next release; importing it warns once
+(``DeprecationWarning``) with the new path.
+"""
 
 from .calibration.uncertainty import *  # noqa: F401,F403
 from .calibration.uncertainty import (  # noqa: F401  (public names beside __all__)
@@ -9,6 +11,6 @@ from .calibration.uncertainty import (  # noqa: F401  (public names beside __all
     ROUND_TRIP_TOLERANCE_PX,
     worst_direction_sigma,
 )
+from .errors import warn_moved
 
-warnings.warn("scene3D.calibration_uncertainty moved to scene3D.calibration.uncertainty",
-              DeprecationWarning, stacklevel=2)
+warn_moved(__name__, "scene3D.calibration.uncertainty")

@@ -1,7 +1,10 @@
-"""Moved to :mod:`scene3D.viz.drawing`; this alias goes in the next release."""
+"""Deprecated: moved to :mod:`scene3D.viz.drawing`.
 
-import warnings
+This alias of the old path goes in the next release; importing it warns once
+(``DeprecationWarning``) with the new path.
+"""
 
+from .errors import warn_moved
 from .viz.drawing import *  # noqa: F401,F403
 from .viz.drawing import (  # noqa: F401  (public names beside __all__)
     PNG_FAST_PARAMS,
@@ -12,5 +15,4 @@ from .viz.drawing import (  # noqa: F401  (public names beside __all__)
     require_whole_number,
 )
 
-warnings.warn("scene3D.drawing moved to scene3D.viz.drawing",
-              DeprecationWarning, stacklevel=2)
+warn_moved(__name__, "scene3D.viz.drawing")

@@ -8,11 +8,32 @@ give a trustworthy answer raises one of the errors below.
 from __future__ import annotations
 
 import logging
+import warnings
 
 #: Set on the log record of a warning that a result also carries in its ``warnings``
 #: (a pose that may not be trustworthy, and why): a command that prints the result with
 #: its warnings drops these records rather than say the same thing twice.
 RESULT_WARNING = "scene3d_result_warning"
+
+
+def warn_moved(old: str, new: str) -> None:
+    """Say that the module ``old`` moved to ``new``: the one thing a shim left at a moved
+    module's old path does besides re-exporting it.
+
+    A shim calls it once, when it is first imported (a module runs once per process),
+    with its ``__name__``. The ``DeprecationWarning`` reads ``"OLD moved to NEW"`` and
+    points at the line that imported the old path.
+
+    Parameters
+    ----------
+    old : str
+        The old module's full name (the shim's ``__name__``).
+    new : str
+        Its new one (``"scene3D.geometry.camera"``).
+    """
+    # stacklevel 3: past this function and the shim, to the importer (the warnings module
+    # skips the import machinery's own frames).
+    warnings.warn(f"{old} moved to {new}", DeprecationWarning, stacklevel=3)
 
 
 def plural(count: int, noun: str) -> str:

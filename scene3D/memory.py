@@ -5,12 +5,11 @@ raising that threshold by itself only after a larger block is freed, and gives f
 beyond 128 KiB back to the system (raised along, to at most 64 MiB). SIFT's scale space
 (at the book's 768 px, images of 6 MB upscaled to 1536 x 1024, float32, about 90 MB; at
 1536 px about 350 MB) is then mapped, touched page by page and given back at every
-image: 15 000 page faults per image at 768 px, and a warm call took 0.09 s where it takes
-0.07 with the memory kept. :func:`keep_freed_memory` keeps it; the command-line scripts
-call it when they start, and a local Dask cluster they start gets it for its workers
-(:func:`worker_environment`; docs/cli.md, memory; measured in docs/benchmarks.md, freed
-memory kept for reuse). Linux (glibc) only; elsewhere it does nothing. Importing this
-module changes nothing.
+image, which costs every image its page faults again
+(docs/benchmarks.md#freed-memory-kept-for-reuse). :func:`keep_freed_memory` keeps it; the
+command-line scripts call it when they start, and a local Dask cluster they start gets it
+for its workers (:func:`worker_environment`; docs/cli.md, memory). Linux (glibc) only;
+elsewhere it does nothing. Importing this module changes nothing.
 """
 
 from __future__ import annotations
@@ -24,13 +23,9 @@ from collections.abc import Mapping
 #: takes); SIFT's largest level at 1536 px is 25 MB.
 MMAP_THRESHOLD_BYTES = 32 << 20
 #: Freed heap kept before it goes back to the system: more than one image's scale space at
-#: 1536 px (about 350 MB), so that the next image reuses it; glibc by itself keeps at most
-#: 64 MiB, which in some runs left castle-P19's features at 1536 px as slow as glibc's
-#: defaults and made ``--dense`` at 1536 px slower. A process's peak memory grows by up
-#: to this much: by 20 % (30 MB) for ``chapter4.py`` on the book pair, 25 % with
-#: ``--dense --max-width 1536``, a few per cent for ``reconstruct-views``; with
-#: ``--workers 2`` 12 % a worker and 23-26 % for all the processes together
-#: (docs/benchmarks.md, freed memory kept for reuse).
+#: 1536 px (about 350 MB), so that the next image reuses it; glibc's own ceiling of 64 MiB
+#: is too little at 1536 px. A process's peak memory grows by up to this much, in practice
+#: by a fifth to a quarter (docs/benchmarks.md#freed-memory-kept-for-reuse).
 KEPT_BYTES = 512 << 20
 #: glibc's ``mallopt`` parameters (malloc.h).
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3

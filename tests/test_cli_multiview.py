@@ -13,8 +13,8 @@ import pytest
 from scene3D.cli import multiview
 from scene3D.errors import ReconstructionError
 from scene3D.io.calibration import CameraCalibration, save_calibration
+from scene3D.io.colmap import colmap_model_from_views, colmap_text
 from scene3D.io.datasets import read_strecha_camera
-from scene3D.io.export import colmap_text_files
 from scene3D.multiview import SfMSettings, mapper, reconstruct_views
 from scene3D.multiview.settings import refutes_calibration
 
@@ -279,10 +279,10 @@ def test_colmap_names_hold_no_spaces():
     names = ["IMG é 0 (copy).JPG", "plain.jpg", "tab\there.jpg"]
     R = np.stack([np.eye(3)] * 3)
     t = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
-    files = colmap_text_files(names, np.diag([500.0, 510.0, 1.0]), (64, 48),
-                              np.ones(3, bool), R, t, np.zeros((0, 3)),
-                              np.zeros((0, 3), np.uint8), np.zeros(0, int), np.zeros(0, int),
-                              np.zeros((0, 2)), np.zeros(0))
+    files = colmap_text(colmap_model_from_views(
+        names, np.diag([500.0, 510.0, 1.0]), (64, 48), np.ones(3, bool), R, t,
+        np.zeros((0, 3)), np.zeros((0, 3), np.uint8), np.zeros(0, int), np.zeros(0, int),
+        np.zeros((0, 2))))
     fields = _image_lines(files["images.txt"])
     assert [len(f) for f in fields] == [10, 10, 10]
     assert [f[9] for f in fields] == ["IMG_é_0_(copy).JPG", "plain.jpg", "tab_here.jpg"]

@@ -34,15 +34,14 @@ def orbit_views(n_views: int = 6, n_points: int = 80, seed: int = 3):
     return K, (640, 480), R, t, X, colors, obs_view, obs_point, obs_xy
 
 
-def test_a_model_from_our_old_writer_reads_back_in_our_conventions(tmp_path):
+def test_a_model_of_some_views_reads_back_in_our_conventions(tmp_path):
     K, size, R, t, X, colors, obs_view, obs_point, obs_xy = orbit_views()
     registered = np.ones(len(R), bool)
     registered[2] = False  # a view in no model: neither in images.txt nor in the tracks
     keep = registered[obs_view]
-    files = colmap_text_files([f"v{i}.jpg" for i in range(len(R))], K, size, registered, R, t,
-                              X, colors, obs_view[keep], obs_point[keep], obs_xy[keep],
-                              np.zeros(len(X)))
-    write_text_files(tmp_path, files)
+    write_colmap_text(tmp_path, colmap_model_from_views(
+        [f"v{i}.jpg" for i in range(len(R))], K, size, registered, R, t, X, colors,
+        obs_view, obs_point, obs_xy))
     model = read_colmap_text(tmp_path)
     assert model.names == ("v0.jpg", "v1.jpg", "v3.jpg", "v4.jpg", "v5.jpg")
     assert list(model.image_ids) == [1, 2, 4, 5, 6]
@@ -58,6 +57,31 @@ def test_a_model_from_our_old_writer_reads_back_in_our_conventions(tmp_path):
     # Every observation, in OpenCV pixels, is its point projected (the half pixel undone).
     np.testing.assert_allclose(model.reprojection_errors_px(), 0, atol=2e-6)
     assert len(model.obs_view) == keep.sum()
+
+
+def test_the_old_writer_warns_naming_its_replacement_and_writes_the_same_model(tmp_path):
+    """``scene3D.io.export.colmap_text_files`` (deprecated) still gives the model the new
+    writer gives, to its own precision, and its warning names the new writer."""
+    K, size, R, t, X, colors, obs_view, obs_point, obs_xy = orbit_views()
+    registered = np.ones(len(R), bool)
+    registered[2] = False
+    keep = registered[obs_view]
+    names = [f"v{i}.jpg" for i in range(len(R))]
+    with pytest.warns(DeprecationWarning, match=r"use scene3D\.io\.colmap\.colmap_text\("):
+        files = colmap_text_files(names, K, size, registered, R, t, X, colors, obs_view[keep],
+                                  obs_point[keep], obs_xy[keep], np.zeros(len(X)))
+    write_text_files(tmp_path / "old", files)
+    old = read_colmap_text(tmp_path / "old")
+    write_colmap_text(tmp_path / "new", colmap_model_from_views(
+        names, K, size, registered, R, t, X, colors, obs_view, obs_point, obs_xy))
+    new = read_colmap_text(tmp_path / "new")
+    assert old.names == new.names and old.cameras.keys() == new.cameras.keys()
+    np.testing.assert_allclose(old.camera(0).K, new.camera(0).K, atol=1e-9)
+    for name in ("R", "t", "points3d", "obs_xy"):
+        np.testing.assert_allclose(getattr(old, name), getattr(new, name), rtol=0, atol=1e-6,
+                                   err_msg=name)
+    for name in ("image_ids", "point_ids", "colors", "obs_view", "obs_point"):
+        np.testing.assert_array_equal(getattr(old, name), getattr(new, name), err_msg=name)
 
 
 def test_our_full_precision_writer_and_reader_round_trip_exactly(tmp_path):

@@ -8,6 +8,7 @@ import json
 import re
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import pytest
@@ -45,13 +46,13 @@ MOVED = {
     "plotting": "viz.plotting",
     "synthetic": "evaluation.synthetic",
 }
-#: The modules that a package of the same name replaced: the package re-exports the module's
-#: public names (no shim, no warning).
+#: The modules that a package of the same name replaced, and the modules the old one's names
+#: now live in: the package re-exports their public names (no shim, no warning).
 REPLACED = {
-    "geometry": "geometry.conventions",
-    "features": "features.matching",
-    "calibration": "calibration.board",
-    "evaluation": "evaluation.poses",
+    "geometry": ("geometry.conventions",),
+    "features": ("features.matching",),
+    "calibration": ("calibration.board", "calibration.solve"),
+    "evaluation": ("evaluation.poses",),
 }
 MAX_TOP_LEVEL_MODULES = 8
 SKIPPED_FOLDERS = {".git", ".venv", "venv", "site", "out", "build", "dist", "__pycache__"}
@@ -78,13 +79,42 @@ def public_names(module) -> list[str]:
     return sorted(names)
 
 
+def test_every_old_path_warns_once_with_its_new_path():
+    """Each shim, imported for the first time in a fresh interpreter, gives exactly one
+    DeprecationWarning of scene3D's, "scene3D.OLD moved to scene3D.NEW", pointing at the
+    line that imported it; imported again, none. Only scene3D's own warnings count: an old
+    matplotlib under a new pyparsing warns of pyparsing's renames on import, which is
+    neither ours nor wrong."""
+    code = ("import json, sys, warnings\n"
+            "out = {}\n"
+            f"for old in {sorted(MOVED)!r}:\n"
+            "    counts = []\n"
+            "    for _ in range(2):\n"
+            "        with warnings.catch_warnings(record=True) as caught:\n"
+            "            warnings.simplefilter('always')\n"
+            "            exec(compile('import scene3D.' + old, '<importer>', 'exec'))\n"
+            "        counts.append([[str(w.message), w.filename] for w in caught\n"
+            "                       if issubclass(w.category, DeprecationWarning)\n"
+            "                       and str(w.message).startswith('scene3D.')])\n"
+            "    out[old] = counts\n"
+            "json.dump(out, sys.stdout)\n")
+    proc = run_python(code)
+    assert proc.returncode == 0, proc.stderr
+    seen = json.loads(proc.stdout)
+    expected = {old: [[[f"scene3D.{old} moved to scene3D.{new}", "<importer>"]], []]
+                for old, new in MOVED.items()}
+    assert seen == expected
+
+
 @pytest.mark.parametrize("old", sorted(MOVED))
-def test_an_old_path_warns_and_gives_the_moved_module_objects(old, monkeypatch):
+def test_an_old_path_is_documented_as_deprecated_and_gives_the_moved_module_objects(
+        old, monkeypatch):
     new = importlib.import_module(f"scene3D.{MOVED[old]}")
     monkeypatch.delitem(sys.modules, f"scene3D.{old}", raising=False)
-    with pytest.warns(DeprecationWarning,
-                      match=rf"^scene3D\.{old} moved to scene3D\.{re.escape(MOVED[old])}$"):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # the test above counts them
         shim = importlib.import_module(f"scene3D.{old}")
+    assert shim.__doc__.startswith(f"Deprecated: moved to :mod:`scene3D.{MOVED[old]}`.")
     names = public_names(new)
     assert names
     assert [n for n in names if getattr(shim, n, None) is not getattr(new, n)] == []
@@ -93,11 +123,12 @@ def test_an_old_path_warns_and_gives_the_moved_module_objects(old, monkeypatch):
 @pytest.mark.parametrize("old", sorted(REPLACED))
 def test_a_package_that_replaced_a_module_offers_its_names(old):
     package = importlib.import_module(f"scene3D.{old}")
-    module = importlib.import_module(f"scene3D.{REPLACED[old]}")
     assert hasattr(package, "__path__") and not (PACKAGE / f"{old}.py").exists()
-    names = public_names(module)
-    assert names
-    assert [n for n in names if getattr(package, n, None) is not getattr(module, n)] == []
+    for name in REPLACED[old]:
+        module = importlib.import_module(f"scene3D.{name}")
+        names = public_names(module)
+        assert names
+        assert [n for n in names if getattr(package, n, None) is not getattr(module, n)] == []
 
 
 def test_the_new_paths_import_without_a_deprecation_warning():
@@ -114,13 +145,10 @@ def test_the_new_paths_import_without_a_deprecation_warning():
             "ours = [str(w.message) for w in caught if issubclass(w.category, "
             "DeprecationWarning) and 'scene3D' in str(w.message)]\n"
             "raise SystemExit('; '.join(ours) or None)\n")
-    proc = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True,
-                          text=True)
+    proc = run_python(code)
     assert proc.returncode == 0, proc.stderr
     # The check sees a shim's warning:
-    proc = subprocess.run([sys.executable, "-c", code.replace(repr(modules),
-                                                              repr(["scene3D.camera"]))],
-                          cwd=REPO, capture_output=True, text=True)
+    proc = run_python(code.replace(repr(modules), repr(["scene3D.camera"])))
     assert proc.returncode == 1 and "scene3D.camera moved to" in proc.stderr
 
 
@@ -174,6 +202,12 @@ def test_the_imports_between_scene3D_modules_make_no_cycle():
 
 # --- helpers -------------------------------------------------------------------------------
 
+def run_python(code: str) -> subprocess.CompletedProcess:
+    """``code`` run by a fresh interpreter in the repository (nothing imported yet)."""
+    return subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True,
+                          text=True)
+
+
 def package_files() -> list[Path]:
     return sorted(p for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.parts)
 
@@ -186,7 +220,8 @@ def module_name(path: Path) -> str:
 
 
 def is_shim(path: Path) -> bool:
-    """A docstring, ``import warnings``, imports from the new module and one warning."""
+    """A docstring, imports from the new module and of :func:`scene3D.errors.warn_moved`,
+    and one call of it with the module's name and the new path."""
     if path.parent != PACKAGE or path.stem not in MOVED:
         return False
     new = f"{MOVED[path.stem]}"
@@ -195,16 +230,18 @@ def is_shim(path: Path) -> bool:
     for node in body:
         if isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant):
             kinds.append("doc")
-        elif isinstance(node, ast.Import) and [a.name for a in node.names] == ["warnings"]:
+        elif (isinstance(node, ast.ImportFrom) and node.level == 1 and node.module == "errors"
+              and [a.name for a in node.names] == ["warn_moved"]):
             kinds.append("import")
         elif isinstance(node, ast.ImportFrom) and node.level == 1 and node.module == new:
             kinds.append("from")
         elif (isinstance(node, ast.Expr) and isinstance(node.value, ast.Call)
-              and ast.unparse(node.value.func) == "warnings.warn"):
+              and ast.unparse(node.value) == f"warn_moved(__name__, 'scene3D.{new}')"):
             kinds.append("warn")
         else:
             return False
-    return kinds[:2] == ["doc", "import"] and kinds[-1] == "warn" and "from" in kinds
+    return (kinds[0] == "doc" and kinds[-1] == "warn" and kinds.count("warn") == 1
+            and kinds.count("import") == 1 and "from" in kinds)
 
 
 def repository_sources() -> list[tuple[Path, str]]:

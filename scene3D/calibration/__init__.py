@@ -2,7 +2,8 @@
 
 - :mod:`scene3D.calibration.views`: the photos or video frames, and the board found in
   each (the distinct views of a video);
-- :mod:`scene3D.calibration.board`: board detection, the solve, coverage;
+- :mod:`scene3D.calibration.board`: the calibration targets and their detection;
+- :mod:`scene3D.calibration.solve`: the solve and the coverage of its views;
 - :mod:`scene3D.calibration.uncertainty`: the covariance of the intrinsics and the
   projection-uncertainty map;
 - :mod:`scene3D.calibration.pipeline`: the chain ``scene3d calibrate`` runs (solve,
@@ -15,45 +16,43 @@ replaces the module ``scene3D.calibration`` and re-exports its public names (wit
 :func:`load_calibration` and :func:`save_calibration`), and those of the uncertainty.
 """
 
+from ..errors import CalibrationError, plural  # noqa: F401  (the old module's names)
+from ..features.matching import check_image  # noqa: F401
+from ..geometry.camera import check_intrinsics_for_size  # noqa: F401
+from ..geometry.conventions import is_real_number, is_whole_number  # noqa: F401
+from ..io.calibration import CameraCalibration, load_calibration, save_calibration
 from .board import (  # noqa: F401  (with the public names the module had beside __all__)
-    MAX_RMS_PX,
     MIN_POINTS_PER_VIEW,
     PATTERNS,
     BoardSpec,
-    CalibrationError,
-    CalibrationResult,
-    CameraCalibration,
     Detection,
-    IntrinsicsCovariance,
     board_size_problem,
-    calibrate,
-    check_image,
-    check_intrinsics_for_size,
-    corner_coverage,
-    coverage_warnings,
     detect_board,
     detect_charuco,
     detect_chessboard,
     detect_circles,
-    intrinsics_covariance,
-    is_real_number,
-    is_whole_number,
-    load_calibration,
     min_image_side_px,
-    plural,
-    save_calibration,
     subpixel_window,
 )
+from .solve import (  # noqa: F401
+    MAX_RMS_PX,
+    CalibrationResult,
+    calibrate,
+    corner_coverage,
+    coverage_warnings,
+)
 from .uncertainty import (
+    IntrinsicsCovariance,
     UncertaintyMap,
     format_px,
+    intrinsics_covariance,
     projection_covariance,
     projection_sigma_px,
     reached_by_rays,
     uncertainty_map,
 )
 
-__all__ = [  # the module's __all__, then the uncertainty's
+__all__ = [  # the old module's __all__, then the uncertainty's
     "BoardSpec", "CalibrationResult", "CameraCalibration", "Detection", "calibrate",
     "corner_coverage", "coverage_warnings", "detect_board", "load_calibration",
     "min_image_side_px", "save_calibration", "subpixel_window", "board_size_problem",

@@ -2,7 +2,7 @@
 
 :func:`calibrate_views` runs the chain that ``scene3d calibrate`` runs on the views
 :func:`scene3D.calibration.views.collect_views` found: the solve
-(:func:`scene3D.calibration.board.calibrate`, outlier views dropped), the coverage of the
+(:func:`scene3D.calibration.solve.calibrate`, outlier views dropped), the coverage of the
 image by the corners kept, the projection-uncertainty map
 (:func:`scene3D.calibration.uncertainty.uncertainty_map`) and the warnings both give. The
 :class:`BoardCalibration` it returns says what the command prints
@@ -21,15 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import CalibrationError
-from .board import (
-    MAX_RMS_PX,
-    BoardSpec,
-    CalibrationResult,
-    Detection,
-    calibrate,
-    corner_coverage,
-    coverage_warnings,
-)
+from .board import BoardSpec, Detection
+from .solve import MAX_RMS_PX, CalibrationResult, calibrate, corner_coverage, coverage_warnings
 from .uncertainty import CORNER_LIMIT_PX, UncertaintyMap, format_px, uncertainty_map
 
 #: The names of the distortion coefficients, in OpenCV's order.
@@ -48,7 +41,7 @@ class BoardCalibration:
         The views the solve kept (outliers dropped).
     coverage : (rows, cols) int
         Corners of ``views`` per cell of the image
-        (:func:`scene3D.calibration.board.corner_coverage`).
+        (:func:`scene3D.calibration.solve.corner_coverage`).
     uncertainty : UncertaintyMap
         The projection uncertainty over the image.
     warnings : tuple of str

@@ -53,10 +53,10 @@ def main(argv: list[str] | None = None) -> int:
         from .evaluate import main as run
     elif command == "reconstruct-views":
         # Before numpy loads: bundle adjustment's matrices are small (a Schur complement
-        # of 6 numbers a camera), and OpenBLAS's threads wait on each other: with another
-        # program busy on the 2-core test machine, castle-P19's adjustment took 28-30 s on
-        # two threads and 2-3 s on one; on a quiet machine the two are level
-        # (docs/benchmarks.md, many views). A value the user has set is kept.
+        # of 6 numbers a camera), and OpenBLAS's threads wait on each other when a core is
+        # shared: ten times the time on a busy machine, level on a quiet one
+        # (docs/benchmarks.md#one-blas-thread-for-the-adjustment). A value the user has set
+        # is kept.
         os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
         from .multiview import main as run
     else:
@@ -74,8 +74,8 @@ def exit_process(code: int) -> NoReturn:
 
     Python's shutdown otherwise runs full garbage collections over every object the run
     imported or made (about 32 000 after ``chapter4.py``: numpy, OpenCV's bindings,
-    scene3D) only to free memory the exit returns anyway: the end of a ``chapter4.py
-    --no-plots`` run took 37 ms instead of 15 (docs/benchmarks.md, whole-process speed).
+    scene3D) only to free memory the exit returns anyway, which doubled the time a
+    ``chapter4.py --no-plots`` run took to end (docs/benchmarks.md#whole-process-speed).
     :func:`gc.freeze` takes them out of the collector's sight; ``atexit`` handlers and
     the flushing of open files still run. For the scripts' entry points only: in a
     process that goes on (``main`` called from Python), frozen objects are never

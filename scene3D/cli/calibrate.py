@@ -14,15 +14,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..calibration.board import (
-    MAX_RMS_PX,
-    PATTERNS,
-    BoardSpec,
-    board_size_problem,
-    min_image_side_px,
-    save_calibration,
-)
+from ..calibration.board import PATTERNS, BoardSpec, board_size_problem, min_image_side_px
 from ..calibration.pipeline import calibrate_views
+from ..calibration.solve import MAX_RMS_PX
 from ..calibration.uncertainty import CORNER_LIMIT_PX
 from ..calibration.views import (
     FRAMES,
@@ -38,7 +32,7 @@ from ..calibration.views import (
 from ..calibration.views import collect_views as collect_board_views
 from ..errors import CalibrationError, plural
 from ..geometry.camera import undistort_image
-from ..io.calibration import CALIBRATION_SUFFIXES
+from ..io.calibration import CALIBRATION_SUFFIXES, save_calibration
 from ..io.export import all_or_nothing, atomic_write_bytes, atomic_write_pieces
 from ..io.images import IMAGE_SUFFIXES
 from ..io.paths import lists_file
@@ -452,8 +446,8 @@ def _too_few_views(args: argparse.Namespace, board: BoardSpec, found: CollectedV
 def _max_rms_hint(board: BoardSpec, rms_px: float | None) -> str:
     """What to check when the RMS error ``rms_px`` is above ``--max-rms``: up to
     :data:`MAX_RMS_PX` (the default limit) it is what the right board gives, and only a
-    stricter ``--max-rms`` refused it; beyond, typically a wrong board (6-13 px on
-    OpenCV's left*.jpg), though blurred photos can give a few px too."""
+    stricter ``--max-rms`` refused it; beyond, typically a wrong board
+    (docs/benchmarks.md#calibration), though blurred photos can give a few px too."""
     if rms_px is not None and rms_px <= MAX_RMS_PX:
         return (f"an error below the default limit of {MAX_RMS_PX:g} px is what the right "
                 "board gives: raise --max-rms to accept it (a wrong --board gives several "

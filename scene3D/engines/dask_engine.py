@@ -5,7 +5,9 @@
 tuple, reports progress as tasks finish and yields the results in the order of
 the arguments; :meth:`~DaskEngine.share` leaves a value on the cluster for later
 tasks. Dask (the optional extra ``distributed``) is imported when an engine is
-built, never when this module is imported, and the geometry never imports it.
+built, never when this module is imported, and the geometry never imports it. What runs on
+the workers is :mod:`scene3D.engines.dask_worker`; the checks of an address and of the
+workers' scene3D, :mod:`scene3D.engines.dask_connect`.
 
 Workers
     Every worker needs scene3D installed (tasks name module-level functions of
@@ -45,23 +47,20 @@ Failures
 from __future__ import annotations
 
 import logging
-import os
-import socket
-import tempfile
 import time
 import uuid
 import weakref
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import CancelledError, ThreadPoolExecutor
-from contextlib import nullcontext
-from dataclasses import dataclass
+from concurrent.futures import CancelledError
 from pathlib import Path, PurePath
 from typing import Any, Literal, TypeVar
 
 from ..errors import EngineError, first_line, plural
 from ..memory import worker_environment
 from . import Progress
+from .dask_connect import check_worker_versions, probe_scheduler, server_type
+from .dask_worker import FileBytes, file_sizes, finished_tasks, run_task, shared_value
 
 logger = logging.getLogger(__name__)
 
@@ -90,161 +89,6 @@ def require_distributed() -> Any:
         raise MissingExtraError(f"Dask is not installed: {INSTALL_HINT}") from None
     return distributed
 
-
-# -- on the workers ---------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class _FileBytes:
-    """A file's content sent with a task, for a worker that cannot read the file itself."""
-
-    path: str
-    data: bytes
-
-
-_TASK_COUNTS: Counter[str] = Counter()  # tasks finished in this process, by engine/label
-_OPENCV_THREADS: list[int | None] = []  # the setting made in this process, once
-
-
-def _configure_process(opencv_threads: int | None) -> None:
-    if _OPENCV_THREADS == [opencv_threads]:
-        return
-    if opencv_threads is not None:
-        import cv2
-
-        cv2.setNumThreads(opencv_threads)
-    _OPENCV_THREADS[:] = [opencv_threads]
-
-
-def _worker_address() -> str:
-    try:
-        from distributed import get_worker
-
-        return get_worker().address
-    except (ImportError, ValueError):
-        return "this process"
-
-
-def _with_worker(exc: Exception, staged: dict[str, str]) -> Exception:
-    """``exc`` with the worker named (and staged copies named as the original files);
-    ``exc`` itself when its type takes more than a message."""
-    message = str(exc)
-    for copy, original in staged.items():
-        message = message.replace(copy, original)
-    try:
-        return type(exc)(f"{message} (on worker {_worker_address()})")
-    except TypeError:  # e.g. UnicodeDecodeError
-        return exc
-
-
-def _run_task(fn: Callable[..., R], tag: str, opencv_threads: int | None, *args: Any) -> R:
-    """Run ``fn(*args)`` on a worker: files staged, OpenCV's threads set, errors located."""
-    _configure_process(opencv_threads)
-    staged: dict[str, str] = {}
-    sends = any(isinstance(a, _FileBytes) for a in args)
-    with tempfile.TemporaryDirectory(prefix="scene3D-") if sends else nullcontext("") as folder:
-        real_args = []
-        for k, arg in enumerate(args):
-            if isinstance(arg, _FileBytes):
-                copy = Path(folder) / str(k) / PurePath(arg.path).name
-                copy.parent.mkdir()
-                copy.write_bytes(arg.data)
-                staged[str(copy)] = arg.path
-                arg = copy
-            real_args.append(arg)
-        try:
-            result = fn(*real_args)
-        except (OSError, ValueError) as exc:
-            if type(exc).__module__ != "builtins":  # a library's own error: left as it is
-                raise
-            located = _with_worker(exc, staged)
-            if located is exc:
-                raise
-            raise located from None
-    _TASK_COUNTS[tag] += 1
-    return result
-
-
-def _shared_value(value: Any) -> Any:
-    """The task of a value shared from the client: the value itself."""
-    return value
-
-
-def _file_sizes(paths: list[str]) -> list[int | None]:
-    """The size of each file as this process sees it (None: cannot read it)."""
-    sizes: list[int | None] = []
-    for path in paths:
-        try:
-            sizes.append(os.stat(path).st_size if os.access(path, os.R_OK) else None)
-        except OSError:
-            sizes.append(None)
-    return sizes
-
-
-def _task_counts(engine_id: str) -> dict[str, int]:
-    return {tag.split("/", 1)[1]: n for tag, n in _TASK_COUNTS.items()
-            if tag.startswith(engine_id + "/")}
-
-
-def _scene3d_version() -> str:
-    from .. import __version__
-
-    return __version__
-
-
-# -- on the client ----------------------------------------------------------------------
-
-def _check_worker_versions(client: Any, address: str) -> None:
-    """Raise ``OSError`` unless every worker runs the client's scene3D: the tasks are its
-    functions, which a worker without it cannot even unpickle, and another version may
-    compute something else."""
-    from .. import __version__
-
-    try:
-        versions = client.run(_scene3d_version)
-    except Exception as exc:  # the worker's ModuleNotFoundError, or what unpickling raised
-        raise OSError(f"the workers of {address!r} cannot run scene3D ({first_line(exc)}): "
-                      f"install scene3D {__version__}, the client's, where they run"
-                      ) from None
-    other = {w: v for w, v in versions.items() if v != __version__}
-    if other:
-        worker, version = next(iter(other.items()))
-        raise OSError(f"worker {worker} runs scene3D {version} and this client {__version__}"
-                      f"{f' ({len(other) - 1} more alike)' if len(other) > 1 else ''}: "
-                      "install one version everywhere")
-
-
-def _probe_scheduler(address: str, host: str, port: int, timeout_s: float) -> None:
-    """Raise ``OSError`` unless a Dask scheduler listens at ``host:port``: one sends its
-    handshake (a frame whose 8-byte length header comes first) as soon as a connection
-    opens. Another server (the dashboard's web server, say) sends nothing, or something
-    else, and Dask's client would wait on it or misread it."""
-    try:
-        with socket.create_connection((host, port), timeout=timeout_s) as probe:
-            header = probe.recv(8)
-    except TimeoutError:
-        header = b""
-    except OSError as exc:
-        raise OSError(f"cannot connect to the Dask scheduler at {address!r}: "
-                      f"{exc.strerror or exc}") from None
-    if len(header) < 8 or int.from_bytes(header, "little") > 1 << 20:
-        raise OSError(f"what listens at {address!r} does not answer as a Dask scheduler (the "
-                      "scheduler's port is 8786 by default, its dashboard's 8787)")
-
-
-def _server_type(address: str, timeout_s: float) -> str:
-    """What kind of Dask server answers at ``address``: 'Scheduler', 'Worker', 'Nanny'
-    (its ``identity``). Asked on a thread of its own, so that a caller inside an event
-    loop (a notebook) can ask too."""
-    import asyncio
-
-    from distributed.core import rpc
-
-    async def identity() -> dict:
-        async with rpc(address, timeout=timeout_s) as server:
-            return await server.identity()
-
-    with ThreadPoolExecutor(1) as thread:
-        return str(thread.submit(asyncio.run, identity()).result().get("type", "unknown"))
 
 
 class DaskEngine:
@@ -337,8 +181,8 @@ class DaskEngine:
             raise ValueError(f"bad Dask scheduler address {address!r} (port {port} is not "
                              "between 1 and 65535); expected such as tcp://10.0.0.5:8786")
         if scheme == "tcp":  # a quick look first: nothing listening is said at once
-            _probe_scheduler(address, host, port, timeout_s)
-            kind = _server_type(address, timeout_s)
+            probe_scheduler(address, host, port, timeout_s)
+            kind = server_type(address, timeout_s)
             if kind != "Scheduler":  # Dask's client would fail with a traceback
                 raise OSError(f"{address!r} is a Dask {kind.lower()}, not the scheduler: give "
                               "the address 'dask scheduler' prints (port 8786 by default)")
@@ -361,7 +205,7 @@ class DaskEngine:
                           f"{wait_for_workers_s:g} s (start one with 'dask worker {address}')"
                           ) from None
         try:
-            _check_worker_versions(client, address)
+            check_worker_versions(client, address)
         except OSError:
             client.close()
             raise
@@ -457,7 +301,7 @@ class DaskEngine:
     def task_counts(self) -> dict[str, dict[str, int]]:
         """Tasks of this engine finished by each connected worker process, by label:
         ``{worker address: {label: count}}`` (a worker that died took its counts along)."""
-        return self._client.run(_task_counts, self._id)
+        return self._client.run(finished_tasks, self._id)
 
     # -- the Engine interface -----------------------------------------------------------
 
@@ -488,7 +332,7 @@ class DaskEngine:
         calls = [self._prepare(tuple(args)) for args in arguments]
         token = uuid.uuid4().hex[:12]
         tag = f"{self._id}/{label}"
-        futures = [self._client.submit(_run_task, fn, tag, self._opencv_threads, *args,
+        futures = [self._client.submit(run_task, fn, tag, self._opencv_threads, *args,
                                        key=f"{label}-{token}-{i}", pure=False)
                    for i, args in enumerate(calls)]
         del calls
@@ -520,7 +364,7 @@ class DaskEngine:
         # A task that returns the value, rather than scatter(): the scheduler keeps the
         # task and runs it again if the worker holding the value dies, where scattered
         # data would be lost with its last worker.
-        return self._client.submit(_shared_value, value, key=f"shared-{uuid.uuid4().hex}",
+        return self._client.submit(shared_value, value, key=f"shared-{uuid.uuid4().hex}",
                                    pure=False)
 
     # -- internals ----------------------------------------------------------------------
@@ -632,7 +476,7 @@ class DaskEngine:
         for arg in args:
             if isinstance(arg, PurePath):
                 path = str(Path(arg).absolute())
-                arg = _FileBytes(path, Path(path).read_bytes()) if self._sent[path] \
+                arg = FileBytes(path, Path(path).read_bytes()) if self._sent[path] \
                     else Path(path)
             prepared.append(arg)
         return tuple(prepared)
@@ -642,8 +486,8 @@ class DaskEngine:
         if self._files != "auto":
             self._sent.update(dict.fromkeys(paths, self._files == "send"))
             return
-        here = _file_sizes(paths)
-        there = self._client.run(_file_sizes, paths)
+        here = file_sizes(paths)
+        there = self._client.run(file_sizes, paths)
         for k, path in enumerate(paths):
             blind = sorted(w for w, sizes in there.items() if sizes[k] != here[k])
             self._sent[path] = here[k] is not None and bool(blind)

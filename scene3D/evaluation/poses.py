@@ -278,8 +278,8 @@ def camera_set_error(
     (:func:`similarity_transform`), as COLMAP's model aligner and most published SfM
     evaluations do: it gives the smallest centre errors, but when the centres lie near
     a line the roll about it is hardly constrained, and the rotation errors then carry
-    that ill-determined roll (Herz-Jesus-P8: a COLMAP model's rotations 0.03 deg off
-    under the first alignment, 0.14 deg under the second).
+    that ill-determined roll
+    (docs/benchmarks.md#the-reference-colmap-incremental-measured-the-same-way).
 
     Parameters
     ----------

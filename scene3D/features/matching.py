@@ -354,8 +354,8 @@ def _match_l2(desc1: np.ndarray, desc2: np.ndarray, ratio: float,
     Squared distances ``|a|^2 + |b|^2 - 2 a.b`` come from BLAS, a block of rows at a
     time (memory ``block_rows * N2`` floats); both directions' nearest neighbours are
     read off the same distances. Blocks of 512 rows keep the column-wise minimum (a
-    strided scan) in cache: 68 ms against 95 ms with 2048 rows for 4000 x 4000 SIFT
-    descriptors here, and no slower for small sets. SIFT descriptors hold integers
+    strided scan) in cache, faster than larger blocks (docs/benchmarks.md#whole-process-speed).
+    SIFT descriptors hold integers
     below 2^9, so every sum stays below 2^24 and the float32 distances are exact: the
     matches are those of ``cv2.BFMatcher`` (knnMatch + cross check), found several
     times faster.
@@ -535,8 +535,8 @@ def find_matches(
                        {"features": elapsed, "matching": 0.0})
 
     # One image after the other: OpenCV parallelises inside detectAndCompute, and that
-    # beats running the two images in two Python threads (measured: 97 vs 133 ms for
-    # SIFT at 768 px on 2 cores; the threads oversubscribe the cores).
+    # beats running the two images in two Python threads, which oversubscribe the cores
+    # (docs/benchmarks.md#whole-process-speed).
     return match_features(image_features(gray1, mode, max_features),
                           image_features(gray2, mode, max_features), ratio)
 

@@ -446,9 +446,9 @@ def pose_angle_deg(R_a: ArrayLike, t_a: ArrayLike, R_b: ArrayLike, t_b: ArrayLik
     Parameters
     ----------
     R_a, t_a : (3, 3), (3,) array_like
-        First relative pose.
+        First relative pose, e.g. camera 2 from camera 1 (``x_cam2 = R x_cam1 + t``).
     R_b, t_b : (3, 3), (3,) array_like
-        Second relative pose, in the same convention.
+        Second relative pose, between the same frames in the same direction.
 
     Returns
     -------

@@ -20,7 +20,8 @@ class RectifiedPair:
     img1, img2 : (H, W, 3) uint8
         Rectified images, same size as the inputs.
     R1, R2 : (3, 3) float64
-        Rotations from each camera frame to its rectified frame.
+        Rotations from each camera frame to its rectified frame: ``R_rect1_from_cam1``
+        and ``R_rect2_from_cam2`` (``x_rect = R1 x_cam1``).
     P1, P2 : (3, 4) float64
         Projection matrices of the rectified cameras (in the rectified camera-1
         frame); ``P2[0, 3] = -f * baseline`` (``P2[1, 3]`` for a vertical one).
@@ -147,7 +148,7 @@ def rectify_points(
     K : (3, 3) array_like
         Its intrinsics.
     R_rect : (3, 3) array_like
-        Its rectifying rotation.
+        Its rectifying rotation, ``R_rect_from_cam`` (:attr:`RectifiedPair.R1` or ``R2``).
     P_rect : (3, 4) array_like
         Its rectified projection matrix.
 

@@ -196,9 +196,8 @@ def behind_at_scene_parallax(parallax_deg: FloatArray, behind: np.ndarray,
     A wrong match lies anywhere along its epipolar line, so its rays meet at angles
     like the scene's. A right match of a far point, which a focal length a few percent
     off or an uncorrected distortion pushes across infinity, lands behind at an angle
-    far below the scene's (0.02-0.25 deg against a median of 5.5 deg in a rendered
-    scene with a backdrop, where a focal length 2-5 % short put a third of the matches
-    behind): it is not a wrong match.
+    far below the scene's (docs/benchmarks.md#inliers-behind-the-cameras): it is not a
+    wrong match.
 
     Parameters
     ----------

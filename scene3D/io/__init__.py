@@ -6,7 +6,8 @@
   before decoding;
 - :mod:`scene3D.io.exif`: the EXIF values that describe a photo's camera (Pillow);
 - :mod:`scene3D.io.calibration`: the calibration file (OpenCV FileStorage);
-- :mod:`scene3D.io.export`: atomic writes, PLY point clouds, JSON summaries, COLMAP text;
+- :mod:`scene3D.io.export`: atomic writes, PLY point clouds, JSON summaries (and the first
+  COLMAP writer, deprecated for :mod:`scene3D.io.colmap`'s);
 - :mod:`scene3D.io.colmap`: COLMAP text models read and written in scene3D's conventions,
   at the photos' size;
 - :mod:`scene3D.io.nerfstudio`: nerfstudio's ``transforms.json`` (NeRF and splatting);

@@ -15,6 +15,7 @@ import json
 import math
 import os
 import time
+import warnings
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -149,8 +150,8 @@ def atomic_write_pieces(path: str | os.PathLike, pieces: Iterable[bytes | Path])
     rename: bytes as they are, a :class:`~pathlib.Path` as that file's whole content.
 
     Files are copied by the kernel where it can (``os.copy_file_range`` on Linux), never
-    read into Python: a report's 4.8 MB plotly.js costs 2 ms that way against 15-60 ms
-    read, decoded, joined, encoded and written (measured on this project's machine).
+    read into Python: a report's plotly.js costs a few milliseconds that way, a tenth of
+    reading, decoding, joining, encoding and writing it (docs/benchmarks.md#whole-process-speed).
 
     Parameters
     ----------
@@ -413,6 +414,13 @@ def colmap_image_name(name: str) -> str:
     return "".join("_" if c.isspace() else c for c in name)
 
 
+#: What :func:`colmap_text_files` warns: its replacement.
+COLMAP_TEXT_FILES_DEPRECATION = (
+    "scene3D.io.export.colmap_text_files is deprecated and goes in the next release: use "
+    "scene3D.io.colmap.colmap_text(colmap_model_from_views(...)) or "
+    "scene3D.io.colmap.write_colmap_text")
+
+
 def colmap_text_files(
     names: list[str],
     K: np.ndarray,
@@ -428,6 +436,13 @@ def colmap_text_files(
     errors_px: np.ndarray,
 ) -> dict[str, str]:
     """A COLMAP text model (``cameras.txt``, ``images.txt``, ``points3D.txt``) as strings.
+
+    Deprecated, and removed in the next release: this is the first writer, kept for
+    callers of its old path. Use :func:`scene3D.io.colmap.colmap_text` of
+    :func:`scene3D.io.colmap.colmap_model_from_views` (the same arguments without
+    ``errors_px``, which it computes), or :func:`scene3D.io.colmap.write_colmap_text`:
+    every number to full precision, and read back by :func:`scene3D.io.colmap.read_colmap_text`.
+    Calling it raises a ``DeprecationWarning`` that names them.
 
     One PINHOLE camera; image poses world-to-camera as quaternion ``(qw, qx, qy, qz)``
     and translation. COLMAP puts pixel centres at ``+0.5``, so principal point and
@@ -464,6 +479,9 @@ def colmap_text_files(
     -------
     dict[str, str]
     """
+    # scene3D.io.colmap imports this module (its writer shares write_text_files and
+    # colmap_image_name), so the old writer cannot call the new one: it warns instead.
+    warnings.warn(COLMAP_TEXT_FILES_DEPRECATION, DeprecationWarning, stacklevel=2)
     from ..geometry.conventions import quaternion_from_rotation
 
     fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5

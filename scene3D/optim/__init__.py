@@ -1,7 +1,11 @@
 """Least squares: Levenberg-Marquardt refinements, bundle adjustment, first-order covariances.
 
-- :mod:`scene3D.optim.uncertainty`: the pose parametrisation, sandwich covariances,
-  chi-square bounds and the depth uncertainty of points;
+- :mod:`scene3D.optim.parametrisation`: the pose parametrisation (the step the
+  refinements take, and a pose error in its coordinates);
+- :mod:`scene3D.optim.uncertainty`: sandwich covariances, the pose's uncertainty and its
+  chi-square bounds;
+- :mod:`scene3D.optim.point_uncertainty`: the covariance and depth uncertainty of
+  triangulated points;
 - :mod:`scene3D.optim.least_squares`: the robust losses, the scaled normal equations and the
   Levenberg-Marquardt loop every solver here shares;
 - :mod:`scene3D.optim.refinement`: the robust Sampson refinement of a two-view pose (alone or
@@ -35,6 +39,13 @@ from .least_squares import (
     robust_loss,
     robust_scaling,
 )
+from .parametrisation import (
+    pose_error_coordinates,
+    rotation_vector,
+    tangent_basis,
+    update_pose,
+)
+from .point_uncertainty import depth_sigmas, point_covariances
 from .refinement import (
     pose_intrinsics_sensitivity,
     refine_pose_and_parameter,
@@ -58,19 +69,13 @@ from .uncertainty import (
     PoseUncertainty,
     TruncatedNoise,
     angular_bound_deg,
-    depth_sigmas,
     largest_sigma_deg,
     marginal_covariance,
     nuisance_sensitivity,
-    point_covariances,
     pose_difference_chi2,
     pose_error_chi2,
-    pose_error_coordinates,
-    rotation_vector,
     sandwich_covariance,
-    tangent_basis,
     truncated_noise,
-    update_pose,
 )
 
 __all__ = [

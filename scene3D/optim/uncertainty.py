@@ -1,21 +1,12 @@
-"""First-order uncertainty of a two-view pose and of its triangulated points.
+"""First-order uncertainty of a two-view pose.
 
-The pose parametrisation
-------------------------
-A relative pose ``(R, t)`` (``x_cam2 = R x_cam1 + t``, ``|t| = 1``) has five degrees
-of freedom. Near an estimate ``(R, t)`` the poses are written with a 5-vector
-``x = (w, d)``, the step that scene3D's refinements take
-(:func:`scene3D.optim.refinement.refine_relative_pose`; :func:`update_pose` applies it):
-
-- ``R(x) = exp([w]x) R``: ``w`` (3,) is a rotation vector in radians, in the
-  camera-2 frame (the rotation is applied after ``R``, on the left);
-- ``t(x) = (t + d @ B) / |t + d @ B|``: ``d`` (2,) is a step in the plane tangent
-  to the unit sphere at ``t``, along the two rows of ``B = tangent_basis(t)``
-  ``(2, 3)`` (orthonormal, orthogonal to ``t``, camera-2 frame). To first order
-  ``|d|`` is the angle in radians between ``t(x)`` and ``t``.
-
-A pose covariance ``(5, 5)`` is the covariance of ``x``: rows and columns 0-2 the
-rotation, 3-4 the translation direction (with the basis ``B`` it refers to).
+The pose is written in the parametrisation of :mod:`scene3D.optim.parametrisation`
+(``x = (w, d)``: a rotation vector in the camera-2 frame and a step tangent to the
+unit translation). A pose covariance ``(5, 5)`` is the covariance of ``x``: rows and
+columns 0-2 the rotation, 3-4 the translation direction (with the basis
+:func:`scene3D.optim.parametrisation.tangent_basis` it refers to). The covariances of
+triangulated points are in :mod:`scene3D.optim.point_uncertainty`; both modules'
+names are re-exported here, their old home.
 
 Angular sigmas and bounds
 -------------------------
@@ -44,14 +35,14 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..geometry.conventions import (
-    FloatArray,
-    median,
-    project_with_jacobian,
-    rotations_from_vectors,
-    skew,
-    skews,
+from ..geometry.conventions import FloatArray, median
+from .parametrisation import (  # noqa: F401  (re-exported: their old home)
+    pose_error_coordinates,
+    rotation_vector,
+    tangent_basis,
+    update_pose,
 )
+from .point_uncertainty import depth_sigmas, point_covariances  # noqa: F401  (re-exported)
 
 CHI2_90 = {2: 4.605170185988091, 3: 6.251388631170325}
 """90 % quantiles of the chi-square distribution with 2 and 3 degrees of freedom: the
@@ -61,56 +52,6 @@ CHI2_99_POSE = 15.086272469388987
 """The 99 % quantile of chi-squared with 5 degrees of freedom, those of a relative pose:
 a pose whose :func:`pose_difference_chi2` exceeds it lies outside the region that the
 covariance allows."""
-
-
-def tangent_basis(t: ArrayLike) -> FloatArray:
-    """Two unit vectors ``(2, 3)`` orthogonal to the unit vector ``t`` and to each other.
-
-    The basis of the translation-direction step of the pose parametrisation (module
-    docstring); a deterministic function of ``t``.
-
-    Parameters
-    ----------
-    t : (3,) array_like
-        Translation direction (normalised here).
-
-    Returns
-    -------
-    (2, 3) float64 ndarray
-    """
-    t = np.asarray(t, dtype=np.float64).reshape(3)
-    t = t / np.linalg.norm(t)
-    helper = np.eye(3)[int(np.argmin(np.abs(t)))]
-    b1 = skew(t) @ helper
-    b1 /= np.linalg.norm(b1)
-    return np.vstack([b1, skew(t) @ b1])
-
-
-def update_pose(
-    R: FloatArray, t: FloatArray, dx: FloatArray, basis: FloatArray | None = None
-) -> tuple[FloatArray, FloatArray]:
-    """Apply a step ``x = (w, d)`` of the pose parametrisation (module docstring) to ``(R, t)``.
-
-    Parameters
-    ----------
-    R : (3, 3) array
-        ``R_cam2_from_cam1``.
-    t : (3,) array
-        Unit translation, ``x_cam2 = R x_cam1 + t``.
-    dx : (5,) array
-        Rotation vector ``w`` (3, radians, camera-2 frame), then the tangent step ``d`` (2).
-    basis : (2, 3) array, optional
-        The tangent basis of ``t`` the step refers to; :func:`tangent_basis` ``(t)`` by default.
-
-    Returns
-    -------
-    R, t : (3, 3), (3,) float64
-        ``exp([w]x) R`` and ``(t + d @ basis) / |t + d @ basis|``.
-    """
-    basis = tangent_basis(t) if basis is None else basis
-    R_new = rotations_from_vectors(dx[None, :3])[0] @ R
-    t_new = t + dx[3:] @ basis
-    return R_new, t_new / np.linalg.norm(t_new)
 
 
 def sandwich_covariance(J: FloatArray, influence: FloatArray,
@@ -328,7 +269,9 @@ def largest_sigma_deg(block: FloatArray) -> float:
 
 @dataclass(frozen=True)
 class PoseUncertainty:
-    """The first-order uncertainty of a relative pose (parametrisation: module docstring).
+    """The first-order uncertainty of a relative pose.
+
+    In the parametrisation of :mod:`scene3D.optim.parametrisation`.
 
     Attributes
     ----------
@@ -393,64 +336,11 @@ def angular_bound_deg(sigma_deg: float, dof: int, probability: float = 0.9) -> f
     return float(np.sqrt(CHI2_90[dof]) * sigma_deg)
 
 
-def rotation_vector(R: ArrayLike) -> FloatArray:
-    """The rotation vector ``w`` (3,) with ``exp([w]x) = R`` (radians, angle below pi).
-
-    Parameters
-    ----------
-    R : (3, 3) array_like
-        Rotation matrix.
-
-    Returns
-    -------
-    (3,) float64 ndarray
-    """
-    R = np.asarray(R, dtype=np.float64)
-    axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    sin_angle = 0.5 * np.linalg.norm(axis)
-    cos_angle = np.clip(0.5 * (np.trace(R) - 1.0), -1.0, 1.0)
-    angle = np.arctan2(sin_angle, cos_angle)
-    if sin_angle < 1e-12:
-        if cos_angle > 0:
-            return 0.5 * axis  # first order
-        # 180 degrees: the axis is the eigenvector of R + I.
-        v = np.linalg.eigh(0.5 * (R + R.T) + np.eye(3))[1][:, -1]
-        return np.pi * v
-    return angle / (2.0 * sin_angle) * axis
-
-
-def pose_error_coordinates(R_est: ArrayLike, t_est: ArrayLike, R_true: ArrayLike,
-                           t_true: ArrayLike) -> tuple[FloatArray, FloatArray]:
-    """The estimate's error in its own parametrisation (module docstring).
-
-    Returns ``w`` (3,), the rotation vector of ``R_est R_true^T`` (so that
-    ``R_est = exp([w]x) R_true``), and ``d`` (2,), the coordinates of ``t_est``
-    seen from ``t_true`` along :func:`tangent_basis` ``(t_est)`` (the gnomonic step
-    from the truth to the estimate; ``|d|`` is the tangent of their angle). Both
-    poses ``x_cam2 = R x_cam1 + t``.
-
-    Parameters
-    ----------
-    R_est, t_est : (3, 3), (3,) array_like
-        Estimated relative pose.
-    R_true, t_true : (3, 3), (3,) array_like
-        Reference pose.
-    """
-    R_est, R_true = np.asarray(R_est, np.float64), np.asarray(R_true, np.float64)
-    t_est = np.asarray(t_est, np.float64).reshape(3)
-    t_true = np.asarray(t_true, np.float64).reshape(3)
-    t_est, t_true = t_est / np.linalg.norm(t_est), t_true / np.linalg.norm(t_true)
-    w = rotation_vector(R_est @ R_true.T)
-    cos = float(t_est @ t_true)
-    d = -(tangent_basis(t_est) @ t_true) / cos if cos > 0 else np.full(2, np.inf)
-    return w, d
-
-
 def pose_error_chi2(R_est: ArrayLike, t_est: ArrayLike, R_true: ArrayLike,
                     t_true: ArrayLike, covariance: FloatArray) -> tuple[float, float]:
     """Mahalanobis distances (squared) of a pose's error under its predicted covariance.
 
-    ``covariance`` ``(5, 5)`` is the estimate's (module docstring, basis
+    ``covariance`` ``(5, 5)`` is the estimate's (:mod:`scene3D.optim.parametrisation`, basis
     :func:`tangent_basis` of ``t_est``). Returns ``(rotation, direction)``: the
     rotation error's under the ``(3, 3)`` block, to compare with a chi-square of 3
     degrees of freedom, and the translation direction's under the ``(2, 2)`` block
@@ -487,7 +377,7 @@ def pose_error_chi2(R_est: ArrayLike, t_est: ArrayLike, R_true: ArrayLike,
 def pose_difference_chi2(R: ArrayLike, t: ArrayLike, R_other: ArrayLike, t_other: ArrayLike,
                          covariance: FloatArray) -> float:
     """Mahalanobis distance (squared, 5 degrees of freedom) of another pose from ``R, t``
-    under the ``(5, 5)`` covariance of ``R, t`` (module docstring, basis
+    under the ``(5, 5)`` covariance of ``R, t`` (:mod:`scene3D.optim.parametrisation`, basis
     :func:`tangent_basis` of ``t``), rotation and translation direction jointly; compare
     with :data:`CHI2_99_POSE`. 0 when the covariance is not finite (no region to leave).
 
@@ -513,108 +403,3 @@ def pose_difference_chi2(R: ArrayLike, t: ArrayLike, R_other: ArrayLike, t_other
         return float(e @ np.linalg.solve(covariance, e))
     except np.linalg.LinAlgError:
         return 0.0
-
-
-def _triangulation_normals(points3d: ArrayLike, K: ArrayLike, R: ArrayLike,
-                           t: ArrayLike) -> tuple[FloatArray, FloatArray]:
-    """``G = J_X^T J_X`` ``(N, 3, 3)`` and ``M = J_X^T J_p`` ``(N, 3, 5)`` of each point's
-    four reprojection residuals (``J_X`` by the point, ``J_p`` by the pose step)."""
-    X = np.asarray(points3d, dtype=np.float64).reshape(-1, 3)
-    K = np.asarray(K, dtype=np.float64)
-    R = np.asarray(R, dtype=np.float64)
-    t = np.asarray(t, dtype=np.float64).reshape(3)
-    n = len(X)
-    rotated = X @ R.T
-    _, J1 = project_with_jacobian(X, K)
-    _, J2 = project_with_jacobian(rotated + t, K)
-    J2R = J2 @ R  # image 2's rows by X
-    # R <- exp([w]x) R moves R X by -[R X]x w; t moves along the tangent basis.
-    dY = np.concatenate([-skews(rotated), np.broadcast_to(tangent_basis(t).T, (n, 3, 2))],
-                        axis=2)  # (N, 3, 5)
-    G = np.swapaxes(J1, 1, 2) @ J1 + np.swapaxes(J2R, 1, 2) @ J2R
-    M = np.swapaxes(J2R, 1, 2) @ (J2 @ dY)  # image 1's rows do not depend on the pose
-    return G, M
-
-
-def point_covariances(points3d: ArrayLike, K: ArrayLike, R: ArrayLike, t: ArrayLike,
-                      pose_covariance: ArrayLike, noise_px: float) -> FloatArray:
-    """First-order covariances ``(N, 3, 3)`` of triangulated points (camera-1 frame).
-
-    A point ``X`` triangulated by minimising its reprojection errors in both images
-    moves, to first order, with the pixel noise of its two observations (``noise_px``
-    per coordinate, independent) and with the pose (``pose_covariance`` ``(5, 5)``,
-    parametrisation of the module docstring with :func:`tangent_basis` ``(t)``).
-    With ``J_X`` ``(4, 3)`` the derivative of its four reprojection residuals by
-    ``X`` and ``J_p`` ``(4, 5)`` by the pose, ``A = (J_X^T J_X)^-1 J_X^T`` and
-    ``cov X = A (noise_px^2 I + J_p C J_p^T) A^T`` (H&Z section 5.2.3 for the
-    propagation; the pose and each point taken as independent, which holds to
-    first order when the pose rests on many points).
-
-    Parameters
-    ----------
-    points3d : (N, 3) array_like
-        Points in the camera-1 frame, in units of the baseline (``|t| = 1``).
-    K : (3, 3) array_like
-    R, t : (3, 3), (3,) array_like
-        ``x_cam2 = R x_cam1 + t``.
-    pose_covariance : (5, 5) array_like
-    noise_px : float
-
-    Returns
-    -------
-    (N, 3, 3) float64
-        In units of the baseline squared; infinite when the pose covariance is.
-    """
-    C = np.asarray(pose_covariance, dtype=np.float64)
-    G, M = _triangulation_normals(points3d, K, R, t)
-    if not np.all(np.isfinite(C)):
-        return np.full((len(G), 3, 3), np.inf)
-    # With G = J_X^T J_X: A A^T = G^-1, so cov X = noise^2 G^-1 + B C B^T with
-    # B = A J_p = G^-1 M.
-    G_inv = np.linalg.inv(G)
-    B = G_inv @ M  # (N, 3, 5)
-    return noise_px**2 * G_inv + B @ C @ np.swapaxes(B, 1, 2)
-
-
-def depth_sigmas(points3d: ArrayLike, K: ArrayLike, R: ArrayLike, t: ArrayLike,
-                 pose_covariance: ArrayLike, noise_px: float) -> FloatArray:
-    """1-sigma depth ``(N,)`` of each point in camera 1, in units of the baseline.
-
-    The ``z`` entry of :func:`point_covariances` (computed from the third row of
-    ``G^-1`` alone, by cofactors); divide by the depth (``points3d[:, 2]``) for a
-    relative uncertainty. Infinite for a point whose two rays are parallel (on the
-    line through both camera centres): nothing fixes its depth.
-
-    Parameters
-    ----------
-    points3d : (N, 3) array_like
-        Points in the camera-1 frame, the baseline ``|t| = 1``.
-    K : (3, 3) array_like
-        Intrinsics shared by both views.
-    R, t : (3, 3), (3,) array_like
-        Relative pose, ``x_cam2 = R x_cam1 + t``.
-    pose_covariance : (5, 5) array_like
-        Covariance of the pose.
-    noise_px : float
-        Keypoint noise per coordinate (px).
-
-    Returns
-    -------
-    (N,) float64 ndarray
-    """
-    C = np.asarray(pose_covariance, dtype=np.float64)
-    G, M = _triangulation_normals(points3d, K, R, t)
-    if not np.all(np.isfinite(C)):
-        return np.full(len(G), np.inf)
-    g = G.reshape(-1, 9)
-    # Third row of the inverse of a symmetric 3x3 matrix: cofactors over the determinant.
-    row = np.column_stack([g[:, 1] * g[:, 5] - g[:, 2] * g[:, 4],
-                           g[:, 2] * g[:, 1] - g[:, 0] * g[:, 5],
-                           g[:, 0] * g[:, 4] - g[:, 1] ** 2])
-    det = (g[:, 0] * (g[:, 4] * g[:, 8] - g[:, 5] ** 2)
-           + g[:, 1] * (g[:, 5] * g[:, 2] - g[:, 1] * g[:, 8]) + g[:, 2] * row[:, 0])
-    known = det > 0  # rays that meet at an angle; parallel ones leave the depth unknown
-    row[known] /= det[known, None]
-    b = np.einsum("ni,nij->nj", row, M)  # (N, 5): the depth's derivative by the pose
-    variance = noise_px**2 * row[:, 2] + np.einsum("ni,ij,nj->n", b, C, b)
-    return np.where(known, np.sqrt(np.maximum(variance, 0.0)), np.inf)

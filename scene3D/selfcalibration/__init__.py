@@ -17,8 +17,8 @@ What has to be iterated, and why a plain iteration is not enough:
   it calls for stops changing (:func:`converge_focal`).
 - That iteration is local. On scenes dominated by one plane (a facade: a plane
   fits any focal length; only the matches off it constrain it) it can settle
-  where it started: from the 1.2 x prior, 8 of the 18 consecutive castle-P19
-  pairs at 1536 px stayed 5-35 % off, 7 of them with sigmas below 1 %. So the starting
+  where it started, off by a wide margin with a small sigma
+  (docs/benchmarks.md#self-calibration-trust-that-is-not-fooled). So the starting
   point is chosen globally first (:func:`focal_profile`): the robust estimation is
   run at focal lengths spread over the prior's range, and each fit is scored over
   all matches by a robust cost whose scale follows the measured keypoint noise
@@ -30,8 +30,7 @@ What has to be iterated, and why a plain iteration is not enough:
 
 How sure (:func:`focal_uncertainty`): the focal fit's first-order standard
 deviation covers the noise of the matches given the model and the inliers, and is
-far too small on its own (on the consecutive Strecha pairs at 1536 px the errors
-were a median 1.7 to 8.8 times it, up to 58 times). Two
+far too small on its own (docs/own-photos.md#how-the-photos-refine-it). Two
 shares are added. The principal point is a guess (the centre); a real camera's
 lies up to about 1 % of the image away (fountain-P11's: 0.5 % and 0.8 %), which
 moves the fitted focal length by up to several percent on some pairs: the fit is

@@ -141,10 +141,10 @@ def focal_rivals(pts1: FloatArray, pts2: FloatArray, chosen: TwoViewGeometry,
     (:func:`scene3D.twoview.essential_fit.essential_costs` at ``threshold_px``) is not
     significantly higher (:func:`blocked_difference_z` below ``max_z``, with
     ``cells`` x ``cells`` cells of image 1 as blocks): the local sigma describes only
-    one of the answers the pair supports (a facade with repeated windows at 768 px:
-    castle-P19 14-15, 15-16, 16-17 ended 6 to 10 deg off with the focal length 20 to
-    28 % off and its sigma 2 to 3 %). Each rival's pose is decomposed with cheirality
-    on its inliers and compared with the chosen one (``Rival.pose_difference_deg``).
+    one of the answers the pair supports (a facade with repeated windows; see
+    docs/benchmarks.md#self-calibration-trust-that-is-not-fooled). Each rival's pose is
+    decomposed with cheirality on its inliers and compared with the chosen one
+    (``Rival.pose_difference_deg``).
 
     Parameters
     ----------

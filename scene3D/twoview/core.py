@@ -120,8 +120,9 @@ def pose_covariance(R: FloatArray, t: FloatArray, in1: FloatArray, in2: FloatArr
     (``behind`` ``(N,) bool``, :func:`scene3D.geometry.triangulation.behind_beyond_noise`) are
     known to be wrong, yet they are not dropped from the pose: one that lies on its
     epipolar line still constrains it (a repeated structure along the line, a
-    duplicate), and without them the real benchmark's poses are no better (fountain-P11
-    at 768 px: AUC@5deg 98.40 against 98.48, docs/benchmarks.md). Their pull
+    duplicate), and without them the real benchmark's poses are no better
+    (docs/benchmarks.md#the-uncertainty-against-exact-ground-truth, "tried and not
+    kept"). Their pull
     is measured instead: the pose refined without them differs by ``delta`` (5,), and
     the covariance is that of the error's second moment, bias included,
     ``C + delta delta^T`` (the mean squared error is the variance plus the bias
@@ -348,7 +349,8 @@ def reconstruct_from_matches(
     inlier_threshold = inlier_threshold_px(distances, fitted_px)
     # The focal check re-selects its inliers at the given threshold even when the pose was
     # fitted within the noise: a wrong focal length leaves matches off by more than the
-    # noise, which a tighter selection would drop and so hide (docs/benchmarks.md).
+    # noise, which a tighter selection would drop and so hide
+    # (docs/benchmarks.md#the-focal-length-check).
     check_px = inlier_threshold_px(distances, s.threshold_px)
     focal = check_focal_length(R, t, p1, p2, inliers, K, check_px, loss_scale)
     focal_ratio = check_focal_length(R, t, p1, p2, inliers, K, check_px, loss_scale,
@@ -439,7 +441,7 @@ def check_against_flow(geometry: TwoViewGeometry, img1: np.ndarray, img2: np.nda
     (:func:`scene3D.twoview.trust.flow_warning`), a warning and ``trusted=False``. The
     flow never lifts a doubt: refined from the pose, under the same ``K``, it stays
     near a pose that a wrong focal length, a zoom or a moving object put wrong. About
-    0.05 s: the flow is taken at 768 px at most (docs/benchmarks.md).
+    0.05 s: the flow is taken at 768 px at most (docs/benchmarks.md#the-dense-flow-check).
 
     Parameters
     ----------

@@ -156,7 +156,7 @@ def off_plane_evidence(H: FloatArray, K: FloatArray, R: FloatArray, t: FloatArra
     H : (3, 3)
         Homography of the plane, ``x2 ~ H x1``.
     R, t : (3, 3), (3,)
-        The chosen pose.
+        The chosen pose, camera 2 from camera 1: ``x_cam2 = R x_cam1 + t``.
     pts1, pts2 : (N, 2)
         Inlier pixels of the chosen pose.
     on_plane : (N,) bool
@@ -449,7 +449,7 @@ class MotionModelChoice(NamedTuple):
         rests on the others, which a moving object would explain as well as a camera
         that moved.
     R : (3, 3) float64
-        The fitted rotation.
+        The fitted rotation, ``R_cam2_from_cam1`` (``x_cam2 = R x_cam1``).
     focal_rotation_share, focal_scale : float
         With ``free_focal``, the share of the matches that a rotation under a focal
         length ``focal_scale`` times ``K``'s explains within three noise standard

@@ -2,10 +2,9 @@
 
 A calibration that leaves out the lens's distortion bends every match by up to a few
 percent of its distance from the principal point, and two views can take that bend for
-a pose some degrees off with small residuals: both photos of castle-P19 0-1 warped as a
-lens with ``k1 = -0.1`` would take them, and the true distortion-free ``K``, gave a pose
-9.6 deg off with a translation sigma of 0.59 deg (docs/trust.md). No statistic of the
-pose alone shows it. :func:`fit_radial_distortion` refines the pose together with one
+a pose some degrees off with small residuals, well beyond its own sigma
+(docs/trust.md#a-lens-distortion-the-calibration-leaves-out). No statistic of the pose
+alone shows it. :func:`fit_radial_distortion` refines the pose together with one
 coefficient of the division model (Fitzgibbon, 2001; one parameter serves both views,
 one lens) about ``K``'s principal point:
 
@@ -189,7 +188,7 @@ class DistortionFit(NamedTuple):
         First-order standard deviation of ``k`` (inf when the matches do not
         determine it).
     R, t : (3, 3), (3,) float64
-        The pose refined with it (``|t| = 1``).
+        The pose refined with it, ``x_cam2 = R x_cam1 + t`` (``|t| = 1``).
     """
 
     k: float

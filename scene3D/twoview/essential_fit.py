@@ -6,7 +6,10 @@ refinement of :func:`scene3D.optim.refinement.refine_relative_pose` under a Cauc
 whose scale follows the keypoints' noise), restarted until the best fit repeats, the
 starts' optima compared by a robust cost (:func:`essential_cost`) at the noise of the
 keypoints. The relations it builds on (Sampson distances, ``E`` from a pose, ``F``
-from ``E``) and the robust ``F`` and ``H`` are in :mod:`scene3D.geometry.epipolar`.
+from ``E``) and the robust ``F`` and ``H`` are in :mod:`scene3D.geometry.epipolar`; the
+robust cost and the angles that compare optima in :mod:`scene3D.twoview.essential_compare`,
+the noise-adaptive scales and thresholds in :mod:`scene3D.twoview.noise` (both re-exported
+here, their old home).
 
 Conventions: ``x2^T F x1 = 0`` with pixel coordinates, ``E = [t]x R`` with
 ``x_cam2 = R x_cam1 + t`` (Hartley & Zisserman, sections 9.2 and 9.6).
@@ -23,7 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..geometry.camera import validate_intrinsics
-from ..geometry.conventions import FloatArray, distinct_correspondences, median, pose_angle_deg
+from ..geometry.conventions import FloatArray, distinct_correspondences
 from ..geometry.epipolar import (
     ROBUST_METHOD,
     check_correspondences,
@@ -32,9 +35,27 @@ from ..geometry.epipolar import (
     inlier_mask,
 )
 from ..geometry.pose import decompose_essential, nearest_decomposition
-from ..optim.least_squares import robust_loss
 from ..optim.refinement import refine_relative_pose, relative_pose_covariance
 from ..optim.uncertainty import CHI2_99_POSE, pose_difference_chi2
+from .essential_compare import (  # noqa: F401  (re-exported: their old home)
+    COMPARABLE_COST,
+    LOSS_SCALE_OF_THRESHOLD,
+    essential_angle_deg,
+    essential_cost,
+    essential_costs,
+    rival_spread_deg,
+    same_essential,
+)
+from .noise import (  # noqa: F401  (re-exported: their old home)
+    CAUCHY_SCALE_OF_SIGMA,
+    MAX_THRESHOLD_GROWTH,
+    NOISE_PROBE_OF_THRESHOLD,
+    THRESHOLD_OF_SIGMA,
+    comparison_threshold_px,
+    inlier_threshold_px,
+    loss_scale_px,
+    noise_sigma_px,
+)
 
 #: Robust estimator of the restarts of :func:`fit_essential` when they run below the
 #: given threshold: USAC with MSAC scoring and local optimisation (LO-RANSAC). At a
@@ -45,35 +66,6 @@ from ..optim.uncertainty import CHI2_99_POSE, pose_difference_chi2
 #: that size better.
 RESTART_METHOD = cv2.USAC_DEFAULT
 
-#: Scale of the Cauchy loss of the MSAC-style cost that compares models, as a fraction
-#: of the inlier threshold (the threshold taken as about three standard deviations of
-#: keypoint noise): one fixed scale, so that models fitted to different inliers compare.
-LOSS_SCALE_OF_THRESHOLD = 1.0 / 3.0
-
-#: Scale of the local optimisation's Cauchy loss in standard deviations of the noise:
-#: 2.385 sigma keeps 95 % of least squares' efficiency under Gaussian noise (Holland
-#: and Welsch, 1977) and still discounts the heavy tail of real matches.
-CAUCHY_SCALE_OF_SIGMA = 2.385
-
-#: Inlier threshold in standard deviations of the noise, when the noise is larger than
-#: the given threshold assumes, and how far it may be raised (times the given one).
-THRESHOLD_OF_SIGMA = 3.0
-MAX_THRESHOLD_GROWTH = 2.0
-
-#: The restarts of :func:`fit_essential` first probe the keypoint noise with a robust
-#: estimation at this fraction of the inlier threshold, and compare their optima at
-#: :data:`THRESHOLD_OF_SIGMA` times that noise, never below this fraction of the threshold
-#: (:func:`comparison_threshold_px`). The default 1 px threshold leaves room for noise
-#: of a third of a pixel; bias-free SIFT keypoints have 0.06-0.32 px (fountain-P11,
-#: Herz-Jesus-P8 and castle-P19 at 768 and 1536 px).
-NOISE_PROBE_OF_THRESHOLD = 0.125
-
-#: Restarts' optima whose robust cost (:func:`essential_cost`, a Cauchy negative
-#: log-likelihood up to a constant) exceeds the best by more than this fit the matches
-#: measurably worse: half the 99 % quantile of chi-squared with 5 degrees of freedom
-#: (those of a relative pose), the likelihood-ratio test. Only the others count in
-#: :attr:`EssentialFit.spread_deg`.
-COMPARABLE_COST = 0.5 * 15.09
 
 
 class EssentialFit(NamedTuple):
@@ -156,8 +148,7 @@ def fit_essential(
     A generous threshold lets a pose that is off by degrees fit two sets of
     matches at once: the right ones, a little worse, and mismatches between
     repeated windows, which lie a few pixels from their true epipolar lines
-    (castle-P19 at 1536 px: 700 inliers with a median Sampson distance of 0.26 px,
-    1.6 deg off, against 560 inliers at 0.10 px for the true pose). Within the
+    (docs/benchmarks.md#castle-p19-repeated-windows). Within the
     noise only the true pose fits. So a noise probe comes first, a USAC estimation at
     :data:`NOISE_PROBE_OF_THRESHOLD` of the threshold, tight enough that no such
     compromise fits within it; the noise of the matches within ``threshold_px`` of
@@ -169,8 +160,9 @@ def fit_essential(
     region that the covariance of the optimum within the noise allows (chi-square of
     the shift, :func:`widening_shift_chi2`, above :data:`scene3D.optim.uncertainty.CHI2_99_POSE`):
     then they are not noise of the same matches but a population of their own, which
-    another pose fits (castle-P19 pair 8-9 at 768 px: 2 deg away; mismatched windows half
-    a pixel to a pixel off their epipolar lines do the same), and the optimum within the
+    another pose fits (mismatched windows half a pixel to a pixel off their epipolar
+    lines; docs/benchmarks.md#the-wider-refinement-against-the-fit-within-the-noise), and
+    the optimum within the
     noise is returned with its own inliers. Where they agree,
     the wider fit is the more precise one and is kept: a test of the efficient estimate
     against the robust one (Hausman, 1978). When the matches are as noisy as
@@ -191,10 +183,10 @@ def fit_essential(
     shift_test_min_inliers : int
         The wider refinement is tested against the fit within the noise only when that
         fit has at least this many inliers (each correspondence once): the test rests on
-        its covariance, which fewer residuals leave too uncertain (random subsets of
-        25-120 matches of the three Strecha scenes: below 50 such inliers the test
-        fired on 13-17 % of the fits and the wider refinement was the nearer to the
-        truth twice as often; ``TwoViewSettings.trusted_inliers`` is the same floor).
+        its covariance, which fewer residuals leave too uncertain (below 50 it fired
+        where the wider refinement was the nearer to the truth:
+        docs/benchmarks.md#the-wider-refinement-against-the-fit-within-the-noise;
+        ``TwoViewSettings.trusted_inliers`` is the same floor).
 
     Returns
     -------
@@ -232,7 +224,7 @@ def fit_essential(
         fits.append(polish_essential(E, p1, p2, K, tau, inliers))
         refinement_s += time.perf_counter() - t0
         best_E = min(fits, key=lambda fit: fit[0])[1]
-        confirmed = sum(_same_essential(E_, best_E) for _, E_, _ in fits) >= 2
+        confirmed = sum(same_essential(E_, best_E) for _, E_, _ in fits) >= 2
         if confirmed:
             break
     if not fits:
@@ -241,7 +233,7 @@ def fit_essential(
     best_cost, E, inliers = min(fits, key=lambda fit: fit[0])
     spread = rival_spread_deg([(cost, E_other) for cost, E_other, _ in fits])
     rivals = tuple(E_other for cost, E_other, _ in fits
-                   if cost <= best_cost + COMPARABLE_COST and not _same_essential(E_other, E))
+                   if cost <= best_cost + COMPARABLE_COST and not same_essential(E_other, E))
     fitted_px, shift_chi2 = tau, 0.0
     if tau < threshold_px:  # the inliers the caller asked for, and the pose they give
         t0 = time.perf_counter()
@@ -365,57 +357,6 @@ def _robust_essential(p1: FloatArray, p2: FloatArray, K: FloatArray, threshold_p
     return E / np.linalg.norm(E), inliers
 
 
-def essential_costs(E: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: ArrayLike,
-                    threshold_px: float) -> FloatArray:
-    """Each correspondence's share ``(N,)`` of :func:`essential_cost`.
-
-    Parameters
-    ----------
-    E : (3, 3) array_like
-        Essential matrix, ``x2n^T E x1n = 0``.
-    pts1, pts2 : (N, 2) array_like
-        Matched pixels (OpenCV convention) in images 1 and 2.
-    K : (3, 3) array_like
-        Intrinsics shared by both views.
-    threshold_px : float
-        Inlier threshold on the Sampson distance (px).
-
-    Returns
-    -------
-    (N,) float64 ndarray
-    """
-    distances = np.minimum(essential_distances(E, pts1, pts2, K), threshold_px)
-    scale = LOSS_SCALE_OF_THRESHOLD * threshold_px
-    return robust_loss((distances / scale) ** 2, "cauchy")[0]
-
-
-def essential_cost(E: ArrayLike, pts1: ArrayLike, pts2: ArrayLike, K: ArrayLike,
-                   threshold_px: float) -> float:
-    """Robust cost of an essential matrix over all correspondences (lower is better).
-
-    A Cauchy loss (scale :data:`LOSS_SCALE_OF_THRESHOLD` of the threshold, the same
-    for every model) on the Sampson distances, each capped at the threshold, so
-    that an outlier costs the same whatever its distance (an MSAC-style score): it
-    compares models that were refined on different inlier sets.
-
-    Parameters
-    ----------
-    E : (3, 3) array_like
-        Essential matrix, ``x2n^T E x1n = 0``.
-    pts1, pts2 : (N, 2) array_like
-        All the correspondences (pixels).
-    K : (3, 3) array_like
-        Intrinsics shared by both views.
-    threshold_px : float
-        Cap of the Sampson distances (px).
-
-    Returns
-    -------
-    float
-    """
-    return float(np.sum(essential_costs(E, pts1, pts2, K, threshold_px)))
-
-
 def polish_essential(E: FloatArray, p1: FloatArray, p2: FloatArray, K: FloatArray,
                      threshold_px: float,
                      inliers: np.ndarray | None = None) -> tuple[float, FloatArray, np.ndarray]:
@@ -451,165 +392,6 @@ def polish_essential(E: FloatArray, p1: FloatArray, p2: FloatArray, K: FloatArra
         E, inliers = refine_essential(E, p1, p2, K, inliers, threshold_px)
     E = E / np.linalg.norm(E)
     return essential_cost(E, p1, p2, K, threshold_px), E, inliers
-
-
-def _same_essential(E1: FloatArray, E2: FloatArray, tolerance: float = 1e-4) -> bool:
-    """True when two unit-norm essential matrices agree up to sign (the same local optimum)."""
-    return bool(min(np.abs(E1 - E2).max(), np.abs(E1 + E2).max()) < tolerance)
-
-
-def rival_spread_deg(optima: list[tuple[float, FloatArray]]) -> float:
-    """How far apart the optima that fit about equally well lie, in degrees.
-
-    ``optima`` are ``(cost, E)`` pairs of refined starts (costs of
-    :func:`essential_cost` at one threshold). Returns the largest
-    :func:`essential_angle_deg` between the lowest-cost ``E`` and the others whose
-    cost is within :data:`COMPARABLE_COST` of it; 0 when no other is that close.
-
-    Parameters
-    ----------
-    optima : list of (float, (3, 3) ndarray)
-        ``(cost, E)`` of the refined starts.
-
-    Returns
-    -------
-    float
-        Degrees.
-    """
-    best_cost, best_E = min(optima, key=lambda optimum: optimum[0])
-    return max(essential_angle_deg(best_E, E) for cost, E in optima
-               if cost <= best_cost + COMPARABLE_COST)
-
-
-def essential_angle_deg(E1: ArrayLike, E2: ArrayLike) -> float:
-    """How far apart the poses of two essential matrices are, in degrees.
-
-    The larger of the rotation angle and the translation-direction angle (up to
-    sign) between the nearest of their decompositions
-    (:func:`scene3D.geometry.pose.decompose_essential`); 0 for the same matrix up to scale.
-    Both rotations of each are tried: the pose and its twisted pair (turned 180 deg
-    about the baseline) lie about 180 deg apart, so the minimum pairs like with like.
-
-    Parameters
-    ----------
-    E1, E2 : (3, 3) array_like
-        Essential matrices.
-
-    Returns
-    -------
-    float
-        Degrees.
-    """
-    poses1 = decompose_essential(E1)
-    t1 = poses1[0][1]
-    return min(pose_angle_deg(*nearest_decomposition(E2, R1, t1), R1, t1)
-               for R1, _ in poses1[::2])
-
-
-def noise_sigma_px(distances: FloatArray) -> float:
-    """Robust standard deviation of the keypoint noise behind inliers' Sampson distances.
-
-    ``distances`` ``(N,)`` are Sampson distances in pixels
-    (:func:`scene3D.geometry.epipolar.essential_distances`).
-    With Gaussian noise of ``sigma`` px on each coordinate of both images, a Sampson
-    distance is ``|N(0, sigma^2)|`` to first order, so ``1.4826`` times their median
-    estimates ``sigma`` and ignores the outliers' tail.
-
-    Parameters
-    ----------
-    distances : (N,) array_like
-        Sampson distances (px).
-
-    Returns
-    -------
-    float
-        Noise standard deviation per coordinate (px).
-    """
-    return 1.4826 * median(np.abs(distances))
-
-
-def loss_scale_px(distances: FloatArray, threshold_px: float) -> float:
-    """Cauchy scale (pixels) for refining a model on inliers with these Sampson distances.
-
-    :data:`CAUCHY_SCALE_OF_SIGMA` times :func:`noise_sigma_px`: the loss follows the
-    noise of the images at hand (sharp or blurred, large or small) instead of a fixed
-    fraction of the threshold. It is capped at the threshold, and floored at a
-    thousandth of it so that noise-free data keep the loss defined.
-
-    Parameters
-    ----------
-    distances : (N,) array_like
-        Inliers' Sampson distances (px).
-    threshold_px : float
-        Inlier threshold on the Sampson distance (px).
-
-    Returns
-    -------
-    float
-        Cauchy scale (px).
-    """
-    sigma = noise_sigma_px(distances)
-    return float(np.clip(CAUCHY_SCALE_OF_SIGMA * sigma, 1e-3 * threshold_px, threshold_px))
-
-
-def inlier_threshold_px(distances: FloatArray, threshold_px: float) -> float:
-    """Inlier threshold (pixels) for re-selecting inliers whose Sampson distances are these.
-
-    The given threshold, raised to :data:`THRESHOLD_OF_SIGMA` times
-    :func:`noise_sigma_px` when the images are noisier than it assumes (a 1 px
-    threshold cuts Gaussian noise of 0.5 px at two sigma, and the cut biases the
-    fit), and never beyond :data:`MAX_THRESHOLD_GROWTH` times it, so that a set
-    of outliers, whose distances spread up to the threshold, cannot widen it
-    round after round.
-
-    Parameters
-    ----------
-    distances : (N,) array_like
-        Inliers' Sampson distances (px).
-    threshold_px : float
-        Inlier threshold on the Sampson distance (px).
-
-    Returns
-    -------
-    float
-        Threshold (px).
-    """
-    raised = THRESHOLD_OF_SIGMA * noise_sigma_px(distances)
-    return float(np.clip(raised, threshold_px, MAX_THRESHOLD_GROWTH * threshold_px))
-
-
-def comparison_threshold_px(distances: FloatArray, threshold_px: float) -> float:
-    """Threshold (pixels) at which :func:`fit_essential` compares its starts' optima.
-
-    ``distances`` ``(N,)`` are the Sampson distances of all correspondences to a
-    model fitted within the noise (the noise probe of :func:`fit_essential`); those
-    within ``threshold_px`` give the noise (:func:`noise_sigma_px`), and the result
-    is :data:`THRESHOLD_OF_SIGMA` times it: the inlier threshold that the noise
-    calls for, where a match off by a pixel or two no longer counts. It is kept
-    between :data:`NOISE_PROBE_OF_THRESHOLD` times ``threshold_px`` (noise-free
-    matches) and ``threshold_px`` (noisier matches than the threshold allows for:
-    the threshold is the user's word), and is ``threshold_px`` when fewer than
-    five distances lie within it.
-
-    Parameters
-    ----------
-    distances : (N,) array_like
-        Sampson distances (px) of all correspondences.
-    threshold_px : float
-        Inlier threshold on the Sampson distance (px).
-
-    Returns
-    -------
-    float
-        Threshold (px).
-    """
-    distances = np.asarray(distances, dtype=np.float64)
-    near = distances[distances <= threshold_px]
-    if len(near) < 5:
-        return float(threshold_px)
-    sigma = noise_sigma_px(near)
-    return float(np.clip(THRESHOLD_OF_SIGMA * sigma, NOISE_PROBE_OF_THRESHOLD * threshold_px,
-                         threshold_px))
 
 
 def refine_essential(

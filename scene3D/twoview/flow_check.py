@@ -4,19 +4,18 @@ Sparse matches can agree on a wrong pose: on rows of identical windows, a corner
 to the same corner of the neighbouring window lies a few pixels from its true epipolar
 line, and a pose a few degrees off brings dozens of them within the inlier threshold. On
 such matches the wrong pose costs less than the true one, so no statistic of the sparse
-residuals can tell them apart (docs/benchmarks.md, castle-P19). Dense optical flow does
-not make those mistakes: it is computed coarse to fine with each pixel's surroundings,
-so a window is carried along with its wall rather than matched to its twin.
+residuals can tell them apart (docs/benchmarks.md#castle-p19-repeated-windows). Dense
+optical flow does not make those mistakes: it is computed coarse to fine with each
+pixel's surroundings, so a window is carried along with its wall rather than matched to its twin.
 
 :func:`flow_correspondences` takes the flow between the images (DIS, OpenCV's dense
 inverse search) at every textured pixel of a grid whose forward and backward flows
 agree; :func:`check_pose_against_flow` refines the pose on them and compares the share
 of the flow that lies near the epipolar lines of each. A pose that the sparse matches
 got right is already near the flow's optimum (the share gains little); a wrong one gives
-way to a pose that explains a tenth of the textured pixels more or beyond (0.17-0.24 on
-four of castle-P19's six poses more than 2 deg off at 768 px; on the three Strecha
-scenes' right ones at most 0.09 but for one, 0.18, whose flow pose lies 0.6 deg from it:
-docs/benchmarks.md). :func:`check_pose_against_images` does both on images of at
+way to a pose that explains a tenth of the textured pixels more or beyond
+(docs/benchmarks.md#the-dense-flow-check). :func:`check_pose_against_images` does both on
+images of at
 most :data:`MAX_FLOW_WIDTH_PX`.
 
 Frames as in :mod:`scene3D.geometry`: ``x_cam2 = R x_cam1 + t``, pixels of the working
@@ -54,8 +53,7 @@ MAX_FORWARD_BACKWARD_PX = 1.0
 #: 0-1; flat pixels have no flow of their own.
 MIN_TEXTURE = 1e-3
 #: DIS's variational refinement of each scale's flow (its medium preset: 5). Without it
-#: the two flows take 0.047 instead of 0.070 s at 768 px and the gains of the three
-#: Strecha scenes' 290 pairs of gaps 1-5 give the same verdicts (docs/benchmarks.md).
+#: the flows are faster and give the same verdicts (docs/benchmarks.md#the-dense-flow-check).
 VARIATIONAL_ITERATIONS = 0
 #: Fewer flow correspondences than this give no verdict.
 MIN_FLOW_POINTS = 1000
@@ -126,7 +124,7 @@ class FlowCheck(NamedTuple):
     flow_share : float
         The same for the pose refined on the flow.
     R, t : (3, 3), (3,) float64
-        The pose refined on the flow (``|t| = 1``).
+        The pose refined on the flow, ``x_cam2 = R x_cam1 + t`` (``|t| = 1``).
     """
 
     points: int

@@ -112,7 +112,7 @@ class FocalFit(NamedTuple):
         First-order standard deviation of ``log(scale)`` (inf when the matches do
         not determine it, e.g. without rotation).
     R, t : (3, 3), (3,) float64
-        The pose refined with it (``|t| = 1``).
+        The pose refined with it, ``x_cam2 = R x_cam1 + t`` (``|t| = 1``).
     weights : (float, float)
         :data:`COMMON` or :data:`RATIO`: how ``scale`` applies to each image.
     """
@@ -249,8 +249,8 @@ def fit_focal_ratio(
     multiplied by ``sqrt(r)`` (``r = s2 / s1``, the geometric mean kept at the
     calibration's), from ``r = initial_ratio``. A zoom turned between the shots, or one
     photo cropped and enlarged, shows as ``r`` far from 1: with one ``K`` for both, such
-    a pair came back trusted 20-50 deg off in translation direction
-    (docs/benchmarks.md), the zoom taken for a move along the optical axis.
+    a pair came back trusted tens of degrees off in translation direction, the zoom
+    taken for a move along the optical axis (docs/benchmarks.md#mistakes-a-user-could-make).
 
     Parameters
     ----------

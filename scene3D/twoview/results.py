@@ -73,18 +73,14 @@ class TwoViewSettings:
         :data:`scene3D.twoview.essential_fit.MAX_THRESHOLD_GROWTH` times ``threshold_px``, can
         hold): the pose then rests on the matches that happen to fit best, which
         biases it, and the covariance's allowance for the cut no longer makes up
-        for it. On a synthetic pair with a 1 px threshold (raised to 2 px), 1 px of
-        noise is cut by about 4 % and the allowance keeps the errors within their
-        90 % bounds (89 % / 87 %); 1.5 px is cut by about 14 %, and 68 % / 70 % are
-        (41 % / 41 % without the allowance; docs/benchmarks.md). 0 to 1.
+        for it (docs/benchmarks.md#noise-the-threshold-cut-off). 0 to 1.
     max_rotation_share : float
         The pose is untrusted when a rotation alone explains more than this share of
         the inliers (within three noise standard deviations;
         :func:`scene3D.twoview.degeneracy.motion_model_choice`): most matches show no
         parallax, and the translation rests on the others, which a moving object
-        would explain as well as a camera that moved (on OpenCV's ``left*.jpg``, a
-        still camera and a chessboard moved by hand, 5 of 78 pairs came back
-        trusted, with translation sigmas of 0.001-0.5 deg, without this check). 0 to 1.
+        would explain as well as a camera that moved (a still camera and a chessboard
+        moved by hand: docs/trust.md#flagged-pairs). 0 to 1.
     trusted_inliers : int
         Fewer inliers leave the pose untrusted whatever its covariance says: a
         covariance estimated from few residuals is itself uncertain, and random
@@ -106,13 +102,13 @@ class TwoViewSettings:
         (:func:`scene3D.geometry.triangulation.behind_at_scene_parallax`; ``behind_share`` of
         the result). Each is a wrong match that happens to lie near its epipolar line
         (or a point of an object that moved), and a random match within 1 px of a
-        pose's epipolar line lands so 19-44 % of the time (synthetic poses), so a
+        pose's epipolar line lands so about a third of the time, so a
         fifth behind means that about half of the inliers or more are wrong: the pose
         itself may rest on wrong matches that agree (repeated texture), which its
         covariance cannot see. Far points that a focal length a few percent off or an
         uncorrected distortion pushes across infinity meet at angles far below the
-        scene's and do not count. Measured values: docs/benchmarks.md. 0 to 1 (1:
-        never flagged).
+        scene's and do not count (docs/benchmarks.md#inliers-behind-the-cameras). 0 to 1
+        (1: never flagged).
     max_focal_mismatch, focal_mismatch_sigmas : float, float
         The result is marked untrusted when the matches call for a focal length more
         than ``1 + max_focal_mismatch`` times larger or smaller than the
@@ -122,9 +118,9 @@ class TwoViewSettings:
         hold for image 2's focal length against image 1's
         (:func:`scene3D.twoview.focal_fit.fit_focal_ratio`): two zoom settings, or one photo
         cropped or resized, with one calibration. Three
-        standard deviations of the sandwich estimate (five of the optimistic IRLS
-        estimate before it): with the true K no right pose of the three Strecha
-        scenes is flagged for its focal length (gaps 1-5, 768 and 1536 px). Both
+        standard deviations of the sandwich estimate: with the true K no right pose of
+        the Strecha scenes is flagged for its focal length
+        (docs/benchmarks.md#the-focal-length-check). Both
         >= 0 (``max_focal_mismatch`` may be ``inf``: never flagged).
     max_flow_gain : float
         A pose that passed every other check, reconstructed with both images at hand
@@ -134,30 +130,29 @@ class TwoViewSettings:
         :data:`scene3D.twoview.flow_check.FLOW_BAND_PX` of its epipolar lines
         (:func:`scene3D.twoview.flow_check.check_pose_against_flow`) and lies at least half
         ``uncertainty_limit_deg`` away: sparse matches on repeated texture agreed on
-        a wrong pose that the flow does not follow. On the three Strecha scenes the
-        gain is at most 0.09 on right poses (within 1 deg) but one (0.18, its flow pose
-        0.6 deg away) and 0.17-0.24 on four of castle-P19's six poses more than 2 deg
-        off at 768 px, whose flow poses lie 0.3-1.2 deg from the truth
-        (docs/benchmarks.md). Half the limit: a pose nearer the flow's
-        than that is near enough for the purpose, whatever the flow prefers. Whatever
-        the gain, a flow's pose more than twice ``uncertainty_limit_deg`` away is a
-        doubt too (right poses: at most 2.1 deg). 0 to 1 (1: not checked, which saves
-        the flow's 0.05 s a pair).
+        a wrong pose that the flow does not follow; the default lies between the gains
+        of right and of wrong poses on the Strecha scenes
+        (docs/benchmarks.md#the-dense-flow-check). Half the limit: a pose nearer the
+        flow's than that is near enough for the purpose, whatever the flow prefers.
+        Whatever the gain, a flow's pose more than twice ``uncertainty_limit_deg`` away
+        is a doubt too (docs/trust.md#the-dense-flow-check). 0 to 1 (1: not checked,
+        which saves the flow's time).
     check_distortion : bool
         Refine a pose that passed every other check once more with one radial lens
         distortion, and doubt it when that moves it more than twice
         ``uncertainty_limit_deg`` (:func:`scene3D.twoview.trust.distortion_warning`): a
-        calibration that leaves out the lens's distortion gave trusted poses 5-10 deg
-        off. About 2 ms a pair. The self-calibration of photos without a calibration
+        calibration that leaves out the lens's distortion gave trusted poses degrees
+        off (docs/trust.md#a-lens-distortion-the-calibration-leaves-out). The
+        self-calibration of photos without a calibration
         file turns it off: its fitted focal length soaks up most of a distortion, which
         leaves the check nearly blind there (docs/trust.md).
     bundle_adjust : bool
         Finish with a two-view bundle adjustment of pose and points
         (:func:`scene3D.optim.bundle_two_view.bundle_adjust_two_view`) with the same Cauchy
-        loss as the local optimisation. Off by default: on the fountain-P11
-        benchmark pairs it moves the poses by hundredths of a degree at most, closer
-        to the truth on some pairs and further on others (at 768 px AUC@5deg 98.2
-        against 98.4 without), for about 70-160 ms a pair (768-1536 px).
+        loss as the local optimisation. Off by default: on the benchmark pairs it
+        moves the poses by hundredths of a degree at most, closer to the truth on some
+        and further on others, and costs time
+        (docs/benchmarks.md#two-view-bundle-adjustment).
 
     Raises
     ------

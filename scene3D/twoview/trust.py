@@ -489,12 +489,9 @@ def distortion_warning(R: FloatArray, t: FloatArray, fit: DistortionFit, K: Floa
     The pose is doubted when the matches call for a distortion (more than
     :data:`DISTORTION_SIGMAS` standard deviations from none) and the pose with it lies
     more than twice ``s.uncertainty_limit_deg`` away: which of the two is right, the
-    matches cannot say, and they lie further apart than the purpose allows. Trusted
-    right poses of the three Strecha scenes (gaps 1-5, 768 and 1536 px) move at most
-    3.9 deg, most under 2; with the matches of a corner or a subset, up to 15. Of
-    the poses more than 5 deg off that photos through a lens of ``k1`` -0.2 to +0.05
-    left trusted by every other check, 7 of 12 move 4.9-8.4 deg and are flagged, the
-    others stay within 3.3 deg of their wrong pose (docs/benchmarks.md).
+    matches cannot say, and they lie further apart than the purpose allows. Right
+    poses mostly move less, wrong ones through an uncorrected lens mostly more
+    (docs/benchmarks.md#the-distortion-check).
     ``far_pixel`` ``(2,)`` is where the distortion's shift is quoted, as ``where`` (the
     image corner farthest from the principal point: "the image's corners"); the pose's
     ``uncertainty``, when given, is quoted too; ``K_source`` (:data:`K_SOURCES`) names
@@ -552,10 +549,8 @@ def flow_warning(R: FloatArray, t: FloatArray, flow: FlowCheck | None,
     ``s.uncertainty_limit_deg`` away (a pose nearer the flow's than that is near enough
     for the purpose, whatever the flow prefers), or, whatever the gain, when the flow's
     pose lies more than twice ``s.uncertainty_limit_deg`` away: refined from this pose,
-    the flow left its basin (right poses of the three Strecha scenes: at most 2.1 deg;
-    castle-P19 pairs whose second photo shows a strip of the first's scene, trusted 8 and
-    11 deg off, their flow poses 7 and 11 deg away with gains of 0.03 and 0.08:
-    docs/benchmarks.md).
+    the flow left its basin (a second photo that shows only a strip of the first's
+    scene, say: docs/benchmarks.md#the-dense-flow-check).
 
     Parameters
     ----------

@@ -29,9 +29,8 @@ __all__ = [
 ]
 
 #: ``cv2.imencode`` parameters of the figures the commands write: zlib level 1 with
-#: run-length matching and the "sub" row filter. On the book pair's epipolar figure
-#: (1544x542) it encoded in 104 ms, against 210 ms for level 1 alone and 821 ms for
-#: level 6 (all on a busy machine), for a file 5 % smaller than level 1's.
+#: run-length matching and the "sub" row filter: twice as fast as level 1 alone, for a
+#: file a little smaller (docs/benchmarks.md#default-run-figures-and-report).
 PNG_FAST_PARAMS = (cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_STRATEGY,
                    cv2.IMWRITE_PNG_STRATEGY_RLE, cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_SUB)
 _FONT = cv2.FONT_HERSHEY_SIMPLEX

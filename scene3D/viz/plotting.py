@@ -246,7 +246,7 @@ def plot_calibration_coverage(
     image_size : (int, int)
         ``(width, height)`` in px.
     counts : (rows, cols) int ndarray
-        Corners per cell (:func:`scene3D.calibration.board.corner_coverage`).
+        Corners per cell (:func:`scene3D.calibration.solve.corner_coverage`).
     ax : Axes or None, default None
         Axes to draw in; None for a new figure.
 
