@@ -43,6 +43,7 @@ from ..geometry.lens import (
 from ..io.images import (
     BOOK_MAX_WIDTH_PX,
     ImageSource,
+    bgr_order,
     folder_images,
     glob_files,
     source_label,
@@ -223,6 +224,7 @@ def reconstruct_views(
     engine: Engine | None = None,
     focal_prior: FocalPrior | None = None,
     camera_model: str = "auto",
+    rgb: bool = False,
 ) -> MultiViewReconstruction:
     """Reconstruct cameras and points from several photos of one camera, calibrated or not.
 
@@ -272,6 +274,9 @@ def reconstruct_views(
         reconstructed again with their keypoints undistorted (:mod:`scene3D.multiview.lens`).
         With ``K`` the calibration gives the camera: ``"auto"`` or ``"pinhole"`` only
         (``dist`` undistorts the images first).
+    rgb : bool
+        The arrays among ``images`` are RGB (PIL, imageio); by default they are BGR, as
+        cv2 loads them (:func:`scene3D.io.images.bgr_order`). Files are read as they are.
 
     Returns
     -------
@@ -300,7 +305,7 @@ def reconstruct_views(
     s = settings or SfMSettings()
     engine = engine or LocalEngine()
     say = progress or (lambda message: logger.info("%s", message))
-    images = image_sources(images)
+    images = [bgr_order(source, rgb) for source in image_sources(images)]
     if names is None:
         names = [Path(src).name if isinstance(src, (str, os.PathLike)) else f"view{i}"
                  for i, src in enumerate(images)]
