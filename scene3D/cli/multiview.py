@@ -24,6 +24,7 @@ from ..io.model_folder import MODEL_FIGURE, MODEL_FILES, model_folder_name
 from ..io.model_folder import write_model as write_model_folder
 from ..io.nerfstudio import write_nerfstudio
 from ..io.paths import image_files
+from ..io.undistorted import UNDISTORTED_FOLDER
 from ..multiview import (
     PAIR_MODES,
     FocalEstimate,
@@ -57,14 +58,7 @@ from .common import (
     run_command,
 )
 from .outputs import FILES_KEY, SUMMARY_FILE, OutputFolder
-from .video import (
-    FRAMES_FOLDER,
-    UNDISTORTED_FOLDER,
-    read_video,
-    video_source,
-    write_frames,
-    write_undistorted,
-)
+from .video import FRAMES_FOLDER, read_video, video_source, write_frames, write_undistorted
 
 logger = logging.getLogger("scene3D.cli")
 

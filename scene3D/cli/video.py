@@ -14,7 +14,7 @@ import numpy as np
 from ..calibration.views import VIDEO_SUFFIXES, read_frames
 from ..io.colmap_model import ColmapModel
 from ..io.export import write_png
-from ..io.undistorted import UNDISTORTED_FOLDER, write_undistorted_images  # noqa: F401
+from ..io.undistorted import write_undistorted_images
 from ..multiview import MultiViewReconstruction
 from ..multiview.video import VideoFrames, select_frames
 from .common import UsageError, note_created_folders

@@ -65,6 +65,7 @@ from .export import (
     ply_bytes,
     read_ply,
     save_figure,
+    write_files,
     write_json,
     write_ply,
     write_text_files,
@@ -117,5 +118,5 @@ __all__ = [
     "read_strecha_camera", "read_strecha_scene", "refuse_single_path", "register_heif_opener",
     "relative_pose", "save_calibration", "save_figure", "sha256_of", "source_label",
     "strecha_views", "to_bgr8", "write_colmap_binary", "write_colmap_text", "write_json",
-    "write_nerfstudio", "write_ply", "write_text_files", "written_bytes",
+    "write_nerfstudio", "write_files", "write_ply", "write_text_files", "written_bytes",
 ]

@@ -42,7 +42,7 @@ from .colmap_model import (
     model_from_records,
     point2d_indices,
 )
-from .export import atomic_write_bytes
+from .export import write_files
 
 #: The names of the three files of a binary model.
 BINARY_FILES = ("cameras.bin", "images.bin", "points3D.bin")
@@ -261,7 +261,4 @@ def write_colmap_binary(folder: str | os.PathLike, model: ColmapModel) -> list[P
     -------
     list of Path
     """
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    return [atomic_write_bytes(folder / name, data)
-            for name, data in colmap_binary(model).items()]
+    return write_files(folder, colmap_binary(model))
