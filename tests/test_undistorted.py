@@ -48,7 +48,7 @@ def distorted_model(dist=DIST):
     """Three orbit views with a few points each, their camera at 1280x960 with ``dist``."""
     K, size, R, t, X, colors, obs_view, obs_point, obs_xy = orbit_views(n_views=3,
                                                                          n_points=12)
-    working = colmap_model_from_views([f"v{i}.jpg" for i in range(3)], K, size,
+    working = colmap_model_from_views([f"v{i}.png" for i in range(3)], K, size,
                                       np.ones(3, bool), R, t, X, colors, obs_view,
                                       obs_point, obs_xy)
     return model_for_photos(working, (1280, 960), dist)
@@ -65,7 +65,12 @@ def test_a_point_of_the_distorted_camera_lands_on_the_pinhole_projection(tmp_pat
                                 model.R[v], model.t[v])
         np.testing.assert_allclose(pixels, model.obs_xy[mine], atol=1e-6)
         photos[name] = blob_image(pixels, camera.image_size)
-    undistorted, paths = write_undistorted_images(tmp_path / "undistorted", model, photos)
+        cv2.imwrite(str(tmp_path / name), photos[name])
+    # The photos as files in their folder, and as arrays: the same copies.
+    undistorted, paths = write_undistorted_images(tmp_path / "undistorted", model, tmp_path)
+    _, from_arrays = write_undistorted_images(tmp_path / "arrays", model, photos)
+    for name in paths:
+        assert paths[name].read_bytes() == from_arrays[name].read_bytes()
     assert list(paths) == ["v0.png", "v1.png", "v2.png"]
     write_nerfstudio(tmp_path / "transforms.json", undistorted, paths)
 
@@ -95,11 +100,11 @@ def test_a_point_of_the_distorted_camera_lands_on_the_pinhole_projection(tmp_pat
 def test_an_image_of_another_size_and_names_that_collide_are_refused(tmp_path):
     model = distorted_model()
     small = {name: np.zeros((480, 640, 3), np.uint8) for name in model.names}
-    with pytest.raises(ValueError, match="image 'v0.jpg' is 640x480, its camera is for "
+    with pytest.raises(ValueError, match="image 'v0.png' is 640x480, its camera is for "
                                          "1280x960 images"):
         write_undistorted_images(tmp_path, model, small)
-    twins = dataclasses.replace(model, names=("a.jpg", "a.png", "c.jpg"))
-    with pytest.raises(ValueError, match="'a.jpg' and 'a.png' would both be undistorted"):
+    twins = dataclasses.replace(model, names=("a.jpg", "a.tif", "c.jpg"))
+    with pytest.raises(ValueError, match="'a.jpg' and 'a.tif' would both be undistorted"):
         write_undistorted_images(tmp_path, twins, tmp_path)
     assert not list(tmp_path.iterdir())
 
