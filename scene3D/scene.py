@@ -34,7 +34,13 @@ from .geometry.camera import (
 )
 from .geometry.conventions import distinct_correspondences
 from .geometry.rectification import RectifiedPair, rectify_pair
-from .io.images import BOOK_MAX_WIDTH_PX, ImageSource, load_working_images, source_label
+from .io.images import (
+    BOOK_MAX_WIDTH_PX,
+    ImageSource,
+    bgr_order,
+    load_working_images,
+    source_label,
+)
 from .optim.uncertainty import depth_sigmas
 from .twoview import (
     TwoViewReconstruction,
@@ -105,7 +111,7 @@ class SceneReconstruction3D:
 
     # -- loading -----------------------------------------------------------------
     def load_image_pair(self, img1: ImageSource, img2: ImageSource, use_pyr_down: bool = True,
-                        max_width: int = BOOK_MAX_WIDTH_PX) -> None:
+                        max_width: int = BOOK_MAX_WIDTH_PX, *, rgb: bool = False) -> None:
         """Load two images (paths or arrays), undistort them and downscale them like the book.
 
         While wider than ``max_width`` (the book's 1200 px) the images are halved
@@ -122,6 +128,9 @@ class SceneReconstruction3D:
             Halve while wider than ``max_width``; False keeps the native size.
         max_width : int, default BOOK_MAX_WIDTH_PX
             Largest working width (px).
+        rgb : bool, default False
+            The arrays are RGB (PIL, imageio), not BGR as cv2 loads them
+            (:func:`scene3D.io.images.bgr_order`); files are read as they are.
 
 
         Raises
@@ -135,6 +144,7 @@ class SceneReconstruction3D:
             focal length no lens has: :func:`~scene3D.geometry.camera.check_intrinsics_for_size`),
             as when ``K`` was calibrated on larger photos than these.
         """
+        img1, img2 = bgr_order(img1, rgb), bgr_order(img2, rgb)
         (a, b), size, levels = load_working_images(
             (img1, img2), self.K_native, self.d, max_width if use_pyr_down else None,
             ("img1", "img2"))

@@ -1015,3 +1015,24 @@ def test_a_bare_matrix_is_told_what_a_calibration_file_needs(tmp_path):
     other.write_text("fx 2759.48\n")
     with pytest.raises(ValueError, match="not OpenCV YAML/XML$"):
         load_calibration(other)
+
+
+def test_a_calibration_file_reads_back_under_its_own_names(tmp_path):
+    """load_calibration gives the file's camera_matrix and distortion_coefficients by
+    those names, and K and dist as the same arrays."""
+    from scene3D.io.calibration import CameraCalibration
+
+    K = np.array([[812.5, 0, 331.25], [0, 806.0, 244.75], [0, 0, 1]])
+    dist = np.array([-0.21, 0.07, 1e-3, -2e-3, 0.01])
+    path = save_calibration(tmp_path / "cam.yaml", CameraCalibration(
+        camera_matrix=K, distortion_coefficients=dist, image_size=(640, 480)))
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    in_file = fs.getNode("camera_matrix").mat(), fs.getNode("distortion_coefficients").mat()
+    fs.release()
+    camera = load_calibration(path)
+    np.testing.assert_array_equal(camera.camera_matrix, in_file[0])
+    np.testing.assert_array_equal(camera.distortion_coefficients, in_file[1].ravel())
+    np.testing.assert_array_equal(camera.camera_matrix, K)
+    np.testing.assert_array_equal(camera.distortion_coefficients, dist)
+    assert camera.K is camera.camera_matrix and camera.dist is camera.distortion_coefficients
+    assert camera.image_size == (640, 480)

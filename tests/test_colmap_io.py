@@ -191,11 +191,11 @@ def test_from_opencv_refuses_what_colmap_cannot_hold():
         ColmapCamera.from_opencv(K, [0] * 8 + [0.01, 0, 0, 0], (640, 480))
 
 
-def test_a_model_written_by_pycolmap_reads_back_with_its_cameras_and_points(tmp_path):
-    pycolmap = pytest.importorskip("pycolmap")
-    K, size, R, t, X, colors, obs_view, obs_point, obs_xy = orbit_views(n_views=4)
+def pycolmap_reconstruction(pycolmap, K, R, t, X, colors):
+    """A pycolmap model of the orbit: two cameras (PINHOLE and OPENCV with distortion,
+    COLMAP's pixels OpenCV's + 0.5) taking turns, every point seen by every image at its
+    exact projection, the errors pycolmap's."""
     rec = pycolmap.Reconstruction()
-    # Two cameras, one with distortion: COLMAP's pixels are OpenCV's + 0.5.
     cams = [pycolmap.Camera(model="PINHOLE", width=640, height=480,
                             params=[K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5],
                             camera_id=1),
@@ -218,7 +218,13 @@ def test_a_model_written_by_pycolmap_reads_back_with_its_cameras_and_points(tmp_
             track.add_element(v + 1, p)
         rec.add_point3D(x, track, colors[p])
     rec.update_point_3d_errors()
-    rec.write_text(str(tmp_path))
+    return rec
+
+
+def test_a_model_written_by_pycolmap_reads_back_with_its_cameras_and_points(tmp_path):
+    pycolmap = pytest.importorskip("pycolmap")
+    K, size, R, t, X, colors, obs_view, obs_point, obs_xy = orbit_views(n_views=4)
+    pycolmap_reconstruction(pycolmap, K, R, t, X, colors).write_text(str(tmp_path))
 
     model = read_colmap_text(tmp_path)
     assert model.names == tuple(f"img_{v}.jpg" for v in range(len(R)))

@@ -80,6 +80,15 @@ def test_sharp_frames_that_moved_are_kept(orbit_video):
     counts = chosen.counts()
     assert counts["blurred"] == len(BLURRED) and counts["kept"] == len(kept)
     assert chosen.summary().startswith(f"{FRAMES} frames read, {len(kept)} kept")
+    # As recorded: every frame read, its time, whether kept and why.
+    record = json.loads(json.dumps(chosen.to_dict()))
+    frames = record["frames"]
+    assert [f["time_s"] for f in frames] == pytest.approx([k / FPS for k in range(FRAMES)])
+    assert [round(f["time_s"] * FPS) for f in frames if f["kept"]] == kept
+    assert all(frames[k]["reason"].startswith("blurred") and frames[k]["motion"] is None
+               for k in BLURRED)
+    assert frames[0]["reason"] == "first sharp frame" and record["counts"] == counts
+    assert record["summary"] == chosen.summary() and record["image_size"] == [640, 480]
 
 
 def test_the_count_is_bounded(orbit_video):
@@ -127,6 +136,41 @@ def test_reconstruct_views_of_a_video(orbit_video, tmp_path, capsys):
     paths = sorted(frame["file_path"] for frame in transforms["frames"])
     assert paths == sorted(f"frames/{n}.png" for n in names)
     assert all(cv2.imread(str(out / p)).shape == (480, 640, 3) for p in paths)
+    # reconstruction.json records the frames kept (their time and why) and those left out.
+    video = json.loads((out / "reconstruction.json").read_text())["video"]
+    assert video["source"] == str(path) and len(video["frames"]) == FRAMES
+    kept = {f["name"]: f for f in video["frames"] if f["kept"]}
+    assert sorted(kept) == sorted(names)
+    assert all(kept[n]["time_s"] == pytest.approx(_index(n) / FPS) for n in names)
+    reasons = {line.split(": ", 1)[0][len("kept "):]: line.split(": ", 1)[1]
+               for line in kept_lines}
+    assert {n: kept[n]["reason"] for n in names} == reasons
+    assert all(not f["kept"] and f["reason"].startswith("blurred")
+               for f in video["frames"] if _index(f["name"]) in BLURRED)
+
+
+def test_undistorted_frames_beside_transforms(orbit_video, tmp_path):
+    """--export nerfstudio --undistort: transforms.json names undistorted/NAME.png, each
+    the frame undistorted with its camera in cameras.json, and says no distortion; no
+    frames/ then. --undistort alone is a usage error."""
+    path, _, _ = orbit_video
+    out = tmp_path / "out"
+    assert multiview.main([str(path), "--out", str(out), "--no-plots", "--no-report",
+                           "--quiet", "--export", "nerfstudio", "--undistort"]) == 0
+    assert not (out / "frames").exists()
+    transforms = json.loads((out / "transforms.json").read_text())
+    assert all(transforms[k] == 0 for k in ("k1", "k2", "p1", "p2"))
+    cameras = json.loads((out / "cameras.json").read_text())
+    assert sorted(f["file_path"] for f in transforms["frames"]) == sorted(
+        f"undistorted/{n}.png" for n in cameras)
+    frames = dict(read_frames(path, timed=True))
+    for name, camera in cameras.items():
+        K, dist = np.array(camera["K"]), np.array(camera["distortion"])
+        assert transforms["fl_x"] == pytest.approx(K[0, 0])
+        copy = cv2.imread(str(out / "undistorted" / f"{name}.png"))
+        np.testing.assert_array_equal(copy, cv2.undistort(frames[name], K, dist, None, K))
+    assert multiview.main([str(path), "--out", str(tmp_path / "o"), "--undistort"]) == 2
+    assert not (tmp_path / "o").exists()
 
 
 def test_a_file_that_is_not_a_video(tmp_path):

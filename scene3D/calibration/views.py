@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import re
 import time
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
@@ -262,6 +263,22 @@ def frame_time_name(seconds: float) -> str:
     str
     """
     return f"t{max(seconds, 0.0):06.2f}s"
+
+
+def frame_time_s(name: str) -> float | None:
+    """The time in seconds a frame's name (:func:`frame_time_name`) gives:
+    ``"t012.40s"`` -> ``12.4``; None for another name (``"frame 3"``, a photo's).
+
+    Parameters
+    ----------
+    name : str
+
+    Returns
+    -------
+    float or None
+    """
+    match = re.fullmatch(r"t(\d+\.\d+)s", name)
+    return float(match.group(1)) if match else None
 
 
 @dataclass(frozen=True)

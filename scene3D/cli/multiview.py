@@ -25,6 +25,7 @@ from ..io.model_folder import MODEL_FIGURE, MODEL_FILES, model_folder_name
 from ..io.model_folder import write_model as write_model_folder
 from ..io.nerfstudio import write_nerfstudio
 from ..io.paths import image_files
+from ..io.undistorted import UNDISTORTED_FOLDER
 from ..multiview import (
     PAIR_MODES,
     CameraIntrinsics,
@@ -59,7 +60,7 @@ from .common import (
     run_command,
 )
 from .outputs import FILES_KEY, SUMMARY_FILE, OutputFolder
-from .video import FRAMES_FOLDER, read_video, video_source, write_frames
+from .video import FRAMES_FOLDER, read_video, video_source, write_frames, write_undistorted
 
 logger = logging.getLogger("scene3D.cli")
 
@@ -179,6 +180,11 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
                              f"{NERFSTUDIO_FILE} (nerfstudio's format, which instant-ngp and "
                              "Gaussian-splatting trainers read: the photos' cameras, "
                              "camera-to-world in OpenGL axes, paths relative to it); default: none")
+    parser.add_argument("--undistort", action="store_true",
+                        help="with --export nerfstudio: the images of the models undistorted "
+                             f"as {UNDISTORTED_FOLDER}/NAME.png (PNG, at the size and with the "
+                             "camera matrix of their camera; what the lens did not see is "
+                             f"black), which {NERFSTUDIO_FILE} names, with no distortion")
     parser.add_argument("--no-plots", action="store_true", help="skip cameras.png")
     parser.add_argument("--no-report", action="store_true",
                         help="skip report.html (one self-contained page: the numbers, the "
@@ -410,6 +416,8 @@ def run(args: argparse.Namespace) -> int:
     if args.calib is not None and args.camera_model not in ("auto", "pinhole"):
         raise UsageError(f"--camera-model {args.camera_model} is for photos without --calib: "
                          "the calibration file gives the camera (its distortion included)")
+    if args.undistort and "nerfstudio" not in args.export:
+        raise UsageError("--undistort is for --export nerfstudio (the images it names)")
     video = video_source(args)
     if video is not None and args.ground_truth is not None:
         raise UsageError("--ground-truth needs photos (NAME.camera per photo), not a video")
@@ -430,7 +438,8 @@ def run(args: argparse.Namespace) -> int:
     out_folder = OutputFolder(args.out, inputs=[*paths, *filter(None, [args.calib]),
                                                 *([video] if isinstance(video, Path) else [])],
                               names=(*model_names, *(f"model-*/{n}" for n in model_names),
-                                     f"{FRAMES_FOLDER}/*.png", SUMMARY_FILE, REPORT_FILE))
+                                     f"{FRAMES_FOLDER}/*.png", f"{UNDISTORTED_FOLDER}/*.png",
+                                     SUMMARY_FILE, REPORT_FILE))
     out = out_folder.path
     # Before the work: the first model's files, and those of further models already there
     # (how many models come out is known only at the end, when all are checked again).
@@ -471,19 +480,24 @@ def run(args: argparse.Namespace) -> int:
     # The files of every model, all or none: a write that fails leaves the earlier run's.
     with all_or_nothing():
         written: list[Path] = []
-        images = dict(zip(names, paths))
-        if video is not None and "nerfstudio" in args.export:
+        images = dict(zip(names, sources))  # photos' paths, or a video's frames
+        if video is not None and "nerfstudio" in args.export and not args.undistort:
             images = write_frames(out / FRAMES_FOLDER, recon, sources)
             written += images.values()
         for m, model in enumerate(recon.models):
             folder = out / model_folder_name(m)
             written += write_model(folder, names, recon, model, not args.no_plots)
             if "nerfstudio" in args.export:
-                written.append(write_nerfstudio(folder / NERFSTUDIO_FILE,
-                                                recon.colmap_model(model),
-                                                images,
+                colmap, model_images = recon.colmap_model(model), images
+                if args.undistort:
+                    colmap, model_images = write_undistorted(out / UNDISTORTED_FOLDER, colmap,
+                                                             images)
+                    written += model_images.values()
+                written.append(write_nerfstudio(folder / NERFSTUDIO_FILE, colmap, model_images,
                                                 ply_file=folder / MODEL_FILES[0]))
         summary = recon.to_dict(None if prior is None else prior.camera_name, truth)
+        if video is not None:  # which frames the views are, and why those
+            summary["video"] = {"source": str(video), **chosen.to_dict()}
         models = summary["models"]
         timings = {k: v for k, v in recon.timings_s.items() if k != "total"}
         timings["total"] = time.perf_counter() - t_start

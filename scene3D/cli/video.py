@@ -1,6 +1,6 @@
 """``scene3d reconstruct-views`` from a video or a webcam: which source, the frames
-kept (:mod:`scene3D.multiview.video`) with the lines saying why, and the frames written
-for the tools that read images."""
+kept (:mod:`scene3D.multiview.video`) with the lines saying why, and the images written
+for the tools that read them (the frames, or any model's images undistorted)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from ..calibration.views import VIDEO_SUFFIXES, read_frames
+from ..io.colmap_model import ColmapModel
 from ..io.export import write_png
+from ..io.undistorted import write_undistorted_images
 from ..multiview import MultiViewReconstruction
 from ..multiview.video import VideoFrames, select_frames
 from .common import UsageError, note_created_folders
@@ -74,12 +76,26 @@ def read_video(source: Path | int, max_frames: int, quiet: bool) -> VideoFrames:
     return chosen
 
 
-def write_frames(folder: Path, recon: MultiViewReconstruction, images: list[np.ndarray]
-                 ) -> dict[str, Path]:
-    """The frames of the views in a model as ``folder/NAME.png``; ``{name: path}``."""
+def _output_folder(folder: Path) -> Path:
+    """``folder``, made (and noted, so that a failed run removes it) when missing."""
     if not folder.exists():
         folder.mkdir()
         note_created_folders([folder])
+    return folder
+
+
+def write_frames(folder: Path, recon: MultiViewReconstruction, images: list[np.ndarray]
+                 ) -> dict[str, Path]:
+    """The frames of the views in a model as ``folder/NAME.png``; ``{name: path}``."""
+    _output_folder(folder)
     placed = {v for model in recon.models for v in np.flatnonzero(model.registered)}
     return {recon.names[v]: write_png(folder / f"{recon.names[v]}.png", images[v])
             for v in sorted(placed)}
+
+
+def write_undistorted(folder: Path, model: ColmapModel, images: dict[str, Path | np.ndarray]
+                      ) -> tuple[ColmapModel, dict[str, Path]]:
+    """The images of ``model`` (photos' paths or frames, by name) undistorted into
+    ``folder`` (:func:`scene3D.io.undistorted.write_undistorted_images`): the pinhole model
+    of the copies, and the copies by name."""
+    return write_undistorted_images(_output_folder(folder), model, images)

@@ -9,8 +9,10 @@
 - :mod:`scene3D.io.export`: atomic writes, PLY point clouds, JSON summaries (and the first
   COLMAP writer, deprecated for :mod:`scene3D.io.colmap`'s);
 - :mod:`scene3D.io.colmap`: COLMAP text models read and written in scene3D's conventions,
-  at the photos' size;
+  at the photos' size, and a model of either form read;
+- :mod:`scene3D.io.colmap_binary`: COLMAP binary models read and written;
 - :mod:`scene3D.io.nerfstudio`: nerfstudio's ``transforms.json`` (NeRF and splatting);
+- :mod:`scene3D.io.undistorted`: a model's images undistorted, and their pinhole model;
 - :mod:`scene3D.io.datasets`: the fountain-P11 download and Strecha cameras.
 """
 
@@ -30,9 +32,11 @@ from .colmap import (
     colmap_model_from_views,
     colmap_text,
     model_for_photos,
+    read_colmap_model,
     read_colmap_text,
     write_colmap_text,
 )
+from .colmap_binary import colmap_binary, read_colmap_binary, write_colmap_binary
 from .datasets import (
     BOOK_PAIR,
     FOUNTAIN_P11,
@@ -62,6 +66,7 @@ from .export import (
     ply_bytes,
     read_ply,
     save_figure,
+    write_files,
     write_json,
     write_ply,
     write_text_files,
@@ -72,6 +77,7 @@ from .images import (
     BOOK_MAX_WIDTH_PX,
     IMAGE_SUFFIXES,
     ImageSource,
+    bgr_order,
     check_image_file,
     folder_images,
     glob_files,
@@ -100,17 +106,18 @@ __all__ = [
     "CameraCalibration", "ColmapCamera", "ColmapFormatError", "ColmapModel", "FOUNTAIN_P11",
     "FOUNTAIN_P11_SHA256", "FOUNTAIN_P11_URL", "IMAGE_SUFFIXES", "ImageSource",
     "MAX_IMAGE_SIDE_PX", "ROTATION_TOLERANCE", "StrechaCamera", "StrechaScene",
-    "all_or_nothing", "atomic_write_bytes", "atomic_write_pieces", "camera_to_world_opengl",
-    "cameras_json", "check_image_file", "check_target", "colmap_image_name",
-    "colmap_model_from_views", "colmap_text", "colmap_text_files", "default_cache_dir",
-    "default_data_root", "fetch_fountain_p11", "folder_images", "glob_files", "glob_patterns",
-    "halve", "halving_levels", "header_size", "image_size", "intact_image_data",
-    "is_folder_image", "is_heif", "iter_working_images", "jpeg_cut_short", "load_bgr",
-    "load_calibration", "load_working_image", "load_working_images", "model_for_photos",
-    "nerfstudio_transforms", "place_file", "ply_bytes", "read_camera_prior",
+    "all_or_nothing", "bgr_order", "atomic_write_bytes", "atomic_write_pieces",
+    "camera_to_world_opengl", "cameras_json", "check_image_file", "colmap_binary",
+    "check_target", "colmap_image_name", "colmap_model_from_views", "colmap_text",
+    "colmap_text_files", "default_cache_dir", "default_data_root", "fetch_fountain_p11",
+    "folder_images", "glob_files", "glob_patterns", "halve", "halving_levels", "header_size",
+    "image_size", "intact_image_data", "is_folder_image", "is_heif", "iter_working_images",
+    "jpeg_cut_short", "load_bgr", "load_calibration", "load_working_image",
+    "load_working_images", "model_for_photos", "nerfstudio_transforms", "place_file",
+    "ply_bytes", "read_camera_prior", "read_colmap_binary", "read_colmap_model",
     "read_colmap_text", "read_exif", "read_image", "read_image_size", "read_ply",
     "read_strecha_camera", "read_strecha_scene", "refuse_single_path", "register_heif_opener",
     "relative_pose", "save_calibration", "save_figure", "sha256_of", "source_label",
-    "strecha_views", "to_bgr8", "write_colmap_text", "write_json", "write_nerfstudio",
-    "write_ply", "write_text_files", "written_bytes",
+    "strecha_views", "to_bgr8", "write_colmap_binary", "write_colmap_text", "write_json",
+    "write_nerfstudio", "write_files", "write_ply", "write_text_files", "written_bytes",
 ]

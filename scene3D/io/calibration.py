@@ -29,20 +29,36 @@ MAX_IMAGE_SIDE_PX = 100_000
 
 @dataclass(frozen=True)
 class CameraCalibration:
-    """Intrinsics and distortion of a camera at a given image size.
+    """Intrinsics and distortion of a camera at a given image size, named as the file
+    names them.
+
+    ``K`` and ``dist`` are the same arrays under the names the rest of the library (and
+    the book) gives them, ``SceneReconstruction3D(calib.K, calib.dist)``; they are aliases
+    to stay, not deprecated: both pairs of names are in use, and neither is going away.
 
     Attributes
     ----------
-    K : (3, 3) float64
-    dist : (n,) float64
-        OpenCV distortion coefficients.
+    camera_matrix : (3, 3) float64
+        The file's ``camera_matrix`` (OpenCV pixels).
+    distortion_coefficients : (n,) float64
+        The file's ``distortion_coefficients`` (OpenCV's order).
     image_size : tuple[int, int]
-        (width, height) the calibration holds for.
+        (width, height) the calibration holds for (``image_width``, ``image_height``).
     """
 
-    K: FloatArray
-    dist: FloatArray
+    camera_matrix: FloatArray
+    distortion_coefficients: FloatArray
     image_size: tuple[int, int]
+
+    @property
+    def K(self) -> FloatArray:
+        """``camera_matrix`` ``(3, 3)``."""
+        return self.camera_matrix
+
+    @property
+    def dist(self) -> FloatArray:
+        """``distortion_coefficients`` ``(n,)``."""
+        return self.distortion_coefficients
 
 
 def _not_file_storage(path: Path) -> str:
@@ -70,7 +86,8 @@ def load_calibration(path: str | os.PathLike) -> CameraCalibration:
     Returns
     -------
     CameraCalibration
-        ``K`` ``(3, 3)`` and OpenCV distortion for images of its ``(width, height)``.
+        ``camera_matrix`` ``(3, 3)`` (alias ``K``) and ``distortion_coefficients``
+        (alias ``dist``) for images of its ``image_size`` ``(width, height)``.
 
 
     Raises
@@ -186,9 +203,9 @@ def save_calibration(
         try:
             fs.write("image_width", int(camera.image_size[0]))
             fs.write("image_height", int(camera.image_size[1]))
-            fs.write("camera_matrix", np.asarray(camera.K, dtype=np.float64))
+            fs.write("camera_matrix", np.asarray(camera.camera_matrix, dtype=np.float64))
             fs.write("distortion_coefficients",
-                     np.asarray(camera.dist, np.float64).reshape(1, -1))
+                     np.asarray(camera.distortion_coefficients, np.float64).reshape(1, -1))
             for key, value in (extras or {}).items():
                 if isinstance(value, str):
                     fs.write(key, value)

@@ -20,7 +20,7 @@ its own camera pose.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -28,18 +28,18 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..geometry.camera import scale_intrinsics_resize, validate_distortion
-from ..geometry.conventions import (
-    FloatArray,
-    quaternion_from_rotation,
-    rotation_from_quaternion,
-)
+from ..geometry.conventions import quaternion_from_rotation
 from .colmap_model import (  # noqa: F401 - the model's types, from here as before
     CAMERA_MODELS,
     MODEL_FILES,
     ColmapCamera,
     ColmapFormatError,
     ColmapModel,
+    ImageRecord,
+    PointRecord,
     distorted_pixels,
+    model_from_records,
+    point2d_indices,
     project_points,
 )
 from .export import write_text_files
@@ -165,10 +165,8 @@ def read_cameras_text(path: str | os.PathLike) -> dict[int, ColmapCamera]:
     return cameras
 
 
-def _read_images(path: Path) -> list[tuple[int, tuple[float, ...], int, str, FloatArray,
-                                           np.ndarray]]:
-    """(image id, qw qx qy qz tx ty tz, camera id, name, 2D points (n, 2) COLMAP pixels,
-    their point ids (n,)) of each image of an ``images.txt``."""
+def _read_images(path: Path) -> list[ImageRecord]:
+    """The images of an ``images.txt`` (:data:`~scene3D.io.colmap_model.ImageRecord`)."""
     lines = _data_lines(path)
     images = []
     k = 0
@@ -189,9 +187,23 @@ def _read_images(path: Path) -> list[tuple[int, tuple[float, ...], int, str, Flo
                                     f"POINT3D_ID) triples, got {len(pts)} numbers")
         pts_arr = np.array(pts, dtype=np.float64).reshape(-1, 3)
         images.append((int(values[0]), tuple(values[1:8]), int(values[8]), fields[9],
-                       pts_arr[:, :2], pts_arr[:, 2].astype(np.int64)))
+                       pts_arr[:, :2]))
         k += 2
     return images
+
+
+def _read_points(path: Path) -> Iterator[PointRecord]:
+    """The points of a ``points3D.txt`` (:data:`~scene3D.io.colmap_model.PointRecord`)."""
+    for n, line in _data_lines(path):
+        if not line:
+            continue
+        fields = line.split()
+        if len(fields) < 8 or (len(fields) - 8) % 2:
+            raise ColmapFormatError(f"'{path}' line {n}: expected POINT3D_ID X Y Z R G B "
+                                    f"ERROR TRACK[] as (IMAGE_ID, POINT2D_IDX), got {line!r}")
+        values = _numbers(path, n, fields, "the fields")
+        yield (f"'{path}' line {n}", int(values[0]), tuple(values[1:4]), tuple(values[4:7]),
+               values[7], np.array(values[8:], dtype=np.int64).reshape(-1, 2))
 
 
 def read_colmap_text(folder: str | os.PathLike) -> ColmapModel:
@@ -199,7 +211,8 @@ def read_colmap_text(folder: str | os.PathLike) -> ColmapModel:
     ``points3D.txt``) in scene3D's conventions (:class:`ColmapModel`).
 
     Observations come from the points' tracks, image by image in the order of their 2D
-    points; 2D points that belong to no 3D point are not kept.
+    points; 2D points that belong to no 3D point are not kept. :func:`read_colmap_model`
+    reads a folder with either form.
 
     Parameters
     ----------
@@ -226,62 +239,42 @@ def read_colmap_text(folder: str | os.PathLike) -> ColmapModel:
     if not folder.is_dir():
         raise FileNotFoundError(2, "COLMAP model folder not found", str(folder))
     cameras = read_cameras_text(folder / "cameras.txt")
-    images = sorted(_read_images(folder / "images.txt"), key=lambda image: image[0])
-    images_path = folder / "images.txt"
-    view_of = {}
-    for v, (image_id, _, cam_id, name, _, _) in enumerate(images):
-        if cam_id not in cameras:
-            raise ColmapFormatError(f"'{images_path}': image {image_id} ('{name}') has "
-                                    f"camera {cam_id}, which cameras.txt does not list")
-        if image_id in view_of:
-            raise ColmapFormatError(f"'{images_path}': image id {image_id} comes twice")
-        view_of[image_id] = v
-    R = np.array([rotation_from_quaternion(im[1][:4]) for im in images]).reshape(-1, 3, 3)
-    t = np.array([im[1][4:] for im in images], dtype=np.float64).reshape(-1, 3)
+    images = _read_images(folder / "images.txt")
+    points = list(_read_points(folder / "points3D.txt"))
+    return model_from_records(cameras, images, points, str(folder / "images.txt"))
 
-    path = folder / "points3D.txt"
-    ids, xyz, rgb, errors = [], [], [], []
-    obs_view, obs_point, obs_index, obs_xy = [], [], [], []
-    for n, line in _data_lines(path):
-        if not line:
-            continue
-        fields = line.split()
-        if len(fields) < 8 or (len(fields) - 8) % 2:
-            raise ColmapFormatError(f"'{path}' line {n}: expected POINT3D_ID X Y Z R G B "
-                                    f"ERROR TRACK[] as (IMAGE_ID, POINT2D_IDX), got {line!r}")
-        values = _numbers(path, n, fields, "the fields")
-        p = len(ids)
-        ids.append(int(values[0]))
-        xyz.append(values[1:4])
-        rgb.append(values[4:7])
-        errors.append(values[7])
-        for image_id, index in zip(values[8::2], values[9::2]):
-            v = view_of.get(int(image_id))
-            if v is None:
-                raise ColmapFormatError(f"'{path}' line {n}: point {ids[-1]} is seen in "
-                                        f"image {int(image_id)}, which images.txt does not "
-                                        "list")
-            points2d = images[v][4]
-            if not 0 <= int(index) < len(points2d):
-                raise ColmapFormatError(f"'{path}' line {n}: point {ids[-1]} is 2D point "
-                                        f"{int(index)} of image {int(image_id)}, which has "
-                                        f"{len(points2d)}")
-            obs_view.append(v)
-            obs_point.append(p)
-            obs_index.append(int(index))
-            obs_xy.append(points2d[int(index)] - 0.5)
-    order = np.lexsort((obs_index, obs_view))  # image by image, as their 2D points
-    return ColmapModel(
-        cameras=cameras, image_ids=np.array([im[0] for im in images], dtype=np.int64),
-        names=tuple(im[3] for im in images),
-        camera_ids=np.array([im[2] for im in images], dtype=np.int64), R=R, t=t,
-        point_ids=np.array(ids, dtype=np.int64),
-        points3d=np.array(xyz, dtype=np.float64).reshape(-1, 3),
-        colors=np.array(rgb, dtype=np.float64).reshape(-1, 3).clip(0, 255).astype(np.uint8),
-        errors_px=np.array(errors, dtype=np.float64),
-        obs_view=np.array(obs_view, dtype=np.int64)[order],
-        obs_point=np.array(obs_point, dtype=np.int64)[order],
-        obs_xy=np.array(obs_xy, dtype=np.float64).reshape(-1, 2)[order])
+
+def read_colmap_model(folder: str | os.PathLike) -> ColmapModel:
+    """Read the COLMAP model in ``folder``, binary or text, as COLMAP chooses: the binary
+    files when all three (``cameras.bin``, ``images.bin``, ``points3D.bin``) are there
+    (:func:`scene3D.io.colmap_binary.read_colmap_binary`), else the text ones
+    (:func:`read_colmap_text`).
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        A COLMAP model folder (``sparse/0`` of a COLMAP project).
+
+    Returns
+    -------
+    ColmapModel
+        In scene3D's conventions, whichever form was read.
+
+
+    Raises
+    ------
+    FileNotFoundError
+        ``folder`` is missing, or holds neither form complete (the error names the
+        first text file missing).
+    ColmapFormatError
+        As the reader of the form found says.
+    """
+    from .colmap_binary import BINARY_FILES, read_colmap_binary
+
+    folder = Path(folder)
+    if all((folder / name).is_file() for name in BINARY_FILES):
+        return read_colmap_binary(folder)
+    return read_colmap_text(folder)
 
 
 # -- writing -----------------------------------------------------------------------------
@@ -312,14 +305,13 @@ def colmap_text(model: ColmapModel) -> dict[str, str]:
         c = model.cameras[cam_id]
         cameras.append(f"{cam_id} {c.model} {c.width} {c.height} "
                        + " ".join(num(p) for p in c.params))
-    point2d_index = np.zeros(len(model.obs_view), dtype=np.int64)
+    point2d_index = point2d_indices(model)
     images = ["# Image list with two lines of data per image:",
               "#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME",
               "#   POINTS2D[] as (X, Y, POINT3D_ID)",
               f"# Number of images: {len(model.names)}"]
     for v, name in enumerate(model.names):
         mine = np.nonzero(model.obs_view == v)[0]
-        point2d_index[mine] = np.arange(len(mine))
         q = quaternion_from_rotation(model.R[v])
         images.append(f"{model.image_ids[v]} " + " ".join(num(x) for x in (*q, *model.t[v]))
                       + f" {model.camera_ids[v]} {colmap_image_name(name)}")

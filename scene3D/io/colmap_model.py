@@ -1,13 +1,17 @@
 """The data of a COLMAP model in scene3D's conventions: cameras, images, points.
 
-:class:`ColmapModel` and :class:`ColmapCamera` as :mod:`scene3D.io.colmap` reads and writes
-them (world-to-camera poses ``x_cam = R @ X + t``, pixels in the OpenCV convention, OpenCV
-``K`` and distortion), and the projection through a camera.
+:class:`ColmapModel` and :class:`ColmapCamera` as :mod:`scene3D.io.colmap` (text) and
+:mod:`scene3D.io.colmap_binary` read and write them (world-to-camera poses
+``x_cam = R @ X + t``, pixels in the OpenCV convention, OpenCV ``K`` and distortion), the
+model assembled from a file's records (:func:`model_from_records`, shared by both
+readers), and the projection through a camera.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -17,6 +21,7 @@ from ..geometry.camera import validate_distortion
 from ..geometry.conventions import (
     FloatArray,
     camera_centers,
+    rotation_from_quaternion,
 )
 
 #: The COLMAP camera models read and written, with their parameters in file order.
@@ -34,7 +39,8 @@ MODEL_FILES = ("cameras.txt", "images.txt", "points3D.txt")
 
 
 class ColmapFormatError(ValueError):
-    """A COLMAP text file that cannot be read: the message names the file and line."""
+    """A COLMAP file that cannot be read: the message names the file, and the line (text)
+    or the record (binary)."""
 
 
 @dataclass(frozen=True)
@@ -283,3 +289,110 @@ def distorted_pixels(normalized: FloatArray, K: FloatArray, dist: FloatArray) ->
     rays = np.column_stack([normalized, np.ones(len(normalized))])
     pixels, _ = cv2.projectPoints(rays.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K, dist)
     return pixels.reshape(-1, 2).astype(np.float64)
+
+
+#: One image as a model file stores it: image id, ``(qw, qx, qy, qz, tx, ty, tz)``
+#: (``cam_from_world``), camera id, name, and its 2D points ``(n, 2)`` in COLMAP pixels.
+ImageRecord = tuple[int, tuple[float, ...], int, str, FloatArray]
+
+#: One point as a model file stores it: where it is (``"'points3D.txt' line 7"``, for
+#: messages), point id, ``(x, y, z)``, ``(r, g, b)``, error, and its track ``(k, 2)`` of
+#: (image id, 2D point index).
+PointRecord = tuple[str, int, tuple[float, ...], tuple[float, ...], float, np.ndarray]
+
+
+def model_from_records(cameras: dict[int, ColmapCamera], images: list[ImageRecord],
+                       points: Iterable[PointRecord], images_file: str) -> ColmapModel:
+    """The model of a file's records, in scene3D's conventions, checked.
+
+    Images are put in the order of their ids; observations come from the points'
+    tracks, image by image in the order of their 2D points (2D points of no 3D point are
+    not kept), with COLMAP's half-pixel offset removed.
+
+    Parameters
+    ----------
+    cameras : dict[int, ColmapCamera]
+        By camera id.
+    images : list of ImageRecord
+        Each image's id, pose, camera id, name and 2D points (:data:`ImageRecord`).
+    points : iterable of PointRecord
+        Each point with its track (:data:`PointRecord`).
+    images_file : str
+        The images' file, for messages.
+
+    Returns
+    -------
+    ColmapModel
+
+
+    Raises
+    ------
+    ColmapFormatError
+        An image of an unknown camera, an image id given twice, a track naming an
+        unknown image or 2D point.
+    """
+    images = sorted(images, key=lambda image: image[0])
+    images_name = Path(images_file).name
+    cameras_name = "cameras" + Path(images_file).suffix
+    view_of = {}
+    for v, (image_id, _, cam_id, name, _) in enumerate(images):
+        if cam_id not in cameras:
+            raise ColmapFormatError(f"'{images_file}': image {image_id} ('{name}') has "
+                                    f"camera {cam_id}, which {cameras_name} does not list")
+        if image_id in view_of:
+            raise ColmapFormatError(f"'{images_file}': image id {image_id} comes twice")
+        view_of[image_id] = v
+    R = np.array([rotation_from_quaternion(im[1][:4]) for im in images]).reshape(-1, 3, 3)
+    t = np.array([im[1][4:] for im in images], dtype=np.float64).reshape(-1, 3)
+    ids, xyz, rgb, errors = [], [], [], []
+    obs_view, obs_point, obs_index, obs_xy = [], [], [], []
+    for where, point_id, X, color, error, track in points:
+        p = len(ids)
+        ids.append(point_id)
+        xyz.append(X)
+        rgb.append(color)
+        errors.append(error)
+        for image_id, index in track.tolist():
+            v = view_of.get(image_id)
+            if v is None:
+                raise ColmapFormatError(f"{where}: point {point_id} is seen in image "
+                                        f"{image_id}, which {images_name} does not list")
+            points2d = images[v][4]
+            if not 0 <= index < len(points2d):
+                raise ColmapFormatError(f"{where}: point {point_id} is 2D point {index} of "
+                                        f"image {image_id}, which has {len(points2d)}")
+            obs_view.append(v)
+            obs_point.append(p)
+            obs_index.append(index)
+            obs_xy.append(points2d[index] - 0.5)
+    order = np.lexsort((obs_index, obs_view))  # image by image, as their 2D points
+    return ColmapModel(
+        cameras=cameras, image_ids=np.array([im[0] for im in images], dtype=np.int64),
+        names=tuple(im[3] for im in images),
+        camera_ids=np.array([im[2] for im in images], dtype=np.int64), R=R, t=t,
+        point_ids=np.array(ids, dtype=np.int64),
+        points3d=np.array(xyz, dtype=np.float64).reshape(-1, 3),
+        colors=np.array(rgb, dtype=np.float64).reshape(-1, 3).clip(0, 255).astype(np.uint8),
+        errors_px=np.array(errors, dtype=np.float64),
+        obs_view=np.array(obs_view, dtype=np.int64)[order],
+        obs_point=np.array(obs_point, dtype=np.int64)[order],
+        obs_xy=np.array(obs_xy, dtype=np.float64).reshape(-1, 2)[order])
+
+
+def point2d_indices(model: ColmapModel) -> np.ndarray:
+    """The index of each observation ``(O,)`` among its image's 2D points, as the writers
+    number them: image by image, in the order of ``obs_view``.
+
+    Parameters
+    ----------
+    model : ColmapModel
+
+    Returns
+    -------
+    (O,) int64 ndarray
+    """
+    index = np.zeros(len(model.obs_view), dtype=np.int64)
+    for v in range(len(model.names)):
+        mine = np.nonzero(model.obs_view == v)[0]
+        index[mine] = np.arange(len(mine))
+    return index

@@ -516,8 +516,28 @@ def colmap_text_files(
             "points3D.txt": "\n".join(point_lines) + "\n"}
 
 
+def write_files(folder: str | os.PathLike, files: dict[str, bytes]) -> list[Path]:
+    """Write several files into ``folder`` (created if needed), each atomically.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        Target folder.
+    files : dict[str, bytes]
+        Content by file name.
+
+    Returns
+    -------
+    list of Path
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    return [atomic_write_bytes(folder / name, data) for name, data in files.items()]
+
+
 def write_text_files(folder: str | os.PathLike, files: dict[str, str]) -> list[Path]:
-    """Write several text files into ``folder`` (created if needed), each atomically.
+    """Write several text files (UTF-8) into ``folder`` (created if needed), each
+    atomically (:func:`write_files`).
 
     Parameters
     ----------
@@ -530,7 +550,4 @@ def write_text_files(folder: str | os.PathLike, files: dict[str, str]) -> list[P
     -------
     list of Path
     """
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    return [atomic_write_bytes(folder / name, text.encode("utf-8"))
-            for name, text in files.items()]
+    return write_files(folder, {name: text.encode("utf-8") for name, text in files.items()})

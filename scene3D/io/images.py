@@ -331,6 +331,32 @@ def to_bgr8(img: np.ndarray, name: str = "image") -> np.ndarray:
     raise ValueError(f"`{name}` must have 1, 3 or 4 channels, got {img.shape[2]}")
 
 
+def bgr_order(source: ImageSource, rgb: bool = False) -> ImageSource:
+    """``source`` in OpenCV's channel order: with ``rgb``, a colour array (RGB or RGBA, as
+    PIL, imageio and matplotlib give) as BGR or BGRA (a copy); a path, a grey array, or
+    any array without ``rgb`` as it is (arrays are taken as BGR, as cv2 loads them, and
+    never guessed at).
+
+    Parameters
+    ----------
+    source : str, os.PathLike or ndarray
+        An image file, or an image ``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)``.
+    rgb : bool, default False
+        The array's channels are red, green, blue (and alpha).
+
+    Returns
+    -------
+    str, os.PathLike or ndarray
+    """
+    if not rgb or not isinstance(source, np.ndarray) or source.ndim != 3:
+        return source
+    if source.shape[2] == 3:
+        return np.ascontiguousarray(source[..., ::-1])
+    if source.shape[2] == 4:
+        return np.ascontiguousarray(source[..., [2, 1, 0, 3]])
+    return source
+
+
 def load_bgr(source: ImageSource, name: str = "image") -> np.ndarray:
     """Load a path or take an array, and return it as BGR ``uint8`` ``(H, W, 3)``.
 

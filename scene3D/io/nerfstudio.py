@@ -29,6 +29,7 @@ import numpy as np
 from ..geometry.conventions import FloatArray
 from .colmap import ColmapCamera, ColmapModel
 from .export import write_json
+from .undistorted import model_image
 
 #: OpenCV camera axes (x right, y down, z forward) to OpenGL's (x right, y up, z back).
 OPENGL_FROM_OPENCV = np.diag([1.0, -1.0, -1.0])
@@ -96,12 +97,11 @@ def nerfstudio_intrinsics(camera: ColmapCamera) -> dict[str, float | int | str]:
 
 def _image_path(images: str | os.PathLike | Mapping[str, str | os.PathLike], name: str
                 ) -> Path:
-    if isinstance(images, Mapping):
-        try:
-            return Path(images[name])
-        except KeyError:
-            raise ValueError(f"`images` has no path for the model's image '{name}'") from None
-    return Path(images) / name
+    source = model_image(images, name)
+    if isinstance(source, np.ndarray):
+        raise ValueError(f"`images` gives the model's image '{name}' as an array: "
+                         "transforms.json names files (write_undistorted_images writes them)")
+    return Path(source)
 
 
 def nerfstudio_transforms(model: ColmapModel,

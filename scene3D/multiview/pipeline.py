@@ -43,6 +43,7 @@ from ..geometry.lens import (
 from ..io.images import (
     BOOK_MAX_WIDTH_PX,
     ImageSource,
+    bgr_order,
     folder_images,
     glob_files,
     source_label,
@@ -308,15 +309,18 @@ def reconstruct_views(
     focal_prior: FocalPrior | None = None,
     camera_model: str = "auto",
     camera_mode: str = "auto",
+    rgb: bool = False,
 ) -> MultiViewReconstruction:
-    """Reconstruct cameras and points from several photos of one camera, calibrated or not.
+    """Reconstruct cameras and points from several photos, calibrated or not, of one camera
+    or of several.
 
     Parameters
     ----------
     images : path, glob, or sequence of paths, globs and (H, W[, C]) arrays
-        Photos of the same size, in any order, given as ``reconstruct-views`` takes
-        them: a folder (its images, sorted; hidden names starting with '.' left out),
-        a glob such as ``"photos/*.jpg"`` (its files, sorted), an image file, or a list
+        Photos in any order (of one size with ``K``; without, each size is a camera of
+        its own: ``camera_mode``), given as ``reconstruct-views`` takes them: a folder
+        (its images, sorted; hidden names starting with '.' left out), a glob such as
+        ``"photos/*.jpg"`` (its files, sorted), an image file, or a list
         of any of these and of BGR arrays (:func:`image_sources`).
     K : (3, 3) array_like or None
         Intrinsics of the **native** (stored) images; one that cannot be theirs (a
@@ -364,6 +368,9 @@ def reconstruct_views(
         camera; photos that cannot share one are refused) or ``"per_photo"``. Each
         camera has its own focal length and lens (:mod:`scene3D.multiview.cameras`);
         the result's ``view_camera`` and ``cameras`` say which and what.
+    rgb : bool
+        The arrays among ``images`` are RGB (PIL, imageio); by default they are BGR, as
+        cv2 loads them (:func:`scene3D.io.images.bgr_order`). Files are read as they are.
 
     Returns
     -------
@@ -392,7 +399,7 @@ def reconstruct_views(
     s = settings or SfMSettings()
     engine = engine or LocalEngine()
     say = progress or (lambda message: logger.info("%s", message))
-    images = image_sources(images)
+    images = [bgr_order(source, rgb) for source in image_sources(images)]
     if names is None:
         names = [Path(src).name if isinstance(src, (str, os.PathLike)) else f"view{i}"
                  for i, src in enumerate(images)]

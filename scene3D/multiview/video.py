@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from ..calibration.views import frame_time_s
 from ..errors import plural
 
 logger = logging.getLogger(__name__)
@@ -137,6 +138,19 @@ class VideoFrames:
         if n["thinned"]:
             parts.append(f"{n['thinned']} thinned out to stay within the bound")
         return ", ".join(parts)
+
+    def to_dict(self) -> dict:
+        """The choice as JSON-ready data (the run's ``reconstruction.json``): the
+        :meth:`summary` line, the :meth:`counts`, the spacing, the frame size, and each
+        frame read, in order, with its name, its time in the video (``time_s``, None for
+        a name that is no time), whether it was kept and why, its ``motion`` (None where
+        NaN) and ``sharpness``."""
+        return {"summary": self.summary(), "counts": self.counts(),
+                "min_motion": self.min_motion, "image_size": list(self.image_size),
+                "frames": [{"name": c.name, "time_s": frame_time_s(c.name), "kept": c.kept,
+                            "reason": c.reason,
+                            "motion": c.motion if np.isfinite(c.motion) else None,
+                            "sharpness": c.sharpness} for c in self.choices]}
 
 
 def sharpness(grey: np.ndarray) -> float:

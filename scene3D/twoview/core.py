@@ -33,6 +33,7 @@ from ..geometry.triangulation import (
     parallax_angles_deg,
     reprojection_errors,
 )
+from ..io.images import bgr_order
 from ..optim.bundle_two_view import bundle_adjust_two_view
 from ..optim.refinement import refine_relative_pose, relative_pose_covariance
 from ..optim.uncertainty import (
@@ -521,6 +522,8 @@ def reconstruct_two_view(
     K: ArrayLike,
     settings: TwoViewSettings | None = None,
     img2: np.ndarray | None = None,
+    *,
+    rgb: bool = False,
 ) -> TwoViewReconstruction:
     """Reconstruct a pair from its matches; ``img1`` gives the point colours.
 
@@ -542,6 +545,9 @@ def reconstruct_two_view(
     settings : TwoViewSettings, optional
     img2 : (H, W, 3) or (H, W) uint8, optional
         Image 2, the image ``matches.pts2`` were found in, of ``img1``'s size.
+    rgb : bool, default False
+        The images are RGB (PIL, imageio) rather than BGR as cv2 loads them
+        (:func:`scene3D.io.images.bgr_order`); the colours come back RGB either way.
 
     Returns
     -------
@@ -559,7 +565,8 @@ def reconstruct_two_view(
         See :func:`reconstruct_from_matches` for the steps and the reasons
         (:func:`require_enough_matches` for too few matches).
     """
-    img1 = check_image(img1, "img1")
+    img1 = check_image(bgr_order(img1, rgb), "img1")
+    img2 = None if img2 is None else bgr_order(img2, rgb)
     if not isinstance(matches, Matches):
         raise TypeError(f"`matches` must be a scene3D.features.Matches (find_matches gives "
                         f"one), got {type(matches).__name__}")
