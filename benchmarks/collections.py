@@ -1,6 +1,6 @@
 """Photo collections from other projects: scene3D and COLMAP with their defaults, side by side.
 
-    python benchmarks/collections.py [FOLDER ...] [--no-colmap] [--threads 2]
+    python benchmarks/collections.py [FOLDER ...] [--no-colmap] [--threads 2] [--four-cameras]
 
 Each FOLDER is a folder of photos (default: every folder in ``$SCENE3D_DATA/collections``,
 ``kermit`` and ``sceaux-castle``). Both run as a new user would, in a fresh process each,
@@ -18,6 +18,11 @@ there is one (the reference its project gives), the cameras of the largest model
 (``scene3D.evaluation.camera_set_error``, aligned by orientations: rotation max / median
 in degrees, over the views both registered), and the wall time of the whole process, with
 its ratio to COLMAP's. Prints a markdown table.
+
+With ``--four-cameras``, also fountain-P11's photos made into four cameras
+(:func:`scene3D.evaluation.camera_variants.write_camera_variants`: resized and cropped, no
+EXIF), and a second table: each camera's focal length from each method against the truth
+(the Strecha camera's, scaled), and the largest model's cameras against the Strecha ones.
 """
 
 from __future__ import annotations
@@ -122,6 +127,55 @@ def run_colmap(folder: Path, work: Path, threads: int) -> dict:
     return result
 
 
+def camera_focals(method: str, r: dict, work: Path) -> dict[tuple[int, int], float]:
+    """Each camera's focal length at its photos' size, by that size."""
+    if "error" in r:
+        return {}
+    if method == "COLMAP":
+        return {(w, h): params[0] for _, params, w, h in r["cameras"]}
+    summary = json.loads((work / "scene3d" / "reconstruction.json").read_text())
+    return {tuple(c["photo_size"]): c["focal_px_photo"] for c in summary["cameras"]}
+
+
+def four_cameras(threads: int, no_colmap: bool) -> None:
+    """The table of fountain-P11 as four cameras (the module docstring)."""
+    from scene3D.evaluation.camera_variants import FOUR_CAMERAS, write_camera_variants
+    from scene3D.io.datasets import read_strecha_scene
+
+    root = default_data_root()
+    scene = read_strecha_scene(root / "fountain-P11")
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        folder = work / "fountain-4-cameras"
+        factors = write_camera_variants(scene.paths, folder, FOUR_CAMERAS)
+        sizes = [native_size(p) for p in photos(folder)]
+        true_f = {size: scene.cameras[v].K[0, 0] * factors[v] for v, size in enumerate(sizes)}
+        reference = {p.name: [c.R.tolist(), c.center.tolist()]
+                     for p, c in zip(photos(folder), scene.cameras)}
+        colmap = None if no_colmap else run_colmap(folder, work, threads)
+        ours = run_scene3d(folder, work)
+        print("\n| method | registered | focal error per camera (size: %) | rotations vs "
+              "Strecha, max / median deg | wall s |")
+        print("|---" * 5 + "|")
+        for method, r in (("scene3D", ours), ("COLMAP", colmap)):
+            if r is None:
+                continue
+            found = camera_focals(method, r, work)
+            errors = ", ".join(f"{w}x{h}: {100 * (found[(w, h)] / f - 1):+.2f}"
+                               if (w, h) in found else f"{w}x{h}: -"
+                               for (w, h), f in sorted(true_f.items(), reverse=True))
+            against = agreement(r.get("views", {}), reference)
+            print(f"| {method} | {r.get('registered', 0)}/{len(sizes)} | {errors} | "
+                  f"{against} | {r['seconds']:.1f} |", flush=True)
+
+
+def native_size(path: Path) -> tuple[int, int]:
+    from PIL import Image
+
+    with Image.open(path) as img:
+        return img.size
+
+
 def agreement(views: dict, reference: dict) -> str:
     """Rotation max / median (deg) of ``views`` against ``reference`` over shared views."""
     shared = sorted(set(views) & set(reference))
@@ -159,6 +213,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="folders of photos (default: $SCENE3D_DATA/collections/*)")
     parser.add_argument("--no-colmap", action="store_true", help="scene3D only")
     parser.add_argument("--threads", type=int, default=2, help="COLMAP's threads (default 2)")
+    parser.add_argument("--four-cameras", action="store_true",
+                        help="also fountain-P11's photos made into four cameras")
     args = parser.parse_args(argv)
     folders = args.folders
     if not folders:
@@ -177,6 +233,8 @@ def main(argv: list[str] | None = None) -> int:
             print(row(folder, "scene3D", ours, colmap), flush=True)
             if colmap is not None:
                 print(row(folder, "COLMAP", colmap, None), flush=True)
+    if args.four_cameras:
+        four_cameras(args.threads, args.no_colmap)
     versions = ""
     if not args.no_colmap:
         import pycolmap

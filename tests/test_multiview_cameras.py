@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from scene3D.evaluation import camera_set_error
+from scene3D.evaluation.camera_variants import FOUR_CAMERAS, write_camera_variants
 from scene3D.evaluation.synthetic import lens_photo, orbit_poses, orbit_scene, render_planes
 from scene3D.geometry.intrinsics_prior import ExifCamera, camera_groups, camera_priors
 from scene3D.geometry.lens import distort_pixels
@@ -199,19 +200,9 @@ def test_fountain_photos_of_four_cameras(fountain, tmp_path):
     """Fountain-P11's photos made into four cameras (resized by 1, 0.75, 0.6 and 0.5 and
     cropped about the centre to 100, 90, 80 and 95 %, view v by camera v mod 4; no EXIF):
     11 of 11 registered, each camera's focal length within 2 % of the truth scaled."""
-    cameras = [(1.0, 1.0), (0.75, 0.9), (0.6, 0.8), (0.5, 0.95)]
     scene = read_strecha_scene(fountain)
-    truth = []
-    for v, (path, cam) in enumerate(zip(scene.paths, scene.cameras)):
-        s, keep = cameras[v % 4]
-        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-        if s != 1:
-            img = cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_AREA)
-        h, w = img.shape[:2]
-        cw, ch = int(round(w * keep)) // 2 * 2, int(round(h * keep)) // 2 * 2
-        x0, y0 = (w - cw) // 2, (h - ch) // 2
-        cv2.imwrite(str(tmp_path / f"{v:04d}.png"), img[y0:y0 + ch, x0:x0 + cw])
-        truth.append(cam.K[0, 0] * s)
+    factors = write_camera_variants(scene.paths, tmp_path, FOUR_CAMERAS)
+    truth = [cam.K[0, 0] * s for cam, s in zip(scene.cameras, factors)]
     recon = reconstruct_views(tmp_path, None, progress=lambda _: None)
     assert len(recon.cameras) == 4 and recon.main.registered.all()
     for c, camera in enumerate(recon.cameras):

@@ -1,7 +1,8 @@
 """Evaluation: errors against ground truth, and synthetic scenes with known geometry.
 
 - :mod:`scene3D.evaluation.poses`: pose errors, AUC, paired bootstrap;
-- :mod:`scene3D.evaluation.synthetic`: rendered scenes and boards with known geometry.
+- :mod:`scene3D.evaluation.synthetic`: rendered scenes and boards with known geometry;
+- :mod:`scene3D.evaluation.camera_variants`: photos of one camera made into several.
 
 This package replaces the module ``scene3D.evaluation`` and re-exports its public names.
 """
