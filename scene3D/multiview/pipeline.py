@@ -556,17 +556,28 @@ def reconstruct_views(
         # model: undistort with the lens the best pairs call for and start again.
         guess = (pair_lens_guess(latest_pairs, features, K_work)
                  if exc.reason in ("no_initial_pair", "no_model") and focal is not None
-                 and num_radial and cameras is None else None)
-        if guess is None or folds_within(K_lens, [guess], working_size):
+                 and num_radial else None)
+        if guess is None or folds_within(K_lens, [guess], working_size) or (
+                cameras is not None and any(folds_within(K_c, [guess], size) for K_c, size
+                                            in zip(used.K, camera_sizes))):
             raise
         say(f"no model with the keypoints as photographed ({exc}); the pairs with most "
             f"matches call for a lens with k1 {guess:+.3f}: starting again with them "
             "undistorted")
-        lens[0] = guess
-        features = undistorted_features(features, raw_keypoints, K_lens, lens)
+        if cameras is None:
+            lens[0] = guess
+            features = undistorted_features(features, raw_keypoints, K_lens, lens)
+        else:  # every camera's first lens: k1 is of normalised coordinates, which the
+            # reference pixels keep (scene3D.multiview.cameras)
+            k = np.zeros_like(used.k)
+            k[:, 0] = guess
+            used = dataclasses.replace(used, k=k)
+            features = reference_features(features, camera_keypoints, raw_sizes,
+                                          canonical_camera, used.K, used.k, K_work)
         handles = [engine.share(f) for f in features]
         try:
-            models, reasons, num_matched, num_verified = reconstruct_with(K_work)
+            models, reasons, num_matched, num_verified = reconstruct_with(
+                K_work, known_cameras=None if cameras is None else used.known)
         except ReconstructionError:
             raise exc from None
         lens_passes = 1
