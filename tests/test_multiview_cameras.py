@@ -166,6 +166,10 @@ def test_views_of_two_cameras_register_with_their_own_focal_lengths(two_camera_o
     assert recon.reprojection_rmse_px < 0.5
     Ks = recon.view_intrinsics()
     np.testing.assert_array_equal(Ks[1], recon.cameras[1].K)
+    # Each point's error with each view's camera, as the working-size COLMAP model has it.
+    np.testing.assert_allclose(recon.point_errors_px(),
+                               recon.colmap_model(photos=False).point_errors_px(), atol=1e-9)
+    assert np.median(recon.point_errors_px()) < 0.5
     summary = recon.to_dict()
     assert [c["image_size"] for c in summary["cameras"]] == [[512, 384], [640, 480]]
 

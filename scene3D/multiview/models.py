@@ -257,16 +257,24 @@ class SfMModel:
 
         Parameters
         ----------
-        K : (3, 3) ndarray
-            The model's intrinsics (:meth:`MultiViewReconstruction.model_K`).
+        K : (3, 3) or (V, 3, 3) ndarray
+            The model's intrinsics (:meth:`MultiViewReconstruction.model_K`), or each
+            view's (:meth:`MultiViewReconstruction.view_intrinsics`).
 
         Returns
         -------
         (P,) float64 ndarray
             Pixels; 0 for a point without observations.
         """
-        err = np.linalg.norm(reprojection_residuals(self.R, self.t, self.points3d,
-                                                    self.observations, K), axis=1)
+        K = np.asarray(K, np.float64)
+        obs = self.observations
+        if K.ndim == 3:
+            cam = np.einsum("oij,oj->oi", self.R[obs.view], self.points3d[obs.point])
+            pix = np.einsum("oij,oj->oi", K[obs.view], cam + self.t[obs.view])
+            err = np.linalg.norm(pix[:, :2] / pix[:, 2:3] - obs.xy, axis=1)
+        else:
+            err = np.linalg.norm(reprojection_residuals(self.R, self.t, self.points3d, obs, K),
+                                 axis=1)
         sums = np.bincount(self.observations.point, err, minlength=len(self.points3d))
         counts = np.bincount(self.observations.point, minlength=len(self.points3d))
         return sums / np.maximum(counts, 1)
@@ -522,7 +530,8 @@ class MultiViewReconstruction:
 
     def point_errors_px(self) -> FloatArray:
         """Mean reprojection error of each point of the main model ``(P,)``."""
-        return self.main.point_errors_px(self.model_K(self.main))
+        return self.main.point_errors_px(self.model_K(self.main) if self.view_camera is None
+                                         else self.view_intrinsics(self.main))
 
     def colmap_model(self, model: SfMModel | None = None, photos: bool = True) -> ColmapModel:
         """``model`` (default the largest) as a COLMAP model, one camera, image ids
