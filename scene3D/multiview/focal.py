@@ -28,8 +28,8 @@ principal point adds a share (the estimate's response to the principal point mov
 :attr:`FocalSettings.principal_point_sigma` of the longer side), as for a pair, and so
 does the spread of the focal length over the views (a grouped jackknife: the model
 adjusted again without each quarter, or half, of its views), which sees what the noise does not:
-views that call for different focal lengths (castle-P19's views 0004-0011 alone: a
-sigma of 0.02 % without it against an error of 0.14 %). When
+views that call for different focal lengths (docs/benchmarks.md, "The focal length's
+spread over the views"). When
 the views alone know the focal length less well than the prior (views that hardly
 rotate, optical axes that meet in one point), the prior's value is kept, the model is
 adjusted once more under it, and the estimate says so and is untrusted.

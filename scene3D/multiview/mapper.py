@@ -109,9 +109,8 @@ def initial_pair(features: Sequence[ViewFeatures], pairs: Sequence[PairMatches],
     a calibration file; or ``K_source="other photos"``: a further model's, from the
     models before it), because the candidates' matches refute it
     (:func:`refuted_focal_length`), trusted candidate or not: a pair whose own focal check
-    passed may sit in a wrong pose's valley (fountain-P11 4-8 under a focal length a
-    third of the truth: a trusted start 14 deg off, and a model 10-12 deg off with
-    status ok); then, when no candidate is trusted, quoting the doubt about the
+    passed may sit in a wrong pose's valley (docs/benchmarks.md, "The start pairs' focal
+    vote, on two CPU levels"); then, when no candidate is trusted, quoting the doubt about the
     best-scoring one. ``K_source`` names where ``K`` came from in the pairs' warnings
     (:data:`scene3D.twoview.trust.K_SOURCES`).
 
@@ -174,8 +173,8 @@ def refuted_focal_length(candidates: Sequence[TwoViewGeometry], settings: TwoVie
     leave the focal length wide open abstains. ``K`` is refuted when at least two pairs
     refute it and they outnumber those that confirm it. Counting the abstaining pairs
     against the refutation, as a plain majority of the candidates did, left the verdict
-    to pairs that say nothing about it: fountain-P11 4-8 under a third of the true focal
-    length was refuted or not by which of them a CPU's floating point let triangulate.
+    to pairs that say nothing about it, and so to a CPU's floating point (docs/benchmarks.md,
+    "The start pairs' focal vote, on two CPU levels").
 
     Parameters
     ----------

@@ -583,9 +583,9 @@ def reconstruct_views(
         lens_passes = 1
     refits: list[float] = []
     # With a calibration file: views that refute its focal length are reconstructed
-    # again with the one they call for (castle-P19 under a calibration 8 % off: cameras
-    # 4.7 degrees off, and 0.26 with the focal length its views called for).
-    # A pass that finds no model keeps the last one, which fails its check.
+    # again with the one they call for, since a wrong focal length bends the cameras
+    # (docs/benchmarks.md#a-calibration-the-views-refute). A pass that finds no model
+    # keeps the last one, which fails its check.
     while (focal is None and models[0].check.focal_mismatch
            and len(refits) < s.max_focal_refits):
         scale = models[0].check.focal_scale
