@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..engines import Engine, LocalEngine
-from ..errors import ReconstructionError
+from ..errors import ReconstructionError, plural
 from ..geometry.camera import (
     check_intrinsics_for_native_size,
     different_sizes_message,
@@ -478,7 +478,7 @@ def reconstruct_views(
                                       canonical_camera, used.K, used.k, K_work)
         say(f"{len(cameras)} cameras: " + "; ".join(
             f"{prior.camera_name or 'camera'} {prior.image_size[0]}x{prior.image_size[1]} "
-            f"({int(np.sum(view_camera == c))} views, f {prior.focal_px:.0f} px from "
+            f"({plural(int(np.sum(view_camera == c)), 'view')}, f {prior.focal_px:.0f} px from "
             f"{prior.source})" for c, prior in enumerate(cameras)))
 
     t0 = time.perf_counter()
