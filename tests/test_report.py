@@ -2,6 +2,7 @@
 a real headless browser (Debian's chromium through Playwright)."""
 
 import base64
+import gzip
 import json
 import os
 import re
@@ -81,9 +82,11 @@ def test_page_is_self_contained_and_escapes(tmp_path):
                            "+M9QDwADhgGAWjR9awAAAABJRU5ErkJggg==")
     html = two_view_report(summary, ["line <1>"], {"f.png": png}, prepare_view(layers, cameras))
     page = html.text()
-    # Written, the page is the same text, plotly.js copied from its file.
+    # Written, the page is the same text; plotly.js is in it whole, gzip-compressed.
     written = atomic_write_pieces(tmp_path / "report.html", html.encoded()).read_text("utf-8")
-    assert written == page and plotly_js_path().read_text("utf-8") in written
+    assert written == page
+    packed = re.search(r'id="plotly-gzip">([A-Za-z0-9+/=]+)</script>', page).group(1)
+    assert gzip.decompress(base64.b64decode(packed)) == plotly_js_path().read_bytes()
     assert "<b>a.jpg" not in page and "&lt;b&gt;a.jpg" in page
     assert "Content-Security-Policy" in page and "default-src 'none'" in page
     assert "The pose may not be trustworthy" in page and "few inliers" in page

@@ -1,9 +1,9 @@
 """One self-contained HTML page: styles, tables, embedded PNG figures, the inlined 3D view.
 
-Everything the page shows is inside the file: figures as ``data:`` URLs, plotly.js inline.
-A rendered page is an :class:`Html`: its text with the plotly.js file named where it goes,
-so that writing the page copies that file (:func:`scene3D.io.export.atomic_write_pieces`)
-rather than reading it into Python.
+Everything the page shows is inside the file: figures as ``data:`` URLs, plotly.js inline,
+gzip-compressed (the browser's ``DecompressionStream`` unpacks it, then the view is drawn).
+A rendered page is an :class:`Html`: pieces of text, and files named where their whole
+text goes (:func:`scene3D.io.export.atomic_write_pieces` copies those).
 A Content-Security-Policy forbids every fetch (``default-src 'none'``), so a page that
 tried to load anything would fail visibly (a console error) rather than reach the network.
 """
@@ -257,8 +257,8 @@ class Page:
                           f"<figcaption>{esc(caption)}</figcaption></figure>")
 
     def view3d(self, plotly_js: Path, figure_json: str, notes: Iterable[str] = ()) -> None:
-        """The interactive 3D view: the file ``plotly_js`` (plotly.min.js) inlined once, the
-        figure as JSON data.
+        """The interactive 3D view: the file ``plotly_js`` (plotly.min.js) inlined once,
+        gzip-compressed and unpacked by the browser, and the figure as JSON data.
 
         Parameters
         ----------
@@ -269,14 +269,24 @@ class Page:
         notes : iterable of str, default ()
             Notes shown above the view.
         """
+        from .viewer import compressed_plotly_js
+
         for note in notes:
             self.paragraph(note, "note")
         self.parts.append('<div id="view3d"></div>')
         self.parts.append(f'<script type="application/json" id="view3d-data">{figure_json}'
                           "</script>")
-        self._scripts.append(plotly_js)
+        self.parts.append('<script type="application/octet-stream" id="plotly-gzip">'
+                          f"{compressed_plotly_js(plotly_js)}</script>")
+        # Unpacked in the browser (no fetch: the bytes are in the page), then run as a
+        # global script (indirect eval) so that it defines window.Plotly.
         self._scripts.append(
-            "(function () {\n"
+            "(async function () {\n"
+            "  var b64 = document.getElementById('plotly-gzip').textContent;\n"
+            "  var bytes = Uint8Array.from(atob(b64), function (c) { return c.charCodeAt(0); });\n"
+            "  var stream = new Blob([bytes]).stream()"
+            ".pipeThrough(new DecompressionStream('gzip'));\n"
+            "  (0, eval)(await new Response(stream).text());\n"
             "  var fig = JSON.parse(document.getElementById('view3d-data').textContent);\n"
             "  Plotly.newPlot('view3d', fig.data, fig.layout,\n"
             "                 {displaylogo: false, responsive: true, scrollZoom: true});\n"

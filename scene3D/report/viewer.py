@@ -1,9 +1,10 @@
 """The interactive 3D view of a report: a plotly.js figure built as JSON, no plotly Python.
 
-plotly.js comes from the installed ``plotly`` package (its bundled ``plotly.min.js``), a
-file copied into the page as it is written, so the report needs no network; the package's
-Python modules are never imported (the figure is plain JSON, built here in a few
-milliseconds).
+plotly.js comes from the installed ``plotly`` package (its bundled ``plotly.min.js``,
+4.8 MB), inlined gzip-compressed and base64-encoded (2.0 MB, :func:`compressed_plotly_js`):
+the browser unpacks it with its built-in ``DecompressionStream``, so the report needs no
+network; the package's Python modules are never imported (the figure is plain JSON, built
+here in a few milliseconds).
 Point coordinates travel as base64 float32 typed arrays (plotly.js's ``{dtype, bdata}``
 form), colours as ``#rrggbb`` strings.
 
@@ -15,6 +16,8 @@ Frames: points and cameras in the reconstruction's frame (a camera frame: ``x`` 
 from __future__ import annotations
 
 import base64
+import functools
+import gzip
 import importlib.util
 import json
 import re
@@ -156,6 +159,33 @@ def plotly_js() -> tuple[Path, str]:
         head = f.read(400).decode("utf-8", errors="replace")
     match = re.search(r"plotly\.js v(\d+\.\d+\.\d+)", head)
     return path, match.group(1) if match else "unknown"
+
+
+def compressed_plotly_js(path: Path) -> str:
+    """The file ``path`` (``plotly.min.js``) gzip-compressed, as base64 text.
+
+    Browsers unpack it with ``DecompressionStream("gzip")`` (Chrome 80, Firefox 113,
+    Safari 16.4). Computed once per file and process (0.2 s for plotly.js).
+
+    Parameters
+    ----------
+    path : Path
+        The script.
+
+    Returns
+    -------
+    str
+        ASCII base64 of the gzip stream (a third of the script's size for plotly.js).
+    """
+    stat = path.stat()
+    return _compressed(str(path), stat.st_size, stat.st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=2)
+def _compressed(path: str, size: int, mtime_ns: int) -> str:
+    # size and mtime key the cache: a reinstalled plotly is compressed again.
+    data = Path(path).read_bytes()
+    return base64.b64encode(gzip.compress(data, compresslevel=9, mtime=0)).decode("ascii")
 
 
 def _typed(values: np.ndarray) -> dict:
