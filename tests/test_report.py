@@ -128,7 +128,7 @@ def test_multi_view_layers_skip_unregistered_views():
                              {}, prepare_view(layers, cameras)).text()
     assert '<div class="verdict warn" id="verdict"><strong>2 of 3 views registered' in page
     assert "<li>view &#x27;c&#x27; could not be registered: no verified pair</li>" in page
-    assert "<td>c</td><td>not registered: no verified pair</td>" in page
+    assert "<td>c</td><td>none: no verified pair</td>" in page
 
 
 def test_multi_view_views_of_further_models_are_registered():
@@ -143,8 +143,8 @@ def test_multi_view_views_of_further_models_are_registered():
                              prepare_view(layers, cameras)).text()
     assert ('<div class="verdict ok" id="verdict"><strong>3 of 3 views registered in 2 '
             "models</strong></div>") in page
-    assert "<td>c</td><td>in model 1 (model-1/)</td>" in page
-    assert "<td>not registered" not in page
+    assert "<td>c</td><td>model 1 (model-1/)</td>" in page
+    assert "<td>none: " not in page
     warned = multi_view_report(("a", "b", "c"), placed, {"points": 2}, ["3 of 3"],
                                ["focal length: known only to +-9%"], {},
                                prepare_view(layers, cameras)).text()
@@ -168,26 +168,36 @@ def test_report_tables_show_four_digits_and_the_json_all_of_them():
     summary = {"focal_scale": 0.99998, "median_parallax_deg": 2.0, "trusted": True}
     page = two_view_report(summary, [], {}, prepare_view(layers, cameras)).text()
     tables = page.split("<details>")[0]
-    assert "<td>focal_scale</td><td class=num>1.000</td>" in tables
-    assert "<td>median_parallax_deg</td><td class=num>2.000</td>" in tables
+    # In words with its unit and explanation, formatted as the summary lines format it.
+    assert ("<td>focal length the matches call for<div class=\"explain\">1.000 when the "
+            "calibration&#x27;s focal length fits these photos</div></td><td class=num>1.000 "
+            "x the calibration&#x27;s</td>") in tables
+    assert "<td>median parallax<div class=\"explain\">" in tables
+    assert "<td class=num>2.00 deg</td>" in tables
+    assert "focal_scale" not in tables and "median_parallax_deg" not in tables
     assert "&quot;focal_scale&quot;: 0.99998," in page.split("<details>")[1]  # in full
 
 
 def test_multi_view_models_are_a_table_of_their_own():
     """The summary's ``models`` (a list of dicts, ground-truth arrays among their fields)
-    is a table of its scalar fields, not a Python repr in one cell."""
+    is a table of their counts and errors in words, not a Python repr in one cell."""
     layers, cameras = multi_view_layers(("a", "b"), np.diag([500.0, 500, 1]), (640, 480),
                                         [True, True], np.stack([np.eye(3)] * 2),
                                         np.array([[0.0, 0, 0], [-1, 0, 0]]),
                                         np.array([[0.0, 0, 5], [1, 0, 6]]), None)
     models = [{"folder": ".", "status": "ok", "registered": 2, "points": 2,
-               "focal_scale": 1.0004, "center_error_fraction_of_extent": np.array([1e-3, 2e-3])}]
+               "mean_track_length": 2.0, "reprojection_rmse_px": 0.12345,
+               "center_error_fraction_of_extent": np.array([1e-3, 2e-3])},
+              {"folder": "model-1", "status": "failed", "registered": 1, "points": 0,
+               "mean_track_length": 0.0, "reprojection_rmse_px": float("nan")}]
     page = multi_view_report(("a", "b"), ["the largest model"] * 2,
                              {"points": 2, "models": models}, ["2 of 2"], [], {},
                              prepare_view(layers, cameras)).text()
-    assert ("<table id=\"models\"><tr><th>folder</th><th>status</th><th>registered</th>"
-            "<th>points</th><th>focal_scale</th></tr><tr><td>.</td><td>ok</td>"
-            "<td class=num>2</td><td class=num>2</td><td class=num>1.000</td></tr></table>") in page
+    assert ("<table id=\"models\"><tr><th>model</th><th>status</th><th>views registered</th>"
+            "<th>3D points</th><th>mean track length</th><th>reprojection error (RMS)</th>"
+            "</tr><tr><td>the largest (this folder)</td><td>ok</td><td>2</td><td>2</td>"
+            "<td>2.00</td><td>0.123 px</td></tr><tr><td>model 1 (model-1/)</td>"
+            "<td>failed</td><td>1</td><td>0</td><td>0.00</td><td>-</td></tr></table>") in page
     assert "{&#x27;" not in page and "array(" not in page.split("<details>")[0]
 
 

@@ -40,9 +40,19 @@ figure { margin: 1em 0; } figure img { max-width: 100%; border: 1px solid #ddd; 
 figcaption { font-size: 0.9em; color: #555; }
 #view3d { width: 100%; height: 640px; border: 1px solid #ddd; }
 .note { font-size: 0.9em; color: #555; }
+.explain { font-size: 0.82em; color: #666; }
+table.matrix td { font-family: ui-monospace, "DejaVu Sans Mono", monospace; text-align: right; }
+.matrices { display: flex; flex-wrap: wrap; gap: 2em; }
+.charts { display: flex; flex-wrap: wrap; gap: 1.5em; } .charts figure { max-width: 480px; }
+td img.thumb { height: 48px; display: block; }
+svg text { font-family: system-ui, sans-serif; font-size: 11px; fill: #333; }
 details pre { background: #f6f8fa; padding: 0.7em; overflow-x: auto; font-size: 0.8em; }
 footer { margin-top: 2em; font-size: 0.8em; color: #777; }
 """
+
+
+class Markup(str):
+    """HTML that a table cell takes as it is (not escaped): a thumbnail, for instance."""
 
 
 def esc(text: Any) -> str:
@@ -222,6 +232,9 @@ class Page:
         for row in rows:
             cells = []
             for v in row:
+                if isinstance(v, Markup):
+                    cells.append(f"<td>{v}</td>")
+                    continue
                 num = isinstance(v, (int, float)) and not isinstance(v, bool)
                 cells.append(f'<td{" class=num" if num else ""}>{esc(format_value(v))}</td>')
             out.append("<tr>" + "".join(cells) + "</tr>")
@@ -239,6 +252,68 @@ class Page:
             The element's id; "" for none.
         """
         self.table(((k, v) for k, v in values.items()), table_id=table_id)
+
+    def quantities(self, rows: Iterable[tuple[str, str, str]], table_id: str = "") -> None:
+        """A table of named values with their units, each name with its explanation on a
+        small line below it (and as the row's tooltip).
+
+        Parameters
+        ----------
+        rows : iterable of (str, str, str)
+            ``(label, value with unit, explanation)``
+            (:func:`scene3D.report.wording.quantity_rows`).
+        table_id : str, default ""
+            The element's id; "" for none.
+        """
+        out = [f'<table{f" id={chr(34)}{esc(table_id)}{chr(34)}" if table_id else ""}>']
+        for label, value, explain in rows:
+            note = f'<div class="explain">{esc(explain)}</div>' if explain else ""
+            tip = f' title="{esc(explain)}"' if explain else ""
+            out.append(f"<tr{tip}><td>{esc(label)}{note}</td><td class=num>{esc(value)}</td>"
+                       "</tr>")
+        out.append("</table>")
+        self.parts.append("".join(out))
+
+    def matrices(self, named: Mapping[str, list[list[str]]], note: str = "") -> None:
+        """Small matrices side by side, each under its name (R, t, K).
+
+        Parameters
+        ----------
+        named : mapping of str to list of list of str
+            Caption -> rows of formatted numbers.
+        note : str, default ""
+            A line under them; "" for none.
+        """
+        boxes = []
+        for name, rows in named.items():
+            body = "".join("<tr>" + "".join(f"<td>{esc(v)}</td>" for v in row) + "</tr>"
+                           for row in rows)
+            boxes.append(f'<div><div>{esc(name)}</div><table class="matrix">{body}</table>'
+                         "</div>")
+        self.parts.append('<div class="matrices">' + "".join(boxes) + "</div>")
+        if note:
+            self.paragraph(note, "note")
+
+    def svg(self, svg: str, caption: str) -> None:
+        """An inline SVG drawing (a chart made by :mod:`scene3D.report.charts`) with a
+        caption.
+
+        Parameters
+        ----------
+        svg : str
+            The ``<svg>`` element, its text escaped by its maker.
+        caption : str
+            The caption (escaped).
+        """
+        self.parts.append(f"<figure>{svg}<figcaption>{esc(caption)}</figcaption></figure>")
+
+    def open_row(self) -> None:
+        """Start a row of side-by-side figures (closed by :meth:`close_row`)."""
+        self.parts.append('<div class="charts">')
+
+    def close_row(self) -> None:
+        """End the row :meth:`open_row` started."""
+        self.parts.append("</div>")
 
     def figure(self, image: bytes, caption: str, alt: str = "") -> None:
         """An embedded figure (PNG or JPEG bytes).

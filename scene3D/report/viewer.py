@@ -237,6 +237,53 @@ def _decimate(layers: list[CloudLayer], max_points: int
     return kept, notes
 
 
+def dense_box(points3d: np.ndarray, share: float = 0.7, margin: float = 0.35
+              ) -> tuple[FloatArray, FloatArray]:
+    """Lower and upper corners ``(3,), (3,)`` of the box around the densest part of a cloud:
+    on each axis the shortest interval holding ``share`` of the points, widened by
+    ``margin`` of its length on each side (never beyond the 2nd-98th percentile box).
+
+    A far, sparse part of the cloud (a background wall, a few stray points) then lies
+    outside the view's first frame instead of shrinking the scene to a corner of it.
+
+    Parameters
+    ----------
+    points3d : (N, 3) array_like
+        Points.
+    share : float, default 0.7
+        The part of the points the interval holds, per axis.
+    margin : float, default 0.35
+        Widening on each side, as a fraction of the interval's length.
+
+    Returns
+    -------
+    low, high : (3,) float64 ndarray
+        The unit box for no points.
+    """
+    points3d = np.asarray(points3d, dtype=np.float64).reshape(-1, 3)
+    n = len(points3d)
+    if n == 0:
+        return np.zeros(3), np.ones(3)
+    outer_lo, outer_hi = robust_extent(points3d)
+    w = max(int(np.ceil(share * n)), 1)
+    s = np.sort(points3d, axis=0)
+    widths = s[w - 1:] - s[:n - w + 1]  # (n - w + 1, 3): every window of w points
+    start = np.argmin(widths, axis=0)
+    lo, hi = s[start, np.arange(3)], s[start + w - 1, np.arange(3)]
+    pad = margin * (hi - lo)
+    return np.maximum(lo - pad, outer_lo), np.minimum(hi + pad, outer_hi)
+
+
+def _label_positions(centres: np.ndarray, min_gap: float) -> list[int]:
+    """Indices of the cameras to label: greedily, each at least ``min_gap`` from those
+    already labelled, so that names do not print over each other (all show on hover)."""
+    kept: list[int] = []
+    for i, c in enumerate(centres):
+        if all(np.linalg.norm(c - centres[j]) >= min_gap for j in kept):
+            kept.append(i)
+    return kept
+
+
 def scene_figure_json(layers: list[CloudLayer], cameras: CameraLayer | None = None,
                       max_points: int = MAX_VIEW_POINTS) -> tuple[str, list[str]]:
     """The plotly.js figure (``{"data": ..., "layout": ...}``) as JSON text, and notes.
@@ -300,19 +347,29 @@ def scene_figure_json(layers: list[CloudLayer], cameras: CameraLayer | None = No
                          "x": xs, "y": ys, "z": zs, "hoverinfo": "skip",
                          "line": {"color": "#d62728", "width": 3}})
             cen = np.array(centres)
-            data.append({"type": "scatter3d", "mode": "markers+text", "name": "camera names",
+            data.append({"type": "scatter3d", "mode": "markers", "name": "camera names",
                          "x": cen[:, 0].tolist(), "y": cen[:, 1].tolist(),
-                         "z": cen[:, 2].tolist(), "text": labels, "textposition": "top center",
+                         "z": cen[:, 2].tolist(), "text": labels,
                          "marker": {"size": 3, "color": "#d62728"}, "showlegend": False,
                          "hoverinfo": "text"})
     points_shown = [p for p in shown[:len(kept)] if len(p)]
-    lo, hi = robust_extent(np.vstack(points_shown) if points_shown else np.zeros((0, 3)))
+    lo, hi = dense_box(np.vstack(points_shown) if points_shown else np.zeros((0, 3)))
     if len(shown) > len(kept):  # keep the cameras inside the box
         lo, hi = np.minimum(lo, shown[-1].min(axis=0)), np.maximum(hi, shown[-1].max(axis=0))
     pad = 0.05 * (hi - lo) + 1e-9
     lo, hi = lo - pad, hi + pad
     span = hi - lo
     ratio = span / span.max()
+    annotations = []
+    if cameras is not None and centres:
+        # Names as scene annotations (drawn over the points, on a white ground), a few
+        # percent of the box apart: neighbouring cameras would print over each other.
+        cen = np.array(centres)
+        for i in _label_positions(cen, 0.06 * float(np.linalg.norm(span))):
+            annotations.append({"x": float(cen[i, 0]), "y": float(cen[i, 1]),
+                                "z": float(cen[i, 2]), "text": Path(labels[i]).stem,
+                                "showarrow": False, "yshift": 10, "font": {"size": 10},
+                                "bgcolor": "rgba(255,255,255,0.75)"})
     axis_titles = ("x (right)", "y (down)", "z (forward)")
     layout = {
         "margin": {"l": 0, "r": 0, "t": 0, "b": 0},
@@ -324,6 +381,7 @@ def scene_figure_json(layers: list[CloudLayer], cameras: CameraLayer | None = No
             "aspectratio": {"x": float(ratio[0]), "y": float(ratio[1]), "z": float(ratio[2])},
             "camera": {"up": {"x": 0, "y": -1, "z": 0}, "eye": {"x": -0.45, "y": -0.65, "z": -1.2},
                        "center": {"x": 0, "y": 0, "z": 0}},
+            "annotations": annotations,
             **{f"{a}axis": {"title": {"text": t}, "range": [float(lo[i]), float(hi[i])],
                             "backgroundcolor": "#f4f4f4", "showbackground": True}
                for i, (a, t) in enumerate(zip("xyz", axis_titles))},
