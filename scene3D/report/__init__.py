@@ -231,8 +231,8 @@ def _pose_section(page: Page, summary: Mapping[str, Any]) -> None:
              matrix_rows(t[:, None]), "camera 2's centre, -R^T t": matrix_rows((-R.T @ t)[:, None])}
     if "K" in summary:
         named["K (intrinsics, px)"] = matrix_rows(summary["K"], ".2f")
-    page.matrices(named, "x_cam2 = R x_cam1 + t: a point in camera 1's frame (x right, y "
-                  "down, z forward) is at R x + t in camera 2's. Camera model: pinhole, K "
+    page.matrices(named, "A point x in camera 1's frame (x right, y down, z forward) is at "
+                  "R x + t in camera 2's. Camera model: pinhole, K "
                   "at the working image size, the photos undistorted with the calibration's "
                   "lens distortion before matching.")
 
@@ -372,8 +372,8 @@ def _camera_section(page: Page, summary: Mapping[str, Any]) -> None:
     if "K" in summary:
         page.matrices({"K (intrinsics, px)": matrix_rows(summary["K"], ".2f")},
                       "fx, fy: focal lengths; cx, cy: the principal point; pixels of the "
-                      "working images. Poses: x_cam = R X + t for a world point X "
-                      "(cameras.json and colmap/ have each view's R and t).")
+                      "working images. Poses: a world point X is at R X + t in a camera's "
+                      "frame (cameras.json and colmap/ have each view's R and t).")
 
 
 def _views_section(page: Page, names: Sequence[str], placed: Sequence[str | None],
@@ -535,8 +535,8 @@ def colmap_report(model: ColmapModel, source: str,
                header=("camera", "model", "image size", "parameters (COLMAP's order)"),
                table_id="cameras")
     page.paragraph("COLMAP's parameter order: f or fx, fy, then cx, cy, then the distortion "
-                   "coefficients. Poses: x_cam = R X + t for a world point X (images.txt "
-                   "has each image's rotation as a quaternion and t).", "note")
+                   "coefficients. Poses: a world point X is at R X + t in a camera's frame "
+                   "(images.txt has each image's rotation as a quaternion and t).", "note")
     diagnostics = view_diagnostics(model.names, [model])
     _views_section(page, model.names, ["the model"] * len(model.names), {}, diagnostics,
                    thumbnails or {})
