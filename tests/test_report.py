@@ -403,3 +403,21 @@ def test_calibration_report_lists_views_and_uncertainty():
                               {"b.jpg": 3.0}, umap.warnings, umap, {}).text()
     assert "dropped as an outlier" in page and "b.jpg" in page
     assert format_value(umap.median_px) in page
+
+
+def test_compressed_plotly_is_kept_in_the_cache(tmp_path, monkeypatch):
+    """Compressed once: the cache's file is what later pages copy; an unwritable cache
+    gives the text itself."""
+    from scene3D.report.viewer import compressed_plotly_js
+
+    monkeypatch.setenv("SCENE3D_CACHE", str(tmp_path / "cache"))
+    first = compressed_plotly_js(plotly_js_path())
+    assert first.parent == tmp_path / "cache" and first.suffix == ".b64"
+    assert gzip.decompress(base64.b64decode(first.read_text())) == \
+        plotly_js_path().read_bytes()
+    mtime = first.stat().st_mtime_ns
+    assert compressed_plotly_js(plotly_js_path()) == first
+    assert first.stat().st_mtime_ns == mtime  # read again, not rewritten
+    (tmp_path / "file").write_text("")
+    monkeypatch.setenv("SCENE3D_CACHE", str(tmp_path / "file" / "cache"))  # not a folder
+    assert compressed_plotly_js(plotly_js_path()) == first.read_text()

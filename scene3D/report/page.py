@@ -161,6 +161,7 @@ class Page:
     title: str
     parts: list[str] = field(default_factory=list)
     _scripts: list[str | Path] = field(default_factory=list)
+    _blobs: list[tuple[str, str | Path]] = field(default_factory=list)
 
     def heading(self, text: str) -> None:
         """A section heading.
@@ -351,8 +352,7 @@ class Page:
         self.parts.append('<div id="view3d"></div>')
         self.parts.append(f'<script type="application/json" id="view3d-data">{figure_json}'
                           "</script>")
-        self.parts.append('<script type="application/octet-stream" id="plotly-gzip">'
-                          f"{compressed_plotly_js(plotly_js)}</script>")
+        self._blobs.append(("plotly-gzip", compressed_plotly_js(plotly_js)))
         # Unpacked in the browser (no fetch: the bytes are in the page), then run as a
         # global script (indirect eval) so that it defines window.Plotly.
         self._scripts.append(
@@ -401,6 +401,9 @@ class Page:
             f"<h1>{esc(self.title)}</h1>\n" + "\n".join(self.parts) + "\n"
             + (f"<footer>{esc(footer)}</footer>\n" if footer else "")
         ]
+        for blob_id, blob in self._blobs:  # data for the scripts (text, or a file's text)
+            pieces += [f'<script type="application/octet-stream" id="{blob_id}">', blob,
+                       "</script>\n"]
         for script in self._scripts:
             pieces += ["<script>", script, "</script>\n"]
         pieces.append("</body>\n</html>\n")

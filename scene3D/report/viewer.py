@@ -1,7 +1,8 @@
 """The interactive 3D view of a report: a plotly.js figure built as JSON, no plotly Python.
 
 plotly.js comes from the installed ``plotly`` package (its bundled ``plotly.min.js``,
-4.8 MB), inlined gzip-compressed and base64-encoded (2.0 MB, :func:`compressed_plotly_js`):
+4.8 MB), inlined gzip-compressed and base64-encoded (2.0 MB, :func:`compressed_plotly_js`,
+kept in the user cache):
 the browser unpacks it with its built-in ``DecompressionStream``, so the report needs no
 network; the package's Python modules are never imported (the figure is plain JSON, built
 here in a few milliseconds).
@@ -20,7 +21,9 @@ import functools
 import gzip
 import importlib.util
 import json
+import os
 import re
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -161,11 +164,15 @@ def plotly_js() -> tuple[Path, str]:
     return path, match.group(1) if match else "unknown"
 
 
-def compressed_plotly_js(path: Path) -> str:
+def compressed_plotly_js(path: Path) -> str | Path:
     """The file ``path`` (``plotly.min.js``) gzip-compressed, as base64 text.
 
     Browsers unpack it with ``DecompressionStream("gzip")`` (Chrome 80, Firefox 113,
-    Safari 16.4). Computed once per file and process (0.2 s for plotly.js).
+    Safari 16.4). Compressing plotly.js takes about 0.2 s, so the text is kept in the user
+    cache (``$SCENE3D_CACHE``, ``$XDG_CACHE_HOME/scene3D`` or ``~/.cache/scene3D``), under
+    a name with the file's size and time: a page then copies it from there
+    (:class:`scene3D.report.page.Html`). Where the cache cannot be written, the text is
+    made once per process.
 
     Parameters
     ----------
@@ -174,11 +181,26 @@ def compressed_plotly_js(path: Path) -> str:
 
     Returns
     -------
-    str
-        ASCII base64 of the gzip stream (a third of the script's size for plotly.js).
+    str or Path
+        The ASCII base64 text of the gzip stream (a third of plotly.js's size), or the
+        cached file that holds it.
     """
+    from ..io.datasets import default_cache_dir
+
     stat = path.stat()
-    return _compressed(str(path), stat.st_size, stat.st_mtime_ns)
+    cached = default_cache_dir() / f"{path.stem}-{stat.st_size}-{stat.st_mtime_ns}.gz.b64"
+    if cached.is_file():
+        return cached
+    text = _compressed(str(path), stat.st_size, stat.st_mtime_ns)
+    try:
+        cached.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile("w", encoding="ascii", dir=cached.parent,
+                                         suffix=".tmp", delete=False) as f:
+            f.write(text)
+        os.replace(f.name, cached)  # whole or absent: a concurrent run reads either
+    except OSError:
+        return text
+    return cached
 
 
 @functools.lru_cache(maxsize=2)
