@@ -579,6 +579,10 @@ def calibration_report(
     page.heading("Calibration")
     page.quantities([(k, format_value(v), CALIBRATION_NOTES.get(k.split(" (")[0], ""))
                      for k, v in numbers.items()], "numbers")
+    page.paragraph("Camera model: OpenCV's pinhole camera, K = [[fx, 0, cx], [0, fy, cy], "
+                   "[0, 0, 1]] in pixels of these images, with its radial (k1, k2, k3 and, "
+                   "with the rational model, k4 to k6) and tangential (p1, p2) lens "
+                   "distortion. +- is 1 sigma.", "note")
     page.heading("Projection uncertainty")
     page.paragraph(
         "1 sigma error, in the worst direction, of projecting a point fixed in the camera "

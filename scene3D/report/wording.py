@@ -232,6 +232,8 @@ CALIBRATION_NOTES: dict[str, str] = {
     "k1": "radial distortion (OpenCV), with its 1 sigma",
     "k2": "radial distortion, second order", "k3": "radial distortion, third order",
     "p1": "tangential distortion", "p2": "tangential distortion",
+    "k4": "rational model, denominator", "k5": "rational model, denominator",
+    "k6": "rational model, denominator",
 }
 
 
