@@ -401,8 +401,7 @@ def _views_section(page: Page, names: Sequence[str], placed: Sequence[str | None
         row += [name, label if label is not None else
                 f"none: {reasons.get(name, 'reason unknown')}"]
         if diagnostics is not None:
-            rows_seen = int(diagnostics.points_seen[v])
-            row += [rows_seen if label is not None else "-",
+            row += [int(diagnostics.points_seen[v]) if label is not None else "-",
                     FIELDS["reprojection_rmse_px"].text(float(diagnostics.rmse_px[v]))]
         if gt_index:
             i = gt_index.get(name)
