@@ -2,6 +2,7 @@
 a real headless browser (Debian's chromium through Playwright)."""
 
 import base64
+import gzip
 import json
 import os
 import re
@@ -81,9 +82,11 @@ def test_page_is_self_contained_and_escapes(tmp_path):
                            "+M9QDwADhgGAWjR9awAAAABJRU5ErkJggg==")
     html = two_view_report(summary, ["line <1>"], {"f.png": png}, prepare_view(layers, cameras))
     page = html.text()
-    # Written, the page is the same text, plotly.js copied from its file.
+    # Written, the page is the same text; plotly.js is in it whole, gzip-compressed.
     written = atomic_write_pieces(tmp_path / "report.html", html.encoded()).read_text("utf-8")
-    assert written == page and plotly_js_path().read_text("utf-8") in written
+    assert written == page
+    packed = re.search(r'id="plotly-gzip">([A-Za-z0-9+/=]+)</script>', page).group(1)
+    assert gzip.decompress(base64.b64decode(packed)) == plotly_js_path().read_bytes()
     assert "<b>a.jpg" not in page and "&lt;b&gt;a.jpg" in page
     assert "Content-Security-Policy" in page and "default-src 'none'" in page
     assert "The pose may not be trustworthy" in page and "few inliers" in page
@@ -125,7 +128,7 @@ def test_multi_view_layers_skip_unregistered_views():
                              {}, prepare_view(layers, cameras)).text()
     assert '<div class="verdict warn" id="verdict"><strong>2 of 3 views registered' in page
     assert "<li>view &#x27;c&#x27; could not be registered: no verified pair</li>" in page
-    assert "<td>c</td><td>not registered: no verified pair</td>" in page
+    assert "<td>c</td><td>none: no verified pair</td>" in page
 
 
 def test_multi_view_views_of_further_models_are_registered():
@@ -140,8 +143,8 @@ def test_multi_view_views_of_further_models_are_registered():
                              prepare_view(layers, cameras)).text()
     assert ('<div class="verdict ok" id="verdict"><strong>3 of 3 views registered in 2 '
             "models</strong></div>") in page
-    assert "<td>c</td><td>in model 1 (model-1/)</td>" in page
-    assert "<td>not registered" not in page
+    assert "<td>c</td><td>model 1 (model-1/)</td>" in page
+    assert "<td>none: " not in page
     warned = multi_view_report(("a", "b", "c"), placed, {"points": 2}, ["3 of 3"],
                                ["focal length: known only to +-9%"], {},
                                prepare_view(layers, cameras)).text()
@@ -165,26 +168,36 @@ def test_report_tables_show_four_digits_and_the_json_all_of_them():
     summary = {"focal_scale": 0.99998, "median_parallax_deg": 2.0, "trusted": True}
     page = two_view_report(summary, [], {}, prepare_view(layers, cameras)).text()
     tables = page.split("<details>")[0]
-    assert "<td>focal_scale</td><td class=num>1.000</td>" in tables
-    assert "<td>median_parallax_deg</td><td class=num>2.000</td>" in tables
+    # In words with its unit and explanation, formatted as the summary lines format it.
+    assert ("<td>focal length the matches call for<div class=\"explain\">1.000 when the "
+            "calibration&#x27;s focal length fits these photos</div></td><td class=num>1.000 "
+            "x the calibration&#x27;s</td>") in tables
+    assert "<td>median parallax<div class=\"explain\">" in tables
+    assert "<td class=num>2.00 deg</td>" in tables
+    assert "focal_scale" not in tables and "median_parallax_deg" not in tables
     assert "&quot;focal_scale&quot;: 0.99998," in page.split("<details>")[1]  # in full
 
 
 def test_multi_view_models_are_a_table_of_their_own():
     """The summary's ``models`` (a list of dicts, ground-truth arrays among their fields)
-    is a table of its scalar fields, not a Python repr in one cell."""
+    is a table of their counts and errors in words, not a Python repr in one cell."""
     layers, cameras = multi_view_layers(("a", "b"), np.diag([500.0, 500, 1]), (640, 480),
                                         [True, True], np.stack([np.eye(3)] * 2),
                                         np.array([[0.0, 0, 0], [-1, 0, 0]]),
                                         np.array([[0.0, 0, 5], [1, 0, 6]]), None)
     models = [{"folder": ".", "status": "ok", "registered": 2, "points": 2,
-               "focal_scale": 1.0004, "center_error_fraction_of_extent": np.array([1e-3, 2e-3])}]
+               "mean_track_length": 2.0, "reprojection_rmse_px": 0.12345,
+               "center_error_fraction_of_extent": np.array([1e-3, 2e-3])},
+              {"folder": "model-1", "status": "failed", "registered": 1, "points": 0,
+               "mean_track_length": 0.0, "reprojection_rmse_px": float("nan")}]
     page = multi_view_report(("a", "b"), ["the largest model"] * 2,
                              {"points": 2, "models": models}, ["2 of 2"], [], {},
                              prepare_view(layers, cameras)).text()
-    assert ("<table id=\"models\"><tr><th>folder</th><th>status</th><th>registered</th>"
-            "<th>points</th><th>focal_scale</th></tr><tr><td>.</td><td>ok</td>"
-            "<td class=num>2</td><td class=num>2</td><td class=num>1.000</td></tr></table>") in page
+    assert ("<table id=\"models\"><tr><th>model</th><th>status</th><th>views registered</th>"
+            "<th>3D points</th><th>mean track length</th><th>reprojection error (RMS)</th>"
+            "</tr><tr><td>the largest (this folder)</td><td>ok</td><td>2</td><td>2</td>"
+            "<td>2.00</td><td>0.123 px</td></tr><tr><td>model 1 (model-1/)</td>"
+            "<td>failed</td><td>1</td><td>0</td><td>0.00</td><td>-</td></tr></table>") in page
     assert "{&#x27;" not in page and "array(" not in page.split("<details>")[0]
 
 
@@ -212,6 +225,41 @@ def _check_page(visit_result, with_view, images):
                                 visit_result.canvas_after_drag) > 0.003
 
 
+# A file name (optic_flow.png, fountain_P11_intrinsics.yaml) is not a field name.
+_FILE_NAME = re.compile(r"[\w./-]+\.(png|jpe?g|yaml|yml|json|ply|txt|html|camera)\b")
+_SNAKE = re.compile(r"\b[a-z][a-z0-9]*(?:_[a-z0-9]+)+\b")
+
+
+def _keys(obj):
+    """Every key of a JSON document, nested ones too."""
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            yield k
+            yield from _keys(v)
+    elif isinstance(obj, list):
+        for v in obj:
+            yield from _keys(v)
+
+
+def _assert_no_field_names(text, document=None):
+    """The visible text has no internal name: no snake_case word outside file names, and
+    none of the JSON's keys with an underscore (the collapsed JSON block is not visible)."""
+    words = _FILE_NAME.sub(" ", text)
+    assert _SNAKE.findall(words) == [], _SNAKE.findall(words)
+    if document is not None:
+        shown = [k for k in set(_keys(document)) if "_" in k and re.search(
+            rf"\b{re.escape(k)}\b", words)]
+        assert shown == [], shown
+
+
+def _row_value(text, label):
+    """The value column of the quantity row ``label`` in the visible text (the row reads
+    "label / explanation / value" in innerText)."""
+    match = re.search(rf"^{re.escape(label)}\n(?:[^\n]*\n)?\t([^\n]+)$", text, re.M)
+    assert match, f"no row {label!r}"
+    return match.group(1).strip()
+
+
 def test_book_pair_report_in_browser(tmp_path, data_root):
     out = tmp_path / "out"
     _run([REPO / "chapter4.py", "--out", out], tmp_path)
@@ -219,26 +267,113 @@ def test_book_pair_report_in_browser(tmp_path, data_root):
     page = visit(out / "report.html", wait_for_view=True)
     _check_page(page, with_view=True, images=4)
     text = page.text
-    assert f"{summary['num_matches']} matches, {summary['num_inliers']} inliers, " \
-           f"{summary['num_points']} points, reprojection RMSE " \
-           f"{summary['reprojection_rmse_px']:.3f} px" in text
-    assert "Trusted result" in text
+    line = (f"{summary['num_matches']} matches, {summary['num_inliers']} inliers, "
+            f"{summary['num_points']} points, reprojection RMSE "
+            f"{summary['reprojection_rmse_px']:.3f} px")
+    assert line in text
+    # The verdict first, then the command's lines.
+    assert text.index("Trusted result") < text.index(line)
     assert f"{summary['num_points']:,} points (plotly.js" in text
     assert '"name":"cameras (2)"' in (out / "report.html").read_text()
+    _assert_no_field_names(text, summary)
+    # Numbers in words, with units, formatted as the summary line formats them.
+    assert _row_value(text, "reprojection error (RMS)") == \
+        f"{summary['reprojection_rmse_px']:.3f} px"
+    assert _row_value(text, "rotation uncertainty (1 sigma)") == \
+        f"{summary['rotation_sigma_deg']:.3f} deg"
+    assert _row_value(text, "matches a plane explains") == \
+        f"{100 * summary['homography_inlier_ratio']:.1f} %"
+    # R, t and K shown plainly, and the title names the photos, not their paths.
+    for value in (*np.ravel(summary["R"]), *summary["t"]):
+        assert f"{value:.4f}" in text
+    assert f"{summary['K'][0][0]:.2f}" in text and "Camera model: pinhole" in text
+    assert text.startswith("scene3D reconstruction: 0004.jpg + 0005.jpg")
 
 
 def test_fountain_eleven_views_report_in_browser(tmp_path, fountain):
     out = tmp_path / "views"
     _run(["-m", "scene3D", "reconstruct-views", fountain / "images", "--calib",
-          REPO / "data" / "fountain_P11_intrinsics.yaml", "--out", out], tmp_path, timeout=900)
+          REPO / "data" / "fountain_P11_intrinsics.yaml", "--ground-truth",
+          fountain / "gt_dense_cameras", "--out", out], tmp_path, timeout=900)
     summary = json.loads((out / "reconstruction.json").read_text())
     page = visit(out / "report.html", wait_for_view=True)
-    _check_page(page, with_view=True, images=1)  # cameras.png
-    assert f"{summary['registered']} of 11 views registered" in page.text
-    assert f"{summary['points']:,} points (plotly.js" in page.text
-    assert f"reprojection RMSE {summary['reprojection_rmse_px']:.3f} px" in page.text
+    _check_page(page, with_view=True, images=1 + 11)  # cameras.png, a thumbnail a view
+    text = page.text
+    assert f"{summary['registered']} of 11 views registered" in text
+    assert f"{summary['points']:,} points (plotly.js" in text
+    assert f"reprojection RMSE {summary['reprojection_rmse_px']:.3f} px" in text
     html = (out / "report.html").read_text()
     assert f'"name":"cameras ({summary["registered"]})"' in html
+    _assert_no_field_names(text, summary)
+    gt = summary["ground_truth"]
+    assert _row_value(text, "camera centre error, worst") == \
+        f"{100 * gt['max_center_error_fraction']:.3f} %"
+    assert f"camera centres within {100 * gt['max_center_error_fraction']:.3f} %" in text
+    assert _row_value(text, "mean track length") == f"{summary['mean_track_length']:.2f}"
+    # The views table: a row per view with the points it sees, its reprojection error and
+    # its ground-truth errors. Its observations add up to points x mean track length, and
+    # its errors combine (weighted by the points seen) to the model's RMS error.
+    rows = re.findall(r"^\t?(\d{4}\.jpg)\tthe largest model\t(\d+)\t([0-9.]+) px\t"
+                      r"([0-9.]+) %\t([0-9.]+) deg$", text, re.M)
+    assert [r[0] for r in rows] == gt["views"]
+    seen = np.array([int(r[1]) for r in rows])
+    rmse = np.array([float(r[2]) for r in rows])
+    assert seen.sum() == round(summary["points"] * summary["mean_track_length"])
+    combined = np.sqrt(np.sum(seen * rmse ** 2) / seen.sum())
+    assert abs(combined - summary["reprojection_rmse_px"]) < 0.0006  # the rounding of .3f
+    for r, centre, rotation in zip(rows, gt["center_error_fraction_of_extent"],
+                                   gt["rotation_error_deg"]):
+        assert r[3] == f"{100 * centre:.3f}" and r[4] == f"{rotation:.3f}"
+    # Both histograms and the view graph: the track lengths count every point once, and
+    # two views share a point at most as often as the one that sees fewer.
+    tracks = re.search(r'aria-label="views that see the point">(.*?)</svg>', html).group(1)
+    counts = [int(c) for c in re.findall(r"<title>\d+\+?: (\d+)</title>", tracks)]
+    assert sum(counts) == summary["points"]
+    assert 'aria-label="reprojection error (px)"' in html
+    assert "Track length: how many views see each 3D point." in text
+    shared = re.findall(r"<title>(\d{4}\.jpg) and (\d{4}\.jpg): (\d+) points</title>", html)
+    by_name = dict(zip(gt["views"], seen))
+    assert len(shared) > 50
+    assert all(int(n) <= min(by_name[a], by_name[b]) for a, b, n in shared)
+
+
+def test_colmap_model_report_in_browser(tmp_path, fountain):
+    """``scene3d report MODEL_DIR`` on the COLMAP model reconstruct-views wrote: the
+    page opens with its 3D view and thumbnails, and its numbers are the model's (the
+    COLMAP files are at the photos' size, twice the working size: errors twice as large)."""
+    out = tmp_path / "views"
+    _run(["-m", "scene3D", "reconstruct-views", fountain / "images", "--calib",
+          REPO / "data" / "fountain_P11_intrinsics.yaml", "--out", out, "--no-report",
+          "--no-plots"], tmp_path, timeout=900)
+    summary = json.loads((out / "reconstruction.json").read_text())
+    proc = _run(["-m", "scene3D", "report", "views/colmap", "--images", fountain / "images"],
+                tmp_path)
+    assert proc.stdout.splitlines() == [f"11 images, {summary['points']} points, 1 camera",
+                                        "Wrote 'views/colmap/report.html'"]
+    page = visit(out / "colmap" / "report.html", wait_for_view=True)
+    _check_page(page, with_view=True, images=11)
+    text = page.text
+    _assert_no_field_names(text)
+    assert text.startswith("scene3D report of the COLMAP model views/colmap")
+    assert _row_value(text, "3D points") == str(summary["points"])
+    assert _row_value(text, "mean track length") == f"{summary['mean_track_length']:.2f}"
+    rmse = float(_row_value(text, "reprojection error (RMS)").removesuffix(" px"))
+    assert abs(rmse - 2 * summary["reprojection_rmse_px"]) < 0.002
+    assert "pinhole: no lens distortion (PINHOLE)" in text and "3072 x 2048 px" in text
+    # Again: an existing page is refused (exit code 2) unless --force.
+    again = subprocess.run([sys.executable, "-m", "scene3D", "report", "views/colmap"],
+                           cwd=tmp_path, capture_output=True, text=True)
+    assert again.returncode == 2
+    assert again.stderr.strip() == ("error: 'views/colmap/report.html' exists (--force "
+                                    "replaces it)")
+
+
+def test_report_of_a_folder_without_a_model_is_a_usage_error(tmp_path, capsys):
+    from scene3D.cli.report import main
+
+    assert main([str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: ") and "cameras.txt" in err and "\n" not in err
 
 
 def test_left_calibration_report_in_browser(tmp_path, chessboards):
@@ -254,6 +389,9 @@ def test_left_calibration_report_in_browser(tmp_path, chessboards):
     assert f"median {median} px" in page.text
     assert "exceeds 1 px" in page.text  # the boards never reach the corners
     assert (tmp_path / "left_uncertainty.png").read_bytes().startswith(b"\x89PNG")
+    _assert_no_field_names(page.text)
+    assert "focal length along x, in pixels" in page.text
+    assert page.text.index("Warnings") < page.text.index("RMS reprojection error: ")
 
 
 def test_calibration_report_lists_views_and_uncertainty():
@@ -265,3 +403,21 @@ def test_calibration_report_lists_views_and_uncertainty():
                               {"b.jpg": 3.0}, umap.warnings, umap, {}).text()
     assert "dropped as an outlier" in page and "b.jpg" in page
     assert format_value(umap.median_px) in page
+
+
+def test_compressed_plotly_is_kept_in_the_cache(tmp_path, monkeypatch):
+    """Compressed once: the cache's file is what later pages copy; an unwritable cache
+    gives the text itself."""
+    from scene3D.report.viewer import compressed_plotly_js
+
+    monkeypatch.setenv("SCENE3D_CACHE", str(tmp_path / "cache"))
+    first = compressed_plotly_js(plotly_js_path())
+    assert first.parent == tmp_path / "cache" and first.suffix == ".b64"
+    assert gzip.decompress(base64.b64decode(first.read_text())) == \
+        plotly_js_path().read_bytes()
+    mtime = first.stat().st_mtime_ns
+    assert compressed_plotly_js(plotly_js_path()) == first
+    assert first.stat().st_mtime_ns == mtime  # read again, not rewritten
+    (tmp_path / "file").write_text("")
+    monkeypatch.setenv("SCENE3D_CACHE", str(tmp_path / "file" / "cache"))  # not a folder
+    assert compressed_plotly_js(plotly_js_path()) == first.read_text()

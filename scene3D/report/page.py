@@ -1,9 +1,9 @@
 """One self-contained HTML page: styles, tables, embedded PNG figures, the inlined 3D view.
 
-Everything the page shows is inside the file: figures as ``data:`` URLs, plotly.js inline.
-A rendered page is an :class:`Html`: its text with the plotly.js file named where it goes,
-so that writing the page copies that file (:func:`scene3D.io.export.atomic_write_pieces`)
-rather than reading it into Python.
+Everything the page shows is inside the file: figures as ``data:`` URLs, plotly.js inline,
+gzip-compressed (the browser's ``DecompressionStream`` unpacks it, then the view is drawn).
+A rendered page is an :class:`Html`: pieces of text, and files named where their whole
+text goes (:func:`scene3D.io.export.atomic_write_pieces` copies those).
 A Content-Security-Policy forbids every fetch (``default-src 'none'``), so a page that
 tried to load anything would fail visibly (a console error) rather than reach the network.
 """
@@ -40,9 +40,19 @@ figure { margin: 1em 0; } figure img { max-width: 100%; border: 1px solid #ddd; 
 figcaption { font-size: 0.9em; color: #555; }
 #view3d { width: 100%; height: 640px; border: 1px solid #ddd; }
 .note { font-size: 0.9em; color: #555; }
+.explain { font-size: 0.82em; color: #666; }
+table.matrix td { font-family: ui-monospace, "DejaVu Sans Mono", monospace; text-align: right; }
+.matrices { display: flex; flex-wrap: wrap; gap: 2em; }
+.charts { display: flex; flex-wrap: wrap; gap: 1.5em; } .charts figure { max-width: 480px; }
+td img.thumb { height: 48px; display: block; }
+svg text { font-family: system-ui, sans-serif; font-size: 11px; fill: #333; }
 details pre { background: #f6f8fa; padding: 0.7em; overflow-x: auto; font-size: 0.8em; }
 footer { margin-top: 2em; font-size: 0.8em; color: #777; }
 """
+
+
+class Markup(str):
+    """HTML that a table cell takes as it is (not escaped): a thumbnail, for instance."""
 
 
 def esc(text: Any) -> str:
@@ -151,6 +161,7 @@ class Page:
     title: str
     parts: list[str] = field(default_factory=list)
     _scripts: list[str | Path] = field(default_factory=list)
+    _blobs: list[tuple[str, str | Path]] = field(default_factory=list)
 
     def heading(self, text: str) -> None:
         """A section heading.
@@ -222,6 +233,9 @@ class Page:
         for row in rows:
             cells = []
             for v in row:
+                if isinstance(v, Markup):
+                    cells.append(f"<td>{v}</td>")
+                    continue
                 num = isinstance(v, (int, float)) and not isinstance(v, bool)
                 cells.append(f'<td{" class=num" if num else ""}>{esc(format_value(v))}</td>')
             out.append("<tr>" + "".join(cells) + "</tr>")
@@ -240,6 +254,68 @@ class Page:
         """
         self.table(((k, v) for k, v in values.items()), table_id=table_id)
 
+    def quantities(self, rows: Iterable[tuple[str, str, str]], table_id: str = "") -> None:
+        """A table of named values with their units, each name with its explanation on a
+        small line below it (and as the row's tooltip).
+
+        Parameters
+        ----------
+        rows : iterable of (str, str, str)
+            ``(label, value with unit, explanation)``
+            (:func:`scene3D.report.wording.quantity_rows`).
+        table_id : str, default ""
+            The element's id; "" for none.
+        """
+        out = [f'<table{f" id={chr(34)}{esc(table_id)}{chr(34)}" if table_id else ""}>']
+        for label, value, explain in rows:
+            note = f'<div class="explain">{esc(explain)}</div>' if explain else ""
+            tip = f' title="{esc(explain)}"' if explain else ""
+            out.append(f"<tr{tip}><td>{esc(label)}{note}</td><td class=num>{esc(value)}</td>"
+                       "</tr>")
+        out.append("</table>")
+        self.parts.append("".join(out))
+
+    def matrices(self, named: Mapping[str, list[list[str]]], note: str = "") -> None:
+        """Small matrices side by side, each under its name (R, t, K).
+
+        Parameters
+        ----------
+        named : mapping of str to list of list of str
+            Caption -> rows of formatted numbers.
+        note : str, default ""
+            A line under them; "" for none.
+        """
+        boxes = []
+        for name, rows in named.items():
+            body = "".join("<tr>" + "".join(f"<td>{esc(v)}</td>" for v in row) + "</tr>"
+                           for row in rows)
+            boxes.append(f'<div><div>{esc(name)}</div><table class="matrix">{body}</table>'
+                         "</div>")
+        self.parts.append('<div class="matrices">' + "".join(boxes) + "</div>")
+        if note:
+            self.paragraph(note, "note")
+
+    def svg(self, svg: str, caption: str) -> None:
+        """An inline SVG drawing (a chart made by :mod:`scene3D.report.charts`) with a
+        caption.
+
+        Parameters
+        ----------
+        svg : str
+            The ``<svg>`` element, its text escaped by its maker.
+        caption : str
+            The caption (escaped).
+        """
+        self.parts.append(f"<figure>{svg}<figcaption>{esc(caption)}</figcaption></figure>")
+
+    def open_row(self) -> None:
+        """Start a row of side-by-side figures (closed by :meth:`close_row`)."""
+        self.parts.append('<div class="charts">')
+
+    def close_row(self) -> None:
+        """End the row :meth:`open_row` started."""
+        self.parts.append("</div>")
+
     def figure(self, image: bytes, caption: str, alt: str = "") -> None:
         """An embedded figure (PNG or JPEG bytes).
 
@@ -257,8 +333,8 @@ class Page:
                           f"<figcaption>{esc(caption)}</figcaption></figure>")
 
     def view3d(self, plotly_js: Path, figure_json: str, notes: Iterable[str] = ()) -> None:
-        """The interactive 3D view: the file ``plotly_js`` (plotly.min.js) inlined once, the
-        figure as JSON data.
+        """The interactive 3D view: the file ``plotly_js`` (plotly.min.js) inlined once,
+        gzip-compressed and unpacked by the browser, and the figure as JSON data.
 
         Parameters
         ----------
@@ -269,14 +345,23 @@ class Page:
         notes : iterable of str, default ()
             Notes shown above the view.
         """
+        from .viewer import compressed_plotly_js
+
         for note in notes:
             self.paragraph(note, "note")
         self.parts.append('<div id="view3d"></div>')
         self.parts.append(f'<script type="application/json" id="view3d-data">{figure_json}'
                           "</script>")
-        self._scripts.append(plotly_js)
+        self._blobs.append(("plotly-gzip", compressed_plotly_js(plotly_js)))
+        # Unpacked in the browser (no fetch: the bytes are in the page), then run as a
+        # global script (indirect eval) so that it defines window.Plotly.
         self._scripts.append(
-            "(function () {\n"
+            "(async function () {\n"
+            "  var b64 = document.getElementById('plotly-gzip').textContent;\n"
+            "  var bytes = Uint8Array.from(atob(b64), function (c) { return c.charCodeAt(0); });\n"
+            "  var stream = new Blob([bytes]).stream()"
+            ".pipeThrough(new DecompressionStream('gzip'));\n"
+            "  (0, eval)(await new Response(stream).text());\n"
             "  var fig = JSON.parse(document.getElementById('view3d-data').textContent);\n"
             "  Plotly.newPlot('view3d', fig.data, fig.layout,\n"
             "                 {displaylogo: false, responsive: true, scrollZoom: true});\n"
@@ -316,6 +401,9 @@ class Page:
             f"<h1>{esc(self.title)}</h1>\n" + "\n".join(self.parts) + "\n"
             + (f"<footer>{esc(footer)}</footer>\n" if footer else "")
         ]
+        for blob_id, blob in self._blobs:  # data for the scripts (text, or a file's text)
+            pieces += [f'<script type="application/octet-stream" id="{blob_id}">', blob,
+                       "</script>\n"]
         for script in self._scripts:
             pieces += ["<script>", script, "</script>\n"]
         pieces.append("</body>\n</html>\n")
