@@ -2,6 +2,7 @@
 into cameras, the per-camera adjustment, the focal search, and reconstructions of
 rendered and real views taken by cameras of different sizes and focal lengths."""
 
+import re
 import subprocess
 import sys
 
@@ -23,7 +24,9 @@ from scene3D.multiview.cameras import (
     to_reference_pixels,
 )
 from scene3D.optim.bundle import Observations
-from scene3D.optim.bundle_radial import bundle_adjust_cameras, bundle_adjust_radial
+from scene3D.optim.bundle_radial import bundle_adjust_cameras
+from scene3D.report import multi_view_layers, multi_view_report, prepare_view
+from scene3D.report.sections import jsonable
 
 CANON = ExifCamera(make="Canon", model="EOS 5D", focal_length_mm=35.0)
 CANON_ZOOMED = ExifCamera(make="Canon", model="EOS 5D", focal_length_mm=50.0)
@@ -103,15 +106,6 @@ def test_every_camera_is_adjusted_with_its_own_focal_length_and_lens():
     np.testing.assert_allclose(fit.K[:, 0, 0], K_true[:, 0, 0], rtol=1e-6)
     np.testing.assert_allclose(fit.k, k_true, atol=1e-6)
     assert fit.sigma.shape == (2, 2) and np.all(fit.sigma > 0)
-    # One camera of it is bundle_adjust_radial.
-    one = view_camera == 0
-    keep = one[obs.view]
-    obs_one = Observations(obs.view[keep], obs.point[keep], obs.xy[keep])
-    radial = bundle_adjust_radial(Rs, ts, X, obs_one, K_start[0], [0.0], 0, 735.0, 0.5)
-    cameras = bundle_adjust_cameras(Rs, ts, X, obs_one, K_start[:1], np.zeros((1, 1)),
-                                    np.zeros(8, dtype=int), 0, [735.0], [0.5])
-    np.testing.assert_array_equal(radial.K, cameras.K[0])
-    np.testing.assert_array_equal(radial.k, cameras.k[0])
 
 
 def test_a_cameras_focal_length_is_found_from_one_views_2d_3d_matches():
@@ -172,6 +166,16 @@ def test_views_of_two_cameras_register_with_their_own_focal_lengths(two_camera_o
     assert np.median(recon.point_errors_px()) < 0.5
     summary = recon.to_dict()
     assert [c["image_size"] for c in summary["cameras"]] == [[512, 384], [640, 480]]
+    # Five views each: the reference camera is the first of most views, the result's K.
+    assert [c["reference"] for c in summary["cameras"]] == [True, False]
+    np.testing.assert_array_equal(recon.K, recon.cameras[0].K)
+    layers, frusta = multi_view_layers(names, recon.K, recon.image_size, recon.registered,
+                                       recon.R, recon.t, recon.points3d, recon.colors)
+    page = multi_view_report(names, ["the largest model"] * len(names), jsonable(summary),
+                             [], [], {}, prepare_view(layers, frusta)).text()
+    assert "The cameras" in page and "Camera 1, the reference camera" in page
+    shown = re.search(r"640 x 480 px, focal length ([0-9.]+) px", page)
+    assert shown and float(shown.group(1)) == pytest.approx(720.0, rel=0.005)
 
     recon.save(tmp_path)
     model = read_colmap_text(tmp_path / "colmap")

@@ -1,4 +1,5 @@
-"""``scene3d report MODEL_DIR``: the self-contained report of any COLMAP text model, and
+"""``scene3d report MODEL_DIR``: the self-contained report of any COLMAP model (text or
+binary), and
 what the commands' reports read from disk (the views' thumbnails)."""
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..io.colmap import read_colmap_text
+from ..io.colmap import read_colmap_model
 from .common import (
     EXIT_OK,
     ArgumentParser,
@@ -87,14 +88,16 @@ def thumbnails(sources: Sequence[str | Path | np.ndarray], names: Sequence[str]
 def build_parser(prog: str = "scene3d report") -> argparse.ArgumentParser:
     parser = ArgumentParser(
         prog=prog,
-        description="Write the self-contained HTML report of a COLMAP text model "
-                    "(cameras.txt, images.txt, points3D.txt), from COLMAP, hloc or "
+        description="Write the self-contained HTML report of a COLMAP model "
+                    "(cameras, images and points3D, .txt or .bin), from COLMAP, hloc or "
                     "scene3D: the cameras, the points, each view's numbers and the "
                     "interactive 3D view.",
         epilog="Exit codes: 0 success; 2 bad usage or input (a model file missing or "
                "malformed)")
     parser.add_argument("model", type=Path, metavar="MODEL_DIR",
-                        help="folder with cameras.txt, images.txt and points3D.txt")
+                        help="folder with cameras.txt, images.txt and points3D.txt, or "
+                             "their .bin forms (taken first when all three are there, as "
+                             "COLMAP does)")
     parser.add_argument("--images", type=Path, metavar="DIR",
                         help="the photos (IMAGE names relative to it), for thumbnails")
     parser.add_argument("--out", type=Path, metavar="FILE",
@@ -117,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
     if not out.parent.is_dir():
         raise UsageError(f"--out '{out}': the folder '{out.parent}' does not exist")
     check_report_viewer()
-    model = read_colmap_text(args.model)  # a missing file or a bad line: exit code 2
+    model = read_colmap_model(args.model)  # a missing file or a bad record: exit code 2
     thumbs = {}
     if args.images is not None:
         if not args.images.is_dir():

@@ -21,6 +21,7 @@ import numpy as np
 from ..evaluation.poses import camera_set_error
 from ..features.matching import resolve_feature_mode
 from ..io.model_folder import model_folder_name
+from .cameras import reference_camera
 
 if TYPE_CHECKING:
     from ..io.datasets import StrechaCamera
@@ -263,8 +264,9 @@ def reconstruction_summary(recon: MultiViewReconstruction, camera: str | None = 
 def camera_summaries(recon: MultiViewReconstruction) -> list[dict]:
     """Each camera of the photos (:attr:`MultiViewReconstruction.camera_list`) as plain
     data: its views, the photos' and working sizes, ``K`` at the working size and the
-    focal length at the photos', the distortion, where the focal length started and
-    whether the largest model estimated it.
+    focal length at the photos', the distortion, where the focal length started,
+    whether the largest model estimated it, and whether it is the reference camera (the
+    result's ``K``, ``dist`` and ``image_size``: :mod:`scene3D.multiview.cameras`).
 
     Parameters
     ----------
@@ -275,6 +277,7 @@ def camera_summaries(recon: MultiViewReconstruction) -> list[dict]:
     list of dict
     """
     out = []
+    reference = reference_camera(recon.camera_of_view)
     for c, camera in enumerate(recon.camera_list):
         scale = camera.photo_size[0] / camera.image_size[0]
         out.append({
@@ -283,5 +286,5 @@ def camera_summaries(recon: MultiViewReconstruction) -> list[dict]:
             "photo_size": list(camera.photo_size), "image_size": list(camera.image_size),
             "K": camera.K, "focal_px_photo": float(camera.K[0, 0] * scale),
             "distortion": list(camera.dist), "start": camera.prior_description,
-            "estimated": camera.estimated})
+            "estimated": camera.estimated, "reference": c == reference})
     return out

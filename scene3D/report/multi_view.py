@@ -158,8 +158,23 @@ def _model_label(m: int, folder: str) -> str:
 
 
 def _camera_section(page: Page, summary: Mapping[str, Any]) -> None:
-    """The camera of a multi-view reconstruction: its model, K and distortion."""
-    page.heading("The camera")
+    """The camera of a multi-view reconstruction: its model, K and distortion; with
+    several cameras, one line each first, then the reference camera's details."""
+    cameras = summary.get("cameras") or []
+    if len(cameras) > 1:
+        page.heading("The cameras")
+        page.quantities([(
+            f"camera {c['camera']}",
+            f"{c['photo_size'][0]} x {c['photo_size'][1]} px, focal length "
+            f"{c['focal_px_photo']:.1f} px" + (f", k1 {c['distortion'][0]:+.4f}"
+                                              if c["distortion"] and c["distortion"][0] else "")
+            + ("" if c["estimated"] else " (in no view of the largest model: as it started)"),
+            "at the photos' size; its views: " + ", ".join(c["views"]))
+            for c in cameras], "cameras")
+        reference = next((c["camera"] for c in cameras if c.get("reference")), 1)
+        page.heading(f"Camera {reference}, the reference camera")
+    else:
+        page.heading("The camera")
     rows = quantity_rows(summary, _VIEWS_CAMERA)
     dist = [float(d) for d in summary.get("distortion", []) or []]
     if any(dist):
