@@ -1,4 +1,5 @@
-"""The ``scene3d`` command: ``scene3d reconstruct|calibrate|evaluate|reconstruct-views ...``."""
+"""The ``scene3d`` command: ``scene3d reconstruct|calibrate|evaluate|reconstruct-views|dense-views
+...``."""
 
 from __future__ import annotations
 
@@ -28,6 +29,7 @@ COMMANDS = {
     "calibrate": "calibrate a camera from chessboard, ChArUco or circle-grid views (calibrate.py)",
     "evaluate": "compare two-view poses with a Strecha-format ground truth",
     "reconstruct-views": "incremental SfM over many photos, with bundle adjustment",
+    "dense-views": "a dense cloud (and a mesh) from a sparse model and its photos",
 }
 
 USAGE = "usage: scene3d {" + ",".join(COMMANDS) + "} [options]   (scene3d COMMAND --help)"
@@ -59,6 +61,8 @@ def main(argv: list[str] | None = None) -> int:
         # (docs/benchmarks.md, many views). A value the user has set is kept.
         os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
         from .multiview import main as run
+    elif command == "dense-views":
+        from .dense_views import main as run
     else:
         print(f"{USAGE}\nerror: unknown command {command!r}", file=sys.stderr)
         return 2
