@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from ..densify.pipeline import DenseSettings, densify, image_paths, load_sparse_model
-from ..io.export import all_or_nothing, atomic_write_bytes, write_json, write_ply
+from ..io.export import all_or_nothing, atomic_write_bytes, ply_bytes, write_json, write_ply
 from .common import (
     ArgumentParser,
     UsageError,
@@ -127,9 +127,8 @@ def run(args: argparse.Namespace) -> int:
     with all_or_nothing():
         written.append(write_ply(out / CLOUD_FILE, cloud.points3d, cloud.colors, cloud.normals))
         if mesh is not None:
-            from ..densify.mesh import mesh_ply_bytes
-
-            written.append(atomic_write_bytes(out / MESH_FILE, mesh_ply_bytes(mesh)))
+            written.append(atomic_write_bytes(out / MESH_FILE, ply_bytes(
+                mesh.vertices, mesh.colors, faces=mesh.faces)))
         written.append(write_json(out / SUMMARY_FILE, summary))
     if not args.quiet:
         line = (f"{len(result.views)} depth maps, {cloud.num_points} fused points "

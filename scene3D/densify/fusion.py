@@ -104,10 +104,11 @@ def backproject(depth: np.ndarray, K: FloatArray) -> np.ndarray:
     return np.stack([x[None, :] * z, y[:, None] * z, z], axis=-1)
 
 
-def depth_normals(depth: np.ndarray, K: FloatArray) -> np.ndarray:
+def depth_normals(depth: np.ndarray, K: FloatArray, step_px: int = 3) -> np.ndarray:
     """Unit normals ``(H, W, 3)`` (camera frame, facing the camera) of a depth map
-    ``(H, W)``, from the cross product of its central differences; NaN where a pixel or
-    one of its four neighbours has no depth.
+    ``(H, W)``, from the cross product of its central differences ``step_px`` pixels
+    either side (wider steps average the depth noise out, narrower ones keep edges); NaN
+    where a pixel or one of those four has no depth, and within ``step_px`` of the border.
 
     Parameters
     ----------
@@ -115,6 +116,8 @@ def depth_normals(depth: np.ndarray, K: FloatArray) -> np.ndarray:
         Camera ``z``, NaN where none.
     K : (3, 3) array_like
         Intrinsics.
+    step_px : int, default 3
+        Half the span of the differences (px).
 
     Returns
     -------
@@ -122,11 +125,13 @@ def depth_normals(depth: np.ndarray, K: FloatArray) -> np.ndarray:
     """
     points = backproject(depth, K)
     normals = np.full(points.shape, np.nan, np.float32)
-    dx = points[1:-1, 2:] - points[1:-1, :-2]
-    dy = points[2:, 1:-1] - points[:-2, 1:-1]
+    s = step_px
+    dx = points[s:-s, 2 * s:] - points[s:-s, :-2 * s]
+    dy = points[2 * s:, s:-s] - points[:-2 * s, s:-s]
     n = np.cross(dx, dy)  # x right, y down: (dx x dy) points away from the camera
-    n = -n / np.linalg.norm(n, axis=-1, keepdims=True)
-    normals[1:-1, 1:-1] = n
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n = -n / np.linalg.norm(n, axis=-1, keepdims=True)
+    normals[s:-s, s:-s] = n
     return normals
 
 

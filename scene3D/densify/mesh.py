@@ -71,17 +71,21 @@ def poisson_mesh(cloud: DenseCloud, depth: int = 10, trim_quantile: float = 0.05
     MissingMeshExtraError
         Open3D is not installed.
     ValueError
-        Fewer than 100 points.
+        Fewer than 100 points with normals (those without one are left out).
     """
     require_open3d()
     import open3d as o3d
 
-    if cloud.num_points < 100:
-        raise ValueError(f"a mesh needs at least 100 points, the cloud has {cloud.num_points}")
+    oriented = np.linalg.norm(cloud.normals, axis=1) > 0.5  # points without a normal: none
+    if oriented.sum() < 100:
+        raise ValueError(f"a mesh needs at least 100 points with normals, the cloud has "
+                         f"{int(oriented.sum())}")
+    o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)  # PoissonRecon's notes
     pcd = o3d.geometry.PointCloud()
-    pcd.points = o3d.utility.Vector3dVector(np.asarray(cloud.points3d, np.float64))
-    pcd.normals = o3d.utility.Vector3dVector(np.asarray(cloud.normals, np.float64))
-    pcd.colors = o3d.utility.Vector3dVector(np.asarray(cloud.colors, np.float64) / 255.0)
+    pcd.points = o3d.utility.Vector3dVector(np.asarray(cloud.points3d[oriented], np.float64))
+    pcd.normals = o3d.utility.Vector3dVector(np.asarray(cloud.normals[oriented], np.float64))
+    pcd.colors = o3d.utility.Vector3dVector(np.asarray(cloud.colors[oriented], np.float64)
+                                            / 255.0)
     mesh, densities = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(
         pcd, depth=depth)
     densities = np.asarray(densities)
@@ -89,35 +93,3 @@ def poisson_mesh(cloud: DenseCloud, depth: int = 10, trim_quantile: float = 0.05
     colors = np.clip(np.rint(np.asarray(mesh.vertex_colors) * 255), 0, 255).astype(np.uint8)
     return Mesh(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.triangles, np.int64),
                 colors)
-
-
-def mesh_ply_bytes(mesh: Mesh) -> bytes:
-    """Binary little-endian PLY of a mesh (vertices with RGB, triangular faces), as
-    MeshLab, Blender, Open3D and trimesh read it.
-
-    Parameters
-    ----------
-    mesh : Mesh
-
-    Returns
-    -------
-    bytes
-    """
-    vertex = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"),
-                       ("red", "u1"), ("green", "u1"), ("blue", "u1")])
-    face = np.dtype([("n", "u1"), ("v", "<i4", (3,))])
-    vertices = np.empty(len(mesh.vertices), vertex)
-    for i, axis in enumerate("xyz"):
-        vertices[axis] = mesh.vertices[:, i]
-    for i, channel in enumerate(("red", "green", "blue")):
-        vertices[channel] = mesh.colors[:, i]
-    faces = np.empty(len(mesh.faces), face)
-    faces["n"] = 3
-    faces["v"] = mesh.faces
-    header = ("ply\nformat binary_little_endian 1.0\ncomment written by scene3D\n"
-              f"element vertex {len(vertices)}\n"
-              "property float x\nproperty float y\nproperty float z\n"
-              "property uchar red\nproperty uchar green\nproperty uchar blue\n"
-              f"element face {len(faces)}\nproperty list uchar int vertex_indices\n"
-              "end_header\n")
-    return header.encode("ascii") + vertices.tobytes() + faces.tobytes()

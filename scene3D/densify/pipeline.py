@@ -27,6 +27,7 @@ from ..io.colmap import read_colmap_text
 from ..io.colmap_model import ColmapModel
 from ..io.images import load_working_image
 from .fusion import DenseCloud, ViewDepth, depth_normals, footprint, fuse_depth_maps
+from .sgbm import sgbm_depth
 from .sweep import SweepSettings, plane_sweep_depth
 from .views import choose_neighbours, depth_range, neighbour_scores
 
@@ -35,6 +36,9 @@ logger = logging.getLogger(__name__)
 #: The files of a COLMAP text model, and the binary ones it is refused for.
 TEXT_FILES = ("cameras.txt", "images.txt", "points3D.txt")
 BINARY_FILES = ("cameras.bin", "images.bin", "points3D.bin")
+
+#: How a depth map is made (:class:`DenseSettings`).
+DEPTH_METHODS = ("sweep", "sgbm")
 
 
 class DenseInputError(ValueError):
@@ -73,6 +77,10 @@ class DenseSettings:
         The thinning voxel's side in pixel footprints (:func:`~scene3D.densify.fusion.footprint`).
     sweep : SweepSettings
         The plane sweep's matching.
+    method : str
+        ``"sweep"`` (:mod:`scene3D.densify.sweep`) or ``"sgbm"``, rectified semi-global
+        matching against each neighbour (:mod:`scene3D.densify.sgbm`; views of one camera
+        matrix only): docs/dense.md compares the two.
     """
 
     max_width: int | None = 1536
@@ -83,6 +91,12 @@ class DenseSettings:
     min_agree: int = 2
     voxel_px: float = 1.0
     sweep: SweepSettings = field(default_factory=SweepSettings)
+    method: str = "sweep"
+
+    def __post_init__(self) -> None:
+        if self.method not in DEPTH_METHODS:
+            raise ValueError(f"`method` must be one of {', '.join(DEPTH_METHODS)}, got "
+                             f"{self.method!r}")
 
 
 @dataclass(frozen=True)
@@ -215,7 +229,8 @@ def working_view(path: Path, K: FloatArray, dist: FloatArray,
 
 
 def view_depth(reference: tuple, neighbours: list[tuple], depth_range: tuple[float, float],
-               max_width: int | None, settings: SweepSettings) -> ViewDepth:
+               max_width: int | None, settings: SweepSettings,
+               method: str = "sweep") -> ViewDepth:
     """One view's depth map, normals and colours: a task for an engine.
 
     Parameters
@@ -230,10 +245,18 @@ def view_depth(reference: tuple, neighbours: list[tuple], depth_range: tuple[flo
     max_width : int or None
         The working width.
     settings : SweepSettings
+        The plane sweep's matching.
+    method : str, default "sweep"
+        ``"sweep"`` or ``"sgbm"`` (:class:`DenseSettings`).
 
     Returns
     -------
     ViewDepth
+
+    Raises
+    ------
+    ValueError
+        ``"sgbm"`` for views of different camera matrices.
     """
     path, K, dist, R, t = reference
     img, K_ref = working_view(path, K, dist, max_width)
@@ -242,9 +265,16 @@ def view_depth(reference: tuple, neighbours: list[tuple], depth_range: tuple[flo
     for nb_path, nb_K, nb_dist, nb_R, nb_t in neighbours:
         nb_img, K_nb = working_view(nb_path, nb_K, nb_dist, max_width)
         R_rel = nb_R @ R.T
-        matched.append((cv2.cvtColor(nb_img, cv2.COLOR_BGR2GRAY), K_nb, R_rel,
-                        nb_t - R_rel @ t))
-    depth, _ = plane_sweep_depth(grey, K_ref, matched, depth_range, settings)
+        matched.append((nb_img, K_nb, R_rel, nb_t - R_rel @ t))
+    if method == "sgbm":
+        if any(not np.allclose(K_nb, K_ref) for _, K_nb, _, _ in matched):
+            raise ValueError("SGBM depth maps need views of one camera matrix")
+        depth = sgbm_depth(img, K_ref, [(im, R_, t_) for im, _, R_, t_ in matched],
+                           depth_range)
+    else:
+        depth, _ = plane_sweep_depth(grey, K_ref, [
+            (cv2.cvtColor(im, cv2.COLOR_BGR2GRAY), K_, R_, t_) for im, K_, R_, t_ in matched],
+            depth_range, settings)
     return ViewDepth(depth, depth_normals(depth, K_ref), img[:, :, ::-1].copy(), K_ref,
                      np.asarray(R, np.float64), np.asarray(t, np.float64))
 
@@ -301,7 +331,7 @@ def densify(model: ColmapModel, paths: list[Path], settings: DenseSettings | Non
     t0 = time.perf_counter()
     computed = dict(zip(tasks, engine.map(
         view_depth, [(cameras[v], [cameras[u] for u in neighbours[v]], ranges[v],
-                      settings.max_width, settings.sweep) for v in tasks],
+                      settings.max_width, settings.sweep, settings.method) for v in tasks],
         label="depth maps")))
     t1 = time.perf_counter()
     views = [computed[v] for v in tasks]

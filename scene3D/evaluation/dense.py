@@ -190,9 +190,21 @@ class RenderedViews:
     obs_point: np.ndarray
     obs_xy: FloatArray
 
-    def surface_samples(self, step: int = 2) -> FloatArray:
-        """Points ``(M, 3)`` of the true surface that the views see: every ``step``-th
-        pixel's exact depth back-projected, world frame."""
+    def surface_samples(self, step: int = 2, min_views: int = 1) -> FloatArray:
+        """Points ``(M, 3)`` of the true surface that at least ``min_views`` of the views
+        see: every ``step``-th pixel's exact depth back-projected, world frame.
+
+        Parameters
+        ----------
+        step : int, default 2
+            Every ``step``-th pixel along each axis.
+        min_views : int, default 1
+            Least number of views that see a sample unoccluded (:meth:`views_seeing`).
+
+        Returns
+        -------
+        (M, 3) float64 ndarray
+        """
         out = []
         Kinv = np.linalg.inv(self.K)
         for depth, R, t in zip(self.depths, self.R, self.t):
@@ -201,7 +213,37 @@ class RenderedViews:
             ok = np.isfinite(z)
             rays = np.column_stack([xs[ok], ys[ok], np.ones(ok.sum())]) @ Kinv.T
             out.append((rays * z[ok][:, None] - t) @ R)
-        return np.concatenate(out)
+        samples = np.concatenate(out)
+        return samples if min_views <= 1 else samples[self.views_seeing(samples) >= min_views]
+
+    def views_seeing(self, points3d: FloatArray) -> np.ndarray:
+        """How many of the views see each surface point ``(N, 3)`` unoccluded: it projects
+        into the image and its depth there is the rendered one (to 0.2 %).
+
+        Parameters
+        ----------
+        points3d : (N, 3) array_like
+            Points on the surface (world frame).
+
+        Returns
+        -------
+        (N,) int ndarray
+        """
+        points3d = np.asarray(points3d, np.float64).reshape(-1, 3)
+        counts = np.zeros(len(points3d), int)
+        for depth, R, t in zip(self.depths, self.R, self.t):
+            h, w = depth.shape
+            cam = points3d @ R.T + t
+            with np.errstate(divide="ignore", invalid="ignore"):
+                pix = (cam @ self.K.T)[:, :2] / cam[:, 2:3]
+            px = np.rint(np.nan_to_num(pix[:, 0], nan=-1)).astype(np.int64)
+            py = np.rint(np.nan_to_num(pix[:, 1], nan=-1)).astype(np.int64)
+            inside = (cam[:, 2] > 0) & (px >= 0) & (px < w) & (py >= 0) & (py < h)
+            seen = np.zeros(len(points3d), bool)
+            seen[inside] = np.abs(depth[py[inside], px[inside]] - cam[inside, 2]) \
+                <= 2e-3 * cam[inside, 2]
+            counts += seen
+        return counts
 
 
 def render_orbit_views(views: int, size: tuple[int, int] = (640, 480), arc_deg: float = 90.0,

@@ -220,9 +220,9 @@ def _copy_file_into(source: Path, target: io.RawIOBase) -> None:
 
 
 def ply_bytes(points3d: np.ndarray, colors: np.ndarray | None = None,
-              normals: np.ndarray | None = None) -> bytes:
+              normals: np.ndarray | None = None, faces: np.ndarray | None = None) -> bytes:
     """Binary little-endian PLY of ``(N, 3)`` points with ``(N, 3) uint8`` RGB colours
-    and, if given, ``(N, 3)`` normals.
+    and, if given, ``(N, 3)`` normals and ``(F, 3)`` triangles (a mesh).
 
     Points without colours are written white. Coordinates and normals are float32.
 
@@ -234,6 +234,8 @@ def ply_bytes(points3d: np.ndarray, colors: np.ndarray | None = None,
         RGB colours; None for white.
     normals : (N, 3) array_like or None, default None
         Unit normals (``nx, ny, nz``); None for none.
+    faces : (F, 3) int array_like or None, default None
+        Vertex indices of each triangle; None for a point cloud.
 
     Returns
     -------
@@ -268,9 +270,16 @@ def ply_bytes(points3d: np.ndarray, colors: np.ndarray | None = None,
         "property float x\nproperty float y\nproperty float z\n"
         + ("" if normals is None else "property float nx\nproperty float ny\nproperty float nz\n")
         + "property uchar red\nproperty uchar green\nproperty uchar blue\n"
-        "end_header\n"
+        + ("" if faces is None else f"element face {len(faces)}\n"
+           "property list uchar int vertex_indices\n")
+        + "end_header\n"
     )
-    return header.encode("ascii") + vertices.tobytes()
+    if faces is None:
+        return header.encode("ascii") + vertices.tobytes()
+    triangles = np.empty(len(faces), np.dtype([("n", "u1"), ("v", "<i4", (3,))]))
+    triangles["n"] = 3
+    triangles["v"] = np.asarray(faces).reshape(-1, 3)
+    return header.encode("ascii") + vertices.tobytes() + triangles.tobytes()
 
 
 def write_ply(
@@ -316,6 +325,14 @@ def read_ply(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     ValueError
         If it is not a binary little-endian PLY file.
     """
+    vertices = _ply_vertices(path)
+    points = np.column_stack([vertices[a] for a in "xyz"]).astype(np.float64)
+    colors = np.column_stack([vertices[c] for c in ("red", "green", "blue")])
+    return points, colors
+
+
+def _ply_vertices(path: str | os.PathLike) -> np.ndarray:
+    """The vertex records of a PLY that :func:`write_ply` wrote, with or without normals."""
     data = Path(path).read_bytes()
     end = data.find(b"end_header\n")
     if not data.startswith(b"ply\n") or end < 0:
@@ -323,13 +340,6 @@ def read_ply(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     header = data[:end].decode("ascii").splitlines()
     if "format binary_little_endian 1.0" not in header:
         raise ValueError(f"'{path}' is not binary little-endian PLY")
-    vertices = _ply_vertices(data, header, end)
-    points = np.column_stack([vertices[a] for a in "xyz"]).astype(np.float64)
-    colors = np.column_stack([vertices[c] for c in ("red", "green", "blue")])
-    return points, colors
-
-
-def _ply_vertices(data: bytes, header: list[str], end: int) -> np.ndarray:
     count = next(int(line.split()[2]) for line in header if line.startswith("element vertex"))
     dtype = _PLY_VERTEX_NORMAL if "property float nx" in header else _PLY_VERTEX
     return np.frombuffer(data, dtype=dtype, count=count, offset=end + len("end_header\n"))
@@ -352,12 +362,9 @@ def read_ply_normals(path: str | os.PathLike) -> np.ndarray:
     ValueError
         If it is not a binary little-endian PLY file with normals.
     """
-    data = Path(path).read_bytes()
-    end = data.find(b"end_header\n")
-    header = data[:max(end, 0)].decode("ascii", "replace").splitlines()
-    if not data.startswith(b"ply\n") or end < 0 or "property float nx" not in header:
-        raise ValueError(f"'{path}' is not a PLY file with normals")
-    vertices = _ply_vertices(data, header, end)
+    vertices = _ply_vertices(path)
+    if "nx" not in vertices.dtype.names:
+        raise ValueError(f"'{path}' is a PLY file without normals")
     return np.column_stack([vertices[f"n{a}"] for a in "xyz"])
 
 
