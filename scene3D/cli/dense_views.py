@@ -67,7 +67,7 @@ def build_parser(prog: str = "scene3d dense-views") -> argparse.ArgumentParser:
                         help=f"also write {MESH_FILE}, a screened Poisson surface trimmed "
                              "by density; needs the extra 'mesh' (pip install "
                              "'scene3D[mesh]', Open3D)")
-    add_engine_args(parser)
+    add_engine_args(parser, "a depth map per view")
     add_common_args(parser)
     return parser
 
@@ -115,9 +115,9 @@ def run(args: argparse.Namespace) -> int:
         "model": str(args.model), "images": str(args.images),
         "points": cloud.num_points, "voxel_size": result.voxel_size,
         "views": [{"name": name, "neighbours": [model.names[u] for u in result.neighbours[v]],
-                   "depth_range": list(result.depth_ranges[v])}
-                  for v, name in enumerate(model.names)],
-        "depth_pixels": [v.valid_pixels for v in result.views],
+                   "depth_range": list(result.depth_ranges[v]),
+                   "depth_pixels": 0 if depth is None else depth.valid_pixels}
+                  for v, (name, depth) in enumerate(zip(model.names, result.views))],
         "mesh": None if mesh is None else {"vertices": len(mesh.vertices),
                                            "faces": len(mesh.faces)},
         "timings_s": {**result.timings_s, "total": time.perf_counter() - t_start},
@@ -131,7 +131,8 @@ def run(args: argparse.Namespace) -> int:
                 mesh.vertices, mesh.colors, faces=mesh.faces)))
         written.append(write_json(out / SUMMARY_FILE, summary))
     if not args.quiet:
-        line = (f"{len(result.views)} depth maps, {cloud.num_points} fused points "
+        maps = sum(depth is not None for depth in result.views)
+        line = (f"{maps} depth maps, {cloud.num_points} fused points "
                 f"(voxel {result.voxel_size:.4g})")
         if mesh is not None:
             line += f", mesh of {len(mesh.faces)} triangles"

@@ -6,7 +6,8 @@ share of the depth) of the point's depth there, and whose point, projected back 
 first view, lands within ``reprojection_tol_px`` of the pixel it came from (the geometric
 consistency of Schönberger et al., "Pixelwise View Selection for Unstructured Multi-View
 Stereo", 2016, and of COLMAP's fusion). The kept point is the mean of its own and the
-agreeing views' points, its normal and colour the means of theirs. The points of all views
+agreeing views' points, its normal and colour the means of theirs; the agreeing pixels are
+not fused again when their own view's turn comes. The points of all views
 are then thinned on a voxel grid: one point a voxel, the mean of those in it.
 
 Frames as in :mod:`scene3D.geometry`: world-to-camera ``x_cam = R X + t``; depth maps hold
@@ -161,10 +162,16 @@ def project(points: FloatArray, K: FloatArray, R: FloatArray,
 
 
 def consistent_points(views: list[ViewDepth], v: int, others: list[int], depth_tol: float,
-                      reprojection_tol_px: float, min_agree: int
+                      reprojection_tol_px: float, min_agree: int,
+                      consumed: list[np.ndarray] | None = None,
                       ) -> tuple[FloatArray, np.ndarray, np.ndarray]:
     """The points of view ``v`` that at least ``min_agree`` of ``others`` agree with
     (module docstring), each the mean of its own and the agreeing views' points.
+
+    With ``consumed`` (a ``(H, W)`` bool mask per view, updated in place), the pixels of
+    ``v`` already marked are skipped, and the pixels of the other views that agreed with a
+    kept point are marked: a surface point that several views see is then fused once,
+    from the first of them, not once from each (as COLMAP's fusion does).
 
     Parameters
     ----------
@@ -180,6 +187,8 @@ def consistent_points(views: list[ViewDepth], v: int, others: list[int], depth_t
         projected back.
     min_agree : int
         Least number of agreeing views.
+    consumed : list of (H, W) bool ndarray or None, default None
+        The pixels of each view fused already; None to use every pixel.
 
     Returns
     -------
@@ -190,12 +199,14 @@ def consistent_points(views: list[ViewDepth], v: int, others: list[int], depth_t
         World-frame unit normals.
     """
     me = views[v]
-    ys, xs = np.nonzero(np.isfinite(me.depth))
+    ys, xs = np.nonzero(np.isfinite(me.depth) if consumed is None
+                        else np.isfinite(me.depth) & ~consumed[v])
     cam = backproject(me.depth, me.K)[ys, xs].astype(np.float64)
     world = (cam - me.t) @ me.R  # R^T (x - t)
     normal_sum = (me.normals[ys, xs].astype(np.float64) @ me.R)
     point_sum = world.copy()
     agree = np.zeros(len(world), np.int32)
+    matched = []
     for u in others:
         other = views[u]
         h, w = other.depth.shape
@@ -218,7 +229,12 @@ def consistent_points(views: list[ViewDepth], v: int, others: list[int], depth_t
         point_sum[idx] += theirs
         n = other.normals[qy, qx].astype(np.float64) @ other.R
         normal_sum[idx] += np.nan_to_num(n)
+        matched.append((u, idx, qy, qx))
     keep = agree >= min_agree
+    if consumed is not None:
+        for u, idx, qy, qx in matched:
+            used = keep[idx]
+            consumed[u][qy[used], qx[used]] = True
     points = point_sum[keep] / (1 + agree[keep])[:, None]
     normals = np.nan_to_num(normal_sum[keep])
     length = np.linalg.norm(normals, axis=1, keepdims=True)
@@ -274,8 +290,9 @@ def voxel_thin(points3d: FloatArray, colors: np.ndarray, normals: np.ndarray,
 def fuse_depth_maps(views: list[ViewDepth], voxel_size: float, depth_tol: float = 0.01,
                     reprojection_tol_px: float = 1.0, min_agree: int = 2,
                     check_views: list[list[int]] | None = None) -> DenseCloud:
-    """The consistent points of every view (:func:`consistent_points`), thinned on a
-    voxel grid (:func:`voxel_thin`).
+    """The consistent points of every view (:func:`consistent_points`, each surface point
+    once: a pixel that confirmed a kept point is not fused again), thinned on a voxel grid
+    (:func:`voxel_thin`).
 
     Parameters
     ----------
@@ -296,11 +313,12 @@ def fuse_depth_maps(views: list[ViewDepth], voxel_size: float, depth_tol: float 
     DenseCloud
     """
     parts = []
+    consumed = [np.zeros(view.depth.shape, bool) for view in views]
     for v in range(len(views)):
         others = [u for u in range(len(views)) if u != v] if check_views is None \
             else check_views[v]
         parts.append(consistent_points(views, v, others, depth_tol, reprojection_tol_px,
-                                       min_agree))
+                                       min_agree, consumed))
     points = np.concatenate([p[0] for p in parts]) if parts else np.zeros((0, 3))
     colors = np.concatenate([p[1] for p in parts]) if parts else np.zeros((0, 3), np.uint8)
     normals = np.concatenate([p[2] for p in parts]) if parts else np.zeros((0, 3), np.float32)

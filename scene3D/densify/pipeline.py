@@ -107,8 +107,9 @@ class DenseResult:
     ----------
     cloud : DenseCloud
         The fused cloud (world frame of the model).
-    views : list of ViewDepth
-        Each view's depth map, in the order of the model's images.
+    views : list of ViewDepth or None
+        Each view's depth map, in the order of the model's images (None for a view that
+        shares no sparse point with another).
     neighbours : list of list of int
         Each view's neighbours (indices into the model's images).
     depth_ranges : list of (float, float)
@@ -120,7 +121,7 @@ class DenseResult:
     """
 
     cloud: DenseCloud
-    views: list[ViewDepth]
+    views: list[ViewDepth | None]
     neighbours: list[list[int]]
     depth_ranges: list[tuple[float, float]]
     voxel_size: float
@@ -348,6 +349,5 @@ def densify(model: ColmapModel, paths: list[Path], settings: DenseSettings | Non
             "fit them?")
     logger.info("dense: %d fused points from %d depth maps (%.1f s, fusion %.1f s)",
                 cloud.num_points, len(views), t1 - t0, t2 - t1)
-    full = [computed.get(v) for v in range(len(model.names))]
-    return DenseResult(cloud, [v for v in full if v is not None], neighbours, ranges, voxel,
-                       {"depth_maps": t1 - t0, "fusion": t2 - t1})
+    return DenseResult(cloud, [computed.get(v) for v in range(len(model.names))], neighbours,
+                       ranges, voxel, {"depth_maps": t1 - t0, "fusion": t2 - t1})
