@@ -115,7 +115,8 @@ def run(args: argparse.Namespace) -> int:
         "model": str(args.model), "images": str(args.images),
         "points": cloud.num_points, "voxel_size": result.voxel_size,
         "views": [{"name": name, "neighbours": [model.names[u] for u in result.neighbours[v]],
-                   "depth_range": list(result.depth_ranges[v]),
+                   "depth_range": None if result.depth_ranges[v] is None
+                   else list(result.depth_ranges[v]),
                    "depth_pixels": 0 if depth is None else depth.valid_pixels}
                   for v, (name, depth) in enumerate(zip(model.names, result.views))],
         "mesh": None if mesh is None else {"vertices": len(mesh.vertices),

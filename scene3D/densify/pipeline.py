@@ -112,8 +112,9 @@ class DenseResult:
         shares no sparse point with another).
     neighbours : list of list of int
         Each view's neighbours (indices into the model's images).
-    depth_ranges : list of (float, float)
-        Each view's searched ``(near, far)``.
+    depth_ranges : list of (float, float) or None
+        Each view's searched ``(near, far)`` (None for a view that sees too few sparse
+        points to bound its depths: it gets no depth map, a warning says so).
     voxel_size : float
         The thinning voxel's side (the model's units).
     timings_s : dict[str, float]
@@ -123,7 +124,7 @@ class DenseResult:
     cloud: DenseCloud
     views: list[ViewDepth | None]
     neighbours: list[list[int]]
-    depth_ranges: list[tuple[float, float]]
+    depth_ranges: list[tuple[float, float] | None]
     voxel_size: float
     timings_s: dict[str, float]
 
@@ -162,8 +163,8 @@ def load_sparse_model(path: str | os.PathLike) -> ColmapModel:
         if binary is not None:
             raise DenseInputError(
                 "binary_model", f"'{binary}' holds a binary COLMAP model (cameras.bin, ...); "
-                "only text models are read: convert it with 'colmap model_converter "
-                "--output_type TXT' or pycolmap's Reconstruction.write_text")
+                "only text models are read: convert it with COLMAP's model_converter "
+                "(output type TXT) or pycolmap's Reconstruction.write_text")
         raise DenseInputError("no_model", f"'{path}' holds no COLMAP text model "
                               f"({', '.join(TEXT_FILES)}), nor a colmap/ folder with one")
     if len(model.names) < 2:
@@ -304,9 +305,6 @@ def densify(model: ColmapModel, paths: list[Path], settings: DenseSettings | Non
     ------
     DenseInputError
         A model with fewer than two views, or ``paths`` not one a view.
-    ValueError
-        A view sees too few sparse points for a depth range
-        (:func:`~scene3D.densify.views.depth_range`).
     ReconstructionError
         ``"no_fused_points"``: no depth passed the consistency check.
     """
@@ -321,10 +319,18 @@ def densify(model: ColmapModel, paths: list[Path], settings: DenseSettings | Non
     scores = neighbour_scores(model)
     neighbours = choose_neighbours(scores, settings.neighbours)
     checks = choose_neighbours(scores, settings.fusion_views)
-    ranges = [depth_range(model, v) for v in range(len(model.names))]
+    ranges = []
+    for v in range(len(model.names)):
+        try:
+            ranges.append(depth_range(model, v))
+        except ValueError as exc:  # too few sparse points to bound its depths
+            logger.warning("%s; it gets no depth map", exc)
+            ranges.append(None)
+            neighbours[v] = []
     cameras = [(Path(p), model.camera(v).K, model.camera(v).dist, model.R[v], model.t[v])
                for v, p in enumerate(paths)]
-    lonely = [model.names[v] for v, nb in enumerate(neighbours) if not nb]
+    lonely = [model.names[v] for v, nb in enumerate(neighbours)
+              if not nb and ranges[v] is not None]
     if lonely:
         logger.warning("%d view(s) share no sparse point with another and get no depth "
                        "map: %s", len(lonely), ", ".join(lonely))
