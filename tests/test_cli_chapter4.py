@@ -435,7 +435,8 @@ def test_the_scripts_exit_keeps_the_code_and_the_exit_handlers():
     assert proc.stdout.split() == ["output", "kept", "handler", "ran"]
 
 
-@pytest.mark.parametrize("module", ["chapter4", "calibrate", "evaluate", "multiview"])
+@pytest.mark.parametrize("module", ["chapter4", "calibrate", "evaluate", "multiview",
+                                    "dense_views"])
 def test_every_argument_of_every_command_has_help(module):
     import argparse
     import importlib

@@ -1,5 +1,5 @@
 """The ``scene3d`` command: ``scene3d reconstruct|calibrate|evaluate|reconstruct-views|report
-...``."""
+|dense-views ...``."""
 
 from __future__ import annotations
 
@@ -30,6 +30,7 @@ COMMANDS = {
     "evaluate": "compare two-view poses with a Strecha-format ground truth",
     "reconstruct-views": "incremental SfM over many photos, with bundle adjustment",
     "report": "the self-contained HTML report of a COLMAP text model",
+    "dense-views": "a dense cloud (and a mesh) from a sparse model and its photos",
 }
 
 USAGE = "usage: scene3d {" + ",".join(COMMANDS) + "} [options]   (scene3d COMMAND --help)"
@@ -63,6 +64,8 @@ def main(argv: list[str] | None = None) -> int:
         from .multiview import main as run
     elif command == "report":
         from .report import main as run
+    elif command == "dense-views":
+        from .dense_views import main as run
     else:
         print(f"{USAGE}\nerror: unknown command {command!r}", file=sys.stderr)
         return 2

@@ -261,11 +261,12 @@ def add_bundle_adjust_arg(parser: argparse.ArgumentParser) -> None:
                              "the default refinement)")
 
 
-def add_engine_args(parser: argparse.ArgumentParser) -> None:
+def add_engine_args(parser: argparse.ArgumentParser,
+                    tasks: str = "features per image, pairs") -> None:
     """``--scheduler ADDRESS`` or ``--workers N``: where the independent tasks run
-    (built by :func:`open_engine`)."""
+    (built by :func:`open_engine`); ``tasks`` names them in the help."""
     group = parser.add_argument_group(
-        "where the tasks run (features per image, pairs; default: in this process)")
+        f"where the tasks run ({tasks}; default: in this process)")
     where = group.add_mutually_exclusive_group()
     where.add_argument("--scheduler", metavar="ADDRESS",
                        help="on the workers of a running Dask cluster, such as "

@@ -31,6 +31,12 @@ _PLY_VERTEX = np.dtype([
     ("x", "<f4"), ("y", "<f4"), ("z", "<f4"),
     ("red", "u1"), ("green", "u1"), ("blue", "u1"),
 ])
+#: A vertex with a normal (``nx, ny, nz``, as MeshLab and Open3D name them).
+_PLY_VERTEX_NORMAL = np.dtype([
+    ("x", "<f4"), ("y", "<f4"), ("z", "<f4"),
+    ("nx", "<f4"), ("ny", "<f4"), ("nz", "<f4"),
+    ("red", "u1"), ("green", "u1"), ("blue", "u1"),
+])
 
 
 #: The renames that :func:`all_or_nothing` holds back: (temporary file, target) pairs.
@@ -214,10 +220,12 @@ def _copy_file_into(source: Path, target: io.RawIOBase) -> None:
             _write_all(target, chunk)
 
 
-def ply_bytes(points3d: np.ndarray, colors: np.ndarray | None = None) -> bytes:
-    """Binary little-endian PLY of ``(N, 3)`` points with ``(N, 3) uint8`` RGB colours.
+def ply_bytes(points3d: np.ndarray, colors: np.ndarray | None = None,
+              normals: np.ndarray | None = None, faces: np.ndarray | None = None) -> bytes:
+    """Binary little-endian PLY of ``(N, 3)`` points with ``(N, 3) uint8`` RGB colours
+    and, if given, ``(N, 3)`` normals and ``(F, 3)`` triangles (a mesh).
 
-    Points without colours are written white. Coordinates are float32.
+    Points without colours are written white. Coordinates and normals are float32.
 
     Parameters
     ----------
@@ -225,6 +233,10 @@ def ply_bytes(points3d: np.ndarray, colors: np.ndarray | None = None) -> bytes:
         Points.
     colors : (N, 3) uint8 array_like or None, default None
         RGB colours; None for white.
+    normals : (N, 3) array_like or None, default None
+        Unit normals (``nx, ny, nz``); None for none.
+    faces : (F, 3) int array_like or None, default None
+        Vertex indices of each triangle; None for a point cloud.
 
     Returns
     -------
@@ -243,23 +255,37 @@ def ply_bytes(points3d: np.ndarray, colors: np.ndarray | None = None) -> bytes:
     colors = np.asarray(colors)
     if colors.shape != points3d.shape:
         raise ValueError(f"`colors` must have shape {points3d.shape}, got {colors.shape}")
-    vertices = np.empty(len(points3d), dtype=_PLY_VERTEX)
+    if normals is not None and np.shape(normals) != points3d.shape:
+        raise ValueError(f"`normals` must have shape {points3d.shape}, got {np.shape(normals)}")
+    vertices = np.empty(len(points3d), dtype=_PLY_VERTEX if normals is None
+                        else _PLY_VERTEX_NORMAL)
     for i, axis in enumerate("xyz"):
         vertices[axis] = points3d[:, i]
+        if normals is not None:
+            vertices[f"n{axis}"] = np.asarray(normals)[:, i]
     for i, channel in enumerate(("red", "green", "blue")):
         vertices[channel] = colors[:, i]
     header = (
         "ply\nformat binary_little_endian 1.0\ncomment written by scene3D\n"
         f"element vertex {len(points3d)}\n"
         "property float x\nproperty float y\nproperty float z\n"
-        "property uchar red\nproperty uchar green\nproperty uchar blue\n"
-        "end_header\n"
+        + ("" if normals is None else "property float nx\nproperty float ny\nproperty float nz\n")
+        + "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+        + ("" if faces is None else f"element face {len(faces)}\n"
+           "property list uchar int vertex_indices\n")
+        + "end_header\n"
     )
-    return header.encode("ascii") + vertices.tobytes()
+    if faces is None:
+        return header.encode("ascii") + vertices.tobytes()
+    triangles = np.empty(len(faces), np.dtype([("n", "u1"), ("v", "<i4", (3,))]))
+    triangles["n"] = 3
+    triangles["v"] = np.asarray(faces).reshape(-1, 3)
+    return header.encode("ascii") + vertices.tobytes() + triangles.tobytes()
 
 
 def write_ply(
-    path: str | os.PathLike, points3d: np.ndarray, colors: np.ndarray | None = None
+    path: str | os.PathLike, points3d: np.ndarray, colors: np.ndarray | None = None,
+    normals: np.ndarray | None = None,
 ) -> Path:
     """Write a coloured point cloud as binary PLY (MeshLab, Open3D, CloudCompare read it).
 
@@ -271,16 +297,19 @@ def write_ply(
         Points.
     colors : (N, 3) uint8 array_like or None, default None
         RGB colours; None for white.
+    normals : (N, 3) array_like or None, default None
+        Unit normals; None for none.
 
     Returns
     -------
     Path
     """
-    return atomic_write_bytes(path, ply_bytes(points3d, colors))
+    return atomic_write_bytes(path, ply_bytes(points3d, colors, normals))
 
 
 def read_ply(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
-    """Read a PLY written by :func:`write_ply`: ``(N, 3) float64`` points, ``(N, 3) uint8`` RGB.
+    """Read a PLY written by :func:`write_ply`: ``(N, 3) float64`` points, ``(N, 3) uint8`` RGB
+    (normals, if the file has them: :func:`read_ply_normals`).
 
     Parameters
     ----------
@@ -297,6 +326,14 @@ def read_ply(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     ValueError
         If it is not a binary little-endian PLY file.
     """
+    vertices = _ply_vertices(path)
+    points = np.column_stack([vertices[a] for a in "xyz"]).astype(np.float64)
+    colors = np.column_stack([vertices[c] for c in ("red", "green", "blue")])
+    return points, colors
+
+
+def _ply_vertices(path: str | os.PathLike) -> np.ndarray:
+    """The vertex records of a PLY that :func:`write_ply` wrote, with or without normals."""
     data = Path(path).read_bytes()
     end = data.find(b"end_header\n")
     if not data.startswith(b"ply\n") or end < 0:
@@ -305,10 +342,31 @@ def read_ply(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     if "format binary_little_endian 1.0" not in header:
         raise ValueError(f"'{path}' is not binary little-endian PLY")
     count = next(int(line.split()[2]) for line in header if line.startswith("element vertex"))
-    vertices = np.frombuffer(data, dtype=_PLY_VERTEX, count=count, offset=end + len("end_header\n"))
-    points = np.column_stack([vertices[a] for a in "xyz"]).astype(np.float64)
-    colors = np.column_stack([vertices[c] for c in ("red", "green", "blue")])
-    return points, colors
+    dtype = _PLY_VERTEX_NORMAL if "property float nx" in header else _PLY_VERTEX
+    return np.frombuffer(data, dtype=dtype, count=count, offset=end + len("end_header\n"))
+
+
+def read_ply_normals(path: str | os.PathLike) -> np.ndarray:
+    """The normals ``(N, 3) float32`` of a PLY written by :func:`write_ply` with normals.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A PLY file.
+
+    Returns
+    -------
+    (N, 3) float32 ndarray
+
+    Raises
+    ------
+    ValueError
+        If it is not a binary little-endian PLY file with normals.
+    """
+    vertices = _ply_vertices(path)
+    if "nx" not in vertices.dtype.names:
+        raise ValueError(f"'{path}' is a PLY file without normals")
+    return np.column_stack([vertices[f"n{a}"] for a in "xyz"])
 
 
 def _jsonable(value: Any) -> Any:

@@ -1,0 +1,148 @@
+"""``scene3d dense-views``: a dense cloud (and a mesh) from a sparse model and its photos."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import time
+from pathlib import Path
+
+from ..densify.pipeline import DenseSettings, densify, image_paths, load_sparse_model
+from ..io.export import all_or_nothing, atomic_write_bytes, ply_bytes, write_json, write_ply
+from .common import (
+    ArgumentParser,
+    UsageError,
+    add_common_args,
+    add_engine_args,
+    add_size_args,
+    exit_codes_help,
+    open_engine,
+    path_arg,
+    positive_int,
+    run_command,
+)
+from .outputs import FILES_KEY, prepare_output_dir, previous_outputs, recorded_files
+
+logger = logging.getLogger("scene3D.cli")
+
+CLOUD_FILE = "dense.ply"
+MESH_FILE = "mesh.ply"
+SUMMARY_FILE = "dense.json"
+DEFAULT_WIDTH = DenseSettings().max_width
+
+
+def build_parser(prog: str = "scene3d dense-views") -> argparse.ArgumentParser:
+    parser = ArgumentParser(
+        prog=prog,
+        description=(
+            "Dense reconstruction from a sparse model: a depth map for every view by plane "
+            "sweep against its best neighbours (shared sparse points, triangulation angle), "
+            "fused where at least two other views agree, thinned on a voxel grid; with "
+            "--mesh also a surface (screened Poisson, Open3D)."
+        ),
+        epilog=(
+            f"Writes into --out: {CLOUD_FILE} (binary PLY: points, normals, RGB, in the "
+            f"model's world frame), {SUMMARY_FILE} (points, each view's neighbours, depth "
+            f"range and depth pixels, timings) and with --mesh {MESH_FILE}. Files of those "
+            "names that an earlier run wrote are replaced; a file of those names that no "
+            "run wrote is refused. Bad input (no model, a binary COLMAP model, a model of "
+            "one view, photos missing) stops before anything is written. "
+            + exit_codes_help("no depth was confirmed by two other views") + "."
+        ),
+    )
+    parser.add_argument("model", type=path_arg, metavar="MODEL",
+                        help="a reconstruct-views output folder (its colmap/ model) or a "
+                             "folder with a COLMAP text model (cameras.txt, images.txt, "
+                             "points3D.txt)")
+    parser.add_argument("--images", type=path_arg, required=True, metavar="DIR",
+                        help="the folder the model's image names are relative to")
+    parser.add_argument("--out", type=path_arg, default=Path("out/dense"), metavar="DIR",
+                        help="output folder (default: out/dense)")
+    add_size_args(parser, DEFAULT_WIDTH, "fountain-P11's 3072 px photos at 1536")
+    parser.add_argument("--neighbours", type=positive_int, default=DenseSettings().neighbours,
+                        metavar="N", help="neighbours each depth map is matched against "
+                                          f"(default {DenseSettings().neighbours})")
+    parser.add_argument("--mesh", action="store_true",
+                        help=f"also write {MESH_FILE}, a screened Poisson surface trimmed "
+                             "by density; needs the extra 'mesh' (pip install "
+                             "'scene3D[mesh]', Open3D)")
+    add_engine_args(parser, "a depth map per view")
+    add_common_args(parser)
+    return parser
+
+
+def check_out_files(out: Path, paths: list[Path], previous: list[Path]) -> None:
+    """Raise :class:`UsageError` when one of ``paths`` is in ``out`` already and no earlier
+    run (``previous``, its summary's files) wrote it."""
+    for path in paths:
+        if path.is_file() and path not in previous:
+            raise UsageError(f"--out '{out}' holds '{path.name}', which no earlier "
+                             "dense-views run there wrote, and the run would replace it; "
+                             "move it or choose another --out")
+
+
+def run(args: argparse.Namespace) -> int:
+    t_start = time.perf_counter()
+    if args.mesh:
+        from ..densify.mesh import MissingMeshExtraError, require_open3d
+
+        try:
+            require_open3d()
+        except MissingMeshExtraError as exc:
+            raise UsageError(f"--mesh: {exc}") from None
+    model = load_sparse_model(args.model)
+    paths = image_paths(model, args.images)
+    out = args.out
+    files = [out / CLOUD_FILE, out / SUMMARY_FILE, *([out / MESH_FILE] if args.mesh else [])]
+    if out.is_dir():
+        check_out_files(out, files, previous_outputs(out, SUMMARY_FILE, option="--out"))
+    settings = DenseSettings(max_width=None if args.no_pyr_down else args.max_width,
+                             neighbours=args.neighbours)
+    with open_engine(args) as engine:
+        result = densify(model, paths, settings, engine=engine)
+    mesh = None
+    if args.mesh:
+        from ..densify.mesh import poisson_mesh
+
+        t0 = time.perf_counter()
+        mesh = poisson_mesh(result.cloud)
+        result.timings_s["mesh"] = time.perf_counter() - t0
+    prepare_output_dir(out)
+    cloud = result.cloud
+    summary = {
+        "conventions": "world frame of the sparse model; normals face the cameras",
+        "model": str(args.model), "images": str(args.images),
+        "points": cloud.num_points, "voxel_size": result.voxel_size,
+        "views": [{"name": name, "neighbours": [model.names[u] for u in result.neighbours[v]],
+                   "depth_range": None if result.depth_ranges[v] is None
+                   else list(result.depth_ranges[v]),
+                   "depth_pixels": 0 if depth is None else depth.valid_pixels}
+                  for v, (name, depth) in enumerate(zip(model.names, result.views))],
+        "mesh": None if mesh is None else {"vertices": len(mesh.vertices),
+                                           "faces": len(mesh.faces)},
+        "timings_s": {**result.timings_s, "total": time.perf_counter() - t_start},
+        FILES_KEY: recorded_files(out, files),
+    }
+    written = []
+    with all_or_nothing():
+        written.append(write_ply(out / CLOUD_FILE, cloud.points3d, cloud.colors, cloud.normals))
+        if mesh is not None:
+            written.append(atomic_write_bytes(out / MESH_FILE, ply_bytes(
+                mesh.vertices, mesh.colors, faces=mesh.faces)))
+        written.append(write_json(out / SUMMARY_FILE, summary))
+    if not args.quiet:
+        maps = sum(depth is not None for depth in result.views)
+        line = (f"{maps} depth maps, {cloud.num_points} fused points "
+                f"(voxel {result.voxel_size:.4g})")
+        if mesh is not None:
+            line += f", mesh of {len(mesh.faces)} triangles"
+        print(f"{line}, {summary['timings_s']['total']:.1f} s")
+    for path in written:
+        print(f"Wrote '{path}'")
+    return 0
+
+
+def main(argv: list[str] | None = None, prog: str = "scene3d dense-views") -> int:
+    args = build_parser(prog).parse_args(sys.argv[1:] if argv is None else argv)
+    return run_command(args, run)
