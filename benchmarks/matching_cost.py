@@ -4,7 +4,8 @@
                                        [--width 1536] [--pairs 40]
 
 Features, vocabulary and pairs as ``reconstruct-views`` makes them (SIFT at ``--width``,
-64 words, 3 probed, the pairs its ``auto`` mode selects; the first ``--pairs`` of them).
+64 words, 3 probed, the pairs its ``auto`` mode selects, the views in file order; the
+first ``--pairs`` of them).
 Each matcher runs on the same pairs, one after the other in one process (the machine is
 shared: compare the ratios within a run, not seconds across runs), one OpenCV and one
 BLAS thread unless the row says threads. Every matcher's matches, best first by ratio,
