@@ -33,7 +33,7 @@ def _by_word(words: np.ndarray, num_words: int) -> tuple[np.ndarray, np.ndarray]
     return rows, np.searchsorted(words[rows], np.arange(num_words + 1))
 
 
-def _nearest_two(queries: np.ndarray, query_words: np.ndarray, base: np.ndarray,
+def nearest_two(queries: np.ndarray, query_words: np.ndarray, base: np.ndarray,
                  base_word: np.ndarray, num_words: int
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Nearest and second-nearest base rows of each query among the base rows filed under
@@ -110,12 +110,12 @@ def match_by_words(desc_i: np.ndarray, words_i: np.ndarray, desc_j: np.ndarray,
     ratios : (M,) float64
         Distance to the nearest over distance to the second nearest (lower is surer).
     """
-    nearest, d1, d2 = _nearest_two(desc_i, words_i, desc_j, words_j[:, 0], num_words)
+    nearest, d1, d2 = nearest_two(desc_i, words_i, desc_j, words_j[:, 0], num_words)
     passed = (nearest >= 0) & (d1 < ratio * ratio * d2)
     candidates = np.unique(nearest[passed])
     back = np.full(len(desc_j), -1, dtype=np.intp)
     if len(candidates):
-        back[candidates] = _nearest_two(desc_j[candidates], words_j[candidates], desc_i,
+        back[candidates] = nearest_two(desc_j[candidates], words_j[candidates], desc_i,
                                         words_i[:, 0], num_words)[0]
     idx_i = np.flatnonzero(passed & (back[np.maximum(nearest, 0)] == np.arange(len(desc_i))))
     idx_j = nearest[idx_i]
