@@ -50,6 +50,14 @@ def test_photos_are_grouped_into_cameras_as_colmap_groups_them():
     assert priors[2].source == "prior" and priors[2].focal_px == pytest.approx(1200.0)
     with pytest.raises(ValueError, match="one camera is needed"):
         camera_priors(photos[:2], "single")
+    # A photo that records less joins a camera all of whose photos it fits, whatever the
+    # order: never a camera of two EXIF cameras (which camera_prior would refuse).
+    no_focal = ExifCamera(make="Canon", model="EOS 5D")
+    size = (3000, 2000)
+    for mixed in ([("a", None, size), ("b", CANON, size), ("c", PHONE, size)],
+                  [("a", no_focal, size), ("b", CANON, size), ("c", CANON_ZOOMED, size)]):
+        assert camera_groups(mixed).tolist() == [0, 0, 1]
+        assert len(camera_priors(mixed)[1]) == 2
 
 
 def test_reference_pixels_are_the_same_rays():

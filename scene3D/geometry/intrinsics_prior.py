@@ -539,17 +539,31 @@ def camera_groups(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, int]
         return np.zeros(len(photos), dtype=int)
     if mode == "per_photo":
         return np.arange(len(photos))
-    firsts: list[int] = []
+    # Photos that record their camera first, each with every photo of a camera (a photo
+    # that records less could otherwise join two cameras that differ); then the others.
+    members: list[list[int]] = []
     out = np.empty(len(photos), dtype=int)
-    for v, (_, exif, size) in enumerate(photos):
-        for c, u in enumerate(firsts):
-            if _same_camera(exif, size, photos[u][1], photos[u][2]):
+
+    def complete(exif: ExifCamera | None) -> bool:
+        return exif is not None and bool(exif.camera_name) and any(
+            _usable(getattr(exif, field)) for field, _ in _FOCAL_KINDS)
+
+    order = sorted(range(len(photos)), key=lambda v: (not complete(photos[v][1]), v))
+    for v in order:
+        _, exif, size = photos[v]
+        for c, group in enumerate(members):
+            if all(_same_camera(exif, size, photos[u][1], photos[u][2]) for u in group):
+                group.append(v)
                 out[v] = c
                 break
         else:
-            out[v] = len(firsts)
-            firsts.append(v)
-    return out
+            out[v] = len(members)
+            members.append([v])
+    # Cameras numbered in the order of their first photo.
+    first = sorted(range(len(members)), key=lambda c: min(members[c]))
+    renumber = np.empty(len(members), dtype=int)
+    renumber[first] = np.arange(len(members))
+    return renumber[out]
 
 
 def camera_priors(photos: Sequence[tuple[str, ExifCamera | None, tuple[int, int]]],

@@ -384,7 +384,8 @@ def colmap_model_from_views(names: list[str] | tuple[str, ...], K: ArrayLike,
                             colors: ArrayLike, obs_view: ArrayLike, obs_point: ArrayLike,
                             obs_xy: ArrayLike, view_camera: ArrayLike | None = None
                             ) -> ColmapModel:
-    """A one-camera model (PINHOLE ``K`` for images of ``image_size``) of the views that
+    """A model with one camera (PINHOLE ``K`` for images of ``image_size``; one per camera
+    with ``view_camera``) of the views that
     are ``registered`` ``(V,)`` among ``names``, image ids ``view + 1``, point ids
     ``point + 1``; poses ``R`` ``(V, 3, 3)``, ``t`` ``(V, 3)`` world-to-camera; the
     observations ``obs_view`` (indices into ``names``), ``obs_point``, ``obs_xy``

@@ -425,8 +425,8 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
         A previous model's focal estimate the first model starts from.
     view_camera, known_cameras : ndarray or None, default None
         Several cameras: as in :func:`grow_model`. A model then starts from a pair of
-        one camera when there is one, since a pair's self-calibration finds one focal
-        length.
+        one camera when one of them gives a start, since a pair's self-calibration finds
+        one focal length; else from any pair.
 
 
     Returns
@@ -455,26 +455,32 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
     while remaining.sum() >= 2:
         t0 = time.perf_counter()
         inside = [p for p in pairs if remaining[p.i] and remaining[p.j]]
-        if view_camera is not None:  # the start from a pair of one camera, where one is
-            inside = [p for p in inside if view_camera[p.i] == view_camera[p.j]] or inside
-        focal_start = None
-        if focal is not None and not models and inside and start_from is not None:
-            focal_start = start_from
-            start = initial_pair(features, inside, K, K_source="other photos")
-        elif focal is not None and not models and inside:
-            start, K, focal_start = self_calibrated_start(features, inside, K, focal,
-                                                          initial_pair)
+        attempts = [inside]
+        if view_camera is not None:  # a start from a pair of one camera first, where one is
+            one = [p for p in inside if view_camera[p.i] == view_camera[p.j]]
+            attempts = [one, inside] if 0 < len(one) < len(inside) else [inside]
+        K_given = K
+        for inside in attempts:
+            K, focal_start = K_given, None
+            if focal is not None and not models and inside and start_from is not None:
+                focal_start = start_from
+                start = initial_pair(features, inside, K, K_source="other photos")
+            elif focal is not None and not models and inside:
+                start, K, focal_start = self_calibrated_start(features, inside, K, focal,
+                                                              initial_pair)
+                if not isinstance(start, str):
+                    say(f"focal length {K[0, 0]:.1f} px to start with: "
+                        f"{_START_SOURCE.get(focal_start.source, focal_start.source)}, "
+                        f"views {names[start[0].i]} and {names[start[0].j]}")
+            elif focal is not None and inside:
+                K = models[-1].K if models[-1].K is not None else K
+                focal_start = _inherited_focal(models[-1].focal, float(K[0, 0]))
+                start = initial_pair(features, inside, K, K_source="other photos")
+            else:
+                start = (initial_pair(features, inside, K, calibrated=focal is None) if inside
+                         else _no_pair_left(s))
             if not isinstance(start, str):
-                say(f"focal length {K[0, 0]:.1f} px to start with: "
-                    f"{_START_SOURCE.get(focal_start.source, focal_start.source)}, views "
-                    f"{names[start[0].i]} and {names[start[0].j]}")
-        elif focal is not None and inside:
-            K = models[-1].K if models[-1].K is not None else K
-            focal_start = _inherited_focal(models[-1].focal, float(K[0, 0]))
-            start = initial_pair(features, inside, K, K_source="other photos")
-        else:
-            start = (initial_pair(features, inside, K, calibrated=focal is None) if inside
-                     else _no_pair_left(s))
+                break
         timings["initialisation"] += time.perf_counter() - t0
         if isinstance(start, str):
             why = f"{start}; {_input_hint(focal is None)}" if inside else start

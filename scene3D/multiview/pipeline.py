@@ -130,7 +130,13 @@ def _cameras_result(models: list[SfMModel], used: CameraPass, K_reference: np.nd
     seen[canonical_camera[main.registered]] = True
     dists = [np.concatenate([k[c], np.zeros(4 - k.shape[1])]) if np.any(k[c]) else np.zeros(0)
              for c in range(len(priors))]
-    cameras = tuple(CameraIntrinsics(main.camera_K[c], dists[c], tuple(camera_sizes[c]),
+    # A camera the largest model does not see keeps what its keypoints were mapped with
+    # (a focal search that found no pose confirms nothing).
+    K_out = np.where(seen[:, None, None], main.camera_K, used.K)
+    dists = [d if seen[c] else (np.concatenate([used.k[c], np.zeros(4 - used.k.shape[1])])
+                                if np.any(used.k[c]) else np.zeros(0))
+             for c, d in enumerate(dists)]
+    cameras = tuple(CameraIntrinsics(K_out[c], dists[c], tuple(camera_sizes[c]),
                                      tuple(prior.image_size), prior.camera_name,
                                      prior.description, bool(seen[c]))
                     for c, prior in enumerate(priors))
@@ -390,11 +396,11 @@ def reconstruct_views(
         A path that is neither a file nor a folder and a glob that matches no file, or a
         folder without images.
     FileNotFoundError, ValueError
-        Unreadable images or images of different sizes, one photo given twice (a copy),
-        two views of one name (``names``, by default the file names),
-        a ``K`` (or ``focal_prior``) for another image size than the images' native one;
-        without ``K``, photos from different cameras (EXIF make and model, or focal
-        length).
+        Unreadable images, images of different sizes with ``K`` (or ``camera_mode``
+        ``"single"``), one photo given twice (a copy), two views of one name (``names``,
+        by default the file names), a ``K`` (or ``focal_prior``) for another image size
+        than the images' native one; with ``camera_mode`` ``"single"``, photos from
+        different cameras (EXIF make and model, or focal length).
     """
     s = settings or SfMSettings()
     engine = engine or LocalEngine()
