@@ -31,7 +31,7 @@ from ..geometry.conventions import FloatArray
 from ..geometry.lens import distort_pixels, rescaled_coefficients, undistort_pixels
 from ..optim.bundle import Observations
 from ..optim.bundle_radial import CamerasAdjustment, bundle_adjust_cameras
-from .models import SfMModel, ViewFeatures
+from .models import SfMModel, ViewFeatures, reference_camera  # noqa: F401 - public here
 
 #: Focal-length factors a camera's first view is tried with (:func:`pnp_focal_search`):
 #: a guess from EXIF is within a few percent, the default ``1.2 x`` the longer side
@@ -41,21 +41,6 @@ SEARCH_SCALES = np.geomspace(0.4, 2.5, 25)
 #: The coefficients' prior standard deviation, as for one camera
 #: (:data:`scene3D.multiview.lens.K_PRIOR_SIGMA`).
 K_PRIOR_SIGMA = 0.5
-
-
-def reference_camera(view_camera: np.ndarray) -> int:
-    """The camera of most views (the first such): the pixels the mapper works in.
-
-    Parameters
-    ----------
-    view_camera : (V,) int ndarray
-        The camera of each view.
-
-    Returns
-    -------
-    int
-    """
-    return int(np.argmax(np.bincount(view_camera)))
 
 
 def to_reference_pixels(xy: FloatArray, K_camera: FloatArray, K_reference: FloatArray

@@ -280,6 +280,21 @@ class SfMModel:
         return sums / np.maximum(counts, 1)
 
 
+def reference_camera(view_camera: np.ndarray) -> int:
+    """The camera of most views (the first such): the pixels the mapper works in.
+
+    Parameters
+    ----------
+    view_camera : (V,) int ndarray
+        The camera of each view.
+
+    Returns
+    -------
+    int
+    """
+    return int(np.argmax(np.bincount(view_camera)))
+
+
 @dataclass(frozen=True)
 class CameraIntrinsics:
     """One camera of a reconstruction of photos from several cameras
@@ -429,6 +444,12 @@ class MultiViewReconstruction:
                                  tuple(self.image_size),
                                  tuple(self.photo_size or self.image_size),
                                  prior_description=self.prior_description),)
+
+    @property
+    def reference_camera(self) -> int:
+        """The camera whose intrinsics are :attr:`K`, :attr:`dist` and :attr:`image_size`:
+        the camera of most views (:func:`reference_camera`)."""
+        return reference_camera(self.camera_of_view)
 
     @property
     def camera_of_view(self) -> np.ndarray:

@@ -21,7 +21,6 @@ import numpy as np
 from ..evaluation.poses import camera_set_error
 from ..features.matching import resolve_feature_mode
 from ..io.model_folder import model_folder_name
-from .cameras import reference_camera
 
 if TYPE_CHECKING:
     from ..io.datasets import StrechaCamera
@@ -277,7 +276,7 @@ def camera_summaries(recon: MultiViewReconstruction) -> list[dict]:
     list of dict
     """
     out = []
-    reference = reference_camera(recon.camera_of_view)
+    reference = recon.reference_camera
     for c, camera in enumerate(recon.camera_list):
         scale = camera.photo_size[0] / camera.image_size[0]
         out.append({
