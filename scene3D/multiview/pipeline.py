@@ -32,7 +32,7 @@ from ..geometry.camera import (
     validate_distortion,
     validate_intrinsics,
 )
-from ..geometry.intrinsics_prior import FocalPrior, camera_prior, camera_priors
+from ..geometry.intrinsics_prior import FocalPrior, camera_priors
 from ..geometry.lens import (
     corner_shifts_px,
     folds_within,
@@ -153,8 +153,9 @@ def _cameras_result(models: list[SfMModel], used: CameraPass, K_reference: np.nd
 
 
 def default_focal_prior(images: Sequence[ImageSource], names: Sequence[str]) -> FocalPrior:
-    """The prior of photos without a calibration: from their EXIF when they are files
-    (:func:`scene3D.io.exif.read_camera_prior`, one camera checked), else the default.
+    """The prior of photos of one camera without a calibration:
+    :func:`default_camera_priors` with one camera (``"single"``: photos that cannot share
+    one are refused), from their EXIF when they are files, else the default.
 
     Parameters
     ----------
@@ -167,12 +168,7 @@ def default_focal_prior(images: Sequence[ImageSource], names: Sequence[str]) -> 
     -------
     FocalPrior
     """
-    if all(isinstance(src, (str, os.PathLike)) for src in images):
-        from ..io.exif import read_camera_prior
-
-        return read_camera_prior(images)  # type: ignore[arg-type]
-    sizes = [(int(np.shape(src)[1]), int(np.shape(src)[0])) for src in images]
-    return camera_prior([(name, None, size) for name, size in zip(names, sizes)])
+    return default_camera_priors(images, names, "single")[1][0]
 
 
 def default_camera_priors(images: Sequence[ImageSource], names: Sequence[str],
