@@ -80,10 +80,11 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
     parser = ArgumentParser(
         prog=prog,
         description=(
-            "Incremental structure from motion: register many photos of one camera and "
-            "triangulate their points, with bundle adjustment. Without --calib the camera's "
-            "focal length starts from the photos' EXIF (or 1.2 x the longer side) and is "
-            "refined by the photos."
+            "Incremental structure from motion: register many photos and triangulate "
+            "their points, with bundle adjustment. The photos are grouped into cameras "
+            "(--camera-mode: by EXIF camera, focal length and image size). Without --calib "
+            "each camera's focal length starts from its EXIF (or 1.2 x the longer side) and "
+            "is refined by the photos with its lens distortion (--camera-model)."
         ),
         epilog=(
             "Writes into --out: points.ply (binary, RGB), cameras.json (world-to-camera "

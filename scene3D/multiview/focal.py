@@ -161,10 +161,16 @@ def self_calibrated_start(
                 return ((candidate, other.geometry), other.K,
                         start_estimate(other, settings, candidate))
     elif pair is not None and (start[0].i, start[0].j) != (pair.i, pair.j):
-        try:
-            again = _self_calibrate(features, start[0], K_start, settings)
-        except ReconstructionError:
-            again = None
+        # A pair tried above from the same focal length would give the same again (the
+        # search is deterministic): reuse it rather than pay a second search.
+        again = next((other for candidate, other in tried
+                      if (candidate.i, candidate.j) == (start[0].i, start[0].j)
+                      and abs(math.log(K_start[0, 0] / K[0, 0])) < 1e-12), None)
+        if again is None:
+            try:
+                again = _self_calibrate(features, start[0], K_start, settings)
+            except ReconstructionError:
+                again = None
         if again is not None and again.geometry.trusted:
             start, calibration, pair, K_start = (start[0], again.geometry), again, start[0], again.K
     return start, K_start, start_estimate(calibration, settings, pair)

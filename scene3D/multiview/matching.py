@@ -218,11 +218,38 @@ def verify_pair(f_i: ViewFeatures, f_j: ViewFeatures, K: FloatArray, settings: S
     -------
     PairMatches or None
     """
-    idx_i, idx_j = match_views(f_i, f_j, num_words)
+    return match_and_verify_pair(f_i, f_j, K, settings, i, j, num_words)[1]
+
+
+def match_and_verify_pair(f_i: ViewFeatures, f_j: ViewFeatures, K: FloatArray,
+                          settings: SfMSettings, i: int = 0, j: int = 1, num_words: int = 0,
+                          putative: tuple[np.ndarray, np.ndarray] | None = None
+                          ) -> tuple[tuple[np.ndarray, np.ndarray], PairMatches | None]:
+    """:func:`verify_pair` that also returns the putative matches, and takes them when
+    known: they depend on the descriptors alone, so a pass that verifies again under a
+    new camera estimate (undistorted keypoints, another ``K``) need not match again.
+
+    Parameters
+    ----------
+    f_i, f_j, K, settings, i, j, num_words
+        As in :func:`verify_pair`.
+    putative : tuple of two (M,) intp ndarray, optional
+        ``match_views(f_i, f_j, num_words)`` from an earlier call.
+
+    Returns
+    -------
+    putative : tuple of two (M,) intp ndarray
+        The putative matches, best first.
+    PairMatches or None
+        As in :func:`verify_pair`.
+    """
+    if putative is None:
+        putative = match_views(f_i, f_j, num_words)
+    idx_i, idx_j = putative
     if len(idx_i) < max(settings.min_pair_inliers, 5):
-        return None
+        return putative, None
     inliers = verify_matches(f_i.keypoints[idx_i], f_j.keypoints[idx_j], K,
                              settings.threshold_px, settings.max_verify_iterations)
     if inliers.sum() < settings.min_pair_inliers:
-        return None
-    return PairMatches(i, j, idx_i[inliers], idx_j[inliers], len(idx_i))
+        return putative, None
+    return putative, PairMatches(i, j, idx_i[inliers], idx_j[inliers], len(idx_i))

@@ -63,7 +63,7 @@ from .features import content_key, view_features
 from .focal import FocalSettings
 from .lens import pair_lens_guess, refine_lens, undistorted_features
 from .mapper import reconstruct_models
-from .matching import verify_pair
+from .matching import match_and_verify_pair
 from .models import (
     CameraIntrinsics,
     FocalEstimate,
@@ -499,6 +499,7 @@ def reconstruct_views(
     timings["matching"] = time.perf_counter() - t0
 
     latest_pairs: list[PairMatches] = []  # the last pass's verified pairs
+    putative: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}  # of every pass
 
     def reconstruct_with(K_work: np.ndarray, start_from: FocalEstimate | None = None,
                          known_cameras: np.ndarray | None = None
@@ -509,9 +510,15 @@ def reconstruct_views(
         matched = {(i, j) for i, j in pair_list}
 
         def verify(batch: list[tuple[int, int]], label: str) -> list[PairMatches]:
-            results = engine.map(verify_pair, [(handles[i], handles[j], K_work, s, i, j,
-                                                num_words) for i, j in batch], label=label)
-            return [r for r in results if r is not None]
+            results = engine.map(match_and_verify_pair, [
+                (handles[i], handles[j], K_work, s, i, j, num_words, putative.get((i, j)))
+                for i, j in batch], label=label)
+            verified = []
+            for (i, j), (matches, pair) in zip(batch, results):
+                putative[i, j] = matches
+                if pair is not None:
+                    verified.append(pair)
+            return verified
 
         verified = verify(pair_list, "pairs")
         latest_pairs[:] = verified
