@@ -33,6 +33,8 @@ from scene3D.evaluation.dense import (
 )
 from scene3D.evaluation.synthetic import Rectangle
 from scene3D.io.colmap import colmap_model_from_views, write_colmap_text
+from scene3D.io.colmap_binary import write_colmap_binary
+from scene3D.io.colmap_model import ColmapFormatError
 from scene3D.io.export import read_ply, read_ply_normals
 
 SIZE = (320, 240)
@@ -242,19 +244,35 @@ def test_orbit_normals_of_the_ground_point_up(orbit, dense_orbit):
 
 # -- input --------------------------------------------------------------------------------
 
-def test_load_sparse_model_refuses_a_binary_model_and_one_view(tmp_path, orbit):
+def test_load_sparse_model_reads_a_binary_model_as_the_text_one(tmp_path, orbit):
+    text = _write_scene(tmp_path / "scene", orbit)
+    expected = load_sparse_model(text)
+    write_colmap_binary(tmp_path / "bin", expected)
+    # the binary files beside the text ones win, as in COLMAP; a colmap/ folder is looked in
+    write_colmap_binary(tmp_path / "both" / "colmap", expected)
+    for name in ("cameras.txt", "images.txt", "points3D.txt"):
+        (tmp_path / "both" / "colmap" / name).write_text("# not read\n")
+    for folder in (tmp_path / "bin", tmp_path / "both"):
+        model = load_sparse_model(folder)
+        assert model.names == expected.names and model.cameras == expected.cameras
+        np.testing.assert_allclose(model.R, expected.R, atol=1e-12)
+        np.testing.assert_allclose(model.t, expected.t, atol=1e-12)
+        np.testing.assert_allclose(model.points3d, expected.points3d, atol=1e-12)
+
+
+def test_load_sparse_model_refuses_a_malformed_binary_model_and_one_view(tmp_path, orbit):
     (tmp_path / "bin").mkdir()
     for name in ("cameras.bin", "images.bin", "points3D.bin"):
         (tmp_path / "bin" / name).write_bytes(b"\0" * 16)
-    with pytest.raises(DenseInputError, match="binary COLMAP model") as info:
+    with pytest.raises(ColmapFormatError, match="cameras.bin"):
         load_sparse_model(tmp_path / "bin")
-    assert info.value.reason == "binary_model"
     one = _write_scene(tmp_path / "one", orbit, views=[0])
     with pytest.raises(DenseInputError, match="1 image") as info:
         load_sparse_model(one)
     assert info.value.reason == "one_view"
-    with pytest.raises(DenseInputError, match="no COLMAP text model"):
+    with pytest.raises(DenseInputError, match="no COLMAP model") as info:
         load_sparse_model(tmp_path)
+    assert info.value.reason == "no_model"
 
 
 # -- the command --------------------------------------------------------------------------
@@ -319,7 +337,7 @@ def test_dense_views_bad_input_is_one_line_and_writes_nothing(small_scene, tmp_p
     for name in ("cameras.bin", "images.bin", "points3D.bin"):
         (binary / name).write_bytes(b"\0" * 16)
     _refused(capsys, [str(binary), "--images", str(model.parent), "--out", str(out)], out,
-             "binary COLMAP model", "model_converter")
+             "cameras.bin", "after the last record")
 
 
 def test_dense_views_mesh_without_open3d_says_how_to_get_it(small_scene, tmp_path, capsys,

@@ -46,15 +46,16 @@ def build_parser(prog: str = "scene3d dense-views") -> argparse.ArgumentParser:
             f"model's world frame), {SUMMARY_FILE} (points, each view's neighbours, depth "
             f"range and depth pixels, timings) and with --mesh {MESH_FILE}. Files of those "
             "names that an earlier run wrote are replaced; a file of those names that no "
-            "run wrote is refused. Bad input (no model, a binary COLMAP model, a model of "
+            "run wrote is refused. Bad input (no model, a malformed model, a model of "
             "one view, photos missing) stops before anything is written. "
             + exit_codes_help("no depth was confirmed by two other views") + "."
         ),
     )
     parser.add_argument("model", type=path_arg, metavar="MODEL",
                         help="a reconstruct-views output folder (its colmap/ model) or a "
-                             "folder with a COLMAP text model (cameras.txt, images.txt, "
-                             "points3D.txt)")
+                             "folder with a COLMAP model, binary (cameras.bin, images.bin, "
+                             "points3D.bin: read when all three are there, as COLMAP does) "
+                             "or text (cameras.txt, images.txt, points3D.txt)")
     parser.add_argument("--images", type=path_arg, required=True, metavar="DIR",
                         help="the folder the model's image names are relative to")
     parser.add_argument("--out", type=path_arg, default=Path("out/dense"), metavar="DIR",

@@ -23,7 +23,8 @@ from ..engines import Engine, LocalEngine
 from ..errors import ReconstructionError
 from ..geometry.camera import scale_intrinsics_halved
 from ..geometry.conventions import FloatArray
-from ..io.colmap import read_colmap_text
+from ..io.colmap import read_colmap_model
+from ..io.colmap_binary import BINARY_FILES
 from ..io.colmap_model import ColmapModel
 from ..io.images import load_working_image
 from .fusion import DenseCloud, ViewDepth, depth_normals, footprint, fuse_depth_maps
@@ -35,7 +36,6 @@ logger = logging.getLogger(__name__)
 
 #: The files of a COLMAP text model, and the binary ones it is refused for.
 TEXT_FILES = ("cameras.txt", "images.txt", "points3D.txt")
-BINARY_FILES = ("cameras.bin", "images.bin", "points3D.bin")
 
 #: How a depth map is made (:class:`DenseSettings`).
 DEPTH_METHODS = ("sweep", "sgbm")
@@ -47,7 +47,7 @@ class DenseInputError(ValueError):
     Attributes
     ----------
     reason : str
-        ``"no_model"``, ``"binary_model"``, ``"one_view"`` or ``"missing_images"``.
+        ``"no_model"``, ``"one_view"`` or ``"missing_images"``.
     """
 
     def __init__(self, reason: str, message: str) -> None:
@@ -131,7 +131,9 @@ class DenseResult:
 
 def load_sparse_model(path: str | os.PathLike) -> ColmapModel:
     """The sparse model in ``path``: a ``reconstruct-views`` output folder (its
-    ``colmap/`` text model) or a folder holding a COLMAP text model.
+    ``colmap/`` model) or a folder holding a COLMAP model, binary or text
+    (:func:`scene3D.io.colmap.read_colmap_model`: the binary files when all three are
+    there, as COLMAP reads them).
 
     Parameters
     ----------
@@ -145,28 +147,22 @@ def load_sparse_model(path: str | os.PathLike) -> ColmapModel:
     Raises
     ------
     DenseInputError
-        No model there (``"no_model"``), a binary COLMAP model (``"binary_model"``), a
-        model with fewer than two images (``"one_view"``).
+        No model there (``"no_model"``), a model with fewer than two images
+        (``"one_view"``).
     ColmapFormatError
-        A malformed text model.
+        A malformed model.
     """
     path = Path(path)
     if not path.is_dir():
         raise DenseInputError("no_model", f"model folder not found: '{path}'")
-    for folder in (path, path / "colmap"):
-        if all((folder / name).is_file() for name in TEXT_FILES):
-            model = read_colmap_text(folder)
-            break
-    else:
-        binary = next((folder for folder in (path, path / "colmap")
-                       if (folder / BINARY_FILES[0]).is_file()), None)
-        if binary is not None:
-            raise DenseInputError(
-                "binary_model", f"'{binary}' holds a binary COLMAP model (cameras.bin, ...); "
-                "only text models are read: convert it with COLMAP's model_converter "
-                "(output type TXT) or pycolmap's Reconstruction.write_text")
-        raise DenseInputError("no_model", f"'{path}' holds no COLMAP text model "
-                              f"({', '.join(TEXT_FILES)}), nor a colmap/ folder with one")
+    folder = next((folder for folder in (path, path / "colmap")
+                   if any(all((folder / name).is_file() for name in files)
+                          for files in (BINARY_FILES, TEXT_FILES))), None)
+    if folder is None:
+        raise DenseInputError("no_model", f"'{path}' holds no COLMAP model "
+                              f"({', '.join(TEXT_FILES)}, or {', '.join(BINARY_FILES)}), "
+                              "nor a colmap/ folder with one")
+    model = read_colmap_model(folder)
     if len(model.names) < 2:
         raise DenseInputError("one_view", f"the model in '{path}' has "
                               f"{len(model.names)} image(s): dense matching needs at least "
