@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from scene3D.cli import multiview
+from scene3D.cli import dense_views, multiview
 from scene3D.errors import ReconstructionError
 from scene3D.io.calibration import CameraCalibration, save_calibration
 from scene3D.io.colmap import colmap_model_from_views, colmap_text
@@ -478,3 +478,46 @@ def test_the_summary_the_command_writes_is_the_librarys_to_dict(fountain, tmp_pa
     written.pop("files")
     assert library == written
     assert written["status"] == "ok" and written["ground_truth"]["max_rotation_error_deg"] < 1
+
+
+def test_dense_writes_what_dense_views_writes_from_the_model(fountain, tmp_path, capsys):
+    """``reconstruct-views --dense`` on three fountain photos: dense/ holds the cloud
+    dense-views makes from the model written, and a run without --dense takes it away."""
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    for i in (4, 5, 6):
+        (folder / f"{i:04d}.jpg").symlink_to(fountain / "images" / f"{i:04d}.jpg")
+    out = tmp_path / "out"
+    common = [str(folder), "--calib", CALIB, "--max-width", "640", "--no-plots",
+              "--no-report", "--out", str(out), "-q"]
+    assert multiview.main([*common, "--dense"]) == 0
+    summary = json.loads((out / "dense" / "dense.json").read_text())
+    assert summary["images"] == str(folder) and len(summary["views"]) == 3
+    assert summary["points"] > 10_000
+    assert dense_views.main([str(out), "--images", str(folder), "--out",
+                             str(tmp_path / "again"), "-q"]) == 0
+    again = json.loads((tmp_path / "again" / "dense.json").read_text())
+    assert [v["neighbours"] for v in again["views"]] == [v["neighbours"]
+                                                          for v in summary["views"]]
+    # the same model, read back from its text files: the same cloud to a rounding
+    assert abs(again["points"] - summary["points"]) <= 0.01 * summary["points"]
+    recorded = json.loads((out / "reconstruction.json").read_text())["files"]
+    assert "dense/dense.ply" in recorded and "dense/dense.json" in recorded
+    capsys.readouterr()
+    assert multiview.main(common) == 0
+    assert not (out / "dense" / "dense.ply").exists()
+    assert "Removed" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--mesh"], "--mesh is for --dense"),
+    (["--dense"], "--dense needs photos"),
+])
+def test_dense_options_that_cannot_be_met_are_usage_errors(tmp_path, capsys, extra, message,
+                                                         no_reconstruction):
+    video = tmp_path / "clip.mp4"
+    video.write_bytes(b"")
+    assert multiview.main([str(video), "--out", str(tmp_path / "out"), *extra]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and message in err, err
+    assert not (tmp_path / "out").exists()

@@ -8,7 +8,16 @@ import sys
 import time
 from pathlib import Path
 
-from ..densify.pipeline import DenseSettings, densify, image_paths, load_sparse_model
+from ..densify.mesh import Mesh
+from ..densify.pipeline import (
+    DenseResult,
+    DenseSettings,
+    densify,
+    image_paths,
+    load_sparse_model,
+)
+from ..engines import Engine
+from ..io.colmap_model import ColmapModel
 from ..io.export import all_or_nothing, atomic_write_bytes, ply_bytes, write_json, write_ply
 from .common import (
     ArgumentParser,
@@ -83,37 +92,46 @@ def check_out_files(out: Path, paths: list[Path], previous: list[Path]) -> None:
                              "move it or choose another --out")
 
 
-def run(args: argparse.Namespace) -> int:
-    t_start = time.perf_counter()
-    if args.mesh:
-        from ..densify.mesh import MissingMeshExtraError, require_open3d
+def require_mesh_extra(option: str = "--mesh") -> None:
+    """Raise :class:`UsageError` when Open3D (the mesh extra) is missing, naming ``option``."""
+    from ..densify.mesh import MissingMeshExtraError, require_open3d
 
-        try:
-            require_open3d()
-        except MissingMeshExtraError as exc:
-            raise UsageError(f"--mesh: {exc}") from None
-    model = load_sparse_model(args.model)
-    paths = image_paths(model, args.images)
-    out = args.out
-    files = [out / CLOUD_FILE, out / SUMMARY_FILE, *([out / MESH_FILE] if args.mesh else [])]
-    if out.is_dir():
-        check_out_files(out, files, previous_outputs(out, SUMMARY_FILE, option="--out"))
-    settings = DenseSettings(max_width=None if args.no_pyr_down else args.max_width,
-                             neighbours=args.neighbours)
-    with open_engine(args) as engine:
-        result = densify(model, paths, settings, engine=engine)
-    mesh = None
-    if args.mesh:
+    try:
+        require_open3d()
+    except MissingMeshExtraError as exc:
+        raise UsageError(f"{option}: {exc}") from None
+
+
+def dense_files(out: Path, mesh: bool) -> list[Path]:
+    """The files a dense run writes into ``out``: the cloud, the summary, the mesh."""
+    return [out / CLOUD_FILE, out / SUMMARY_FILE, *([out / MESH_FILE] if mesh else [])]
+
+
+def dense_result(model: ColmapModel, paths: list[Path], settings: DenseSettings,
+                 engine: Engine, mesh: bool) -> tuple[DenseResult, Mesh | None]:
+    """The dense cloud of ``model`` from its photos ``paths`` and, with ``mesh``, its
+    surface (the work of ``dense-views``, without the files)."""
+    result = densify(model, paths, settings, engine=engine)
+    surface = None
+    if mesh:
         from ..densify.mesh import poisson_mesh
 
         t0 = time.perf_counter()
-        mesh = poisson_mesh(result.cloud)
+        surface = poisson_mesh(result.cloud)
         result.timings_s["mesh"] = time.perf_counter() - t0
+    return result, surface
+
+
+def write_dense(out: Path, model: ColmapModel, result: DenseResult, mesh: Mesh | None,
+                sources: dict[str, str], t_start: float) -> tuple[list[Path], str]:
+    """Write the cloud, the mesh and ``dense.json`` into ``out``, all or none; the files
+    written and the line that says what they hold. ``sources`` go into the summary
+    (where the model and the images came from)."""
     prepare_output_dir(out)
     cloud = result.cloud
     summary = {
         "conventions": "world frame of the sparse model; normals face the cameras",
-        "model": str(args.model), "images": str(args.images),
+        **sources,
         "points": cloud.num_points, "voxel_size": result.voxel_size,
         "views": [{"name": name, "neighbours": [model.names[u] for u in result.neighbours[v]],
                    "depth_range": None if result.depth_ranges[v] is None
@@ -123,7 +141,7 @@ def run(args: argparse.Namespace) -> int:
         "mesh": None if mesh is None else {"vertices": len(mesh.vertices),
                                            "faces": len(mesh.faces)},
         "timings_s": {**result.timings_s, "total": time.perf_counter() - t_start},
-        FILES_KEY: recorded_files(out, files),
+        FILES_KEY: recorded_files(out, dense_files(out, mesh is not None)),
     }
     written = []
     with all_or_nothing():
@@ -132,13 +150,31 @@ def run(args: argparse.Namespace) -> int:
             written.append(atomic_write_bytes(out / MESH_FILE, ply_bytes(
                 mesh.vertices, mesh.colors, faces=mesh.faces)))
         written.append(write_json(out / SUMMARY_FILE, summary))
+    maps = sum(depth is not None for depth in result.views)
+    line = f"{maps} depth maps, {cloud.num_points} fused points (voxel {result.voxel_size:.4g})"
+    if mesh is not None:
+        line += f", mesh of {len(mesh.faces)} triangles"
+    return written, f"{line}, {summary['timings_s']['total']:.1f} s"
+
+
+def run(args: argparse.Namespace) -> int:
+    t_start = time.perf_counter()
+    if args.mesh:
+        require_mesh_extra()
+    model = load_sparse_model(args.model)
+    paths = image_paths(model, args.images)
+    out = args.out
+    if out.is_dir():
+        check_out_files(out, dense_files(out, args.mesh),
+                        previous_outputs(out, SUMMARY_FILE, option="--out"))
+    settings = DenseSettings(max_width=None if args.no_pyr_down else args.max_width,
+                             neighbours=args.neighbours)
+    with open_engine(args) as engine:
+        result, mesh = dense_result(model, paths, settings, engine, args.mesh)
+    written, line = write_dense(out, model, result, mesh,
+                                {"model": str(args.model), "images": str(args.images)}, t_start)
     if not args.quiet:
-        maps = sum(depth is not None for depth in result.views)
-        line = (f"{maps} depth maps, {cloud.num_points} fused points "
-                f"(voxel {result.voxel_size:.4g})")
-        if mesh is not None:
-            line += f", mesh of {len(mesh.faces)} triangles"
-        print(f"{line}, {summary['timings_s']['total']:.1f} s")
+        print(line)
     for path in written:
         print(f"Wrote '{path}'")
     return 0

@@ -1,9 +1,10 @@
-"""``scene3d reconstruct-views``: cameras and points from many photos of one camera."""
+"""``scene3d reconstruct-views``: cameras and points from many photos."""
 
 from __future__ import annotations
 
 import argparse
 import logging
+import os
 import re
 import sys
 import time
@@ -12,7 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from ..calibration.views import VIDEO_SUFFIXES
-from ..errors import plural
+from ..densify.pipeline import DenseSettings
+from ..errors import ReconstructionError, plural
 from ..features.matching import FEATURE_MODES
 from ..geometry.camera import adapt_intrinsics_to_size
 from ..geometry.intrinsics_prior import CAMERA_MODES
@@ -59,6 +61,15 @@ from .common import (
     read_camera_priors,
     run_command,
 )
+from .dense_views import (
+    CLOUD_FILE,
+    MESH_FILE,
+    dense_files,
+    dense_result,
+    require_mesh_extra,
+    write_dense,
+)
+from .dense_views import SUMMARY_FILE as DENSE_SUMMARY_FILE
 from .outputs import FILES_KEY, SUMMARY_FILE, OutputFolder
 from .video import FRAMES_FOLDER, read_video, video_source, write_frames, write_undistorted
 
@@ -72,6 +83,8 @@ MIN_MODEL_POINTS = SfMSettings.min_model_points
 #: What --export can write, and nerfstudio's file in a model's folder.
 EXPORT_FORMATS = ("nerfstudio",)
 CAMERA_MODEL_CHOICES = ("auto", *CAMERA_MODELS)
+#: Where ``--dense`` writes, inside ``--out``.
+DENSE_FOLDER = "dense"
 CAMERA_MODE_CHOICES = tuple(mode.replace("_", "-") for mode in CAMERA_MODES)
 NERFSTUDIO_FILE = "transforms.json"
 
@@ -186,6 +199,13 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
                              f"as {UNDISTORTED_FOLDER}/NAME.png (PNG, at the size and with the "
                              "camera matrix of their camera; what the lens did not see is "
                              f"black), which {NERFSTUDIO_FILE} names, with no distortion")
+    parser.add_argument("--dense", action="store_true",
+                        help=f"also a dense cloud of the largest model, as scene3d dense-views "
+                             f"makes it: {DENSE_FOLDER}/{CLOUD_FILE} and "
+                             f"{DENSE_FOLDER}/{DENSE_SUMMARY_FILE} (photos only, not a video)")
+    parser.add_argument("--mesh", action="store_true",
+                        help=f"with --dense: also its surface, {DENSE_FOLDER}/{MESH_FILE} "
+                             "(screened Poisson; the mesh extra, Open3D)")
     parser.add_argument("--no-plots", action="store_true", help="skip cameras.png")
     parser.add_argument("--no-report", action="store_true",
                         help="skip report.html (one self-contained page: the numbers, the "
@@ -425,6 +445,13 @@ def run(args: argparse.Namespace) -> int:
     if args.undistort and "nerfstudio" not in args.export:
         raise UsageError("--undistort is for --export nerfstudio (the images it names)")
     video = video_source(args)
+    if args.mesh and not args.dense:
+        raise UsageError("--mesh is for --dense (the surface of the dense cloud)")
+    if args.dense and video is not None:
+        raise UsageError("--dense needs photos: with a video, run it on frames saved as "
+                         "photos, or scene3d dense-views on the model and the frames")
+    if args.mesh:
+        require_mesh_extra()
     if video is not None and args.ground_truth is not None:
         raise UsageError("--ground-truth needs photos (NAME.camera per photo), not a video")
     if video is None and args.max_frames != MAX_FRAMES:
@@ -445,6 +472,8 @@ def run(args: argparse.Namespace) -> int:
                                                 *([video] if isinstance(video, Path) else [])],
                               names=(*model_names, *(f"model-*/{n}" for n in model_names),
                                      f"{FRAMES_FOLDER}/*.png", f"{UNDISTORTED_FOLDER}/*.png",
+                                     *(f"{DENSE_FOLDER}/{n}" for n in (
+                                         CLOUD_FILE, MESH_FILE, DENSE_SUMMARY_FILE)),
                                      SUMMARY_FILE, REPORT_FILE))
     out = out_folder.path
     # Before the work: the first model's files, and those of further models already there
@@ -453,6 +482,7 @@ def run(args: argparse.Namespace) -> int:
         *MODEL_FILES, *([] if args.no_plots else [MODEL_FIGURE]), SUMMARY_FILE,
         *([NERFSTUDIO_FILE] if "nerfstudio" in args.export else []),
         *([] if args.no_report else [REPORT_FILE]))),
+        *(dense_files(out / DENSE_FOLDER, args.mesh) if args.dense else []),
         *(p for p in out_folder.matching() if p.relative_to(out).parts[0].startswith("model-"))])
     if not args.no_report:
         check_report_viewer()
@@ -483,6 +513,18 @@ def run(args: argparse.Namespace) -> int:
                                  retrieval_neighbours=args.retrieval_neighbours),
             progress=progress, engine=engine, focal_prior=prior,
             camera_model=args.camera_model, camera_mode=args.camera_mode.replace("-", "_"))
+        dense, dense_failure, t_dense = None, None, time.perf_counter()
+        if args.dense and recon.ok:
+            dense_model = recon.colmap_model(recon.models[0])
+            by_name = {**{colmap_image_name(p.name): p for p in paths},
+                       **{p.name: p for p in paths}}
+            try:
+                dense = dense_model, *dense_result(
+                    dense_model, [by_name[n] for n in dense_model.names],
+                    DenseSettings(),
+                    engine, args.mesh)
+            except ReconstructionError as exc:  # the sparse model is written all the same
+                dense_failure = f"--dense: {exc}"
     # The files of every model, all or none: a write that fails leaves the earlier run's.
     with all_or_nothing():
         written: list[Path] = []
@@ -501,6 +543,12 @@ def run(args: argparse.Namespace) -> int:
                     written += model_images.values()
                 written.append(write_nerfstudio(folder / NERFSTUDIO_FILE, colmap, model_images,
                                                 ply_file=folder / MODEL_FILES[0]))
+        dense_line = None
+        if dense is not None:
+            folder = os.path.commonpath([str(p.parent) for p in paths])
+            dense_written, dense_line = write_dense(
+                out / DENSE_FOLDER, *dense, {"model": str(out), "images": folder}, t_dense)
+            written += dense_written
         summary = recon.to_dict(None if prior is None else prior.camera_name, truth)
         if video is not None:  # which frames the views are, and why those
             summary["video"] = {"source": str(video), **chosen.to_dict()}
@@ -530,6 +578,8 @@ def run(args: argparse.Namespace) -> int:
         logger.warning("%s", message)
     if not args.quiet:
         lines[0] += f", {timings['total']:.1f} s"
+        if dense_line is not None:
+            lines.append(f"dense: {dense_line}")
         print("\n".join(lines))
     for path in written:
         print(f"Wrote '{path}'")
@@ -544,6 +594,9 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
     if not recon.consistent:
         print(f"error: {_failure_message(recon, names)}", file=sys.stderr)
+    if dense_failure is not None:
+        print(f"error: {dense_failure}", file=sys.stderr)
+        return EXIT_FAILED
     return EXIT_OK if recon.ok else EXIT_FAILED
 
 
