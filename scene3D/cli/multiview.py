@@ -520,8 +520,7 @@ def run(args: argparse.Namespace) -> int:
                        **{p.name: p for p in paths}}
             try:
                 dense = dense_model, *dense_result(
-                    dense_model, [by_name[n] for n in dense_model.names],
-                    DenseSettings(),
+                    dense_model, [by_name[n] for n in dense_model.names], DenseSettings(),
                     engine, args.mesh)
             except ReconstructionError as exc:  # the sparse model is written all the same
                 dense_failure = f"--dense: {exc}"

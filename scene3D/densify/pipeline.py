@@ -25,6 +25,7 @@ from ..geometry.camera import scale_intrinsics_halved
 from ..geometry.conventions import FloatArray
 from ..io.colmap import read_colmap_model
 from ..io.colmap_binary import BINARY_FILES
+from ..io.colmap_model import MODEL_FILES as TEXT_FILES
 from ..io.colmap_model import ColmapModel
 from ..io.images import load_working_image
 from .fusion import DenseCloud, ViewDepth, depth_normals, footprint, fuse_depth_maps
@@ -33,9 +34,6 @@ from .sweep import SweepSettings, plane_sweep_depth
 from .views import choose_neighbours, depth_range, neighbour_scores
 
 logger = logging.getLogger(__name__)
-
-#: The files of a COLMAP text model, and the binary ones it is refused for.
-TEXT_FILES = ("cameras.txt", "images.txt", "points3D.txt")
 
 #: How a depth map is made (:class:`DenseSettings`).
 DEPTH_METHODS = ("sweep", "sgbm")

@@ -513,12 +513,12 @@ def reconstruct_views(
             results = engine.map(match_and_verify_pair, [
                 (handles[i], handles[j], K_work, s, i, j, num_words, putative.get((i, j)))
                 for i, j in batch], label=label)
-            verified = []
+            found = []
             for (i, j), (matches, pair) in zip(batch, results):
                 putative[i, j] = matches
                 if pair is not None:
-                    verified.append(pair)
-            return verified
+                    found.append(pair)
+            return found
 
         verified = verify(pair_list, "pairs")
         latest_pairs[:] = verified
