@@ -28,12 +28,12 @@ import dask  # noqa: E402
 import distributed  # noqa: E402
 
 from scene3D.cli import main as scene3d_main  # noqa: E402
-from scene3D.cli.evaluate import evaluate_pairs  # noqa: E402
 from scene3D.cli.evaluate import main as evaluate_main  # noqa: E402
 from scene3D.cli.multiview import main as views_main  # noqa: E402
 from scene3D.engines import LocalEngine  # noqa: E402
 from scene3D.engines.dask_engine import DaskEngine  # noqa: E402
 from scene3D.errors import EngineError, ReconstructionError  # noqa: E402
+from scene3D.evaluation.pairs import evaluate_pairs  # noqa: E402
 from scene3D.io.datasets import read_strecha_camera, strecha_views  # noqa: E402
 from scene3D.multiview import reconstruct_views  # noqa: E402
 from scene3D.twoview import TwoViewSettings  # noqa: E402

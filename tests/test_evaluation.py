@@ -142,7 +142,7 @@ def test_evaluate_summary_counts_one_pose_in_the_singular(fountain, capsys):
      "flagged; 1 more than 5 deg off not flagged."),
 ])
 def test_evaluate_trust_line_says_pose_for_one(counts, line):
-    from scene3D.cli.evaluate import trust_line
+    from scene3D.evaluation.pairs import trust_line
 
     assert trust_line(counts) == line
 
@@ -166,8 +166,8 @@ def test_evaluate_refuses_a_pair_of_two_cameras(fountain, tmp_path, capsys):
 
 
 def test_evaluate_maps_one_task_per_view_and_one_per_pair(fountain):
-    from scene3D.cli.evaluate import evaluate_pairs
     from scene3D.engines import LocalEngine
+    from scene3D.evaluation.pairs import evaluate_pairs
     from scene3D.io.datasets import read_strecha_camera, strecha_views
     from scene3D.twoview import TwoViewSettings
 
@@ -222,7 +222,7 @@ def test_evaluate_bundle_adjusts_when_asked(fountain, capsys, monkeypatch):
 
 
 def test_evaluate_pair_specs():
-    from scene3D.cli.evaluate import pairs_from_specs
+    from scene3D.evaluation.pairs import pairs_from_specs
 
     assert pairs_from_specs(["consecutive"], 4) == [(0, 1), (1, 2), (2, 3)]
     assert pairs_from_specs(["skip1"], 4) == [(0, 2), (1, 3)]

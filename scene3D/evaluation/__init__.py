@@ -1,6 +1,8 @@
 """Evaluation: errors against ground truth, and synthetic scenes with known geometry.
 
 - :mod:`scene3D.evaluation.poses`: pose errors, AUC, paired bootstrap;
+- :mod:`scene3D.evaluation.pairs`: a dataset's pairs against its ground truth
+  (``scene3d evaluate``);
 - :mod:`scene3D.evaluation.synthetic`: rendered scenes and boards with known geometry;
 - :mod:`scene3D.evaluation.camera_variants`: photos of one camera made into several.
 
