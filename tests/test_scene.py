@@ -38,6 +38,29 @@ def test_plots_return_figures_and_reuse_the_features(scene):
     assert scene.reconstruct() is result
 
 
+def test_the_pair_summary_is_a_library_call_and_json_ready(scene, rendered_pair, tmp_path):
+    """What chapter4.py writes to reconstruction.json, from a notebook in one call: the
+    result's pose and K, a calibration file's source, the sizes, and JSON that reads back."""
+    import json
+    from pathlib import Path
+
+    from scene3D.io.export import write_json
+    from scene3D.twoview.summary import pair_summary
+
+    _, _, K, R, t = rendered_pair
+    result = scene.reconstruct("SIFT")
+    summary = pair_summary(result, (Path("a.png"), Path("b.png")), (640, 480),
+                           scene.native_size, "sift", {"total": 1.5}, Path("cam.yaml"))
+    assert summary["calibration_source"] == "file" and summary["self_calibration"] is None
+    assert summary["inputs"] == {"image1": "a.png", "image2": "b.png", "calibration": "cam.yaml"}
+    assert "dense" not in summary and summary["timings_s"] == {"total": 1.5}
+    back = json.loads(write_json(tmp_path / "s.json", summary).read_text())
+    np.testing.assert_allclose(back["R"], result.R)
+    np.testing.assert_allclose(back["K"], K)
+    assert relative_pose_error(np.array(back["R"]), np.array(back["t"]), R, t).rotation_deg < 0.1
+    assert back["num_inliers"] == result.num_inliers and back["trusted"] == result.trusted
+
+
 def test_halving_scales_K_exactly(rendered_pair):
     img1, img2, K, R, t = rendered_pair
     # Each pixel repeated as a 4x4 block: pixel x of the rendering is centred at 4x + 1.5.

@@ -12,7 +12,6 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from .. import __version__
 from ..features.matching import FEATURE_MODES, normalize_feature_mode
 from ..geometry.camera import adapt_intrinsics_to_size
 from ..geometry.conventions import camera_centers, rotation_angle_deg
@@ -27,6 +26,7 @@ from ..io.export import (
 from ..io.images import BOOK_MAX_WIDTH_PX, image_size, read_image_size
 from ..scene import SceneReconstruction3D
 from ..twoview import TwoViewSettings
+from ..twoview.summary import pair_summary
 from .common import (
     EXIT_OK,
     ArgumentParser,
@@ -53,11 +53,6 @@ logger = logging.getLogger("scene3D.cli")
 
 REPO_DATA = Path(__file__).resolve().parents[2] / "data"
 DEFAULT_CALIB = REPO_DATA / "fountain_P11_intrinsics.yaml"
-POSE_COVARIANCE_DOC = (
-    "pose_covariance in radians^2 of (w, d) for the poses exp([w]x) R (w in the camera-2 "
-    "frame, rows 0-2) and (t + d @ pose_covariance_basis) / |t + d @ pose_covariance_basis| "
-    "(rows 3-4); rotation_sigma_deg and translation_sigma_deg are the square roots of the "
-    "largest eigenvalues of its two blocks, in degrees")
 PLOT_FILES = ("optic_flow.png", "epipolar_lines.png", "rectified.png", "point_cloud.png")
 REPORT_FILE = "report.html"
 
@@ -167,72 +162,6 @@ def _self_calibrate(scene: SceneReconstruction3D, camera: _Camera, mode: str) ->
     sigma = focal_sigma_text(calibration.focal_px, calibration.focal_sigma_px)
     return [f"focal length {calibration.focal_px:.1f} px {sigma} "
             f"at the working size ({camera.prior.description}; {how})"]
-
-
-def _calibration_fields(scene: SceneReconstruction3D, camera: _Camera | None = None) -> dict:
-    """The JSON's calibration fields: where the final ``K`` comes from and how sure it is."""
-    calibration = scene.self_calibration
-    if calibration is None:
-        return {"calibration_source": "file", "focal_px_sigma": None, "self_calibration": None}
-    prior = camera.prior if camera is not None else None
-    return {
-        "calibration_source": calibration.source,
-        "focal_px_sigma": calibration.focal_sigma_px,
-        "self_calibration": {
-            "start": prior.description if prior is not None else None,
-            "camera": prior.camera_name if prior is not None else None,
-            "start_focal_px": calibration.start_focal_px,
-            "start_sigma_log": calibration.start_sigma_log,
-            "photos_focal_px": calibration.data_focal_px,
-            "photos_sigma_log": calibration.data_sigma_log,
-            "photos_sigma_parts_log": calibration.uncertainty._asdict(),
-            "determined": calibration.determined,
-            "candidates_px": [focal for focal, _ in calibration.candidates],
-            "iterations": calibration.iterations,
-            "seconds": calibration.seconds,
-            "exif_warnings": list(prior.warnings) if prior is not None else [],
-        },
-    }
-
-
-def _summary(scene: SceneReconstruction3D, result, paths: tuple[Path, Path],
-             calib: Path | None, timings: dict[str, float], requested: str,
-             camera: _Camera | None = None) -> dict:
-    return {
-        "scene3D_version": __version__,
-        "conventions": "x_cam2 = R @ x_cam1 + t; |t| = 1 (scale unknown); points3d in the "
-                       "camera-1 frame; pixels with integer coordinates at pixel centres; "
-                       + POSE_COVARIANCE_DOC,
-        "inputs": {"image1": str(paths[0]), "image2": str(paths[1]),
-                   "calibration": None if calib is None else str(calib)},
-        "R": result.R, "t": result.t, "K": result.K,
-        **_calibration_fields(scene, camera),
-        "image_size": list(image_size(scene.img1)),
-        "native_image_size": list(scene.native_size),
-        "feature": result.feature, "feature_requested": requested,
-        "num_matches": result.num_matches, "num_inliers": result.num_inliers,
-        "num_points": result.num_points,
-        "reprojection_rmse_px": result.reprojection_rmse_px,
-        "median_parallax_deg": result.median_parallax_deg,
-        "homography_inlier_ratio": result.homography_inlier_ratio,
-        "robust_starts": result.robust_starts, "robust_spread_deg": result.robust_spread_deg,
-        "focal_scale": result.focal_scale, "focal_scale_sigma": result.focal_scale_sigma,
-        "focal_ratio": result.focal_ratio, "focal_ratio_sigma": result.focal_ratio_sigma,
-        "rotation_sigma_deg": result.rotation_sigma_deg,
-        "translation_sigma_deg": result.translation_sigma_deg,
-        "pose_covariance": result.pose_covariance,
-        "pose_covariance_basis": result.pose_uncertainty.basis,
-        "noise_sigma_px": result.noise_sigma_px, "noise_cut_share": result.noise_cut_share,
-        "behind_share": result.behind_share, "flow_gain": result.flow_gain,
-        "distortion_k": result.distortion_k,
-        "distortion_pose_shift_deg": result.distortion_pose_shift_deg,
-        "trusted": result.trusted, "warnings": list(result.warnings),
-        "timings_s": timings,
-    }
-
-
-def _dense_summary(dense) -> dict:
-    return {"num_points": dense.num_points, "disparity_range_px": list(dense.disparity_range)}
 
 
 def _result_lines(scene: SceneReconstruction3D, result, paths: tuple[Path, Path],
@@ -384,6 +313,12 @@ def run(args: argparse.Namespace) -> int:
                                       not args.no_report)
     timings["plots"] = time.perf_counter() - t0  # figures, and the 3D view's data alongside
     figures = {name: png for name, (png, _) in encoded.items()}
+
+    def summarize(timings: dict[str, float]) -> dict:
+        return pair_summary(result, (path1, path2), image_size(scene.img1), scene.native_size,
+                            args.feature, timings, calib_path, scene.self_calibration,
+                            camera.prior, dense)
+
     lines = _result_lines(scene, result, (path1, path2), dense)
     lines[1:1] = calibration_lines
     report = None
@@ -391,10 +326,7 @@ def run(args: argparse.Namespace) -> int:
         from ..report import two_view_report
 
         t0 = time.perf_counter()
-        partial = _summary(scene, result, (path1, path2), calib_path, dict(timings), args.feature,
-                           camera)
-        if dense is not None:
-            partial["dense"] = _dense_summary(dense)
+        partial = summarize(dict(timings))
         report = two_view_report(partial, lines, {n: jpg for n, (_, jpg) in encoded.items()},
                                  view)
         timings["report"] = time.perf_counter() - t0
@@ -409,10 +341,7 @@ def run(args: argparse.Namespace) -> int:
             written.append(atomic_write_pieces(out / REPORT_FILE, report.encoded()))
         timings["write"] = time.perf_counter() - t0
         timings["total"] = time.perf_counter() - t_start
-        summary = _summary(scene, result, (path1, path2), calib_path, timings, args.feature,
-                           camera)
-        if dense is not None:
-            summary["dense"] = _dense_summary(dense)
+        summary = summarize(timings)
         summary[FILES_KEY] = out_folder.record([*written, out / SUMMARY_FILE])
         written.append(write_json(out / SUMMARY_FILE, summary))
     removed = out_folder.remove_stale(written)
