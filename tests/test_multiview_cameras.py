@@ -146,17 +146,26 @@ def two_camera_orbit():
     return photos, Rs, -np.einsum("vji,vj->vi", Rs, ts), cameras
 
 
+@pytest.fixture(scope="module")
+def two_camera_model(two_camera_orbit, tmp_path_factory):
+    """The two-camera orbit reconstructed without a calibration, and the folder it saved."""
+    photos = two_camera_orbit[0]
+    names = [f"{v:02d}.png" for v in range(len(photos))]
+    recon = reconstruct_views(photos, None, names=names, progress=lambda _: None)
+    folder = tmp_path_factory.mktemp("two_cameras")
+    recon.save(folder)
+    return recon, names, folder
+
+
 def test_views_of_two_cameras_register_with_their_own_focal_lengths(two_camera_orbit,
-                                                                    tmp_path):
+                                                                    two_camera_model):
     """Without a calibration or EXIF the two sizes are two cameras: every view registers,
     each camera's focal length within 0.5 % and k1 within 0.01 of the truth, the cameras
     within 0.1 deg; the observations are each view's own pixels (the model reprojects
     within half a pixel). The COLMAP model (what reconstruct-views writes) has both
-    cameras at their sizes, each image naming its own, and pycolmap's reprojection error
-    (bench extra) is ours."""
+    cameras at their sizes, each image naming its own."""
     photos, Rs, centers, cameras = two_camera_orbit
-    names = [f"{v:02d}.png" for v in range(len(photos))]
-    recon = reconstruct_views(photos, None, names=names, progress=lambda _: None)
+    recon, names, folder = two_camera_model
     assert recon.view_camera.tolist() == [0, 1] * 5 and len(recon.cameras) == 2
     assert recon.main.registered.all()
     for camera, (K, size, k1) in zip(recon.cameras, cameras):
@@ -185,14 +194,19 @@ def test_views_of_two_cameras_register_with_their_own_focal_lengths(two_camera_o
     shown = re.search(r"640 x 480 px, focal length ([0-9.]+) px", page)
     assert shown and float(shown.group(1)) == pytest.approx(720.0, rel=0.005)
 
-    recon.save(tmp_path)
-    model = read_colmap_text(tmp_path / "colmap")
+    model = read_colmap_text(folder / "colmap")
     assert sorted(c.image_size for c in model.cameras.values()) == [(512, 384), (640, 480)]
     for name, camera_id in zip(model.names, model.camera_ids):
         assert model.cameras[int(camera_id)].image_size == cameras[int(name[:2]) % 2][1]
     assert np.median(model.point_errors_px()) < 0.5
+
+
+def test_pycolmap_reads_the_two_camera_model_with_our_reprojection_error(two_camera_model):
+    """pycolmap (bench extra) opens the saved model and its recomputed error is ours."""
     pycolmap = pytest.importorskip("pycolmap")
-    theirs = pycolmap.Reconstruction(str(tmp_path / "colmap"))
+    folder = two_camera_model[2]
+    model = read_colmap_text(folder / "colmap")
+    theirs = pycolmap.Reconstruction(str(folder / "colmap"))
     theirs.update_point_3d_errors()  # recomputed with COLMAP's cameras: the mean over points
     assert theirs.compute_mean_reprojection_error() == pytest.approx(
         float(np.mean(model.point_errors_px())), rel=0.01)
