@@ -55,19 +55,28 @@ def save_model(folder: str | os.PathLike, model: ColmapModel,
     Returns
     -------
     list of Path
+        The point cloud, ``cameras.json``, the COLMAP files, then ``transforms.json``
+        and the undistorted copies.
+
+
+    Raises
+    ------
+    ValueError
+        ``undistort`` without ``images``.
+    FileNotFoundError, ValueError
+        As :func:`scene3D.io.nerfstudio.export_nerfstudio` (an image missing or of
+        another size than its camera): nothing is written then.
     """
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
     if images is None and undistort:
         raise ValueError("`undistort` needs `images`: the images to undistort")
-    if images is not None:  # the images checked, and the cloud written, by the export
+    folder = Path(folder)
+    nerfstudio: list[Path] = []
+    if images is not None:  # first: it checks the images, and writes the cloud
         nerfstudio = export_nerfstudio(folder, model, images, undistort, points_file,
                                        undistorted_folder)
-        written = [nerfstudio[1], write_json(folder / CAMERAS_FILE, cameras_json(model))]
+        cloud = nerfstudio.pop(1)
     else:
-        written = [write_ply(folder / points_file, model.points3d, model.colors),
-                   write_json(folder / CAMERAS_FILE, cameras_json(model))]
-    written += write_colmap_text(folder / COLMAP_FOLDER, model)
-    if images is not None:
-        written += [nerfstudio[0], *nerfstudio[2:]]
-    return written
+        folder.mkdir(parents=True, exist_ok=True)
+        cloud = write_ply(folder / points_file, model.points3d, model.colors)
+    written = [cloud, write_json(folder / CAMERAS_FILE, cameras_json(model))]
+    return written + write_colmap_text(folder / COLMAP_FOLDER, model) + nerfstudio
