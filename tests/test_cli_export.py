@@ -141,6 +141,9 @@ def test_bad_input_is_a_one_line_error_and_writes_nothing(tmp_path, capsys):
         f"error: '{tmp_path / 'ns' / 'transforms.json'}' exists (--force replaces it)")
     assert (tmp_path / "ns" / "transforms.json").read_bytes() == written
     assert main([*args, *out, "-q", "--force"]) == 0
+    # A wrong --images is named before the files it would replace.
+    assert "no file for the model's image 'v0.jpg'" in run_error(
+        [*args[:-1], str(tmp_path), *out], capsys)
 
 
 def test_the_copies_never_replace_the_images_they_come_from(tmp_path, capsys):

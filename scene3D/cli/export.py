@@ -22,7 +22,7 @@ from ..io.nerfstudio import (
     export_nerfstudio,
     nerfstudio_export_files,
 )
-from ..io.undistorted import UNDISTORTED_FOLDER
+from ..io.undistorted import UNDISTORTED_FOLDER, check_model_images
 from .common import EXIT_OK, ArgumentParser, UsageError, add_common_args, run_command
 from .outputs import prepare_output_dir
 
@@ -71,7 +71,8 @@ def build_parser(prog: str = "scene3d export") -> argparse.ArgumentParser:
                              f"OUT/{UNDISTORTED_FOLDER}/ and name those, with pinhole "
                              "cameras: for trainers that model no lens distortion")
     parser.add_argument("--force", action="store_true",
-                        help="replace files an earlier export wrote")
+                        help=f"replace the {NERFSTUDIO_FILE}, {NERFSTUDIO_POINTS_FILE} and "
+                             "copies already in OUT (an earlier export's)")
     add_common_args(parser)
     return parser
 
@@ -85,6 +86,7 @@ def run(args: argparse.Namespace) -> int:
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out '{out}' exists and is not a folder")
     model = read_colmap_model(model_folder(args.model))  # a bad model: exit code 2
+    check_model_images(model, args.images)  # before "exists": a wrong --images first
     inputs = {(args.images / name).resolve() for name in model.names}
     for path in nerfstudio_export_files(out, model, args.undistort):
         if path.resolve() in inputs:
