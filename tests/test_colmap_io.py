@@ -241,3 +241,65 @@ def test_a_model_written_by_pycolmap_reads_back_with_its_cameras_and_points(tmp_
     # points to well under a pixel, and its errors are ours.
     np.testing.assert_allclose(model.reprojection_errors_px(), 0, atol=1e-6)
     np.testing.assert_allclose(model.errors_px, 0, atol=1e-6)
+
+
+def test_a_pycolmap_model_reads_as_pycolmap_reads_it_and_its_report_opens(tmp_path, capsys):
+    """The text model pycolmap writes (with its rigs.txt and frames.txt), read by scene3D, has the
+    cameras, poses, points and tracks pycolmap reads from it; ``scene3d report`` on it
+    opens in headless Chromium with no console error, offline, and a 3D view whose clouds
+    cover part of the canvas."""
+    pycolmap = pytest.importorskip("pycolmap")
+    from scene3D.cli.report import main as report
+
+    from .browser import changed_fraction, visit
+
+    K, size, R, t, X, colors, *_ = orbit_views(n_views=4, n_points=400)  # enough to see
+    pycolmap_reconstruction(pycolmap, K, R, t, X, colors).write_text(str(tmp_path))
+    theirs = pycolmap.Reconstruction(str(tmp_path))
+    ours = read_colmap_text(tmp_path)
+
+    assert sorted(ours.cameras) == sorted(theirs.cameras)
+    for cam_id, camera in theirs.cameras.items():
+        mine = ours.cameras[cam_id]
+        assert (mine.model, mine.width, mine.height) == (camera.model.name, camera.width,
+                                                         camera.height)
+        np.testing.assert_allclose(mine.params, camera.params, rtol=1e-12)
+        np.testing.assert_allclose(mine.K, camera.calibration_matrix() - np.array(
+            [[0, 0, 0.5], [0, 0, 0.5], [0, 0, 0]]), atol=1e-9)  # OpenCV's centres
+    assert list(ours.image_ids) == sorted(theirs.images)
+    view_of = {image_id: v for v, image_id in enumerate(ours.image_ids)}
+    for image_id, image in theirs.images.items():
+        v = view_of[image_id]
+        pose = image.cam_from_world()
+        assert ours.names[v] == image.name and ours.camera_ids[v] == image.camera_id
+        np.testing.assert_allclose(ours.R[v], pose.rotation.matrix(), atol=1e-12)
+        np.testing.assert_allclose(ours.t[v], pose.translation, atol=1e-12)
+        np.testing.assert_allclose(ours.centers[v], image.projection_center(), atol=1e-9)
+    index_of = {point_id: p for p, point_id in enumerate(ours.point_ids)}
+    assert sorted(index_of) == sorted(theirs.points3D)
+    for point_id, point in theirs.points3D.items():
+        p = index_of[point_id]
+        np.testing.assert_allclose(ours.points3d[p], point.xyz, atol=1e-12)
+        np.testing.assert_array_equal(ours.colors[p], point.color)
+        assert ours.errors_px[p] == pytest.approx(point.error, abs=1e-9)
+        # Each element of its track is an observation of ours, at pycolmap's 2D point
+        # with the half pixel undone.
+        for element in point.track.elements:
+            v = view_of[element.image_id]
+            k = np.flatnonzero((ours.obs_view == v) & (ours.obs_point == p))
+            assert len(k) == 1
+            xy = theirs.images[element.image_id].points2D[element.point2D_idx].xy
+            np.testing.assert_allclose(ours.obs_xy[k[0]], np.asarray(xy) - 0.5, atol=1e-9)
+    assert len(ours.obs_view) == sum(len(p.track.elements) for p in theirs.points3D.values())
+
+    assert report([str(tmp_path)]) == 0
+    assert capsys.readouterr().out.splitlines() == [
+        f"4 images, {len(X)} points, 2 cameras", f"Wrote '{tmp_path / 'report.html'}'"]
+    page = visit(tmp_path / "report.html", wait_for_view=True)
+    assert page.errors == [], page.errors
+    assert page.requests and page.outside_requests == [], page.requests
+    # The points cover part of the WebGL canvas (hiding them changes those pixels), and a
+    # drag turns the scene.
+    assert changed_fraction(page.canvas_after_drag, page.canvas_without_clouds) > 0.003
+    assert "scene.camera" in page.relayout_keys
+    assert f"{len(X)} points (plotly.js" in page.text and "640 x 480 px" in page.text

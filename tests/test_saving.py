@@ -107,3 +107,64 @@ def test_the_many_view_result_saves_what_the_command_writes(small_folder, tmp_pa
     assert model.camera(0).image_size == (768, 512)
     assert np.sqrt(np.mean(model.reprojection_errors_px() ** 2) / 2) == pytest.approx(
         2 * views.reprojection_rmse_px, rel=1e-6)
+
+
+def test_the_pair_saves_its_images_undistorted_beside_transforms_json(rendered_pair, tmp_path):
+    """save(images=..., undistort=True): each photo undistorted with its camera's K kept
+    (as reconstruct-views --export nerfstudio --undistort writes them), transforms.json
+    naming the copies with that K and no distortion; the COLMAP model keeps the lens."""
+    img1, img2, K, R, t = rendered_pair
+    dist = np.array([-0.2, 0.05, 1e-3, -5e-4])
+    scene = SceneReconstruction3D(K)
+    scene.load_image_pair(img1, img2, max_width=400)
+    result = scene.reconstruct()
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for name, image in (("a.jpg", img1), ("b.jpg", img2)):
+        cv2.imwrite(str(photos / name), image)
+    written = result.save(tmp_path / "pair", (320, 240), ("a.jpg", "b.jpg"), (640, 480),
+                          dist, images=photos, undistort=True)
+    folder = tmp_path / "pair"
+    assert [p.relative_to(folder).as_posix() for p in written] == [
+        "point_cloud.ply", "cameras.json", "colmap/cameras.txt", "colmap/images.txt",
+        "colmap/points3D.txt", "transforms.json", "undistorted/a.png", "undistorted/b.png"]
+    assert read_colmap_text(folder / "colmap").camera(0).model == "OPENCV"
+    data = json.loads((folder / "transforms.json").read_text())
+    assert [f["file_path"] for f in data["frames"]] == ["undistorted/a.png",
+                                                        "undistorted/b.png"]
+    assert data["ply_file_path"] == "point_cloud.ply"
+    assert all(data[k] == 0 for k in ("k1", "k2", "p1", "p2"))
+    np.testing.assert_allclose([data["fl_x"], data["fl_y"], data["cx"] - 0.5, data["cy"] - 0.5],
+                               [K[0, 0], K[1, 1], K[0, 2], K[1, 2]], atol=1e-9)
+    for name in ("a", "b"):
+        photo = cv2.imread(str(photos / f"{name}.jpg"))
+        copy = cv2.imread(str(folder / "undistorted" / f"{name}.png"))
+        np.testing.assert_array_equal(copy, cv2.undistort(photo, K, dist, None, K))
+        assert np.abs(copy.astype(int) - photo).max() > 50  # the lens moved the edges
+    with pytest.raises(ValueError, match="`undistort` needs `images`"):
+        result.save(tmp_path / "none", (320, 240), undistort=True)
+    assert not (tmp_path / "none").exists()
+
+
+def test_the_many_view_result_saves_undistorted_images_as_the_command_does(small_folder,
+                                                                           tmp_path):
+    """save(images, undistort=True) writes the bytes reconstruct-views --export nerfstudio
+    --undistort writes: transforms.json and every undistorted copy."""
+    folder, K, calib = small_folder
+    dist = np.array([-0.05, 0.01, 0.0, 0.0, 0.0])
+    lens = folder.parent / "lens.yaml"
+    save_calibration(lens, CameraCalibration(K, dist, (768, 512)))
+    views = reconstruct_views(folder, K, dist, max_width=400)
+    written = views.save(tmp_path / "lib", images=folder, undistort=True)
+    copies = sorted(p.name for p in (tmp_path / "lib" / "undistorted").iterdir())
+    assert copies == [n.replace(".jpg", ".png") for n in VIEWS]
+    assert {tmp_path / "lib" / "undistorted" / n for n in copies} <= set(written)
+    out = tmp_path / "cli"
+    assert multiview.main([str(folder), "--calib", str(lens), "--max-width", "400",
+                           "--no-plots", "--no-report", "--out", str(out), "-q",
+                           "--export", "nerfstudio", "--undistort"]) == 0
+    for name in ("transforms.json", "colmap/cameras.txt",
+                 *(f"undistorted/{n}" for n in copies)):
+        assert (tmp_path / "lib" / name).read_bytes() == (out / name).read_bytes(), name
+    assert json.loads((out / "transforms.json").read_text())["k1"] == 0
+    assert read_colmap_text(out / "colmap").camera(0).model in ("SIMPLE_RADIAL", "OPENCV")

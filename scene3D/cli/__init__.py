@@ -1,5 +1,5 @@
 """The ``scene3d`` command: ``scene3d reconstruct|calibrate|evaluate|reconstruct-views|report
-|dense-views ...``."""
+|dense-views|export ...``."""
 
 from __future__ import annotations
 
@@ -31,6 +31,7 @@ COMMANDS = {
     "reconstruct-views": "incremental SfM over many photos, with bundle adjustment",
     "report": "the self-contained HTML report of a COLMAP text model",
     "dense-views": "a dense cloud (and a mesh) from a sparse model and its photos",
+    "export": "a COLMAP model as nerfstudio's transforms.json (NeRF, splatting)",
 }
 
 USAGE = "usage: scene3d {" + ",".join(COMMANDS) + "} [options]   (scene3d COMMAND --help)"
@@ -66,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
         from .report import main as run
     elif command == "dense-views":
         from .dense_views import main as run
+    elif command == "export":
+        from .export import main as run
     else:
         print(f"{USAGE}\nerror: unknown command {command!r}", file=sys.stderr)
         return 2

@@ -6,8 +6,10 @@
   before decoding;
 - :mod:`scene3D.io.exif`: the EXIF values that describe a photo's camera (Pillow);
 - :mod:`scene3D.io.calibration`: the calibration file (OpenCV FileStorage);
-- :mod:`scene3D.io.export`: atomic writes, PLY point clouds, JSON summaries (and the first
-  COLMAP writer, deprecated for :mod:`scene3D.io.colmap`'s);
+- :mod:`scene3D.io.atomic`: atomic writes, a block of files all or none;
+- :mod:`scene3D.io.ply`: PLY point clouds and meshes;
+- :mod:`scene3D.io.export`: JSON summaries, figures, PNG images (and the first COLMAP
+  writer, deprecated for :mod:`scene3D.io.colmap`'s), the names of the two above too;
 - :mod:`scene3D.io.colmap`: COLMAP text models read and written in scene3D's conventions,
   at the photos' size, and a model of either form read;
 - :mod:`scene3D.io.colmap_binary`: COLMAP binary models read and written;

@@ -12,7 +12,7 @@ A model read here is a :class:`ColmapModel` in scene3D's conventions, whatever w
   k3, k4, k5, k6])``; the camera models are those that OpenCV's model holds exactly:
   :data:`CAMERA_MODELS`.
 
-The writers go through :mod:`scene3D.io.export` (atomic files). The files others add
+The writers go through :mod:`scene3D.io.atomic` (atomic files). The files others add
 beside the three (``rigs.txt``, ``frames.txt`` of COLMAP 3.12) are not read: each image is
 its own camera pose.
 """
@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike
 
 from ..geometry.camera import scale_intrinsics_resize, validate_distortion
 from ..geometry.conventions import quaternion_from_rotation
+from .atomic import write_text_files
 from .colmap_model import (  # noqa: F401 - the model's types, from here as before
     CAMERA_MODELS,
     MODEL_FILES,
@@ -42,7 +43,6 @@ from .colmap_model import (  # noqa: F401 - the model's types, from here as befo
     point2d_indices,
     project_points,
 )
-from .export import write_text_files
 
 
 def model_for_photos(model: ColmapModel,

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry.conventions import quaternion_from_rotation
+from .atomic import write_files
 from .colmap_model import (
     CAMERA_MODELS,
     ColmapCamera,
@@ -42,7 +43,6 @@ from .colmap_model import (
     model_from_records,
     point2d_indices,
 )
-from .export import write_files
 
 #: The names of the three files of a binary model.
 BINARY_FILES = ("cameras.bin", "images.bin", "points3D.bin")

@@ -27,16 +27,38 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry.conventions import FloatArray
+from .atomic import all_or_nothing
 from .colmap import ColmapCamera, ColmapModel
 from .export import write_json
-from .undistorted import model_image
+from .ply import write_ply
+from .undistorted import (
+    UNDISTORTED_FOLDER,
+    check_model_images,
+    model_image,
+    undistorted_image_name,
+    write_undistorted_images,
+)
 
 #: OpenCV camera axes (x right, y down, z forward) to OpenGL's (x right, y up, z back).
 OPENGL_FROM_OPENCV = np.diag([1.0, -1.0, -1.0])
 
+#: The file's name, and the point cloud's as :func:`export_nerfstudio` writes it beside
+#: (the name nerfstudio's own ``ns-process-data`` gives it).
+NERFSTUDIO_FILE = "transforms.json"
+NERFSTUDIO_POINTS_FILE = "sparse_pc.ply"
+
 #: The intrinsics keys of a frame or of the file's top.
 INTRINSICS_KEYS = ("camera_model", "fl_x", "fl_y", "cx", "cy", "w", "h", "k1", "k2", "k3",
                    "p1", "p2")
+
+
+class NerfstudioCameraError(ValueError):
+    """A camera that nerfstudio's OPENCV model cannot hold (rational distortion ``k4``..``k6``);
+    ``camera_model`` is COLMAP's name of it. Its images undistorted (PINHOLE) can be written."""
+
+    def __init__(self, message: str, camera_model: str) -> None:
+        super().__init__(message)
+        self.camera_model = camera_model
 
 
 def camera_to_world_opengl(R: FloatArray, t: FloatArray) -> FloatArray:
@@ -76,15 +98,16 @@ def nerfstudio_intrinsics(camera: ColmapCamera) -> dict[str, float | int | str]:
 
     Raises
     ------
-    ValueError
+    NerfstudioCameraError
         A FULL_OPENCV camera with ``k4``..``k6`` (rational) terms, which nerfstudio's
         perspective model does not have.
     """
     K, dist = camera.K, np.zeros(8)
     dist[:camera.dist.size] = camera.dist
     if np.any(dist[5:] != 0):
-        raise ValueError(f"a {camera.model} camera with k4..k6 (rational distortion) cannot "
-                         "be written for nerfstudio, whose OPENCV model has k1, k2, k3, p1, p2")
+        raise NerfstudioCameraError(
+            f"a {camera.model} camera with k4..k6 (rational distortion) cannot be written "
+            "for nerfstudio, whose OPENCV model has k1, k2, k3, p1, p2", camera.model)
     out: dict[str, float | int | str] = {
         "camera_model": "OPENCV", "fl_x": float(K[0, 0]), "fl_y": float(K[1, 1]),
         "cx": float(K[0, 2] + 0.5), "cy": float(K[1, 2] + 0.5),
@@ -176,3 +199,99 @@ def write_nerfstudio(path: str | os.PathLike, model: ColmapModel,
     """
     path = Path(path)
     return write_json(path, nerfstudio_transforms(model, images, path.parent, ply_file))
+
+
+def nerfstudio_export_files(folder: str | os.PathLike, model: ColmapModel,
+                            undistort: bool = False,
+                            points_file: str | None = NERFSTUDIO_POINTS_FILE,
+                            undistorted_folder: str | os.PathLike | None = None) -> list[Path]:
+    """The files :func:`export_nerfstudio` writes with these arguments, written or not
+    (for a caller that checks what they would replace first).
+
+    Parameters
+    ----------
+    folder, model, undistort, points_file, undistorted_folder
+        As :func:`export_nerfstudio` takes them.
+
+    Returns
+    -------
+    list of Path
+        ``transforms.json``, the point cloud, then the undistorted copies.
+    """
+    folder = Path(folder)
+    files = [folder / NERFSTUDIO_FILE]
+    if points_file is not None:
+        files.append(folder / points_file)
+    if undistort:
+        copies = Path(undistorted_folder) if undistorted_folder is not None \
+            else folder / UNDISTORTED_FOLDER
+        files += [copies / undistorted_image_name(name) for name in model.names]
+    return files
+
+
+def export_nerfstudio(folder: str | os.PathLike, model: ColmapModel,
+                      images: str | os.PathLike | Mapping[str, str | os.PathLike | np.ndarray],
+                      undistort: bool = False,
+                      points_file: str | None = NERFSTUDIO_POINTS_FILE,
+                      undistorted_folder: str | os.PathLike | None = None) -> list[Path]:
+    """Write ``model`` for nerfstudio (and instant-ngp, gsplat) into ``folder`` (created if
+    needed), all files or none: ``transforms.json`` (:func:`write_nerfstudio`), the points
+    as ``points_file`` (binary PLY, named by ``ply_file_path``) and, with ``undistort``,
+    each image undistorted (:func:`scene3D.io.undistorted.write_undistorted_images`) with
+    the PINHOLE cameras of the copies in ``transforms.json``. The images are checked
+    first (:func:`scene3D.io.undistorted.check_model_images`): when one is missing or of
+    another size than its camera, nothing is written.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        Where ``transforms.json`` and the points go.
+    model : ColmapModel
+        The model (:func:`scene3D.io.colmap.read_colmap_model`,
+        :meth:`scene3D.multiview.MultiViewReconstruction.colmap_model`); its cameras must
+        be those of the images as stored.
+    images : path or mapping of str to path or ndarray
+        The images' folder, or each image by its name in the model; arrays (BGR
+        ``uint8``) only with ``undistort`` (``transforms.json`` names files).
+    undistort : bool, default False
+        Write undistorted copies (PNG) and name those.
+    points_file : str or None, default NERFSTUDIO_POINTS_FILE
+        The point cloud's name in ``folder``; None for no point cloud.
+    undistorted_folder : str, os.PathLike or None, default None
+        Where the copies go; None for ``folder / "undistorted"``.
+
+    Returns
+    -------
+    list of Path
+        The files written, in the order of :func:`nerfstudio_export_files`.
+
+
+    Raises
+    ------
+    FileNotFoundError, ValueError
+        An image missing, unreadable or of another size than its camera; without
+        ``undistort``, an image given as an array.
+    NerfstudioCameraError
+        Without ``undistort``, a camera nerfstudio's OPENCV model cannot hold (rational
+        distortion; ``undistort`` writes its images as PINHOLE).
+    """
+    folder = Path(folder)
+    check_model_images(model, images)
+    json_file = folder / NERFSTUDIO_FILE
+    ply_file = None if points_file is None else folder / points_file
+    if not undistort:  # its errors (an array, a rational lens) before any file is written
+        transforms = nerfstudio_transforms(model, images, folder, ply_file)
+    with all_or_nothing():
+        folder.mkdir(parents=True, exist_ok=True)
+        written: list[Path] = []
+        if ply_file is not None:
+            written.append(write_ply(ply_file, model.points3d, model.colors))
+        if undistort:
+            copies = Path(undistorted_folder) if undistorted_folder is not None \
+                else folder / UNDISTORTED_FOLDER
+            model, paths = write_undistorted_images(copies, model, images)
+            transforms = nerfstudio_transforms(model, paths, folder, ply_file)
+        written.insert(0, write_json(json_file, transforms))
+        if undistort:
+            written += paths.values()
+    return written

@@ -28,7 +28,7 @@ import numpy as np
 from ..geometry.camera import undistort_image
 from .colmap_model import ColmapCamera, ColmapModel
 from .export import write_png
-from .images import IMAGE_SUFFIXES, load_bgr
+from .images import IMAGE_SUFFIXES, load_bgr, read_image_size
 
 #: Where the commands put the undistorted copies, in their output folder.
 UNDISTORTED_FOLDER = "undistorted"
@@ -65,6 +65,43 @@ def model_image(images: str | os.PathLike | Mapping[str, ImageOrPath], name: str
         except KeyError:
             raise ValueError(f"`images` has no path for the model's image '{name}'") from None
     return Path(images) / name
+
+
+def check_model_images(model: ColmapModel,
+                       images: str | os.PathLike | Mapping[str, ImageOrPath]) -> None:
+    """Check that ``images`` gives every image of ``model`` at the size its camera says
+    (a file's size from its header, not decoded), before anything is written for them.
+
+    Parameters
+    ----------
+    model : ColmapModel
+        The model.
+    images : path or mapping of str to path or ndarray
+        The images' folder, or each image (or its path) by its name in the model
+        (:func:`model_image`).
+
+    Raises
+    ------
+    FileNotFoundError
+        An image file that is missing (the error names it).
+    ValueError
+        An image ``images`` does not give, one that cannot be read, or one of another size
+        than its camera's.
+    """
+    for v, name in enumerate(model.names):
+        source = model_image(images, name)
+        if isinstance(source, np.ndarray):
+            size = (source.shape[1], source.shape[0]) if source.ndim >= 2 else None
+        else:
+            if not Path(source).is_file():
+                raise FileNotFoundError(2, f"no file for the model's image '{name}'",
+                                        str(source))
+            size = read_image_size(source)
+        camera = model.camera(v)
+        if size != camera.image_size:
+            shown = "not an image" if size is None else f"{size[0]}x{size[1]}"
+            raise ValueError(f"image '{name}' is {shown}, its camera is for "
+                             f"{camera.width}x{camera.height} images")
 
 
 def undistorted_image_name(name: str) -> str:

@@ -604,14 +604,16 @@ class MultiViewReconstruction:
         return model_for_photos(working, self.photo_size or self.image_size, self.dist)
 
     def save(self, folder: str | os.PathLike,
-             images: str | os.PathLike | Mapping[str, str | os.PathLike] | None = None
-             ) -> list[Path]:
+             images: str | os.PathLike | Mapping[str, str | os.PathLike] | None = None,
+             undistort: bool = False) -> list[Path]:
         """Write every model's files as ``reconstruct-views`` does, all or none: the
         largest in ``folder``, further ones in ``folder/model-1``, ...; in each
         ``points.ply``, ``cameras.json`` and ``colmap/`` at the photos' size
         (:meth:`colmap_model`, :func:`scene3D.io.model_files.save_model`) and, given the
-        photos (their folder, or each one's path by its name), ``transforms.json``.
-        Returns the paths written.
+        photos (their folder, or each one's path by its name), ``transforms.json``;
+        with ``undistort`` too, as ``--export nerfstudio --undistort``, the photos
+        undistorted into ``folder/undistorted`` and named by the ``transforms.json``
+        files with pinhole cameras. Returns the paths written.
 
         Parameters
         ----------
@@ -620,17 +622,22 @@ class MultiViewReconstruction:
         images : path, mapping of str to path, or None, default None
             The photos' folder, or each photo's path by name; None for no
             ``transforms.json``.
+        undistort : bool, default False
+            With ``images``: write them undistorted (PNG) for ``transforms.json``.
 
         Returns
         -------
         list of Path
         """
+        from ..io.undistorted import UNDISTORTED_FOLDER
+
         folder = Path(folder)
         written: list[Path] = []
         with all_or_nothing():
             for m, model in enumerate(self.models):
                 written += save_model(folder if m == 0 else folder / f"model-{m}",
-                                      self.colmap_model(model), images)
+                                      self.colmap_model(model), images, undistort=undistort,
+                                      undistorted_folder=folder / UNDISTORTED_FOLDER)
         return written
 
     @property

@@ -448,13 +448,14 @@ class TwoViewReconstruction(TwoViewGeometry):
     def save(self, folder: str | os.PathLike, image_size: tuple[int, int],
              names: tuple[str, str] = ("image1", "image2"),
              photo_size: tuple[int, int] | None = None, dist: ArrayLike | None = None,
-             images: str | os.PathLike | Mapping[str, str | os.PathLike] | None = None
-             ) -> list[Path]:
+             images: str | os.PathLike | Mapping[str, str | os.PathLike] | None = None,
+             undistort: bool = False) -> list[Path]:
         """Write the pair's files into ``folder``, all or none: ``point_cloud.ply`` (as
         ``chapter4.py`` names it), ``cameras.json`` and ``colmap/`` of
         :meth:`colmap_model` and, given the images (their folder, or each one's path by
-        its name), ``transforms.json`` (:func:`scene3D.io.model_files.save_model`).
-        Returns the paths written.
+        its name), ``transforms.json`` (:func:`scene3D.io.model_files.save_model`);
+        with ``undistort`` too, the images undistorted into ``folder/undistorted`` and
+        named by ``transforms.json`` with pinhole cameras. Returns the paths written.
 
         Parameters
         ----------
@@ -471,6 +472,8 @@ class TwoViewReconstruction(TwoViewGeometry):
         images : path, mapping of str to path, or None, default None
             The images' folder, or each image's path by name; None for no
             ``transforms.json``.
+        undistort : bool, default False
+            With ``images``: write them undistorted (PNG) for ``transforms.json``.
 
         Returns
         -------
@@ -478,4 +481,4 @@ class TwoViewReconstruction(TwoViewGeometry):
         """
         with all_or_nothing():
             return save_model(folder, self.colmap_model(image_size, names, photo_size, dist),
-                              images, points_file="point_cloud.ply")
+                              images, points_file="point_cloud.ply", undistort=undistort)
