@@ -29,7 +29,7 @@ COMMANDS = {
     "calibrate": "calibrate a camera from chessboard, ChArUco or circle-grid views (calibrate.py)",
     "evaluate": "compare two-view poses with a Strecha-format ground truth",
     "reconstruct-views": "incremental SfM over many photos, with bundle adjustment",
-    "report": "the self-contained HTML report of a COLMAP text model",
+    "report": "the self-contained HTML report of a COLMAP model (text or binary)",
     "dense-views": "a dense cloud (and a mesh) from a sparse model and its photos",
     "export": "a COLMAP model as nerfstudio's transforms.json (NeRF, splatting)",
 }
