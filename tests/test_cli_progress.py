@@ -1,5 +1,10 @@
 """Progress lines of long stages (scene3D.cli.common.StderrProgress): elapsed time and
-time left on a terminal, only the last line elsewhere, nothing with -q."""
+time left on a terminal or with --progress, nothing elsewhere and nothing with -q."""
+
+import os
+import pty
+import subprocess
+import sys
 
 import pytest
 
@@ -41,9 +46,11 @@ def test_terminal_lines_say_elapsed_and_time_left(clock, capsys):
                      "pairs: 4 of 4 done in 8.0 s"]
 
 
-def test_not_a_terminal_gives_the_last_line_only_and_quiet_none(clock, capsys):
+def test_not_a_terminal_and_quiet_give_no_line(clock, capsys):
     _run(StderrProgress(terminal=False), clock)
-    assert capsys.readouterr().err.splitlines() == ["pairs: 4 of 4 done in 8.0 s"]
+    assert capsys.readouterr().err == ""
+    _run(StderrProgress(), clock)  # terminal=None: asks stderr, here pytest's capture
+    assert capsys.readouterr().err == ""
     _run(StderrProgress(enabled=False, terminal=True), clock)
     assert capsys.readouterr().err == ""
 
@@ -63,3 +70,49 @@ def test_lines_are_rate_limited_and_a_second_stage_starts_its_own_clock(clock, c
                                            (3720.0, "1 h 02 min")])
 def test_duration_text(seconds, text):
     assert duration_text(seconds) == text
+
+
+# -- the command: a real terminal (a pseudo-terminal), a pipe, --progress and -q ----------
+
+def _evaluate(fountain, flags: list[str], on_a_terminal: bool) -> tuple[int, str]:
+    """``scene3d evaluate`` on one small pair, its stderr a pty or a pipe: (code, stderr)."""
+    command = [sys.executable, "-c", "import sys; from scene3D.cli import console_main; "
+               "sys.argv[0] = 'scene3d'; sys.exit(console_main())", "evaluate", str(fountain),
+               "--pairs", "4-5", "--max-width", "400", *flags]
+    if not on_a_terminal:
+        proc = subprocess.run(command, capture_output=True, text=True, timeout=120)
+        return proc.returncode, proc.stderr
+    parent, child = pty.openpty()
+    with subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=child) as proc:
+        os.close(child)
+        chunks = []
+        while True:
+            try:
+                chunk = os.read(parent, 4096)
+            except OSError:  # EIO: the child closed its end of the terminal
+                break
+            if not chunk:
+                break
+            chunks.append(chunk)
+        code = proc.wait(timeout=120)
+    os.close(parent)
+    return code, b"".join(chunks).decode().replace("\r\n", "\n")
+
+
+def _progress_lines(err: str) -> list[str]:
+    return [line for line in err.splitlines() if line.startswith(("views:", "pairs:"))]
+
+
+@pytest.mark.parametrize("flags, on_a_terminal, shown", [
+    ([], True, True), ([], False, False), (["--progress"], False, True),
+    (["-q"], True, False), (["-q", "--progress"], False, False)])
+def test_the_command_shows_progress_on_a_terminal_or_when_asked(fountain, flags,
+                                                               on_a_terminal, shown):
+    code, err = _evaluate(fountain, flags, on_a_terminal)
+    assert code == 0, err
+    lines = _progress_lines(err)
+    if shown:
+        assert lines[-2].startswith("views: 2 of 2 done in ") and lines[-2].endswith(" s")
+        assert lines[-1].startswith("pairs: 1 of 1 done in ") and lines[-1].endswith(" s")
+    else:
+        assert lines == []
