@@ -1,6 +1,7 @@
 """Progress lines of long stages (scene3D.cli.common.StderrProgress): elapsed time and
 time left on a terminal or with --progress, nothing elsewhere and nothing with -q."""
 
+import argparse
 import os
 import pty
 import subprocess
@@ -66,6 +67,23 @@ def test_lines_are_rate_limited_and_a_second_stage_starts_its_own_clock(clock, c
     assert lines[-1] == "pairs: 4 of 4 done in 8.0 s"  # not 16 s: the clock restarted
 
 
+def test_the_commands_engine_starts_the_clock_when_the_map_starts(clock, capsys):
+    """The engines report finished tasks only; the first task's time counts too."""
+    def task(seconds):
+        clock.now += seconds
+        return seconds
+
+    args = argparse.Namespace(quiet=False, progress=True, verbose=0)
+    with common.open_engine(args) as engine:
+        assert list(engine.map(task, [(2.0,), (2.0,), (2.0,)], label="views")) == [2.0] * 3
+        assert list(engine.map(task, [], label="pairs")) == []
+    assert capsys.readouterr().err.splitlines() == [
+        "views: 0 of 3 done",
+        "views: 1 of 3 done, 2.0 s so far, about 4.0 s left",
+        "views: 2 of 3 done, 4.0 s so far, about 2.0 s left",
+        "views: 3 of 3 done in 6.0 s"]
+
+
 @pytest.mark.parametrize("seconds, text", [(0.44, "0.4 s"), (12.4, "12 s"), (185.0, "3 min 05 s"),
                                            (3720.0, "1 h 02 min")])
 def test_duration_text(seconds, text):
@@ -111,8 +129,10 @@ def test_the_command_shows_progress_on_a_terminal_or_when_asked(fountain, flags,
     code, err = _evaluate(fountain, flags, on_a_terminal)
     assert code == 0, err
     lines = _progress_lines(err)
-    if shown:
-        assert lines[-2].startswith("views: 2 of 2 done in ") and lines[-2].endswith(" s")
+    if shown:  # each stage's clock starts at "0 of N"; its last line says the whole time
+        assert lines[0] == "views: 0 of 2 done" and "pairs: 0 of 1 done" in lines
+        views_done = [line for line in lines if line.startswith("views: 2 of 2 done in ")]
+        assert len(views_done) == 1 and views_done[0].endswith(" s")
         assert lines[-1].startswith("pairs: 1 of 1 done in ") and lines[-1].endswith(" s")
     else:
         assert lines == []

@@ -291,7 +291,14 @@ class _Reporting:
 
     def map(self, fn: Callable[..., Any], arguments: Iterable[tuple], *, label: str = "tasks",
             progress: Progress | None = None) -> Iterator[Any]:
-        return self._engine.map(fn, arguments, label=label, progress=progress or self._progress)
+        if progress is not None:
+            return self._engine.map(fn, arguments, label=label, progress=progress)
+        # The engines report only finished tasks; "0 of N" when the map starts sets the
+        # clock, or the time so far and the time left would leave out the first task's.
+        arguments = list(arguments)
+        if arguments:
+            self._progress(label, 0, len(arguments))
+        return self._engine.map(fn, arguments, label=label, progress=self._progress)
 
     def share(self, value: Any) -> Any:
         return self._engine.share(value)
