@@ -354,7 +354,7 @@ def test_reconstruct_views_command_with_scheduler(client, fountain_views,
     calib = Path(__file__).resolve().parents[1] / "data" / "fountain_P11_intrinsics.yaml"
     code = views_main([str(tmp_path), "--calib", str(calib), "--max-width", str(MAX_WIDTH),
                        "--no-plots", "--no-report", "--out", str(tmp_path / "out"),
-                       "--scheduler", client.scheduler.address, "-v"])
+                       "--scheduler", client.scheduler.address, "-v", "--progress"])
     err = capsys.readouterr().err
     assert code == 0, err
     cameras = json.loads((tmp_path / "out" / "cameras.json").read_text())
@@ -381,7 +381,7 @@ def test_evaluate_command_with_scheduler_gives_the_local_table(client, fountain,
     assert evaluate_main([*args, "--csv", str(tmp_path / "local.csv")]) == 0
     capsys.readouterr()
     assert evaluate_main([*args, "--csv", str(tmp_path / "cluster.csv"), "--scheduler",
-                          address, "-v"]) == 0
+                          address, "-v", "--progress"]) == 0  # stderr is a capture
     err = capsys.readouterr().err
     assert _csv_rows(tmp_path / "cluster.csv") == _csv_rows(tmp_path / "local.csv")
     assert f"tasks on dask {address}: 2 workers, 2 threads" in err

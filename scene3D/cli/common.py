@@ -275,6 +275,10 @@ def add_engine_args(parser: argparse.ArgumentParser,
     where.add_argument("--workers", type=positive_int, metavar="N",
                        help="on N worker processes started on this machine (a Dask "
                             "LocalCluster, one thread each); needs the extra 'distributed'")
+    # git's --progress: lines on a terminal by default, forced for a log or a pipe.
+    group.add_argument("--progress", action="store_true",
+                       help="progress lines on stderr even when it is not a terminal "
+                            "(a log file, a pipe); -q still silences them")
 
 
 class _Reporting:
@@ -287,7 +291,14 @@ class _Reporting:
 
     def map(self, fn: Callable[..., Any], arguments: Iterable[tuple], *, label: str = "tasks",
             progress: Progress | None = None) -> Iterator[Any]:
-        return self._engine.map(fn, arguments, label=label, progress=progress or self._progress)
+        if progress is not None:
+            return self._engine.map(fn, arguments, label=label, progress=progress)
+        # The engines report only finished tasks; "0 of N" when the map starts sets the
+        # clock, or the time so far and the time left would leave out the first task's.
+        arguments = list(arguments)
+        if arguments:
+            self._progress(label, 0, len(arguments))
+        return self._engine.map(fn, arguments, label=label, progress=self._progress)
 
     def share(self, value: Any) -> Any:
         return self._engine.share(value)
@@ -296,13 +307,15 @@ class _Reporting:
 @contextmanager
 def open_engine(args: argparse.Namespace) -> Iterator[Engine]:
     """The engine that ``--scheduler`` / ``--workers`` ask for (in this process without
-    either), its tasks' progress on stderr (``StderrProgress``: not with ``-q``),
+    either), its tasks' progress on stderr (``StderrProgress``: on a terminal or with
+    ``--progress``, not with ``-q``),
     closed (with the workers it started) when the block ends.
 
     Raises :class:`UsageError` in one line when Dask is not installed.
     """
     scheduler, workers = getattr(args, "scheduler", None), getattr(args, "workers", None)
-    progress = StderrProgress(not args.quiet)
+    progress = StderrProgress(not args.quiet,
+                              terminal=True if getattr(args, "progress", False) else None)
     if scheduler is None and workers is None:
         yield _Reporting(LocalEngine(), progress)
         return
@@ -349,9 +362,11 @@ class StderrProgress:
     as "pairs: 12 of 40 done, 3.1 s so far, about 7.2 s left" on stderr, at most one a
     ``interval_s`` per label, and the last one ("pairs: 40 of 40 done in 10.4 s") always.
 
-    When stderr is not a terminal (a log file, a pipe, a test's capture) only the last line
-    of each label is written. Silent when ``enabled`` is False (``-q``). The time left
-    assumes the remaining tasks take as long as the finished ones did on average.
+    Quiet when stderr is not a terminal (a log file, a pipe, a test's capture), as tqdm's
+    ``disable=None`` and git are; ``terminal=True`` (the command's ``--progress``, after
+    git's flag of that name) writes the lines anyway, ``terminal=False`` never. Silent when
+    ``enabled`` is False (``-q``), whatever ``terminal`` says. The time left assumes the
+    remaining tasks take as long as the finished ones did on average.
     """
 
     def __init__(self, enabled: bool = True, interval_s: float = 1.0,
@@ -368,8 +383,8 @@ class StderrProgress:
         if not self.enabled:
             return
         terminal = sys.stderr.isatty() if self.terminal is None else self.terminal
-        if done < total and (not terminal or
-                             now - self._last.get(label, -1e9) < self.interval_s):
+        if not terminal or (done < total and
+                            now - self._last.get(label, -1e9) < self.interval_s):
             return
         self._last[label] = now
         elapsed = now - start
