@@ -66,7 +66,22 @@ def default_camera_priors(images: Sequence[ImageSource], names: Sequence[str],
 
 
 def check_K_for_size(K: np.ndarray, size: tuple[int, int], prior: FocalPrior | None) -> None:
-    """Raise ``ValueError`` unless ``K`` (given, or the prior's) suits the native ``size``."""
+    """Raise ``ValueError`` unless ``K`` (given, or the prior's) suits the native ``size``.
+
+    Parameters
+    ----------
+    K : (3, 3) ndarray
+        Intrinsics of the native images.
+    size : (int, int)
+        The images' native (width, height).
+    prior : FocalPrior or None
+        The prior ``K`` is from (None: ``K`` was given).
+
+    Raises
+    ------
+    ValueError
+        A prior for another size, or a ``K`` that cannot be of ``size``.
+    """
     if prior is not None and tuple(prior.image_size) != tuple(size):
         raise ValueError(f"`focal_prior` is for {prior.image_size[0]}x{prior.image_size[1]} "
                          f"images, not {size[0]}x{size[1]} px, the images' native size, "
@@ -78,7 +93,24 @@ def too_few_keypoints(found: Sequence[tuple], labels: Sequence[str], needed: int
                        working_size: tuple[int, int]) -> str | None:
     """Why no pair could start when fewer than two views have the ``needed`` keypoints a
     verified pair needs (blank, tiny or too far downscaled images), naming the images by
-    their ``labels`` (:func:`~scene3D.io.images.source_label`); else None."""
+    their ``labels`` (:func:`~scene3D.io.images.source_label`); else None.
+
+    Parameters
+    ----------
+    found : sequence of tuple
+        Each view's :func:`scene3D.multiview.features.view_features` result (its
+        :class:`~scene3D.multiview.view_data.ViewFeatures` first).
+    labels : sequence of str
+        The images' names in messages.
+    needed : int
+        Keypoints a verified pair needs.
+    working_size : (int, int)
+        The working (width, height), named in the message.
+
+    Returns
+    -------
+    str or None
+    """
     counts = [len(f[0].keypoints) for f in found]
     if sum(n >= needed for n in counts) >= 2:
         return None
@@ -94,7 +126,22 @@ def check_distinct_photos(keys: Sequence[bytes], keypoints: Sequence[int],
     """Raise ``ValueError`` when two views are one photo (the same keypoints and
     descriptors: a copy under another name), naming the images by their ``labels``
     (:func:`~scene3D.io.images.source_label`); views without keypoints are left to the
-    reconstruction, which says they have too few."""
+    reconstruction, which says they have too few.
+
+    Parameters
+    ----------
+    keys : sequence of bytes
+        Each view's content digest (:func:`scene3D.multiview.features.content_key`).
+    keypoints : sequence of int
+        Each view's number of keypoints.
+    labels : sequence of str
+        The images' names in messages.
+
+    Raises
+    ------
+    ValueError
+        Two views with keypoints and one digest.
+    """
     first: dict[bytes, int] = {}
     for v, key in enumerate(keys):
         if keypoints[v] and first.setdefault(key, v) != v:
@@ -104,7 +151,20 @@ def check_distinct_photos(keys: Sequence[bytes], keypoints: Sequence[int],
 
 def check_distinct_names(images: Sequence[ImageSource], names: Sequence[str]) -> None:
     """Raise ``ValueError`` when two views share a name (files of one name in two
-    folders): the result (``unregistered_reasons``) and its files name views by it."""
+    folders): the result (``unregistered_reasons``) and its files name views by it.
+
+    Parameters
+    ----------
+    images : sequence of path or ndarray
+        The images (paths are named in the message).
+    names : sequence of str
+        Their names, one per image.
+
+    Raises
+    ------
+    ValueError
+        Two views of one name.
+    """
     first: dict[str, int] = {}
     for v, name in enumerate(names):
         u = first.setdefault(name, v)

@@ -47,14 +47,11 @@ from ..io.images import (
     glob_files,
     source_label,
 )
+from .camera_passes import CameraViews, camera_passes
 from .cameras import (
     CameraPass,
-    corner_change_px,
-    implied_coefficients,
-    model_cameras,
     reference_camera,
     reference_features,
-    refine_cameras,
 )
 from .features import content_key, view_features
 from .focal import FocalSettings
@@ -484,53 +481,22 @@ def reconstruct_views(
         break
     # Several cameras: each camera's focal length and lens the largest model calls for,
     # its keypoints mapped with them and the views reconstructed again
-    # (scene3D.multiview.cameras), as for one camera's lens above.
-    while cameras is not None and lens_passes < s.max_lens_passes:
-        t0 = time.perf_counter()
-        fit = refine_cameras(models[0], canonical_camera, used, K_work, K_cameras[:, 0, 0],
-                             [prior.sigma_log for prior in cameras])
-        implied = model_cameras(models[0], used, K_work)
-        k_implied = implied_coefficients(used, implied)
-        seen = np.zeros(len(cameras), dtype=bool)
-        seen[canonical_camera[models[0].registered]] = True
-        moved = max(corner_change_px(implied[c], k_implied[c], fit.K[c],
-                                     fit.k[c], camera_sizes[c]) for c in np.flatnonzero(seen))
-        timings["lens"] = timings.get("lens", 0.0) + time.perf_counter() - t0
-        if moved <= s.lens_tolerance_px:
-            break
-        folding = [c for c in np.flatnonzero(seen)
-                   if folds_within(fit.K[c], fit.k[c], camera_sizes[c])]
-        if folding:
-            say(f"the lens the model calls for folds over inside the images of camera "
-                f"{folding[0] + 1}: keeping the last cameras")
-            break
-        say("cameras: " + "; ".join(
-            f"{c + 1} f {fit.K[c, 0, 0]:.1f} px" + (f", k1 {fit.k[c, 0]:+.3f}" if num_radial
-                                                   else "")
-            for c in np.flatnonzero(seen))
-            + f" (the image corners move up to {moved:.1f} px): reconstructing with them")
-        kept = features, handles, used, K_work
-        used = CameraPass(np.where(seen[:, None, None], fit.K, used.K),
-                          np.where(seen[:, None], fit.k, used.k), used.known | seen)
-        K_work = used.K[reference_camera(canonical_camera)]
-        features = reference_features(features, camera_keypoints, raw_sizes, canonical_camera,
-                                      used.K, used.k, K_work)
-        handles = [engine.share(f) for f in features]
-        start_from = None if models[0].focal is None else dataclasses.replace(
-            models[0].focal, start_focal_px=float(K_work[0, 0]))
-        try:
-            attempt = reconstruct_with(K_work, start_from, used.known)
-        except ReconstructionError as exc:
-            attempt, why = None, str(exc)
-        else:
-            why = "it registers fewer views"
-            if attempt[0][0].registered.sum() >= models[0].registered.sum():
-                models, reasons, num_matched, num_verified = attempt
-                lens_passes += 1
-                continue
-        say(f"no better model with these cameras ({why}): keeping the last")
-        features, handles, used, K_work = kept
-        break
+    # (scene3D.multiview.camera_passes), as for one camera's lens above.
+    if cameras is not None:
+        def reconstruct_from(K: np.ndarray, new_features: list[ViewFeatures],
+                             start_from: FocalEstimate | None, known: np.ndarray
+                             ) -> tuple[list[SfMModel], dict[int, str], int, int]:
+            """:func:`reconstruct_with` on ``new_features``, shared with the engine."""
+            nonlocal features, handles
+            features = new_features
+            handles = [engine.share(f) for f in features]
+            return reconstruct_with(K, start_from, known)
+
+        views = CameraViews(canonical_camera, camera_keypoints, raw_sizes, K_cameras[:, 0, 0],
+                            [prior.sigma_log for prior in cameras], camera_sizes)
+        (models, reasons, num_matched, num_verified), used, K_work, lens_passes = camera_passes(
+            (models, reasons, num_matched, num_verified), reconstruct_from, features, views,
+            used, K_work, lens_passes, num_radial, s, say, timings)
     timings["total"] = sum(timings.values())
     if cameras is not None:
         return cameras_result(models, used, K_work, canonical_camera, order, reasons,

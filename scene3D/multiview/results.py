@@ -25,7 +25,19 @@ from .models import CameraIntrinsics, MultiViewReconstruction, SfMModel
 
 def to_input_order(model: SfMModel, order: np.ndarray) -> SfMModel:
     """A model computed on views ``order`` (canonical position -> input index), with every
-    per-view array and view index put back in the input order."""
+    per-view array and view index put back in the input order.
+
+    Parameters
+    ----------
+    model : SfMModel
+        Computed on the views in the canonical order.
+    order : (V,) int ndarray
+        The input index of each canonical position.
+
+    Returns
+    -------
+    SfMModel
+    """
     def per_view(a: np.ndarray) -> np.ndarray:
         out = np.empty_like(a)
         out[order] = a
@@ -53,7 +65,35 @@ def cameras_result(models: list[SfMModel], used: CameraPass, K_reference: np.nda
                     camera_sizes: Sequence[tuple[int, int]]) -> MultiViewReconstruction:
     """The result of photos of several cameras: every model's observations in each
     view's own working pixels and its cameras (``SfMModel.camera_K``), the largest
-    model's cameras as the result's, all in the input order."""
+    model's cameras as the result's, all in the input order.
+
+    Parameters
+    ----------
+    models : list of SfMModel
+        The models, largest first, in the canonical order and the reference pixels.
+    used : CameraPass
+        The cameras their keypoints were mapped with.
+    K_reference : (3, 3) ndarray
+        The reference pixels' intrinsics.
+    canonical_camera : (V,) int ndarray
+        The camera of each view, in the canonical order.
+    order : (V,) int ndarray
+        The input index of each canonical position.
+    reasons : dict of int to str
+        Why each view left out (canonical index) is.
+    common : dict
+        The other fields of the result (names, pairs, timings, ...).
+    priors : sequence of FocalPrior
+        One per camera.
+    view_camera : (V,) int ndarray
+        The camera of each view, in the input order.
+    camera_sizes : sequence of (int, int)
+        Each camera's working (width, height).
+
+    Returns
+    -------
+    MultiViewReconstruction
+    """
     r = reference_camera(canonical_camera)
     out = []
     for model in models:
