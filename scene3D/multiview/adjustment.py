@@ -66,10 +66,7 @@ class ModelAdjustment:
         in one point); a point of two views does not: a false match that lies along
         the epipolar line, such as the neighbouring window of a repeated facade, fits
         its pair and nothing contradicts it. Where many such matches pass, they bend
-        the cameras by more than all the true ones can hold them (castle-P19: a
-        quarter of the verified matches of views 0013-0014 lie more than 2 px off
-        their true epipolar lines; with them the adjustment put view 0015 0.6 % of
-        the scene off, with the multi-view points alone 0.12 %). So, as GLOMAP
+        the cameras by more than all the true ones can hold them. So, as GLOMAP
         positions its cameras from tracks of three views or more, a two-view point
         is adjusted only where the multi-view points among ``nodes`` do not hold its
         views: when one of them observes fewer than ``min_multiview_observations``
@@ -288,7 +285,7 @@ class ModelAdjustment:
         if self.focal is not None or self.registered.sum() < 3 or not len(nodes):
             return check
         # Every k-th point is plenty for one number to within 15 %: its sigma stays well
-        # under a percent, in 0.12 s instead of 1.8 s on castle-P19 at 1536 px.
+        # under a percent, in a fraction of the time of all the points.
         step = max(1, len(self.X) // FOCAL_TEST_POINTS)
         nodes = nodes[self.node_point[nodes] % step == 0]
         point_ids, obs = self._adjustment_observations(nodes)
