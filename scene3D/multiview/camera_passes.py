@@ -30,7 +30,9 @@ from .cameras import (
     reference_features,
     refine_cameras,
 )
-from .models import FocalEstimate, SfMModel, SfMSettings, ViewFeatures
+from .settings import SfMSettings
+from .sfm_model import FocalEstimate, SfMModel
+from .view_data import ViewFeatures
 
 #: What one reconstruction gives: the models, the reasons for the views left out, and the
 #: pairs matched and verified.

@@ -40,7 +40,8 @@ from ..optim.bundle import Observations
 from ..optim.bundle_radial import RadialAdjustment, bundle_adjust_radial
 from ..twoview.distortion_fit import fit_radial_distortion
 from .focal import FocalSettings
-from .models import PairMatches, SfMModel, ViewFeatures
+from .sfm_model import SfMModel
+from .view_data import PairMatches, ViewFeatures
 
 #: The coefficients' prior standard deviation: weak, it holds them only where a model's
 #: views do not determine them (COLMAP's SIMPLE_RADIAL starts at 0 with none).

@@ -22,7 +22,8 @@ import numpy as np
 from ..features.matching import match_descriptors
 from ..geometry.conventions import FloatArray
 from ..geometry.epipolar import essential_distances
-from .models import PairMatches, SfMSettings, ViewFeatures
+from .settings import SfMSettings
+from .view_data import PairMatches, ViewFeatures
 
 
 def _by_word(words: np.ndarray, num_words: int) -> tuple[np.ndarray, np.ndarray]:

@@ -66,17 +66,13 @@ from .inputs import (  # noqa: F401 - default_focal_prior, default_camera_priors
 from .lens import pair_lens_guess, refine_lens, undistorted_features
 from .mapper import reconstruct_models
 from .matching import match_and_verify_pair
-from .models import (
-    FocalEstimate,
-    MultiViewReconstruction,
-    PairMatches,
-    SfMModel,
-    SfMSettings,
-    ViewFeatures,
-)
+from .models import MultiViewReconstruction
 from .pairs import select_pairs
 from .results import cameras_result, to_input_order
 from .retrieval import describe_view, similarity_ranking, train_vocabulary
+from .settings import SfMSettings
+from .sfm_model import FocalEstimate, SfMModel
+from .view_data import PairMatches, ViewFeatures
 
 logger = logging.getLogger(__name__)
 

@@ -20,7 +20,8 @@ from .cameras import (
     model_cameras,
     reference_camera,
 )
-from .models import CameraIntrinsics, MultiViewReconstruction, SfMModel
+from .models import CameraIntrinsics, MultiViewReconstruction
+from .sfm_model import SfMModel
 
 
 def to_input_order(model: SfMModel, order: np.ndarray) -> SfMModel:

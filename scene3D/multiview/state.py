@@ -22,15 +22,11 @@ from .adjustment import FOCAL_TEST_POINTS, ModelAdjustment  # noqa: F401 - publi
 from .cameras import pnp_focal_search
 from .checks import check_model, pair_distances_px
 from .focal import FocalSettings
-from .models import (
-    ModelCheck,
-    PairMatches,
-    SfMModel,
-    SfMSettings,
-    ViewFeatures,
-)
 from .points import max_parallax_deg, observation_errors, triangulate_groups
+from .settings import SfMSettings
+from .sfm_model import ModelCheck, SfMModel
 from .tracks import build_tracks
+from .view_data import PairMatches, ViewFeatures
 from .weights import keypoint_sigma
 
 
