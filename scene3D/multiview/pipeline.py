@@ -47,7 +47,7 @@ from ..io.images import (
     glob_files,
     source_label,
 )
-from .camera_passes import CameraViews, camera_passes
+from .camera_passes import Attempt, CameraViews, camera_passes
 from .cameras import (
     CameraPass,
     reference_camera,
@@ -480,8 +480,7 @@ def reconstruct_views(
     # (scene3D.multiview.camera_passes), as for one camera's lens above.
     if cameras is not None:
         def reconstruct_from(K: np.ndarray, new_features: list[ViewFeatures],
-                             start_from: FocalEstimate | None, known: np.ndarray
-                             ) -> tuple[list[SfMModel], dict[int, str], int, int]:
+                             start_from: FocalEstimate | None, known: np.ndarray) -> Attempt:
             """:func:`reconstruct_with` on ``new_features``, shared with the engine."""
             nonlocal features, handles
             features = new_features
