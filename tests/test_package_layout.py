@@ -55,6 +55,8 @@ REPLACED = {
     "evaluation": ("evaluation.poses",),
 }
 MAX_TOP_LEVEL_MODULES = 8
+#: The most lines of any module under scene3D/ (issue #49), shims, packages and CLI included.
+MAX_MODULE_LINES = 600
 SKIPPED_FOLDERS = {".git", ".venv", "venv", "site", "out", "build", "dist", "__pycache__"}
 
 
@@ -160,6 +162,21 @@ def test_at_most_eight_modules_stay_at_the_top_level():
         assert is_shim(PACKAGE / f"{name}.py"), name
 
 
+def test_no_module_is_over_the_line_limit():
+    assert "multiview/pipeline.py" in long_modules(PACKAGE, 0)  # the walk sees subpackages
+    assert long_modules(PACKAGE, MAX_MODULE_LINES) == {}
+
+
+def test_the_line_limit_check_sees_a_long_module(tmp_path):
+    """A module one line over the limit, at the top or in a subpackage, is named; one at
+    the limit is not."""
+    (tmp_path / "sub").mkdir()
+    for name, lines in [("long.py", MAX_MODULE_LINES + 1), ("short.py", MAX_MODULE_LINES),
+                        ("sub/deep.py", MAX_MODULE_LINES + 1)]:
+        (tmp_path / name).write_text("x = 1\n" * lines)
+    assert long_modules(tmp_path, MAX_MODULE_LINES) == {"long.py": 601, "sub/deep.py": 601}
+
+
 def test_nothing_in_the_repository_imports_an_old_path():
     old = {f"scene3D.{name}" for name in MOVED}
     dotted = re.compile(r"(?<![\w.])scene3D\.(" + "|".join(MOVED) + r")(?![\w])")
@@ -210,6 +227,14 @@ def run_python(code: str) -> subprocess.CompletedProcess:
 
 def package_files() -> list[Path]:
     return sorted(p for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.parts)
+
+
+def long_modules(package: Path, limit: int) -> dict[str, int]:
+    """The modules under ``package`` of more than ``limit`` lines: path (relative to it)
+    -> number of lines."""
+    lengths = {p.relative_to(package).as_posix(): len(p.read_text().splitlines())
+               for p in sorted(package.rglob("*.py")) if "__pycache__" not in p.parts}
+    return {name: n for name, n in lengths.items() if n > limit}
 
 
 def module_name(path: Path) -> str:

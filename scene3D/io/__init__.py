@@ -1,7 +1,9 @@
 """Input and output: images, their EXIF, calibration files, results and data sets.
 
 - :mod:`scene3D.io.images`: images at the working size (size from the header, reduced
-  JPEG decoding, halving, streaming);
+  JPEG decoding, streaming);
+- :mod:`scene3D.io.halving`: the book's size rule and halving by area averaging;
+- :mod:`scene3D.io.image_folders`: the images of a folder or a glob;
 - :mod:`scene3D.io.image_integrity`: truncated and damaged JPEG, PNG and TIFF files found
   before decoding;
 - :mod:`scene3D.io.exif`: the EXIF values that describe a photo's camera (Pillow);

@@ -1,16 +1,13 @@
-"""Reading images from paths or arrays into BGR ``uint8``, and the book's size rule.
+"""Reading images from paths or arrays into BGR ``uint8``, at their working size.
 
-The book halves its 3072 px photos with ``cv2.pyrDown`` while they are wider than
-1200 px. We keep the rule but halve by area averaging (each output pixel is the
-mean of a ``2^L x 2^L`` block): for a JPEG file that is what the decoder's scaled
-IDCT already produces, so the full-size image is never decoded or held in memory.
-Pixel centres map as ``x' = (x + 0.5) / 2^L - 0.5`` (see
-:func:`scene3D.geometry.camera.scale_intrinsics_halved`).
+The book's size rule and the halving are :mod:`scene3D.io.halving`'s; which files of a
+folder or a glob are images is :mod:`scene3D.io.image_folders`'. Their names are
+importable from here too. A JPEG file is decoded straight at a reduced size
+(:func:`load_working_image`), so the full-size image is never decoded or held in memory.
 """
 
 from __future__ import annotations
 
-import glob
 import logging
 import os
 from collections import deque
@@ -23,97 +20,25 @@ import numpy as np
 
 from ..geometry.camera import different_sizes_message, has_distortion, undistort_image
 from ..geometry.conventions import image_size
+from .halving import BOOK_MAX_WIDTH_PX, halve, halving_levels  # noqa: F401 - here too
 from .heif import (  # noqa: F401 - register_heif_opener, from here as before
     decode_heif,
     heif_size,
     is_heif,
     register_heif_opener,
 )
+from .image_folders import (  # noqa: F401 - public here too
+    IMAGE_SUFFIXES,
+    folder_images,
+    glob_files,
+    glob_patterns,
+    is_folder_image,
+)
 from .image_integrity import check_header, header_size, intact_image_data, jpeg_cut_short
 
 logger = logging.getLogger(__name__)
 
 ImageSource = str | os.PathLike | np.ndarray
-
-#: File endings taken as images when a folder is given (HEIC/HEIF need ``pillow-heif``).
-IMAGE_SUFFIXES = frozenset({".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm",
-                            ".ppm", ".heic", ".heif"})
-
-def is_folder_image(path: Path) -> bool:
-    """Whether a file found in a folder is taken as an image: its ending is one of
-    :data:`IMAGE_SUFFIXES` and it is not hidden (a name starting with '.', such as the
-    ``._IMG_0001.jpg`` files macOS leaves on other disks).
-
-    Parameters
-    ----------
-    path : Path
-        A file.
-
-    Returns
-    -------
-    bool
-    """
-    return path.suffix.lower() in IMAGE_SUFFIXES and not path.name.startswith(".")
-
-
-def folder_images(folder: Path) -> list[Path]:
-    """The images of ``folder`` (:func:`is_folder_image`), sorted.
-
-    Parameters
-    ----------
-    folder : Path
-        A folder.
-
-    Returns
-    -------
-    list of Path
-    """
-    return sorted(p for p in Path(folder).iterdir() if is_folder_image(p))
-
-
-def glob_patterns(spec: str) -> list[str]:
-    """The patterns a glob ``spec`` is read as: itself, then, when its folder part exists
-    as written (``'photos [2024]/*.jpg'``, whose brackets a glob reads as a set of
-    characters), the same with that folder taken literally (:func:`glob.escape`).
-
-    Parameters
-    ----------
-    spec : str
-        A glob pattern.
-
-    Returns
-    -------
-    list of str
-    """
-    head, tail = os.path.split(spec)
-    if head and glob.has_magic(head) and os.path.isdir(head):
-        return [spec, os.path.join(glob.escape(head), tail)]
-    return [spec]
-
-
-def glob_files(spec: str) -> list[Path]:
-    """The files a glob ``spec`` matches, sorted, by the first of :func:`glob_patterns`
-    that matches any.
-
-    Parameters
-    ----------
-    spec : str
-        A glob pattern.
-
-    Returns
-    -------
-    list of Path
-    """
-    for pattern in glob_patterns(spec):
-        files = sorted(Path(p) for p in glob.glob(pattern) if Path(p).is_file())
-        if files:
-            return files
-    return []
-
-
-#: The book halves images while they are wider than this.
-BOOK_MAX_WIDTH_PX = 1200
-
 
 #: ``cv2.imdecode`` flags keeping depth (16-bit stays 16-bit) and grey or colour as stored.
 _AS_STORED = cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR
@@ -375,65 +300,6 @@ def load_bgr(source: ImageSource, name: str = "image") -> np.ndarray:
         return to_bgr8(read_image(source), name=str(source))
     return to_bgr8(source, name=name)
 
-
-def halving_levels(width: int, max_width: int | None = BOOK_MAX_WIDTH_PX) -> int:
-    """How many halvings bring ``width`` to at most ``max_width`` (the book's rule); None: 0.
-
-    Parameters
-    ----------
-    width : int
-        Image width (px).
-    max_width : int or None, default BOOK_MAX_WIDTH_PX
-        Largest working width (px); None for no limit.
-
-    Returns
-    -------
-    int
-
-    Raises
-    ------
-    ValueError
-        If ``max_width`` is below 1.
-    """
-    if max_width is not None and max_width < 1:
-        raise ValueError(f"max_width must be at least 1 px, got {max_width}")
-    levels = 0
-    while max_width is not None and width > max_width:
-        width //= 2
-        levels += 1
-    return levels
-
-
-def halve(img: np.ndarray, levels: int) -> np.ndarray:
-    """Halve ``img`` ``levels`` times by area averaging: ``(H, W[, C]) -> (H >> L, W >> L[, C])``.
-
-    Each output pixel is the mean of a ``2^L`` square block; rows and columns that
-    do not fill a block (at the bottom and right) are dropped, so that the
-    scaling is exact (:func:`scene3D.geometry.camera.scale_intrinsics_halved`).
-
-    Parameters
-    ----------
-    img : (H, W) or (H, W, C) ndarray
-        The image.
-    levels : int
-        Number of halvings ``L``.
-
-    Returns
-    -------
-    (H >> L, W >> L) or (H >> L, W >> L, C) ndarray
-
-    Raises
-    ------
-    ValueError
-        If the image is too small to be halved that often.
-    """
-    if levels == 0:
-        return img
-    k = 1 << levels
-    h, w = img.shape[0] // k, img.shape[1] // k
-    if h == 0 or w == 0:
-        raise ValueError(f"a {img.shape[1]}x{img.shape[0]} image cannot be halved {levels} times")
-    return cv2.resize(img[:h * k, :w * k], (w, h), interpolation=cv2.INTER_AREA)
 
 
 #: ``cv2.imdecode`` flags that make libjpeg decode at 1/2, 1/4 and 1/8 size.

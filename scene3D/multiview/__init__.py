@@ -15,15 +15,22 @@ bundle adjustment as the missing step. One module per stage, in pipeline order:
 - :mod:`~scene3D.multiview.weights`: how precisely each keypoint is located (its
   size), the weights of bundle adjustment;
 - :mod:`~scene3D.multiview.mapper`: the incremental mapper's stages, several models;
-- :mod:`~scene3D.multiview.state`: a growing model: registration, triangulation, local
-  and global bundle adjustment, re-triangulation;
+- :mod:`~scene3D.multiview.state`: a growing model: registration, triangulation,
+  re-triangulation, the consistency check;
+- :mod:`~scene3D.multiview.adjustment`: its local and global bundle adjustments and the
+  focal-length tests;
 - :mod:`~scene3D.multiview.focal`: without a calibration, one focal length for all
   views (the start pair self-calibrated, then refined in the global adjustments);
 - :mod:`~scene3D.multiview.lens`: one camera's lens distortion, found from a model;
 - :mod:`~scene3D.multiview.cameras`: photos of several cameras (sizes, zooms), each
   with its own focal length and lens;
+- :mod:`~scene3D.multiview.camera_passes`: their views reconstructed again with the
+  cameras the largest model calls for;
 - :mod:`~scene3D.multiview.checks`: the model against its pairs' own geometry;
-- :mod:`~scene3D.multiview.models`: the data (settings, features, pairs, results);
+- :mod:`~scene3D.multiview.view_data`, :mod:`~scene3D.multiview.sfm_model`,
+  :mod:`~scene3D.multiview.models`: the data (features and pairs, one model, the result);
+- :mod:`~scene3D.multiview.inputs`: the photos' default priors and the checks on them;
+- :mod:`~scene3D.multiview.results`: the result in the input order;
 - :mod:`~scene3D.multiview.pipeline`: :func:`reconstruct_views`, the stages in order;
 - :mod:`~scene3D.multiview.video`: the frames of a video worth reconstructing (sharp,
   and far enough apart), :func:`select_frames`.

@@ -31,7 +31,9 @@ from ..geometry.conventions import FloatArray
 from ..geometry.lens import distort_pixels, rescaled_coefficients, undistort_pixels
 from ..optim.bundle import Observations
 from ..optim.bundle_radial import CamerasAdjustment, bundle_adjust_cameras
-from .models import SfMModel, ViewFeatures, reference_camera  # noqa: F401 - public here
+from .models import reference_camera  # noqa: F401 - public here
+from .sfm_model import SfMModel
+from .view_data import ViewFeatures
 
 #: Focal-length factors a camera's first view is tried with (:func:`pnp_focal_search`):
 #: a guess from EXIF is within a few percent, the default ``1.2 x`` the longer side

@@ -23,8 +23,9 @@ import numpy as np
 
 from ..geometry.conventions import FloatArray, median, skew
 from ..geometry.epipolar import essential_distances
-from .models import ModelCheck, PairMatches, ViewFeatures
+from .sfm_model import ModelCheck
 from .tracks import connected_components
+from .view_data import PairMatches, ViewFeatures
 
 #: A view is suspect when pairs with more than this share of its inliers contradict it.
 MAJORITY = 0.5

@@ -15,7 +15,7 @@ from ..features.matching import create_detector, detect_keypoints, to_gray
 from ..geometry.conventions import FloatArray
 from ..io.images import ImageSource, load_working_image
 from ..twoview import sample_colors
-from .models import ViewFeatures
+from .view_data import ViewFeatures
 
 
 def extract_features(img: np.ndarray, feature: str = "SIFT",

@@ -50,7 +50,8 @@ from ..geometry.conventions import FloatArray
 from ..optim.bundle import FocalAdjustment
 from ..selfcalibration import SelfCalibration, self_calibrate_pair
 from ..twoview import TwoViewGeometry
-from .models import FocalEstimate, PairMatches, ViewFeatures
+from .sfm_model import FocalEstimate
+from .view_data import PairMatches, ViewFeatures
 
 logger = logging.getLogger(__name__)
 

@@ -18,12 +18,12 @@ estimate:
 3. When that lens moves an image corner more than ``SfMSettings.lens_tolerance_px``
    from where the current undistortion puts it, the keypoints are undistorted with it
    and the views reconstructed again (the model made with the last lens keeps only the
-   observations that fit it, which biases the next estimate towards that lens: kermit's
-   k1 came out -0.115, -0.130, then -0.132), at most ``SfMSettings.max_lens_passes`` times; a
+   observations that fit it, which biases the next estimate towards that lens, so the
+   estimate moves over several passes), at most ``SfMSettings.max_lens_passes`` times; a
    pass that registers fewer views is not kept.
 
-A lens that hardly distorts (the Strecha scenes: under half a pixel at the corners)
-leaves the keypoints as they are and the models as a pinhole camera would give them.
+A lens that hardly distorts leaves the keypoints as they are and the models as a pinhole
+camera would give them (``SfMSettings.min_lens_shift``).
 """
 
 from __future__ import annotations
@@ -40,7 +40,8 @@ from ..optim.bundle import Observations
 from ..optim.bundle_radial import RadialAdjustment, bundle_adjust_radial
 from ..twoview.distortion_fit import fit_radial_distortion
 from .focal import FocalSettings
-from .models import PairMatches, SfMModel, ViewFeatures
+from .sfm_model import SfMModel
+from .view_data import PairMatches, ViewFeatures
 
 #: The coefficients' prior standard deviation: weak, it holds them only where a model's
 #: views do not determine them (COLMAP's SIMPLE_RADIAL starts at 0 with none).

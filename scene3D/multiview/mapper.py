@@ -41,8 +41,10 @@ from .focal import (
     prior_intrinsics,
     self_calibrated_start,
 )
-from .models import FocalEstimate, PairMatches, SfMModel, SfMSettings, ViewFeatures
+from .settings import SfMSettings
+from .sfm_model import FocalEstimate, SfMModel
 from .state import GrowingModel
+from .view_data import PairMatches, ViewFeatures
 
 logger = logging.getLogger(__name__)
 

@@ -3,17 +3,15 @@
 Matching compares each descriptor only with the other view's descriptors filed
 under its few nearest visual words (an inverted file over the collection's
 vocabulary, :mod:`scene3D.multiview.retrieval`), then applies Lowe's ratio test and
-the mutual check as :func:`scene3D.features.match_descriptors` does. With 64 words
-and 3 probed, about a twentieth of the distances of the full matrix product are
-computed; on castle-P19 it keeps 96 % of the verified inliers of exhaustive matching
-in a quarter of its time (most of the rest is numpy's per-call overhead).
+the mutual check as :func:`scene3D.features.match_descriptors` does: a small share of
+the distances of the full matrix product is computed, for nearly all the verified inliers
+of exhaustive matching (measured in docs/benchmarks.md).
 
 Verification fits an essential matrix with OpenCV's USAC: MAGSAC++ scoring, sigma
 local optimisation and PROSAC sampling, the matches tried best first (by their
 ratio test). A pair that overlaps is found in a few hundred iterations, so the
 iterations can be capped (``SfMSettings.max_verify_iterations``), which bounds the
-time lost on pairs that do not overlap (on castle-P19 about a tenth of OpenCV's
-default MAGSAC with 10 000 iterations, the same pairs verified).
+time lost on pairs that do not overlap.
 """
 
 from __future__ import annotations
@@ -24,7 +22,8 @@ import numpy as np
 from ..features.matching import match_descriptors
 from ..geometry.conventions import FloatArray
 from ..geometry.epipolar import essential_distances
-from .models import PairMatches, SfMSettings, ViewFeatures
+from .settings import SfMSettings
+from .view_data import PairMatches, ViewFeatures
 
 
 def _by_word(words: np.ndarray, num_words: int) -> tuple[np.ndarray, np.ndarray]:

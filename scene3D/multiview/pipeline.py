@@ -26,13 +26,12 @@ from numpy.typing import ArrayLike
 from ..engines import Engine, LocalEngine
 from ..errors import ReconstructionError, plural
 from ..geometry.camera import (
-    check_intrinsics_for_native_size,
     different_sizes_message,
     scale_intrinsics_halved,
     validate_distortion,
     validate_intrinsics,
 )
-from ..geometry.intrinsics_prior import FocalPrior, camera_priors
+from ..geometry.intrinsics_prior import FocalPrior
 from ..geometry.lens import (
     corner_shifts_px,
     folds_within,
@@ -48,207 +47,34 @@ from ..io.images import (
     glob_files,
     source_label,
 )
-from ..optim.bundle import Observations, reprojection_residuals
+from .camera_passes import Attempt, CameraViews, camera_passes
 from .cameras import (
     CameraPass,
-    camera_pixels,
-    corner_change_px,
-    implied_coefficients,
-    model_cameras,
     reference_camera,
     reference_features,
-    refine_cameras,
 )
 from .features import content_key, view_features
 from .focal import FocalSettings
+from .inputs import (  # noqa: F401 - default_focal_prior, default_camera_priors: public here too
+    check_distinct_names,
+    check_distinct_photos,
+    check_K_for_size,
+    default_camera_priors,
+    default_focal_prior,
+    too_few_keypoints,
+)
 from .lens import pair_lens_guess, refine_lens, undistorted_features
 from .mapper import reconstruct_models
 from .matching import match_and_verify_pair
-from .models import (
-    CameraIntrinsics,
-    FocalEstimate,
-    MultiViewReconstruction,
-    PairMatches,
-    SfMModel,
-    SfMSettings,
-    ViewFeatures,
-)
+from .models import MultiViewReconstruction
 from .pairs import select_pairs
+from .results import cameras_result, to_input_order
 from .retrieval import describe_view, similarity_ranking, train_vocabulary
+from .settings import SfMSettings
+from .sfm_model import FocalEstimate, SfMModel
+from .view_data import PairMatches, ViewFeatures
 
 logger = logging.getLogger(__name__)
-
-
-def _to_input_order(model: SfMModel, order: np.ndarray) -> SfMModel:
-    """A model computed on views ``order`` (canonical position -> input index), with every
-    per-view array and view index put back in the input order."""
-    def per_view(a: np.ndarray) -> np.ndarray:
-        out = np.empty_like(a)
-        out[order] = a
-        return out
-
-    obs = model.observations
-    check = model.check
-    focal = model.focal
-    if focal is not None and focal.start_pair is not None:
-        focal = dataclasses.replace(focal, start_pair=(int(order[focal.start_pair[0]]),
-                                                       int(order[focal.start_pair[1]])))
-    return dataclasses.replace(
-        model, registered=per_view(model.registered), R=per_view(model.R), t=per_view(model.t),
-        observations=Observations(order[obs.view], obs.point, obs.xy),
-        check=dataclasses.replace(
-            check, inconsistent_pairs=tuple((int(order[i]), int(order[j]), r)
-                                            for i, j, r in check.inconsistent_pairs),
-            suspect_views=tuple(sorted(int(order[v]) for v in check.suspect_views))),
-        focal=focal)
-
-
-def _cameras_result(models: list[SfMModel], used: CameraPass, K_reference: np.ndarray,
-                    canonical_camera: np.ndarray, order: np.ndarray, reasons: dict[int, str],
-                    common: dict, priors: Sequence[FocalPrior], view_camera: np.ndarray,
-                    camera_sizes: Sequence[tuple[int, int]]) -> MultiViewReconstruction:
-    """The result of photos of several cameras: every model's observations in each
-    view's own working pixels and its cameras (``SfMModel.camera_K``), the largest
-    model's cameras as the result's, all in the input order."""
-    r = reference_camera(canonical_camera)
-    out = []
-    for model in models:
-        K_model = model.K if model.K is not None else K_reference
-        K_cameras = model_cameras(model, used, K_reference)
-        obs = camera_pixels(model, canonical_camera, K_model, K_cameras)
-        residuals = np.concatenate([reprojection_residuals(
-            model.R, model.t, model.points3d, Observations(obs.view[rows], obs.point[rows],
-                                                           obs.xy[rows]), K_cameras[c])
-            for c in range(len(priors))
-            for rows in [canonical_camera[obs.view] == c]])
-        rmse = float(np.sqrt(np.mean(residuals**2))) if len(residuals) else float("nan")
-        out.append(dataclasses.replace(model, observations=obs, reprojection_rmse_px=rmse,
-                                       K=K_cameras[r], camera_K=K_cameras))
-    main = out[0]
-    k = implied_coefficients(used, main.camera_K)
-    seen = np.zeros(len(priors), dtype=bool)
-    seen[canonical_camera[main.registered]] = True
-    dists = [np.concatenate([k[c], np.zeros(4 - k.shape[1])]) if np.any(k[c]) else np.zeros(0)
-             for c in range(len(priors))]
-    # A camera the largest model does not see keeps what its keypoints were mapped with
-    # (a focal search that found no pose confirms nothing).
-    K_out = np.where(seen[:, None, None], main.camera_K, used.K)
-    dists = [d if seen[c] else (np.concatenate([used.k[c], np.zeros(4 - used.k.shape[1])])
-                                if np.any(used.k[c]) else np.zeros(0))
-             for c, d in enumerate(dists)]
-    cameras = tuple(CameraIntrinsics(K_out[c], dists[c], tuple(camera_sizes[c]),
-                                     tuple(prior.image_size), prior.camera_name,
-                                     prior.description, bool(seen[c]))
-                    for c, prior in enumerate(priors))
-    names = common["names"]
-    return MultiViewReconstruction(
-        K=main.camera_K[r].copy(), image_size=tuple(camera_sizes[r]),
-        models=tuple(_to_input_order(m, order) for m in out),
-        unregistered_reasons={names[order[v]]: why for v, why in sorted(
-            reasons.items(), key=lambda item: order[item[0]])},
-        calibration_source=main.focal.source if main.focal is not None else "prior",
-        prior_description=priors[r].description, photo_size=tuple(priors[r].image_size),
-        dist=dists[r], view_camera=np.asarray(view_camera, dtype=int), cameras=cameras,
-        **common)
-
-
-def default_focal_prior(images: Sequence[ImageSource], names: Sequence[str]) -> FocalPrior:
-    """The prior of photos of one camera without a calibration:
-    :func:`default_camera_priors` with one camera (``"single"``: photos that cannot share
-    one are refused), from their EXIF when they are files, else the default.
-
-    Parameters
-    ----------
-    images : sequence of path or (H, W, 3) uint8 ndarray
-        The images, as files or BGR arrays.
-    names : sequence of str
-        Their names, one per image.
-
-    Returns
-    -------
-    FocalPrior
-    """
-    return default_camera_priors(images, names, "single")[1][0]
-
-
-def default_camera_priors(images: Sequence[ImageSource], names: Sequence[str],
-                          mode: str = "auto") -> tuple[np.ndarray, list[FocalPrior]]:
-    """The cameras of photos without a calibration and a prior for each: from their EXIF
-    and sizes when they are files (:func:`scene3D.io.exif.read_camera_priors`), else
-    from their sizes (:func:`scene3D.geometry.intrinsics_prior.camera_priors`).
-
-    Parameters
-    ----------
-    images : sequence of path or (H, W, 3) uint8 ndarray
-        The images, as files or BGR arrays.
-    names : sequence of str
-        Their names, one per image.
-    mode : str, default "auto"
-        How photos are grouped into cameras
-        (:data:`scene3D.geometry.intrinsics_prior.CAMERA_MODES`).
-
-    Returns
-    -------
-    view_camera : (V,) int ndarray
-    priors : list of FocalPrior
-        One per camera.
-    """
-    if all(isinstance(src, (str, os.PathLike)) for src in images):
-        from ..io.exif import read_camera_priors
-
-        return read_camera_priors(images, mode)  # type: ignore[arg-type]
-    sizes = [(int(np.shape(src)[1]), int(np.shape(src)[0])) for src in images]
-    return camera_priors([(name, None, size) for name, size in zip(names, sizes)], mode)
-
-
-def _check_K_for_size(K: np.ndarray, size: tuple[int, int], prior: FocalPrior | None) -> None:
-    """Raise ``ValueError`` unless ``K`` (given, or the prior's) suits the native ``size``."""
-    if prior is not None and tuple(prior.image_size) != tuple(size):
-        raise ValueError(f"`focal_prior` is for {prior.image_size[0]}x{prior.image_size[1]} "
-                         f"images, not {size[0]}x{size[1]} px, the images' native size, "
-                         "which it must be for")
-    check_intrinsics_for_native_size(K, size, "`K`" if prior is None else "`focal_prior.K`")
-
-
-def _too_few_keypoints(found: Sequence[tuple], labels: Sequence[str], needed: int,
-                       working_size: tuple[int, int]) -> str | None:
-    """Why no pair could start when fewer than two views have the ``needed`` keypoints a
-    verified pair needs (blank, tiny or too far downscaled images), naming the images by
-    their ``labels`` (:func:`~scene3D.io.images.source_label`); else None."""
-    counts = [len(f[0].keypoints) for f in found]
-    if sum(n >= needed for n in counts) >= 2:
-        return None
-    shown = ", ".join(f"{n} in '{label}'" for label, n in list(zip(labels, counts))[:4])
-    more = f", ... ({len(counts)} images)" if len(counts) > 4 else ""
-    return (f"too few keypoints to match: {shown}{more}, where a pair needs {needed}; are "
-            f"the images blank, blurred or tiny? (working size {working_size[0]}x"
-            f"{working_size[1]} px)")
-
-
-def _check_distinct_photos(keys: Sequence[bytes], keypoints: Sequence[int],
-                           labels: Sequence[str]) -> None:
-    """Raise ``ValueError`` when two views are one photo (the same keypoints and
-    descriptors: a copy under another name), naming the images by their ``labels``
-    (:func:`~scene3D.io.images.source_label`); views without keypoints are left to the
-    reconstruction, which says they have too few."""
-    first: dict[bytes, int] = {}
-    for v, key in enumerate(keys):
-        if keypoints[v] and first.setdefault(key, v) != v:
-            raise ValueError(f"'{labels[v]}' and '{labels[first[key]]}' are the same photo (the "
-                             "same keypoints): a view cannot pair with itself")
-
-
-def _check_distinct_names(images: Sequence[ImageSource], names: Sequence[str]) -> None:
-    """Raise ``ValueError`` when two views share a name (files of one name in two
-    folders): the result (``unregistered_reasons``) and its files name views by it."""
-    first: dict[str, int] = {}
-    for v, name in enumerate(names):
-        u = first.setdefault(name, v)
-        if u != v:
-            where = (f" ('{images[u]}', '{images[v]}')" if all(
-                isinstance(images[w], (str, os.PathLike)) for w in (u, v)) else "")
-            raise ValueError(f"two images are named '{name}'{where}: views are named by "
-                             "file name; rename one or pass distinct `names`")
 
 
 def image_sources(images: str | os.PathLike | Sequence[ImageSource | str]
@@ -406,7 +232,7 @@ def reconstruct_views(
         names = [Path(src).name if isinstance(src, (str, os.PathLike)) else f"view{i}"
                  for i, src in enumerate(images)]
     names = tuple(names)
-    _check_distinct_names(images, names)
+    check_distinct_names(images, names)
     if len(images) < 2:
         raise ReconstructionError("too_few_views", "need at least two images",
                                   views=len(images))
@@ -450,7 +276,7 @@ def reconstruct_views(
             raise ValueError(different_sizes_message(label, size, labels[lead[c]], first))
     reference = lead[reference_camera(view_camera)]
     first = found[reference][1]
-    _check_K_for_size(K_native, first, focal_prior)
+    check_K_for_size(K_native, first, focal_prior)
     working_size, levels = found[reference][2], found[reference][3]
     K_work = scale_intrinsics_halved(K_native, levels)
     if cameras is not None:  # each camera at its working size (scene3D.multiview.cameras)
@@ -464,7 +290,7 @@ def reconstruct_views(
 
     # Canonical order: by content, so that names and input order change nothing.
     keys = [content_key(f[0]) for f in found]
-    _check_distinct_photos(keys, [len(f[0].keypoints) for f in found], labels)
+    check_distinct_photos(keys, [len(f[0].keypoints) for f in found], labels)
     order = np.array(sorted(range(len(found)), key=lambda v: (keys[v], v)), dtype=int)
     position = np.empty_like(order)
     position[order] = np.arange(len(order))
@@ -545,7 +371,7 @@ def reconstruct_views(
                 features, verified, K_work, s, more_pairs, say, canonical_names, focal,
                 start_from, canonical_camera, known_cameras)
         except ReconstructionError as exc:
-            few = _too_few_keypoints(found, labels, s.min_pair_inliers, working_size)
+            few = too_few_keypoints(found, labels, s.min_pair_inliers, working_size)
             if exc.reason != "no_initial_pair" or few is None:
                 raise
             raise ReconstructionError(exc.reason, few, **exc.counts) from None
@@ -651,56 +477,24 @@ def reconstruct_views(
         break
     # Several cameras: each camera's focal length and lens the largest model calls for,
     # its keypoints mapped with them and the views reconstructed again
-    # (scene3D.multiview.cameras), as for one camera's lens above.
-    while cameras is not None and lens_passes < s.max_lens_passes:
-        t0 = time.perf_counter()
-        fit = refine_cameras(models[0], canonical_camera, used, K_work, K_cameras[:, 0, 0],
-                             [prior.sigma_log for prior in cameras])
-        implied = model_cameras(models[0], used, K_work)
-        k_implied = implied_coefficients(used, implied)
-        seen = np.zeros(len(cameras), dtype=bool)
-        seen[canonical_camera[models[0].registered]] = True
-        moved = max(corner_change_px(implied[c], k_implied[c], fit.K[c],
-                                     fit.k[c], camera_sizes[c]) for c in np.flatnonzero(seen))
-        timings["lens"] = timings.get("lens", 0.0) + time.perf_counter() - t0
-        if moved <= s.lens_tolerance_px:
-            break
-        folding = [c for c in np.flatnonzero(seen)
-                   if folds_within(fit.K[c], fit.k[c], camera_sizes[c])]
-        if folding:
-            say(f"the lens the model calls for folds over inside the images of camera "
-                f"{folding[0] + 1}: keeping the last cameras")
-            break
-        say("cameras: " + "; ".join(
-            f"{c + 1} f {fit.K[c, 0, 0]:.1f} px" + (f", k1 {fit.k[c, 0]:+.3f}" if num_radial
-                                                   else "")
-            for c in np.flatnonzero(seen))
-            + f" (the image corners move up to {moved:.1f} px): reconstructing with them")
-        kept = features, handles, used, K_work
-        used = CameraPass(np.where(seen[:, None, None], fit.K, used.K),
-                          np.where(seen[:, None], fit.k, used.k), used.known | seen)
-        K_work = used.K[reference_camera(canonical_camera)]
-        features = reference_features(features, camera_keypoints, raw_sizes, canonical_camera,
-                                      used.K, used.k, K_work)
-        handles = [engine.share(f) for f in features]
-        start_from = None if models[0].focal is None else dataclasses.replace(
-            models[0].focal, start_focal_px=float(K_work[0, 0]))
-        try:
-            attempt = reconstruct_with(K_work, start_from, used.known)
-        except ReconstructionError as exc:
-            attempt, why = None, str(exc)
-        else:
-            why = "it registers fewer views"
-            if attempt[0][0].registered.sum() >= models[0].registered.sum():
-                models, reasons, num_matched, num_verified = attempt
-                lens_passes += 1
-                continue
-        say(f"no better model with these cameras ({why}): keeping the last")
-        features, handles, used, K_work = kept
-        break
+    # (scene3D.multiview.camera_passes), as for one camera's lens above.
+    if cameras is not None:
+        def reconstruct_from(K: np.ndarray, new_features: list[ViewFeatures],
+                             start_from: FocalEstimate | None, known: np.ndarray) -> Attempt:
+            """:func:`reconstruct_with` on ``new_features``, shared with the engine."""
+            nonlocal features, handles
+            features = new_features
+            handles = [engine.share(f) for f in features]
+            return reconstruct_with(K, start_from, known)
+
+        views = CameraViews(canonical_camera, camera_keypoints, raw_sizes, K_cameras[:, 0, 0],
+                            [prior.sigma_log for prior in cameras], camera_sizes)
+        (models, reasons, num_matched, num_verified), used, K_work, lens_passes = camera_passes(
+            (models, reasons, num_matched, num_verified), reconstruct_from, features, views,
+            used, K_work, lens_passes, num_radial, s, say, timings)
     timings["total"] = sum(timings.values())
     if cameras is not None:
-        return _cameras_result(models, used, K_work, canonical_camera, order, reasons,
+        return cameras_result(models, used, K_work, canonical_camera, order, reasons,
                                dict(names=names, pair_selection=selection,
                                     matched_pairs=num_matched, verified_pairs=num_verified,
                                     timings_s=timings, feature=feature,
@@ -714,7 +508,7 @@ def reconstruct_views(
         dist = np.concatenate([k, np.zeros(4 - k.size)])
     return MultiViewReconstruction(
         names=names, K=np.asarray(K_work, np.float64), image_size=working_size,
-        models=tuple(_to_input_order(m, order) for m in models),
+        models=tuple(to_input_order(m, order) for m in models),
         unregistered_reasons={names[order[v]]: why for v, why in sorted(
             reasons.items(), key=lambda item: order[item[0]])},
         pair_selection=selection, matched_pairs=num_matched, verified_pairs=num_verified,

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .models import ViewFeatures
+from .view_data import ViewFeatures
 
 
 @dataclass(frozen=True)

@@ -13,10 +13,9 @@ from ..twoview.results import TwoViewSettings
 from ..twoview.trust import focal_mismatch
 
 #: How far apart the focal lengths that different views of one scene call for lie under
-#: the right calibration, as the standard deviation of their log: 0.0020 at 768 px and
-#: 0.0011 at 1536 px over subsets of the three Strecha scenes, about 11 times the
-#: adjustment's formal sigma (which takes every observation as independent and the
-#: principal point as known). :func:`refutes_calibration` adds it to that sigma.
+#: the right calibration, as the standard deviation of their log (the adjustment's formal
+#: sigma takes every observation as independent and the principal point as known):
+#: :func:`refutes_calibration` adds it to that sigma.
 FOCAL_SPREAD_LOG = 0.002
 
 
@@ -73,9 +72,9 @@ class SfMSettings:
     consistency_px : float
         The check: a verified pair whose inliers lie further than this from the model's
         epipolar geometry (median Sampson distance) contradicts the model. Correct pairs
-        lie within a few tenths of a pixel of correct cameras (castle-P19 under its true
-        cameras: median 0.14 px); a pair that contradicts a model that is otherwise
-        consistent is a false verification and is dropped, with what it attached.
+        lie within a few tenths of a pixel of correct cameras; a pair that contradicts a
+        model that is otherwise consistent is a false verification and is dropped, with
+        what it attached.
     min_model_views : int
         Smallest model that is kept (a model of two views is one trusted pair).
     weight_by_size : bool
@@ -88,9 +87,7 @@ class SfMSettings:
         views call for a focal length more than ``max_focal_mismatch`` from the
         calibration's (in log,
         about a fraction) and more than ``focal_mismatch_sigmas`` standard deviations
-        (:func:`refutes_calibration`) refutes it. Under the right calibration the
-        Strecha scenes' models stay within 0.5 %; a calibration 3 % off is measured
-        at least 2.3 % off, and models more than 2 degrees off at least 2.8 %.
+        (:func:`refutes_calibration`) refutes it.
     max_focal_refits : int
         When the largest model refutes the calibration's focal length, the views are
         reconstructed again with the focal length they call for, at most this many
@@ -105,15 +102,13 @@ class SfMSettings:
         more than this from where the current undistortion puts it.
     min_lens_shift : float
         A lens that moves no image corner more than this share of the image diagonal
-        is taken as none (the keypoints stay as photographed). The Strecha scenes, whose
-        photos have no distortion, call for 0.06-0.1 % (a principal point a few pixels
-        off the centre takes that shape), and undistorting by it cost castle-P19's focal
-        length 0.2 %; photos from compact cameras and phones call for 2-4 %.
+        is taken as none (the keypoints stay as photographed): photos without
+        distortion call for a little of it (a principal point a few pixels off the
+        centre takes that shape), and undistorting by it costs focal accuracy.
     min_focal_test_views : int
         Models of fewer views are held to the two-view check's limits instead
-        (``TwoViewSettings.max_focal_mismatch``, 15 %): three views of a short stretch
-        of castle-P19 at 768 px, under the right calibration, called for 1.059 times
-        its focal length, then 1.021 times that, without settling (a review).
+        (``TwoViewSettings.max_focal_mismatch``, 15 %): the focal length a few views
+        call for does not settle, even under the right calibration.
     min_model_points : int
         A model with fewer points is a failure, not a result: its cameras rest on
         (almost) nothing (a two-view start alone triangulates dozens);

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .models import PairMatches
+from .view_data import PairMatches
 
 
 @dataclass(frozen=True)

@@ -2,10 +2,8 @@
 
 A SIFT keypoint is the extremum of a difference of Gaussians at its scale; it is
 located to a fraction of that scale, so its error grows with the keypoint's size
-(``cv2.KeyPoint.size``, the diameter of the region described). The reprojection
-residuals of Herz-Jesus-P8's model show it (robust standard deviation per coordinate
-by size: 0.04 px at 2 px, 0.09 px at 5-6 px, 0.2 px beyond 10 px; at a given size,
-a keypoint of lower contrast is no less precise). Dividing each residual by a standard
+(``cv2.KeyPoint.size``, the diameter of the region described), as a model's reprojection
+residuals show (docs/benchmarks.md). Dividing each residual by a standard
 deviation proportional to the size is the maximum-likelihood weighting for that noise
 (H&Z section 4.2.2: the Mahalanobis distance under the measurements' covariance).
 """
