@@ -13,7 +13,6 @@ from pathlib import Path
 import numpy as np
 
 from ..calibration.views import VIDEO_SUFFIXES
-from ..densify.pipeline import DenseSettings
 from ..errors import ReconstructionError, plural
 from ..features.matching import FEATURE_MODES
 from ..geometry.camera import adapt_intrinsics_to_size
@@ -65,7 +64,7 @@ from .dense_views import (
     CLOUD_FILE,
     MESH_FILE,
     dense_files,
-    dense_result,
+    reconstruction_dense,
     require_mesh_extra,
     write_dense,
 )
@@ -291,25 +290,18 @@ def _failure_message(recon: MultiViewReconstruction, names: list[str]) -> str:
             "(see reconstruction.json; the files are written for inspection only)")
 
 
-def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, summary: dict,
-                  lines: list[str], warnings: list[str], plots: bool, sources: list) -> Path:
-    """report.html: the summary, the command's lines and warnings, per-view numbers and
-    thumbnails, cameras.png and the interactive 3D view (scene3D.report) of the largest
-    model."""
+def _write_report(out: Path, recon: MultiViewReconstruction, summary: dict, lines: list[str],
+                  warnings: list[str], plots: bool, sources: list, dense: tuple | None) -> Path:
+    """report.html (:func:`scene3D.report.reconstruction_report`), with the dense run."""
     from ..io.export import atomic_write_pieces
-    from ..report import multi_view_layers, multi_view_report, prepare_view, view_diagnostics
+    from ..report import DenseRun, reconstruction_report
     from .report import thumbnails
 
-    figures = {}
-    if plots:
-        figures["cameras.png"] = written_bytes(out / "cameras.png")
-    view = prepare_view(*multi_view_layers(names, recon.K, recon.image_size, recon.registered,
-                                           recon.R, recon.t, recon.points3d, recon.colors))
-    # The working images' pixels (photos=False), as the summary's reprojection errors.
-    diagnostics = view_diagnostics(names, [recon.colmap_model(m, photos=False)
-                                           for m in recon.models])
-    page = multi_view_report(names, _placed(names, summary["models"]), summary, lines,
-                             warnings, figures, view, diagnostics, thumbnails(sources, names))
+    figures = {"cameras.png": written_bytes(out / "cameras.png")} if plots else {}
+    page = reconstruction_report(
+        recon, _placed(recon.names, summary["models"]), summary, lines, warnings, figures,
+        thumbnails(sources, recon.names),
+        None if dense is None else DenseRun(tuple(dense[0].names), *dense[1:]))
     return atomic_write_pieces(out / REPORT_FILE, page.encoded())
 
 
@@ -515,13 +507,8 @@ def run(args: argparse.Namespace) -> int:
             camera_model=args.camera_model, camera_mode=args.camera_mode.replace("-", "_"))
         dense, dense_failure, t_dense = None, None, time.perf_counter()
         if args.dense and recon.ok:
-            dense_model = recon.colmap_model(recon.models[0])
-            by_name = {**{colmap_image_name(p.name): p for p in paths},
-                       **{p.name: p for p in paths}}
             try:
-                dense = dense_model, *dense_result(
-                    dense_model, [by_name[n] for n in dense_model.names], DenseSettings(),
-                    engine, args.mesh)
+                dense = reconstruction_dense(recon, paths, engine, args.mesh)
             except ReconstructionError as exc:  # the sparse model is written all the same
                 dense_failure = f"--dense: {exc}"
     # The files of every model, all or none: a write that fails leaves the earlier run's.
@@ -561,8 +548,8 @@ def run(args: argparse.Namespace) -> int:
         lines = _result_lines(names, recon, models)
         warnings = _run_warnings(recon, models, summary)
         if not args.no_report:
-            written.append(_write_report(out, names, recon, summary, lines, warnings,
-                                         not args.no_plots, sources))
+            written.append(_write_report(out, recon, summary, lines, warnings,
+                                         not args.no_plots, sources, dense))
     removed = out_folder.remove_stale(written)
 
     in_colmap = {names[v] for model in recon.models for v in model.views}

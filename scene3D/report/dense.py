@@ -1,0 +1,119 @@
+"""The dense part of a many-view page: the fused cloud's numbers, its layer of the 3D view,
+and a coloured thumbnail of each view's depth map.
+
+It reads what :func:`scene3D.densify.densify` returned (the cloud, and the small depth maps
+:mod:`scene3D.densify.preview` keeps); the colouring is the page's, nothing is computed
+again.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from ..densify.fusion import DenseCloud
+from ..densify.mesh import Mesh
+from ..densify.pipeline import DenseResult
+from ..densify.preview import DepthPreview
+from ..viz.drawing import encode_jpeg
+from .page import Page
+from .viewer import MAX_VIEW_POINTS, CloudLayer
+
+__all__ = ["DenseRun", "dense_layer", "dense_section", "depth_thumbnail"]
+
+#: The grey of pixels without a depth (BGR).
+_NO_DEPTH = (225, 225, 225)
+
+
+@dataclass(frozen=True)
+class DenseRun:
+    """What a page shows of a dense run.
+
+    Attributes
+    ----------
+    names : tuple of str
+        The dense model's views, in the order of ``result.previews``.
+    result : DenseResult
+        :func:`scene3D.densify.densify`'s result (same world frame as the sparse model).
+    mesh : Mesh or None
+        The surface, when one was made.
+    """
+
+    names: tuple[str, ...]
+    result: DenseResult
+    mesh: Mesh | None = None
+
+
+def dense_layer(cloud: DenseCloud) -> CloudLayer:
+    """The 3D view's layer of a fused cloud (thinned by the view to its bound,
+    :data:`~scene3D.report.viewer.MAX_VIEW_POINTS` with the sparse points)."""
+    return CloudLayer("dense", cloud.points3d, cloud.colors, 1.5)
+
+
+def depth_thumbnail(preview: DepthPreview) -> bytes:
+    """A JPEG of a depth preview: near red, far blue (OpenCV's turbo colour map over the
+    2nd to 98th percentile of its depths), light grey where there is no depth.
+
+    Parameters
+    ----------
+    preview : DepthPreview
+
+    Returns
+    -------
+    bytes
+        JPEG, the preview's size.
+    """
+    depth = preview.depth
+    valid = np.isfinite(depth)
+    if valid.any():
+        near, far = np.percentile(depth[valid], (2, 98))
+        share = (far - np.where(valid, depth, far)) / max(float(far - near), 1e-12)
+        level = np.clip(np.rint(255 * share), 0, 255).astype(np.uint8)
+    else:
+        level = np.zeros(depth.shape, np.uint8)
+    image = cv2.applyColorMap(level, cv2.COLORMAP_TURBO)
+    image[~valid] = _NO_DEPTH
+    return encode_jpeg(image, quality=85)
+
+
+def dense_section(page: Page, dense: DenseRun) -> None:
+    """The "Dense cloud" section: its numbers, and a thumbnail of each view's depth map.
+
+    Parameters
+    ----------
+    page : Page
+    dense : DenseRun
+    """
+    names, result, mesh = dense.names, dense.result, dense.mesh
+    page.heading("Dense cloud")
+    maps = [p for p in result.previews if p is not None]
+    rows = [("dense points", f"{result.cloud.num_points:,}",
+             "fused points: each depth confirmed by at least two other views, one point a "
+             "voxel"),
+            ("voxel side", f"{result.voxel_size:.4g}", "the thinning grid's cell, in the "
+             "model's units (about a pixel's footprint)"),
+            ("depth maps", f"{len(maps)} of {len(names)}", "views with a depth map (a view "
+             "that shares no sparse point with another gets none)")]
+    if mesh is not None:
+        rows.append(("mesh triangles", f"{len(mesh.faces):,}",
+                     f"the surface in mesh.ply ({len(mesh.vertices):,} vertices)"))
+    page.quantities(rows, "dense")
+    page.paragraph(f"The 3D view holds at most {MAX_VIEW_POINTS:,} points: the sparse cloud "
+                   "whole, then the dense cloud thinned to evenly spaced points. The files "
+                   "hold every point.", "note")
+    if not maps:
+        return
+    page.heading("Depth maps")
+    page.open_row()
+    for name, preview in zip(names, result.previews):
+        if preview is None:
+            continue
+        width, height = preview.image_size
+        share = preview.valid_pixels / max(width * height, 1)
+        page.figure(depth_thumbnail(preview), f"{name}: depth at {share:.0%} of the pixels",
+                    alt=f"depth map of {name}")
+    page.close_row()
+    page.paragraph("Each view's depth map, small: near in red, far in blue (each map "
+                   "coloured over its own depths), grey where no depth was found.", "note")
