@@ -416,3 +416,27 @@ def test_a_model_written_by_pycolmap_densifies_the_same(small_scene, tmp_path):
     for cloud in (a, b):
         distances = rectangle_distances(cloud.points3d, scene.rectangles)
         assert np.mean(distances < 0.005 * extent) > 0.85
+
+
+def test_simplify_mesh_keeps_the_bound_and_the_surface():
+    """A 200 x 200 grid of a tilted plane (79,202 triangles) to at most 5,000: the vertices
+    stay on the plane, the colours are the means of merged ones, and a mesh within the
+    bound comes back as it is."""
+    pytest.importorskip("open3d")
+    from scene3D.densify.mesh import Mesh, simplify_mesh
+
+    n = 200
+    u, v = np.meshgrid(np.linspace(0, 2, n), np.linspace(0, 1, n))
+    vertices = np.column_stack([u.ravel(), v.ravel(), 3 + 0.5 * u.ravel() - 0.2 * v.ravel()])
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, :-1].ravel(), \
+        idx[1:, 1:].ravel()
+    faces = np.concatenate([np.column_stack([a, b, c]), np.column_stack([b, d, c])])
+    colors = np.tile(np.array([[200, 40, 90]], np.uint8), (n * n, 1))
+    mesh = Mesh(vertices, faces, colors)
+    small = simplify_mesh(mesh, 5000)
+    assert 1000 < len(small.faces) <= 5000
+    on_plane = small.vertices[:, 2] - (3 + 0.5 * small.vertices[:, 0] - 0.2 * small.vertices[:, 1])
+    assert np.abs(on_plane).max() < 1e-9
+    assert np.all(small.colors == [200, 40, 90]) and small.faces.max() < len(small.vertices)
+    assert simplify_mesh(mesh, len(faces)) is mesh

@@ -76,6 +76,22 @@ def test_view_is_decimated_with_a_note():
                      "holds at most 400)."]
 
 
+def test_figure_json_holds_a_mesh_with_its_vertex_colours():
+    from scene3D.report.viewer import MeshLayer
+
+    vertices = np.array([[0, 0, 5], [1, 0, 5], [0, 1, 6], [1, 1, 7]], np.float64)
+    faces = np.array([[0, 1, 2], [1, 3, 2]])
+    colors = np.array([[255, 0, 0], [0, 255, 0], [0, 0, 255], [16, 32, 48]], np.uint8)
+    text, _ = scene_figure_json([], None, meshes=(MeshLayer("mesh", vertices, faces, colors),))
+    (mesh,) = json.loads(text)["data"]
+    assert mesh["type"] == "mesh3d" and mesh["name"] == "mesh (2 triangles)"
+    np.testing.assert_array_equal(np.column_stack([_decode(mesh[k]) for k in "xyz"]), vertices)
+    ijk = np.column_stack([np.frombuffer(base64.b64decode(mesh[k]["bdata"]), "<i4")
+                           for k in "ijk"])
+    np.testing.assert_array_equal(ijk, faces)
+    assert mesh["vertexcolor"] == ["#ff0000", "#00ff00", "#0000ff", "#102030"]
+
+
 def test_page_is_self_contained_and_escapes(tmp_path):
     layers, cameras = two_view_layers(np.array([[0.0, 0, 5], [1, 1, 6]]), None, np.eye(3),
                                       np.array([-1.0, 0, 0]), np.diag([500.0, 500, 1]),
@@ -498,6 +514,34 @@ def test_dense_views_report_in_browser(tmp_path):
     _assert_no_field_names(text, summary)
     assert text.startswith("scene3D report of the COLMAP model")
     assert _row_value(text, "depth maps") == "5 of 5"
+
+
+def test_dense_views_mesh_report_in_browser(tmp_path):
+    """With --mesh the 3D view shows the mesh (at most MAX_VIEW_FACES triangles) instead of
+    the dense cloud, and the page says so."""
+    pytest.importorskip("open3d")
+    from scene3D.evaluation.dense import render_orbit_views
+    from scene3D.report.dense import MAX_VIEW_FACES
+
+    from .test_densify import _write_scene
+
+    model = _write_scene(tmp_path / "scene", render_orbit_views(5, size=(200, 150),
+                                                                 arc_deg=40.0))
+    out = tmp_path / "dense"
+    _run(["-m", "scene3D", "dense-views", model, "--images", model.parent, "--out", out,
+          "--no-pyr-down", "--mesh"], tmp_path)
+    summary = json.loads((out / "dense.json").read_text())
+    page = visit(out / "report.html", wait_for_view=True)
+    _check_page(page, with_view=True, images=5 + 5)
+    _assert_no_field_names(page.text, summary)
+    traces = {t["name"].split(" (")[0]: t for t in
+              _figure((out / "report.html").read_text())["data"]}
+    assert "dense" not in traces and traces["mesh"]["type"] == "mesh3d"
+    faces = len(np.frombuffer(base64.b64decode(traces["mesh"]["i"]["bdata"]), "<i4"))
+    assert faces == min(summary["mesh"]["faces"], MAX_VIEW_FACES)
+    assert (f"with {faces:,} of its {summary['mesh']['faces']:,} triangles (at most "
+            f"{MAX_VIEW_FACES:,}") in page.text
+    assert _row_value(page.text, "mesh triangles") == f"{summary['mesh']['faces']:,}"
 
 
 def test_reconstruct_views_dense_report_in_browser(tmp_path, fountain):

@@ -1,9 +1,10 @@
-"""The dense part of a many-view page: the fused cloud's numbers, its layer of the 3D view,
-and a coloured thumbnail of each view's depth map.
+"""The dense part of a many-view page: the fused cloud's numbers, its layer of the 3D view
+(the mesh instead when there is one), and a coloured thumbnail of each view's depth map.
 
 It reads what :func:`scene3D.densify.densify` returned (the cloud, and the small depth maps
-:mod:`scene3D.densify.preview` keeps); the colouring is the page's, nothing is computed
-again.
+:mod:`scene3D.densify.preview` keeps); the colouring is the page's. As the view thins a
+cloud to its bound, a mesh is simplified to :data:`MAX_VIEW_FACES` triangles
+(:func:`scene3D.densify.mesh.simplify_mesh`).
 """
 
 from __future__ import annotations
@@ -14,14 +15,18 @@ import cv2
 import numpy as np
 
 from ..densify.fusion import DenseCloud
-from ..densify.mesh import Mesh
+from ..densify.mesh import Mesh, simplify_mesh
 from ..densify.pipeline import DenseResult
 from ..densify.preview import DepthPreview
 from ..viz.drawing import encode_jpeg
 from .page import Page
-from .viewer import MAX_VIEW_POINTS, CloudLayer
+from .viewer import MAX_VIEW_POINTS, CloudLayer, MeshLayer
 
-__all__ = ["DenseRun", "dense_layer", "dense_section", "depth_thumbnail"]
+__all__ = ["MAX_VIEW_FACES", "DenseRun", "dense_clouds", "dense_meshes", "dense_section",
+           "depth_thumbnail"]
+
+#: At most this many triangles of a mesh are sent to the browser (about 4 MB of page).
+MAX_VIEW_FACES = 100_000
 
 #: The grey of pixels without a depth (BGR).
 _NO_DEPTH = (225, 225, 225)
@@ -46,10 +51,23 @@ class DenseRun:
     mesh: Mesh | None = None
 
 
-def dense_layer(cloud: DenseCloud) -> CloudLayer:
-    """The 3D view's layer of a fused cloud (thinned by the view to its bound,
-    :data:`~scene3D.report.viewer.MAX_VIEW_POINTS` with the sparse points)."""
-    return CloudLayer("dense", cloud.points3d, cloud.colors, 1.5)
+def dense_clouds(dense: DenseRun | DenseCloud | None) -> list[CloudLayer]:
+    """The 3D view's layer of a dense cloud (thinned by the view to its bound,
+    :data:`~scene3D.report.viewer.MAX_VIEW_POINTS` with the sparse points); none for no
+    cloud, or for a run with a mesh (:func:`dense_meshes` shows that instead)."""
+    if dense is None or isinstance(dense, DenseRun) and dense.mesh is not None:
+        return []
+    cloud = dense.result.cloud if isinstance(dense, DenseRun) else dense
+    return [CloudLayer("dense", cloud.points3d, cloud.colors, 1.5)]
+
+
+def dense_meshes(dense: DenseRun | DenseCloud | None) -> tuple[MeshLayer, ...]:
+    """The 3D view's layer of a dense run's mesh, simplified to :data:`MAX_VIEW_FACES`
+    triangles; none without a mesh."""
+    if not isinstance(dense, DenseRun) or dense.mesh is None:
+        return ()
+    shown = simplify_mesh(dense.mesh, MAX_VIEW_FACES)
+    return (MeshLayer("mesh", shown.vertices, shown.faces, shown.colors),)
 
 
 def depth_thumbnail(preview: DepthPreview) -> bytes:
@@ -100,9 +118,16 @@ def dense_section(page: Page, dense: DenseRun) -> None:
         rows.append(("mesh triangles", f"{len(mesh.faces):,}",
                      f"the surface in mesh.ply ({len(mesh.vertices):,} vertices)"))
     page.quantities(rows, "dense")
-    page.paragraph(f"The 3D view holds at most {MAX_VIEW_POINTS:,} points: the sparse cloud "
-                   "whole, then the dense cloud thinned to evenly spaced points. The files "
-                   "hold every point.", "note")
+    if mesh is None:
+        page.paragraph(f"The 3D view holds at most {MAX_VIEW_POINTS:,} points: the sparse "
+                       "cloud whole, then the dense cloud thinned to evenly spaced points. "
+                       "The files hold every point.", "note")
+    else:
+        shown = min(len(mesh.faces), MAX_VIEW_FACES)
+        page.paragraph(f"The 3D view shows the mesh instead of the dense cloud, with "
+                       f"{shown:,} of its {len(mesh.faces):,} triangles (at most "
+                       f"{MAX_VIEW_FACES:,}: nearby vertices merged). mesh.ply holds them "
+                       "all.", "note")
     if not maps:
         return
     page.heading("Depth maps")

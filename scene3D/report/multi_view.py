@@ -14,7 +14,7 @@ from ..densify.fusion import DenseCloud
 from ..io.colmap_model import ColmapModel
 from ..viz.drawing import frustum_corners
 from .charts import histogram_svg, shared_points_svg
-from .dense import DenseRun, dense_layer, dense_section
+from .dense import DenseRun, dense_clouds, dense_meshes, dense_section
 from .diagnostics import ViewDiagnostics, view_diagnostics
 from .page import Html, Markup, Page, esc, image_data_url
 from .sections import (
@@ -54,7 +54,7 @@ def multi_view_layers(
     t: ArrayLike,
     points3d: ArrayLike,
     colors: ArrayLike | None,
-    dense: DenseCloud | None = None,
+    dense: DenseRun | DenseCloud | None = None,
 ) -> tuple[list[CloudLayer], CameraLayer]:
     """What the 3D view of a multi-view reconstruction shows (for :func:`prepare_view`).
 
@@ -69,9 +69,10 @@ def multi_view_layers(
         World-to-camera poses (NaN for views not registered).
     points3d : (P, 3) array_like
         World points; ``colors`` their RGB ``uint8``.
-    dense : DenseCloud or None, default None
+    dense : DenseRun, DenseCloud or None, default None
         A dense cloud in the same frame: a layer after the sparse points (which the view
-        keeps whole; the dense one is thinned to the rest of its bound).
+        keeps whole; the dense one is thinned to the rest of its bound). A run's mesh is
+        not a cloud: :func:`~scene3D.report.dense.dense_meshes` gives it.
     """
     points3d = np.asarray(points3d, dtype=np.float64).reshape(-1, 3)
     R = np.asarray(R, dtype=np.float64).reshape(-1, 3, 3)
@@ -85,8 +86,7 @@ def multi_view_layers(
                                               image_size, frusta_depth(points3d, centres))
     layer = CloudLayer("points" if dense is None else "sparse", points3d,
                        None if colors is None else np.asarray(colors), 2.5)
-    return [layer, *([] if dense is None else [dense_layer(dense)])], \
-        CameraLayer(tuple(names), corners)
+    return [layer, *dense_clouds(dense)], CameraLayer(tuple(names), corners)
 
 
 def multi_view_report(
@@ -191,7 +191,7 @@ def reconstruction_report(
     """
     view = prepare_view(*multi_view_layers(
         recon.names, recon.K, recon.image_size, recon.registered, recon.R, recon.t,
-        recon.points3d, recon.colors, None if dense is None else dense.result.cloud))
+        recon.points3d, recon.colors, dense), meshes=dense_meshes(dense))
     # The working images' pixels (photos=False), as the summary's reprojection errors.
     diagnostics = view_diagnostics(recon.names, [recon.colmap_model(m, photos=False)
                                                  for m in recon.models])
@@ -312,7 +312,7 @@ def _diagnostic_charts(page: Page, d: ViewDiagnostics) -> None:
              "count). Pairs that share none are blank.")
 
 
-def colmap_layers(model: ColmapModel, dense: DenseCloud | None = None
+def colmap_layers(model: ColmapModel, dense: DenseRun | DenseCloud | None = None
                   ) -> tuple[list[CloudLayer], CameraLayer]:
     """What the 3D view of a COLMAP model shows (for :func:`prepare_view`): its points and
     a frustum per image, each with its own camera.
@@ -321,8 +321,9 @@ def colmap_layers(model: ColmapModel, dense: DenseCloud | None = None
     ----------
     model : ColmapModel
         World-to-camera poses, points in the world frame.
-    dense : DenseCloud or None, default None
-        A dense cloud of the model (its world frame), thinned after the sparse points.
+    dense : DenseRun, DenseCloud or None, default None
+        A dense cloud of the model (its world frame), thinned after the sparse points (as
+        :func:`multi_view_layers`).
 
     Returns
     -------
@@ -338,8 +339,7 @@ def colmap_layers(model: ColmapModel, dense: DenseCloud | None = None
                                             camera.image_size, depth)
     sparse = CloudLayer("points" if dense is None else "sparse", model.points3d,
                         model.colors, 2.5)
-    return ([sparse, *([] if dense is None else [dense_layer(dense)])],
-            CameraLayer(tuple(model.names), corners))
+    return [sparse, *dense_clouds(dense)], CameraLayer(tuple(model.names), corners)
 
 
 def colmap_summary(model: ColmapModel) -> dict:
@@ -412,8 +412,8 @@ def colmap_report(model: ColmapModel, source: str,
     _diagnostic_charts(page, diagnostics)
     if dense is not None:
         dense_section(page, dense)
-    view_section(page, prepare_view(*colmap_layers(
-        model, None if dense is None else dense.result.cloud)), "Frame: the model's world "
+    view_section(page, prepare_view(*colmap_layers(model, dense),
+                                    meshes=dense_meshes(dense)), "Frame: the model's world "
                   "frame, shown with -y up (COLMAP's cameras look along +z with y down).")
     page.raw_json(jsonable(summary))
     return page.render(footer())
