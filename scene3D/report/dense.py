@@ -9,6 +9,7 @@ cloud to its bound, a mesh is simplified to :data:`MAX_VIEW_FACES` triangles
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import cv2
@@ -50,6 +51,12 @@ class DenseRun:
     result: DenseResult
     mesh: Mesh | None = None
 
+    @functools.cached_property
+    def shown_mesh(self) -> Mesh | None:
+        """The mesh as the 3D view shows it: at most :data:`MAX_VIEW_FACES` triangles
+        (made once)."""
+        return None if self.mesh is None else simplify_mesh(self.mesh, MAX_VIEW_FACES)
+
 
 def dense_clouds(dense: DenseRun | DenseCloud | None) -> list[CloudLayer]:
     """The 3D view's layer of a dense cloud (thinned by the view to its bound,
@@ -64,9 +71,9 @@ def dense_clouds(dense: DenseRun | DenseCloud | None) -> list[CloudLayer]:
 def dense_meshes(dense: DenseRun | DenseCloud | None) -> tuple[MeshLayer, ...]:
     """The 3D view's layer of a dense run's mesh, simplified to :data:`MAX_VIEW_FACES`
     triangles; none without a mesh."""
-    if not isinstance(dense, DenseRun) or dense.mesh is None:
+    shown = dense.shown_mesh if isinstance(dense, DenseRun) else None
+    if shown is None:
         return ()
-    shown = simplify_mesh(dense.mesh, MAX_VIEW_FACES)
     return (MeshLayer("mesh", shown.vertices, shown.faces, shown.colors),)
 
 
@@ -123,7 +130,7 @@ def dense_section(page: Page, dense: DenseRun) -> None:
                        "cloud whole, then the dense cloud thinned to evenly spaced points. "
                        "The files hold every point.", "note")
     else:
-        shown = min(len(mesh.faces), MAX_VIEW_FACES)
+        shown = len(dense.shown_mesh.faces)
         page.paragraph(f"The 3D view shows the mesh instead of the dense cloud, with "
                        f"{shown:,} of its {len(mesh.faces):,} triangles (at most "
                        f"{MAX_VIEW_FACES:,}: nearby vertices merged). mesh.ply holds them "
