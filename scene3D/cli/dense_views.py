@@ -7,6 +7,7 @@ import logging
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..densify.mesh import Mesh
 from ..densify.pipeline import (
@@ -27,8 +28,6 @@ from ..io.export import (
     write_json,
     write_ply,
 )
-from ..multiview import MultiViewReconstruction
-from ..report.page import Html
 from .common import (
     ArgumentParser,
     UsageError,
@@ -43,6 +42,10 @@ from .common import (
     run_command,
 )
 from .outputs import FILES_KEY, prepare_output_dir, previous_outputs, recorded_files
+
+if TYPE_CHECKING:  # the types only: dense-views imports neither at its start
+    from ..multiview import MultiViewReconstruction
+    from ..report.page import Html
 
 logger = logging.getLogger("scene3D.cli")
 

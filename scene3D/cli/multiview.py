@@ -197,7 +197,9 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
     parser.add_argument("--dense", action="store_true",
                         help=f"also a dense cloud of the largest model, as scene3d dense-views "
                              f"makes it: {DENSE_FOLDER}/{CLOUD_FILE} and "
-                             f"{DENSE_FOLDER}/{DENSE_SUMMARY_FILE} (photos only, not a video)")
+                             f"{DENSE_FOLDER}/{DENSE_SUMMARY_FILE} (photos only, not a video); "
+                             f"{REPORT_FILE} then shows it (or the mesh) and each view's "
+                             "depth map")
     parser.add_argument("--mesh", action="store_true",
                         help=f"with --dense: also its surface, {DENSE_FOLDER}/{MESH_FILE} "
                              "(screened Poisson; the mesh extra, Open3D)")
