@@ -67,7 +67,7 @@ def synthetic(method: str) -> dict:
 
 def _row(scene: str, cameras: str, method: str, result, width: int) -> dict:
     depth_s = result.timings_s["depth_maps"]
-    views = sum(v is not None for v in result.views)
+    views = sum(v is not None for v in result.previews)
     return {"scene": scene, "cameras": cameras, "method": method, "views": views,
             "width": width, "points": result.cloud.num_points, "depth_s": depth_s,
             "per_view_s": depth_s / max(views, 1),
@@ -104,7 +104,7 @@ def fountain(method: str, cameras: str, sfm: str | None) -> dict:
                         points3d=s * model.points3d @ R.T + t)
     t0 = time.perf_counter()
     result = densify(model, image_paths(model, root / "images"), DenseSettings(method=method))
-    width = next(v for v in result.views if v is not None).depth.shape[1]
+    width = next(v for v in result.previews if v is not None).image_size[0]
     row = _row("fountain-P11", cameras, method, result, width)
     row["total_s"] = time.perf_counter() - t0
     return row

@@ -69,6 +69,8 @@ def visit(path: Path, wait_for_view: bool, screenshot_path: Path | None = None) 
                                     args=CHROMIUM_ARGS)
         try:
             page = browser.new_page(viewport={"width": 1280, "height": 900})
+            # A dense view (300,000 points) takes SwiftShader some 40 s on two busy cores.
+            page.set_default_timeout(120_000)
             page.on("console", lambda m: result.console.append((m.type, m.text)))
             page.on("pageerror", lambda e: result.page_errors.append(str(e)))
             page.on("request", lambda r: result.requests.append(r.url))

@@ -15,6 +15,7 @@ from scene3D.densify import (
     ViewDepth,
     choose_neighbours,
     densify,
+    depth_preview,
     depth_range,
     fuse_depth_maps,
     image_paths,
@@ -242,6 +243,35 @@ def test_orbit_normals_of_the_ground_point_up(orbit, dense_orbit):
     assert np.median(up) > np.cos(np.radians(15))
 
 
+def test_depth_preview_averages_the_depths_of_each_footprint_and_keeps_holes():
+    """A 4 x 8 map shrunk to 2 x 4: each preview pixel the mean of its 2 x 2 block's valid
+    depths, NaN where fewer than half of them have one."""
+    depth = np.array([[1, 3, 2, 2, 5, np.nan, np.nan, np.nan],
+                      [1, 3, 2, 2, 7, np.nan, np.nan, 9],
+                      [4, 4, 6, 6, 1, 1, 8, 8],
+                      [4, 4, 6, 6, 1, 1, 8, 8]], np.float32)
+    preview = depth_preview(depth, width=4)
+    assert preview.image_size == (8, 4) and preview.valid_pixels == 27
+    np.testing.assert_allclose(preview.depth, [[2, 2, 6, np.nan], [4, 6, 1, 8]], atol=1e-6)
+    assert depth_preview(depth, width=100).depth.shape == (4, 8)  # never wider than the map
+    with pytest.raises(ValueError, match="shape"):
+        depth_preview(np.zeros(5))
+
+
+def test_densify_keeps_a_small_preview_of_each_true_depth_map(orbit, dense_orbit):
+    """The result keeps previews 160 px wide, not the full maps; they follow the exact
+    depths (shrunk the same way) within 1 % where both have one."""
+    h, w = orbit.depths[0].shape
+    assert len(dense_orbit.previews) == len(orbit.images)
+    for preview, truth in zip(dense_orbit.previews, orbit.depths):
+        assert preview.depth.shape == (round(h * 160 / w), 160)
+        assert preview.image_size == (w, h) and preview.valid_pixels > 0.5 * w * h
+        exact = depth_preview(truth).depth
+        both = np.isfinite(preview.depth) & np.isfinite(exact)
+        assert both.mean() > 0.5
+        assert np.median(np.abs(preview.depth[both] / exact[both] - 1)) < 0.01
+
+
 # -- input --------------------------------------------------------------------------------
 
 def test_load_sparse_model_reads_a_binary_model_as_the_text_one(tmp_path, orbit):
@@ -295,7 +325,7 @@ def test_dense_views_writes_the_cloud_with_normals(small_scene, tmp_path, capsys
     normals = read_ply_normals(out / "dense.ply")
     summary = json.loads((out / "dense.json").read_text())
     assert summary["points"] == len(points) == len(normals) == len(colors)
-    assert set(summary["files"]) == {"dense.ply", "dense.json"}
+    assert set(summary["files"]) == {"dense.ply", "dense.json", "report.html"}
     assert np.mean(rectangle_distances(points, scene.rectangles) < 0.01 * _extent(scene)) > 0.9
     assert np.median(np.linalg.norm(normals, axis=1)) == pytest.approx(1.0, abs=1e-5)
     assert f"Wrote '{out / 'dense.ply'}'" in captured.out
@@ -386,3 +416,27 @@ def test_a_model_written_by_pycolmap_densifies_the_same(small_scene, tmp_path):
     for cloud in (a, b):
         distances = rectangle_distances(cloud.points3d, scene.rectangles)
         assert np.mean(distances < 0.005 * extent) > 0.85
+
+
+def test_simplify_mesh_keeps_the_bound_and_the_surface():
+    """A 200 x 200 grid of a tilted plane (79,202 triangles) to at most 5,000: the vertices
+    stay on the plane, the colours are the means of merged ones, and a mesh within the
+    bound comes back as it is."""
+    pytest.importorskip("open3d")
+    from scene3D.densify.mesh import Mesh, simplify_mesh
+
+    n = 200
+    u, v = np.meshgrid(np.linspace(0, 2, n), np.linspace(0, 1, n))
+    vertices = np.column_stack([u.ravel(), v.ravel(), 3 + 0.5 * u.ravel() - 0.2 * v.ravel()])
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, :-1].ravel(), \
+        idx[1:, 1:].ravel()
+    faces = np.concatenate([np.column_stack([a, b, c]), np.column_stack([b, d, c])])
+    colors = np.tile(np.array([[200, 40, 90]], np.uint8), (n * n, 1))
+    mesh = Mesh(vertices, faces, colors)
+    small = simplify_mesh(mesh, 5000)
+    assert 1000 < len(small.faces) <= 5000
+    on_plane = small.vertices[:, 2] - (3 + 0.5 * small.vertices[:, 0] - 0.2 * small.vertices[:, 1])
+    assert np.abs(on_plane).max() < 1e-9
+    assert np.all(small.colors == [200, 40, 90]) and small.faces.max() < len(small.vertices)
+    assert simplify_mesh(mesh, len(faces)) is mesh

@@ -9,15 +9,19 @@ import re
 import subprocess
 import sys
 
+import cv2
 import numpy as np
 import pytest
 
 from scene3D.calibration.uncertainty import IntrinsicsCovariance, uncertainty_map
+from scene3D.densify import DepthPreview
 from scene3D.io.export import atomic_write_pieces
 from scene3D.report import (
+    MAX_VIEW_POINTS,
     CameraLayer,
     CloudLayer,
     calibration_report,
+    depth_thumbnail,
     multi_view_layers,
     multi_view_report,
     prepare_view,
@@ -70,6 +74,22 @@ def test_view_is_decimated_with_a_note():
     assert [len(_decode(t["x"])) for t in fig["data"]] == [100, 300]
     assert notes == ["The dense cloud shows 300 of its 1,000 points (every 3.3th: the view "
                      "holds at most 400)."]
+
+
+def test_figure_json_holds_a_mesh_with_its_vertex_colours():
+    from scene3D.report.viewer import MeshLayer
+
+    vertices = np.array([[0, 0, 5], [1, 0, 5], [0, 1, 6], [1, 1, 7]], np.float64)
+    faces = np.array([[0, 1, 2], [1, 3, 2]])
+    colors = np.array([[255, 0, 0], [0, 255, 0], [0, 0, 255], [16, 32, 48]], np.uint8)
+    text, _ = scene_figure_json([], None, meshes=(MeshLayer("mesh", vertices, faces, colors),))
+    (mesh,) = json.loads(text)["data"]
+    assert mesh["type"] == "mesh3d" and mesh["name"] == "mesh (2 triangles)"
+    np.testing.assert_array_equal(np.column_stack([_decode(mesh[k]) for k in "xyz"]), vertices)
+    ijk = np.column_stack([np.frombuffer(base64.b64decode(mesh[k]["bdata"]), "<i4")
+                           for k in "ijk"])
+    np.testing.assert_array_equal(ijk, faces)
+    assert mesh["vertexcolor"] == ["#ff0000", "#00ff00", "#0000ff", "#102030"]
 
 
 def test_page_is_self_contained_and_escapes(tmp_path):
@@ -421,3 +441,127 @@ def test_compressed_plotly_is_kept_in_the_cache(tmp_path, monkeypatch):
     (tmp_path / "file").write_text("")
     monkeypatch.setenv("SCENE3D_CACHE", str(tmp_path / "file" / "cache"))  # not a folder
     assert compressed_plotly_js(plotly_js_path()) == first.read_text()
+
+
+# -- the dense view (issue #53) ------------------------------------------------------------
+
+def test_depth_thumbnail_is_red_near_blue_far_and_grey_without_depth():
+    depth = np.tile(np.linspace(1.0, 10.0, 40, dtype=np.float32), (30, 1))
+    depth[:, 18:22] = np.nan
+    jpg = depth_thumbnail(DepthPreview(depth, (400, 300), 1))
+    image = cv2.imdecode(np.frombuffer(jpg, np.uint8), cv2.IMREAD_COLOR).astype(int)
+    assert image.shape == (30, 40, 3)
+    near, far, hole = image[15, 1], image[15, 38], image[15, 20]
+    assert near[2] > 120 and near[2] > near[0] + 80  # BGR: red (turbo ends in dark red)
+    assert far[0] > 80 and far[0] > far[2] + 40  # blue
+    assert np.all(np.abs(hole - 225) < 12)  # light grey
+
+
+def _figure(html):
+    """The 3D view's figure, read back from the page."""
+    text = re.search(r'<script type="application/json" id="view3d-data">(.*?)</script>',
+                     html, re.S).group(1)
+    return json.loads(text)
+
+
+def _check_dense_page(out, dense_summary, names, thumbnails):
+    """The page in ``out`` opens without an error, with a dense trace of at most the
+    view's bound (the sparse points whole, the dense ones thinned to the rest), a depth
+    thumbnail per view that decodes, and no internal name in its text."""
+    page = visit(out / "report.html", wait_for_view=True)
+    _check_page(page, with_view=True, images=thumbnails + len(names))
+    html = (out / "report.html").read_text()
+    traces = {t["name"].split(" (")[0]: t for t in _figure(html)["data"]}
+    sparse, dense = len(_decode(traces["sparse"]["x"])), len(_decode(traces["dense"]["x"]))
+    assert dense == min(dense_summary["points"], MAX_VIEW_POINTS - sparse)
+    assert traces["dense"]["name"] == f"dense ({dense:,})"
+    assert len(traces["dense"]["marker"]["color"]) == dense
+    text = page.text
+    assert _row_value(text, "dense points") == f"{dense_summary['points']:,}"
+    assert f"The 3D view holds at most {MAX_VIEW_POINTS:,} points" in text
+    if dense < dense_summary["points"]:
+        assert (f"The dense cloud shows {dense:,} of its {dense_summary['points']:,} "
+                "points") in text
+    for name, view in zip(names, dense_summary["views"]):
+        jpg = re.search(rf'<img src="data:image/jpeg;base64,([^"]+)" alt="depth map of '
+                        rf'{re.escape(name)}"', html)
+        image = cv2.imdecode(np.frombuffer(base64.b64decode(jpg.group(1)), np.uint8),
+                             cv2.IMREAD_COLOR)
+        assert image.shape[1] == 160 and image.std() > 10  # coloured, not blank
+        width, height = dense_summary["image_size"]
+        share = view["depth_pixels"] / (width * height)
+        assert f"{name}: depth at {share:.0%} of the pixels" in text
+    return text, html
+
+
+def test_dense_views_report_in_browser(tmp_path):
+    """``scene3d dense-views`` on five rendered views writes report.html beside the cloud:
+    the model's page with the dense cloud in its 3D view and the depth maps."""
+    from scene3D.evaluation.dense import render_orbit_views
+
+    from .test_densify import _write_scene
+
+    model = _write_scene(tmp_path / "scene", render_orbit_views(5, size=(200, 150),
+                                                                 arc_deg=40.0))
+    out = tmp_path / "dense"
+    proc = _run(["-m", "scene3D", "dense-views", model, "--images", model.parent, "--out",
+                 out, "--no-pyr-down"], tmp_path)
+    assert f"Wrote '{out / 'report.html'}'" in proc.stdout
+    summary = json.loads((out / "dense.json").read_text())
+    summary["image_size"] = [200, 150]
+    names = [f"view{k:02d}.png" for k in range(5)]
+    text, _ = _check_dense_page(out, summary, names, thumbnails=5)
+    _assert_no_field_names(text, summary)
+    assert text.startswith("scene3D report of the COLMAP model")
+    assert _row_value(text, "depth maps") == "5 of 5"
+
+
+def test_dense_views_mesh_report_in_browser(tmp_path):
+    """With --mesh the 3D view shows the mesh (at most MAX_VIEW_FACES triangles) instead of
+    the dense cloud, and the page says so."""
+    pytest.importorskip("open3d")
+    from scene3D.evaluation.dense import render_orbit_views
+    from scene3D.report.dense import MAX_VIEW_FACES
+
+    from .test_densify import _write_scene
+
+    model = _write_scene(tmp_path / "scene", render_orbit_views(5, size=(200, 150),
+                                                                 arc_deg=40.0))
+    out = tmp_path / "dense"
+    _run(["-m", "scene3D", "dense-views", model, "--images", model.parent, "--out", out,
+          "--no-pyr-down", "--mesh"], tmp_path)
+    summary = json.loads((out / "dense.json").read_text())
+    page = visit(out / "report.html", wait_for_view=True)
+    _check_page(page, with_view=True, images=5 + 5)
+    _assert_no_field_names(page.text, summary)
+    traces = {t["name"].split(" (")[0]: t for t in
+              _figure((out / "report.html").read_text())["data"]}
+    assert "dense" not in traces and traces["mesh"]["type"] == "mesh3d"
+    faces = len(np.frombuffer(base64.b64decode(traces["mesh"]["i"]["bdata"]), "<i4"))
+    total = summary["mesh"]["faces"]
+    assert faces == total if total <= MAX_VIEW_FACES else 0.5 * MAX_VIEW_FACES < faces <= \
+        MAX_VIEW_FACES
+    assert (f"with {faces:,} of its {summary['mesh']['faces']:,} triangles (at most "
+            f"{MAX_VIEW_FACES:,}") in page.text
+    assert _row_value(page.text, "mesh triangles") == f"{summary['mesh']['faces']:,}"
+
+
+def test_reconstruct_views_dense_report_in_browser(tmp_path, fountain):
+    """``reconstruct-views --dense`` on three fountain photos: its report shows the dense
+    cloud (712,280 points on 2026-12-08: thinned to the view's bound) and the depth maps."""
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for i in (4, 5, 6):
+        (photos / f"{i:04d}.jpg").symlink_to(fountain / "images" / f"{i:04d}.jpg")
+    out = tmp_path / "out"
+    _run(["-m", "scene3D", "reconstruct-views", photos, "--calib",
+          REPO / "data" / "fountain_P11_intrinsics.yaml", "--max-width", "640", "--no-plots",
+          "--dense", "--out", out], tmp_path)
+    summary = json.loads((out / "reconstruction.json").read_text())
+    dense = json.loads((out / "dense" / "dense.json").read_text())
+    dense["image_size"] = [1536, 1024]  # the dense stage's own size (DenseSettings)
+    names = [v["name"] for v in dense["views"]]
+    text, html = _check_dense_page(out, dense, names, thumbnails=3)
+    _assert_no_field_names(text, summary)
+    _assert_no_field_names(text, dense)
+    assert text.index("Dense cloud") < text.index("3D view")

@@ -10,15 +10,12 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 from ..calibration.views import VIDEO_SUFFIXES
-from ..densify.pipeline import DenseSettings
 from ..errors import ReconstructionError, plural
 from ..features.matching import FEATURE_MODES
 from ..geometry.camera import adapt_intrinsics_to_size
 from ..geometry.intrinsics_prior import CAMERA_MODES
-from ..geometry.lens import CAMERA_MODELS, max_shift_px, radial_coefficients
+from ..geometry.lens import CAMERA_MODELS
 from ..io.calibration import load_calibration
 from ..io.datasets import CameraFilesError, StrechaCamera, read_strecha_cameras
 from ..io.export import all_or_nothing, colmap_image_name, write_json, written_bytes
@@ -30,8 +27,6 @@ from ..io.paths import image_files
 from ..io.undistorted import UNDISTORTED_FOLDER
 from ..multiview import (
     PAIR_MODES,
-    CameraIntrinsics,
-    FocalEstimate,
     MultiViewReconstruction,
     SfMModel,
     SfMSettings,
@@ -52,7 +47,6 @@ from .common import (
     check_image_paths,
     check_report_viewer,
     exit_codes_help,
-    focal_sigma_text,
     non_negative_int,
     note_created_folders,
     open_engine,
@@ -65,13 +59,14 @@ from .dense_views import (
     CLOUD_FILE,
     MESH_FILE,
     dense_files,
-    dense_result,
+    reconstruction_dense,
     require_mesh_extra,
     write_dense,
 )
 from .dense_views import SUMMARY_FILE as DENSE_SUMMARY_FILE
 from .outputs import FILES_KEY, SUMMARY_FILE, OutputFolder
 from .video import FRAMES_FOLDER, read_video, video_source, write_frames, write_undistorted
+from .views_lines import model_name, result_lines
 
 logger = logging.getLogger("scene3D.cli")
 
@@ -202,7 +197,9 @@ def build_parser(prog: str = "scene3d reconstruct-views") -> argparse.ArgumentPa
     parser.add_argument("--dense", action="store_true",
                         help=f"also a dense cloud of the largest model, as scene3d dense-views "
                              f"makes it: {DENSE_FOLDER}/{CLOUD_FILE} and "
-                             f"{DENSE_FOLDER}/{DENSE_SUMMARY_FILE} (photos only, not a video)")
+                             f"{DENSE_FOLDER}/{DENSE_SUMMARY_FILE} (photos only, not a video); "
+                             f"{REPORT_FILE} then shows it (or the mesh) and each view's "
+                             "depth map")
     parser.add_argument("--mesh", action="store_true",
                         help=f"with --dense: also its surface, {DENSE_FOLDER}/{MESH_FILE} "
                              "(screened Poisson; the mesh extra, Open3D)")
@@ -291,122 +288,27 @@ def _failure_message(recon: MultiViewReconstruction, names: list[str]) -> str:
             "(see reconstruction.json; the files are written for inspection only)")
 
 
-def _write_report(out: Path, names: list[str], recon: MultiViewReconstruction, summary: dict,
-                  lines: list[str], warnings: list[str], plots: bool, sources: list) -> Path:
-    """report.html: the summary, the command's lines and warnings, per-view numbers and
-    thumbnails, cameras.png and the interactive 3D view (scene3D.report) of the largest
-    model."""
+def _write_report(out: Path, recon: MultiViewReconstruction, summary: dict, lines: list[str],
+                  warnings: list[str], plots: bool, sources: list, dense: tuple | None) -> Path:
+    """report.html (:func:`scene3D.report.reconstruction_report`), with the dense run."""
     from ..io.export import atomic_write_pieces
-    from ..report import multi_view_layers, multi_view_report, prepare_view, view_diagnostics
+    from ..report import DenseRun, reconstruction_report
     from .report import thumbnails
 
-    figures = {}
-    if plots:
-        figures["cameras.png"] = written_bytes(out / "cameras.png")
-    view = prepare_view(*multi_view_layers(names, recon.K, recon.image_size, recon.registered,
-                                           recon.R, recon.t, recon.points3d, recon.colors))
-    # The working images' pixels (photos=False), as the summary's reprojection errors.
-    diagnostics = view_diagnostics(names, [recon.colmap_model(m, photos=False)
-                                           for m in recon.models])
-    page = multi_view_report(names, _placed(names, summary["models"]), summary, lines,
-                             warnings, figures, view, diagnostics, thumbnails(sources, names))
+    figures = {"cameras.png": written_bytes(out / "cameras.png")} if plots else {}
+    page = reconstruction_report(
+        recon, _placed(recon.names, summary["models"]), summary, lines, warnings, figures,
+        thumbnails(sources, recon.names),
+        None if dense is None else DenseRun(tuple(dense[0].names), *dense[1:]))
     return atomic_write_pieces(out / REPORT_FILE, page.encoded())
 
 
-def _model_name(m: int, folder: str) -> str:
-    """'the largest model', 'model 1 (model-1/)'."""
-    return "the largest model" if m == 0 else f"model {m} ({folder}/)"
-
-
 def _placed(names: list[str], models: list[dict]) -> list[str | None]:
-    """For each view the model it is in (:func:`_model_name`; ``models``: the summary's
-    entries), None when in none."""
-    label = {view: _model_name(m, entry["folder"])
+    """For each view the model it is in (:func:`~scene3D.cli.views_lines.model_name`;
+    ``models``: the summary's entries), None when in none."""
+    label = {view: model_name(m, entry["folder"])
              for m, entry in enumerate(models) for view in entry["views"]}
     return [label.get(name) for name in names]
-
-
-def _focal_text(K: np.ndarray, focal: FocalEstimate) -> str:
-    """'690.7 px +-1.1 px (0.16 %) (prior+refined)', '...; untrusted)'."""
-    return (f"{K[0, 0]:.1f} px {focal_sigma_text(focal.focal_px, focal.sigma_px)} "
-            f"({focal.source}" + ("" if focal.trusted else "; untrusted") + ")")
-
-
-def _lens_line(recon: MultiViewReconstruction) -> str:
-    """The lens a reconstruction without a calibration found (``camera_model``, ``dist``)."""
-    if not np.any(recon.dist):
-        return (f"lens ({recon.camera_model}): none applied (it would move the image "
-                f"corners less than {100 * SfMSettings.min_lens_shift:.2f} % of the diagonal)")
-    k = recon.dist[:radial_coefficients(recon.camera_model)]
-    names = ", ".join(f"k{i + 1} {v:+.4f}" for i, v in enumerate(k))
-    shift = max_shift_px(recon.K, k, recon.image_size)
-    return (f"lens ({recon.camera_model}): {names}, moving the image corners {shift:.1f} px "
-            f"at the working size (the keypoints undistorted with it, the views reconstructed "
-            f"again {plural(recon.lens_passes, 'time')})")
-
-
-def _camera_line(c: int, camera: CameraIntrinsics, recon: MultiViewReconstruction) -> str:
-    """'camera 2 (Canon ..., 3 views, 2074x1382): focal length 2070.7 px, k1 -0.0016'."""
-    views = int(np.sum(recon.camera_of_view == c))
-    scale = camera.photo_size[0] / camera.image_size[0]
-    name = f"{camera.name}, " if camera.name else ""
-    if not camera.estimated:
-        return (f"camera {c + 1} ({name}{plural(views, 'view')}, {camera.photo_size[0]}x"
-                f"{camera.photo_size[1]}): in no view of the largest model, focal length "
-                f"{camera.K[0, 0] * scale:.1f} px as it started ({camera.prior_description})")
-    lens = ", ".join(f"k{i + 1} {v:+.4f}" for i, v in
-                     enumerate(camera.dist[:radial_coefficients(recon.camera_model)]))
-    return (f"camera {c + 1} ({name}{plural(views, 'view')}, {camera.photo_size[0]}x"
-            f"{camera.photo_size[1]}): focal length {camera.K[0, 0] * scale:.1f} px at the "
-            f"photos' size" + (f", {lens}" if lens else "")
-            + f" (started from {camera.prior_description})")
-
-
-def _result_lines(names: list[str], recon: MultiViewReconstruction, models: list[dict]
-                  ) -> list[str]:
-    """What the command prints of its result (the report shows the same lines)."""
-    main = models[0]
-    numbers = (f"{main['points']} points, mean track length {recon.mean_track_length:.2f}, "
-               f"reprojection RMSE {recon.reprojection_rmse_px:.3f} px")
-    if len(models) == 1:
-        lines = [f"{main['registered']} of {len(names)} views registered, {numbers}"]
-    else:
-        placed = sum(entry["registered"] for entry in models)
-        lines = [f"{placed} of {len(names)} views registered in {len(models)} models; the "
-                 f"largest, {main['registered']} views: {numbers}"]
-    if recon.cameras:
-        lines += [_camera_line(c, camera, recon) for c, camera in enumerate(recon.cameras)]
-    elif recon.focal is not None:
-        how = "refined by the photos" if recon.focal.determined else \
-            "kept: the photos could not refine it"
-        sigma = focal_sigma_text(recon.focal.focal_px, recon.focal.sigma_px)
-        lines.append(f"focal length {recon.K[0, 0]:.1f} px {sigma} at the working size "
-                     f"({recon.prior_description}; {how}"
-                     + ("" if recon.focal.trusted else "; untrusted") + ")")
-    if not recon.cameras and recon.focal is not None and recon.camera_model != "pinhole":
-        lines.append(_lens_line(recon))
-    if recon.focal_refits:
-        lines.append(f"focal length {recon.K[0, 0]:.1f} px at the working size, "
-                     f"{recon.focal_refit_scale:.3f} times the calibration's (the views "
-                     "refuted it)")
-    if len(models) > 1:
-        lines.append(f"the largest model: {', '.join(main['views'])}")
-    for m, (entry, model) in enumerate(zip(models[1:], recon.models[1:]), start=1):
-        focal = ("" if model.focal is None else
-                 f"; focal length {_focal_text(recon.model_K(model), model.focal)}")
-        lines.append(f"model {m} ({entry['folder']}/): {entry['registered']} more views: "
-                     f"{', '.join(entry['views'])}{focal}")
-    for m, entry in enumerate(models):
-        gt = entry.get("ground_truth")
-        if gt is None:
-            continue
-        whose = "" if len(models) == 1 else f"{_model_name(m, entry['folder'])} "
-        lines.append(f"{whose}against ground truth: camera centres within "
-                     f"{100 * gt['max_center_error_fraction']:.3f} % of the scene extent, "
-                     f"rotations within {gt['max_rotation_error_deg']:.3f} deg"
-                     + (f", focal length {100 * gt['focal_error_fraction']:+.2f} %"
-                        if "focal_error_fraction" in gt else ""))
-    return lines
 
 
 def _run_warnings(recon: MultiViewReconstruction, models: list[dict], summary: dict
@@ -420,7 +322,7 @@ def _run_warnings(recon: MultiViewReconstruction, models: list[dict], summary: d
                 f"{', '.join(repr(n) for n in views)} could not be registered: {reason}"
                 for reason, views in by_reason.items()]
     for m, (entry, model) in enumerate(zip(models, recon.models)):
-        whose = "" if m == 0 else f"{_model_name(m, entry['folder'])}: "
+        whose = "" if m == 0 else f"{model_name(m, entry['folder'])}: "
         if model.focal is not None:
             warnings += [f"{whose}focal length: {message}" for message in model.focal.warnings]
     return warnings + list(summary["warnings"])
@@ -515,13 +417,8 @@ def run(args: argparse.Namespace) -> int:
             camera_model=args.camera_model, camera_mode=args.camera_mode.replace("-", "_"))
         dense, dense_failure, t_dense = None, None, time.perf_counter()
         if args.dense and recon.ok:
-            dense_model = recon.colmap_model(recon.models[0])
-            by_name = {**{colmap_image_name(p.name): p for p in paths},
-                       **{p.name: p for p in paths}}
             try:
-                dense = dense_model, *dense_result(
-                    dense_model, [by_name[n] for n in dense_model.names], DenseSettings(),
-                    engine, args.mesh)
+                dense = reconstruction_dense(recon, paths, engine, args.mesh)
             except ReconstructionError as exc:  # the sparse model is written all the same
                 dense_failure = f"--dense: {exc}"
     # The files of every model, all or none: a write that fails leaves the earlier run's.
@@ -558,11 +455,11 @@ def run(args: argparse.Namespace) -> int:
         summary[FILES_KEY] = out_folder.record([
             *written, out / SUMMARY_FILE, *([] if args.no_report else [out / REPORT_FILE])])
         written.append(write_json(out / SUMMARY_FILE, summary))
-        lines = _result_lines(names, recon, models)
+        lines = result_lines(names, recon, models)
         warnings = _run_warnings(recon, models, summary)
         if not args.no_report:
-            written.append(_write_report(out, names, recon, summary, lines, warnings,
-                                         not args.no_plots, sources))
+            written.append(_write_report(out, recon, summary, lines, warnings,
+                                         not args.no_plots, sources, dense))
     removed = out_folder.remove_stale(written)
 
     in_colmap = {names[v] for model in recon.models for v in model.views}
@@ -586,7 +483,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"Removed '{path}' (an earlier run's, not written again)")
     for m in recon.thin_models:
         entry = models[m]
-        print(f"error: {_model_name(m, entry['folder'])} has {plural(entry['points'], 'point')} "
+        print(f"error: {model_name(m, entry['folder'])} has {plural(entry['points'], 'point')} "
               f"for its {entry['registered']} views, fewer than {recon.min_model_points}: its "
               "cameras rest on nothing (does the calibration fit these photos?); see "
               "reconstruction.json, the files are written for inspection only",

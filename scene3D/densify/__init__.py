@@ -8,6 +8,7 @@ The stages, in the order :func:`densify` runs them:
   neighbours (one task per view on an engine, :mod:`scene3D.engines`);
 - :mod:`~scene3D.densify.fusion`: normals, the multi-view consistency check (depth and
   reprojection) and voxel thinning into one cloud;
+- :mod:`~scene3D.densify.preview`: a small copy of each depth map, kept for the report;
 - :mod:`~scene3D.densify.mesh`: a screened Poisson surface, trimmed by density (Open3D,
   the optional extra ``mesh``).
 
@@ -25,10 +26,11 @@ from .pipeline import (
     image_paths,
     load_sparse_model,
 )
+from .preview import DepthPreview, depth_preview
 from .sweep import SweepSettings, plane_sweep_depth
 from .views import choose_neighbours, depth_range, neighbour_scores
 
-__all__ = ["DenseCloud", "DenseInputError", "DenseResult", "DenseSettings", "SweepSettings",
-           "ViewDepth", "choose_neighbours", "densify", "depth_range", "fuse_depth_maps",
-           "image_paths", "load_sparse_model", "neighbour_scores", "plane_sweep_depth",
-           "voxel_thin"]
+__all__ = ["DenseCloud", "DenseInputError", "DenseResult", "DenseSettings", "DepthPreview",
+           "SweepSettings", "ViewDepth", "choose_neighbours", "densify", "depth_preview",
+           "depth_range", "fuse_depth_maps", "image_paths", "load_sparse_model",
+           "neighbour_scores", "plane_sweep_depth", "voxel_thin"]

@@ -29,6 +29,7 @@ from ..io.colmap_model import MODEL_FILES as TEXT_FILES
 from ..io.colmap_model import ColmapModel
 from ..io.images import load_working_image
 from .fusion import DenseCloud, ViewDepth, depth_normals, footprint, fuse_depth_maps
+from .preview import DepthPreview, depth_preview
 from .sgbm import sgbm_depth
 from .sweep import SweepSettings, plane_sweep_depth
 from .views import choose_neighbours, depth_range, neighbour_scores
@@ -105,9 +106,10 @@ class DenseResult:
     ----------
     cloud : DenseCloud
         The fused cloud (world frame of the model).
-    views : list of ViewDepth or None
-        Each view's depth map, in the order of the model's images (None for a view that
-        shares no sparse point with another).
+    previews : list of DepthPreview or None
+        A small copy of each view's depth map (:mod:`scene3D.densify.preview`), in the
+        order of the model's images (None for a view that shares no sparse point with
+        another); the full maps are let go after fusion.
     neighbours : list of list of int
         Each view's neighbours (indices into the model's images).
     depth_ranges : list of (float, float) or None
@@ -120,7 +122,7 @@ class DenseResult:
     """
 
     cloud: DenseCloud
-    views: list[ViewDepth | None]
+    previews: list[DepthPreview | None]
     neighbours: list[list[int]]
     depth_ranges: list[tuple[float, float] | None]
     voxel_size: float
@@ -349,5 +351,7 @@ def densify(model: ColmapModel, paths: list[Path], settings: DenseSettings | Non
             "fit them?")
     logger.info("dense: %d fused points from %d depth maps (%.1f s, fusion %.1f s)",
                 cloud.num_points, len(views), t1 - t0, t2 - t1)
-    return DenseResult(cloud, [computed.get(v) for v in range(len(model.names))], neighbours,
-                       ranges, voxel, {"depth_maps": t1 - t0, "fusion": t2 - t1})
+    previews = [None if v not in computed else depth_preview(computed[v].depth)
+                for v in range(len(model.names))]
+    return DenseResult(cloud, previews, neighbours, ranges, voxel,
+                       {"depth_maps": t1 - t0, "fusion": t2 - t1})

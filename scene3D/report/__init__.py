@@ -15,6 +15,8 @@ the PNG bytes the commands write, per-view numbers read from a model's observati
   ``scene3d reconstruct-views``;
 - :func:`colmap_report` (:mod:`~scene3D.report.multi_view`): ``report.html`` of
   ``scene3d report MODEL_DIR``, for any COLMAP text model;
+- :func:`reconstruction_report` (:mod:`~scene3D.report.multi_view`): the same page from
+  a reconstruction in memory, with its dense run (:mod:`~scene3D.report.dense`);
 - :func:`calibration_report` (:mod:`~scene3D.report.calibration`): ``NAME_report.html`` of
   ``calibrate.py``.
 
@@ -24,6 +26,7 @@ What the pages share is in :mod:`~scene3D.report.sections`.
 from __future__ import annotations
 
 from .calibration import calibration_report
+from .dense import DenseRun, dense_section, depth_thumbnail
 from .diagnostics import ViewDiagnostics, view_diagnostics
 from .multi_view import (
     colmap_layers,
@@ -31,6 +34,7 @@ from .multi_view import (
     colmap_summary,
     multi_view_layers,
     multi_view_report,
+    reconstruction_report,
 )
 from .page import Html
 from .two_view import two_view_layers, two_view_report
@@ -44,8 +48,9 @@ from .viewer import (
 )
 
 __all__ = [
-    "MAX_VIEW_POINTS", "CameraLayer", "CloudLayer", "Html", "MissingViewerError", "PreparedView",
-    "ViewDiagnostics", "calibration_report", "colmap_layers", "colmap_report",
-    "colmap_summary", "multi_view_layers", "multi_view_report",
-    "prepare_view", "two_view_layers", "two_view_report", "view_diagnostics",
+    "MAX_VIEW_POINTS", "CameraLayer", "CloudLayer", "DenseRun", "Html", "MissingViewerError",
+    "PreparedView", "ViewDiagnostics", "calibration_report", "colmap_layers", "colmap_report",
+    "colmap_summary", "dense_section", "depth_thumbnail", "multi_view_layers",
+    "multi_view_report", "prepare_view", "reconstruction_report", "two_view_layers",
+    "two_view_report", "view_diagnostics",
 ]

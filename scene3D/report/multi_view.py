@@ -10,9 +10,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..densify.fusion import DenseCloud
 from ..io.colmap_model import ColmapModel
 from ..viz.drawing import frustum_corners
 from .charts import histogram_svg, shared_points_svg
+from .dense import DenseRun, dense_clouds, dense_meshes, dense_section
 from .diagnostics import ViewDiagnostics, view_diagnostics
 from .page import Html, Markup, Page, esc, image_data_url
 from .sections import (
@@ -28,7 +30,7 @@ from .viewer import CameraLayer, CloudLayer, PreparedView, prepare_view
 from .wording import CAMERA_MODELS, FIELDS, display_path, matrix_rows, quantity_rows
 
 __all__ = ["colmap_layers", "colmap_report", "colmap_summary", "multi_view_layers",
-           "multi_view_report"]
+           "multi_view_report", "reconstruction_report"]
 
 # The fields of each section, in order (the wording module says what each one is).
 _VIEWS_RESULT = ("status", "views", "registered", "points", "mean_track_length",
@@ -52,6 +54,7 @@ def multi_view_layers(
     t: ArrayLike,
     points3d: ArrayLike,
     colors: ArrayLike | None,
+    dense: DenseRun | DenseCloud | None = None,
 ) -> tuple[list[CloudLayer], CameraLayer]:
     """What the 3D view of a multi-view reconstruction shows (for :func:`prepare_view`).
 
@@ -66,6 +69,10 @@ def multi_view_layers(
         World-to-camera poses (NaN for views not registered).
     points3d : (P, 3) array_like
         World points; ``colors`` their RGB ``uint8``.
+    dense : DenseRun, DenseCloud or None, default None
+        A dense cloud in the same frame: a layer after the sparse points (which the view
+        keeps whole; the dense one is thinned to the rest of its bound). A run's mesh is
+        not a cloud: :func:`~scene3D.report.dense.dense_meshes` gives it.
     """
     points3d = np.asarray(points3d, dtype=np.float64).reshape(-1, 3)
     R = np.asarray(R, dtype=np.float64).reshape(-1, 3, 3)
@@ -77,8 +84,9 @@ def multi_view_layers(
     if registered.any():
         corners[registered] = frustum_corners(R_reg, t_reg, np.asarray(K, dtype=np.float64),
                                               image_size, frusta_depth(points3d, centres))
-    layer = CloudLayer("points", points3d, None if colors is None else np.asarray(colors), 2.5)
-    return [layer], CameraLayer(tuple(names), corners)
+    layer = CloudLayer("points" if dense is None else "sparse", points3d,
+                       None if colors is None else np.asarray(colors), 2.5)
+    return [layer, *dense_clouds(dense)], CameraLayer(tuple(names), corners)
 
 
 def multi_view_report(
@@ -91,6 +99,7 @@ def multi_view_report(
     view: PreparedView,
     diagnostics: ViewDiagnostics | None = None,
     thumbnails: Mapping[str, bytes] | None = None,
+    dense: DenseRun | None = None,
 ) -> Html:
     """The page of a multi-view reconstruction.
 
@@ -117,6 +126,9 @@ def multi_view_report(
         graph.
     thumbnails : mapping of str to bytes or None, default None
         A small JPEG of each view, by name, shown in the views table.
+    dense : DenseRun or None, default None
+        The dense run of the largest model: its numbers and depth maps (``view`` holds its
+        cloud, :func:`multi_view_layers`).
     """
     page = Page(f"scene3D reconstruction of {len(names)} views")
     in_models = [label for label in placed if label is not None]
@@ -142,6 +154,8 @@ def multi_view_report(
     _views_section(page, names, placed, summary, diagnostics, thumbnails or {})
     if diagnostics is not None:
         _diagnostic_charts(page, diagnostics)
+    if dense is not None:
+        dense_section(page, dense)
     view_section(page, view, "The largest model. Frame: the camera frame of the first view "
                   "of its initial pair (x right, y down, z forward), shown with -y up; the "
                   "scale is arbitrary. The box is fitted to the densest part of the cloud.")
@@ -149,6 +163,40 @@ def multi_view_report(
     timings_section(page, summary.get("timings_s"))
     page.raw_json(jsonable(dict(summary)))
     return page.render(footer())
+
+
+def reconstruction_report(
+    recon: Any,
+    placed: Sequence[str | None],
+    summary: Mapping[str, Any],
+    lines: Sequence[str],
+    warnings: Sequence[str],
+    figures: Mapping[str, bytes],
+    thumbnails: Mapping[str, bytes] | None = None,
+    dense: DenseRun | None = None,
+) -> Html:
+    """:func:`multi_view_report` of a reconstruction in memory: its 3D view (the largest
+    model, with the dense cloud when there is one) and per-view numbers read from it.
+
+    Parameters
+    ----------
+    recon : MultiViewReconstruction
+        :func:`scene3D.multiview.reconstruct_views`'s result; ``recon.names`` name the views.
+    placed, summary, lines, warnings, figures, thumbnails, dense
+        As :func:`multi_view_report` takes them.
+
+    Returns
+    -------
+    Html
+    """
+    view = prepare_view(*multi_view_layers(
+        recon.names, recon.K, recon.image_size, recon.registered, recon.R, recon.t,
+        recon.points3d, recon.colors, dense), meshes=dense_meshes(dense))
+    # The working images' pixels (photos=False), as the summary's reprojection errors.
+    diagnostics = view_diagnostics(recon.names, [recon.colmap_model(m, photos=False)
+                                                 for m in recon.models])
+    return multi_view_report(recon.names, placed, summary, lines, warnings, figures, view,
+                             diagnostics, thumbnails, dense)
 
 
 def _model_label(m: int, folder: str) -> str:
@@ -264,7 +312,8 @@ def _diagnostic_charts(page: Page, d: ViewDiagnostics) -> None:
              "count). Pairs that share none are blank.")
 
 
-def colmap_layers(model: ColmapModel) -> tuple[list[CloudLayer], CameraLayer]:
+def colmap_layers(model: ColmapModel, dense: DenseRun | DenseCloud | None = None
+                  ) -> tuple[list[CloudLayer], CameraLayer]:
     """What the 3D view of a COLMAP model shows (for :func:`prepare_view`): its points and
     a frustum per image, each with its own camera.
 
@@ -272,6 +321,9 @@ def colmap_layers(model: ColmapModel) -> tuple[list[CloudLayer], CameraLayer]:
     ----------
     model : ColmapModel
         World-to-camera poses, points in the world frame.
+    dense : DenseRun, DenseCloud or None, default None
+        A dense cloud of the model (its world frame), thinned after the sparse points (as
+        :func:`multi_view_layers`).
 
     Returns
     -------
@@ -285,8 +337,9 @@ def colmap_layers(model: ColmapModel) -> tuple[list[CloudLayer], CameraLayer]:
         if mine.size:
             corners[mine] = frustum_corners(model.R[mine], model.t[mine], camera.K,
                                             camera.image_size, depth)
-    return ([CloudLayer("points", model.points3d, model.colors, 2.5)],
-            CameraLayer(tuple(model.names), corners))
+    sparse = CloudLayer("points" if dense is None else "sparse", model.points3d,
+                        model.colors, 2.5)
+    return [sparse, *dense_clouds(dense)], CameraLayer(tuple(model.names), corners)
 
 
 def colmap_summary(model: ColmapModel) -> dict:
@@ -316,7 +369,8 @@ def colmap_summary(model: ColmapModel) -> dict:
 
 
 def colmap_report(model: ColmapModel, source: str,
-                  thumbnails: Mapping[str, bytes] | None = None) -> Html:
+                  thumbnails: Mapping[str, bytes] | None = None,
+                  dense: DenseRun | None = None) -> Html:
     """The page of a COLMAP model read from disk (``scene3d report MODEL_DIR``).
 
     Parameters
@@ -327,6 +381,9 @@ def colmap_report(model: ColmapModel, source: str,
         Where it was read from, as the user named it (the title).
     thumbnails : mapping of str to bytes or None, default None
         A small JPEG of each image, by name.
+    dense : DenseRun or None, default None
+        A dense run of the model (``scene3d dense-views``): its numbers, its depth maps
+        and its cloud in the 3D view.
 
     Returns
     -------
@@ -353,7 +410,10 @@ def colmap_report(model: ColmapModel, source: str,
     _views_section(page, model.names, ["the model"] * len(model.names), {}, diagnostics,
                    thumbnails or {})
     _diagnostic_charts(page, diagnostics)
-    view_section(page, prepare_view(*colmap_layers(model)), "Frame: the model's world "
+    if dense is not None:
+        dense_section(page, dense)
+    view_section(page, prepare_view(*colmap_layers(model, dense),
+                                    meshes=dense_meshes(dense)), "Frame: the model's world "
                   "frame, shown with -y up (COLMAP's cameras look along +z with y down).")
     page.raw_json(jsonable(summary))
     return page.render(footer())

@@ -77,6 +77,28 @@ class CloudLayer:
 
 
 @dataclass(frozen=True)
+class MeshLayer:
+    """A triangle mesh of the view (plotly.js ``mesh3d``), shown as it is: a large mesh is
+    simplified before (:func:`scene3D.densify.mesh.simplify_mesh`).
+
+    Attributes
+    ----------
+    name : str
+        Legend entry.
+    vertices : (V, 3) float64
+    faces : (F, 3) int
+        Vertex indices of each triangle.
+    colors : (V, 3) uint8
+        RGB of each vertex.
+    """
+
+    name: str
+    vertices: FloatArray
+    faces: np.ndarray
+    colors: np.ndarray
+
+
+@dataclass(frozen=True)
 class CameraLayer:
     """Camera frusta: ``corners[v] = (centre, 4 image corners)`` in the view's frame.
 
@@ -118,7 +140,8 @@ class PreparedView:
 
 
 def prepare_view(layers: list[CloudLayer], cameras: CameraLayer | None = None,
-                 max_points: int = MAX_VIEW_POINTS) -> PreparedView:
+                 max_points: int = MAX_VIEW_POINTS,
+                 meshes: tuple[MeshLayer, ...] = ()) -> PreparedView:
     """plotly.js and the figure JSON of ``layers`` and ``cameras``.
 
     Parameters
@@ -129,13 +152,15 @@ def prepare_view(layers: list[CloudLayer], cameras: CameraLayer | None = None,
         Cameras to draw.
     max_points : int, default MAX_VIEW_POINTS
         Most points shown over all layers (decimated beyond).
+    meshes : tuple of MeshLayer, default ()
+        Surfaces to show.
 
     Returns
     -------
     PreparedView
     """
     js, version = plotly_js()
-    figure_json, notes = scene_figure_json(layers, cameras, max_points)
+    figure_json, notes = scene_figure_json(layers, cameras, max_points, meshes)
     return PreparedView(js, version, figure_json, notes,
                         sum(len(layer.points3d) for layer in layers))
 
@@ -210,10 +235,10 @@ def _compressed(path: str, size: int, mtime_ns: int) -> str:
     return base64.b64encode(gzip.compress(data, compresslevel=9, mtime=0)).decode("ascii")
 
 
-def _typed(values: np.ndarray) -> dict:
-    """plotly.js typed array: little-endian float32, base64."""
-    data = np.ascontiguousarray(values, dtype="<f4")
-    return {"dtype": "f4", "bdata": base64.b64encode(data.tobytes()).decode("ascii")}
+def _typed(values: np.ndarray, dtype: str = "f4") -> dict:
+    """plotly.js typed array: little-endian float32 (or ``"i4"``, int32), base64."""
+    data = np.ascontiguousarray(values, dtype="<" + dtype)
+    return {"dtype": dtype, "bdata": base64.b64encode(data.tobytes()).decode("ascii")}
 
 
 _HEX = np.frombuffer(b"0123456789abcdef", dtype=np.uint8)
@@ -307,7 +332,8 @@ def _label_positions(centres: np.ndarray, min_gap: float) -> list[int]:
 
 
 def scene_figure_json(layers: list[CloudLayer], cameras: CameraLayer | None = None,
-                      max_points: int = MAX_VIEW_POINTS) -> tuple[str, list[str]]:
+                      max_points: int = MAX_VIEW_POINTS,
+                      meshes: tuple[MeshLayer, ...] = ()) -> tuple[str, list[str]]:
     """The plotly.js figure (``{"data": ..., "layout": ...}``) as JSON text, and notes.
 
     Parameters
@@ -318,7 +344,9 @@ def scene_figure_json(layers: list[CloudLayer], cameras: CameraLayer | None = No
         Cameras to draw.
     max_points : int, default MAX_VIEW_POINTS
         Most points shown over all layers.
-
+    meshes : tuple of MeshLayer, default ()
+        Surfaces to show (after the clouds in the legend; their vertices count for the
+        box the view opens on).
 
     Returns
     -------
@@ -344,6 +372,22 @@ def scene_figure_json(layers: list[CloudLayer], cameras: CameraLayer | None = No
             "x": _typed(pts[:, 0]), "y": _typed(pts[:, 1]), "z": _typed(pts[:, 2]),
             "marker": marker, "hoverinfo": "skip" if len(idx) > 20000 else "x+y+z+name",
         })
+    for k, mesh in enumerate(meshes):
+        vertices = np.asarray(mesh.vertices, dtype=np.float64).reshape(-1, 3)
+        faces = np.asarray(mesh.faces).reshape(-1, 3)
+        shown.append(vertices)
+        placeholder = f"@@meshcolors{k}@@"
+        colors[placeholder] = hex_colors_json(np.asarray(mesh.colors))
+        data.append({
+            "type": "mesh3d", "name": f"{mesh.name} ({len(faces):,} triangles)",
+            "showlegend": True, "x": _typed(vertices[:, 0]), "y": _typed(vertices[:, 1]),
+            "z": _typed(vertices[:, 2]), "i": _typed(faces[:, 0], "i4"),
+            "j": _typed(faces[:, 1], "i4"), "k": _typed(faces[:, 2], "i4"),
+            "vertexcolor": placeholder, "hoverinfo": "skip",
+            # Soft light: the photos' colours carry the shading already.
+            "lighting": {"ambient": 0.8, "diffuse": 0.3, "specular": 0.05},
+        })
+    clouds = len(kept) + len(meshes)
     if cameras is not None:
         xs: list[float | None] = []
         ys: list[float | None] = []
@@ -374,9 +418,9 @@ def scene_figure_json(layers: list[CloudLayer], cameras: CameraLayer | None = No
                          "z": cen[:, 2].tolist(), "text": labels,
                          "marker": {"size": 3, "color": "#d62728"}, "showlegend": False,
                          "hoverinfo": "text"})
-    points_shown = [p for p in shown[:len(kept)] if len(p)]
+    points_shown = [p for p in shown[:clouds] if len(p)]
     lo, hi = dense_box(np.vstack(points_shown) if points_shown else np.zeros((0, 3)))
-    if len(shown) > len(kept):  # keep the cameras inside the box
+    if len(shown) > clouds:  # keep the cameras inside the box
         lo, hi = np.minimum(lo, shown[-1].min(axis=0)), np.maximum(hi, shown[-1].max(axis=0))
     pad = 0.05 * (hi - lo) + 1e-9
     lo, hi = lo - pad, hi + pad
