@@ -221,6 +221,60 @@ def test_multi_view_models_are_a_table_of_their_own():
     assert "{&#x27;" not in page and "array(" not in page.split("<details>")[0]
 
 
+def test_the_view_graph_of_many_views_groups_consecutive_views():
+    """Five views at most two rows: groups of three (the last of two), each cell the sum of
+    its pairs' shared points; few views are left as they are."""
+    from scene3D.report.diagnostics import grouped_view_graph
+
+    names = ["a", "b", "c", "d", "e"]
+    shared = np.arange(25).reshape(5, 5)
+    shared = shared + shared.T
+    labels, matrix, group = grouped_view_graph(names, shared, max_views=2)
+    assert labels == ["a - c", "d - e"] and group == 3
+    np.testing.assert_array_equal(matrix, [[shared[:3, :3].sum(), shared[:3, 3:].sum()],
+                                           [shared[3:, :3].sum(), shared[3:, 3:].sum()]])
+    labels, matrix, group = grouped_view_graph(names, shared, max_views=5)
+    assert labels == names and group == 1
+    np.testing.assert_array_equal(matrix, shared)
+    assert grouped_view_graph(names, shared, max_views=4)[0] == ["a - b", "c - d", "e"]
+    with pytest.raises(ValueError, match="max_views must be at least 1"):
+        grouped_view_graph(names, shared, max_views=0)
+
+
+def test_a_report_of_many_views_bounds_its_thumbnails_and_graph():
+    """250 views: thumbnails of 100 of them, evenly spaced with the first and the last, and
+    the page says so; the view graph has at most MAX_GRAPH_VIEWS rows and says how it
+    groups."""
+    from scene3D.cli.report import thumbnails
+    from scene3D.report import ViewDiagnostics
+    from scene3D.report.diagnostics import MAX_GRAPH_VIEWS
+
+    V = 250
+    names = [f"{v:03d}.png" for v in range(V)]
+    frames = [np.full((16, 24, 3), v, np.uint8) for v in range(V)]
+    thumbs = thumbnails(frames, names, limit=100)
+    assert len(thumbs) == 100 and {"000.png", "249.png"} <= set(thumbs)
+    gaps = np.diff(sorted(int(n[:3]) for n in thumbs))
+    assert gaps.min() >= 2 and gaps.max() <= 3
+    shared = np.zeros((V, V), np.int64)
+    for v in range(V - 1):
+        shared[v, v + 1] = shared[v + 1, v] = 10
+    d = ViewDiagnostics(tuple(names), np.full(V, 20), np.full(V, 0.2), np.full(5, 2),
+                        np.full(10, 0.1), shared)
+    R = np.stack([np.eye(3)] * V)
+    t = np.stack([[-0.1 * v, 0, 0] for v in range(V)])
+    layers, cameras = multi_view_layers(names, np.diag([500.0, 500, 1]), (24, 16),
+                                        [True] * V, R, t, np.array([[0.0, 0, 5]]), None)
+    page = multi_view_report(names, ["the largest model"] * V, {"points": 1}, [], [], {},
+                             prepare_view(layers, cameras), diagnostics=d,
+                             thumbnails=thumbs).text()
+    assert "Thumbnails of 100 of the 250 views, evenly spaced" in page
+    assert page.count('class="thumb"') == 100
+    group = -(-V // MAX_GRAPH_VIEWS)
+    assert f"The 250 views are grouped {group} at a time" in page
+    assert "000.png - 002.png and 003.png - 005.png: 10 points" in page
+
+
 # -- in the browser -----------------------------------------------------------------------
 
 def _run(args, cwd, timeout=600):

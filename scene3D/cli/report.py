@@ -24,6 +24,8 @@ from .common import (
 
 #: Thumbnail height in pixels (shown at half that: sharp on high-density screens).
 THUMBNAIL_HEIGHT = 96
+#: The most views a report shows a thumbnail of (about 5 KB each), evenly spaced beyond.
+MAX_THUMBNAILS = 300
 
 
 def thumbnail_jpeg(source: str | Path | np.ndarray, height: int = THUMBNAIL_HEIGHT
@@ -62,9 +64,10 @@ def thumbnail_jpeg(source: str | Path | np.ndarray, height: int = THUMBNAIL_HEIG
     return encode_jpeg(small, quality=75)
 
 
-def thumbnails(sources: Sequence[str | Path | np.ndarray], names: Sequence[str]
-               ) -> dict[str, bytes]:
-    """:func:`thumbnail_jpeg` of each view that can be read, by name.
+def thumbnails(sources: Sequence[str | Path | np.ndarray], names: Sequence[str],
+               limit: int = MAX_THUMBNAILS) -> dict[str, bytes]:
+    """:func:`thumbnail_jpeg` of each view that can be read, by name; of ``limit`` views
+    evenly spaced (the first and the last among them) when there are more.
 
     Parameters
     ----------
@@ -72,13 +75,21 @@ def thumbnails(sources: Sequence[str | Path | np.ndarray], names: Sequence[str]
         The views as the command read them (paths, or video frames).
     names : sequence of str
         Their names, one per source.
+    limit : int, default MAX_THUMBNAILS
+        The most thumbnails made (each photo read costs time; each thumbnail about 5 KB).
 
     Returns
     -------
     dict of str to bytes
     """
+    if limit < 1:
+        raise ValueError(f"limit must be at least 1, got {limit}")
+    chosen = range(len(names))
+    if len(names) > limit:
+        chosen = np.unique(np.rint(np.linspace(0, len(names) - 1, limit)).astype(int))
     out = {}
-    for name, source in zip(names, sources):
+    for v in chosen:
+        name, source = names[v], sources[v]
         jpg = thumbnail_jpeg(source)
         if jpg is not None:
             out[name] = jpg

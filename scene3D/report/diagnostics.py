@@ -15,7 +15,12 @@ import numpy as np
 
 from ..io.colmap_model import ColmapModel
 
-__all__ = ["ViewDiagnostics", "view_diagnostics"]
+__all__ = ["MAX_GRAPH_VIEWS", "ViewDiagnostics", "grouped_view_graph",
+           "view_diagnostics"]
+
+#: Views beyond which the view graph shows groups of consecutive views: a matrix of more
+#: rows is too fine to read and grows with the square of the views.
+MAX_GRAPH_VIEWS = 100
 
 
 @dataclass(frozen=True)
@@ -106,3 +111,42 @@ def view_diagnostics(names: Sequence[str], models: Sequence[ColmapModel]) -> Vie
         rmse = np.where(seen > 0, np.sqrt(squares / (2 * np.maximum(seen, 1))), np.nan)
     return ViewDiagnostics(tuple(names), seen, rmse, track_lengths.astype(np.int64),
                            np.asarray(errors_px, dtype=np.float64), shared)
+
+
+def grouped_view_graph(names: Sequence[str], shared: np.ndarray,
+                       max_views: int = MAX_GRAPH_VIEWS) -> tuple[list[str], np.ndarray, int]:
+    """The view graph with at most ``max_views`` rows: consecutive views (in the input
+    order) grouped, ``group`` at a time, when there are more.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The ``V`` views.
+    shared : (V, V) array_like of int
+        Points both views see (:attr:`ViewDiagnostics.shared_points`).
+    max_views : int, default MAX_GRAPH_VIEWS
+        The most rows shown.
+
+    Returns
+    -------
+    labels : list of str
+        A view's name, or ``"FIRST - LAST"`` of a group.
+    matrix : (G, G) int64
+        The points shared between two groups, summed over their pairs of views; the
+        diagonal holds the sharing within a group (the graph does not draw it).
+    group : int
+        Views per group (1: none grouped; the last group may hold fewer).
+    """
+    if max_views < 1:
+        raise ValueError(f"max_views must be at least 1, got {max_views}")
+    shared = np.asarray(shared, dtype=np.int64)
+    V = len(names)
+    group = max(1, -(-V // max_views))
+    if group == 1:
+        return list(names), shared.copy(), 1
+    starts = np.arange(0, V, group)
+    rows = np.add.reduceat(shared, starts, axis=0)
+    matrix = np.add.reduceat(rows, starts, axis=1)
+    ends = np.minimum(starts + group, V) - 1
+    labels = [names[a] if a == e else f"{names[a]} - {names[e]}" for a, e in zip(starts, ends)]
+    return labels, matrix, group

@@ -15,7 +15,7 @@ from ..io.colmap_model import ColmapModel
 from ..viz.drawing import frustum_corners
 from .charts import histogram_svg, shared_points_svg
 from .dense import DenseRun, dense_clouds, dense_meshes, dense_section
-from .diagnostics import ViewDiagnostics, view_diagnostics
+from .diagnostics import ViewDiagnostics, grouped_view_graph, view_diagnostics
 from .page import Html, Markup, Page, esc, image_data_url
 from .sections import (
     figures_section,
@@ -272,6 +272,9 @@ def _views_section(page: Page, names: Sequence[str], placed: Sequence[str | None
         rows.append(row)
     page.table(rows, header=header, table_id="views")
     notes = []
+    if thumbnails and len(thumbnails) < len(names):
+        notes.append(f"Thumbnails of {len(thumbnails)} of the {len(names)} views, evenly "
+                     "spaced in the input order, to keep the page small.")
     if diagnostics is not None:
         notes.append("Points seen: the observations of the view in its model. Reprojection "
                      "error: how far, per coordinate, those points land from where they "
@@ -307,9 +310,12 @@ def _diagnostic_charts(page: Page, d: ViewDiagnostics) -> None:
                  "projection (errors beyond the 99th percentile in the last bar).")
     page.close_row()
     page.heading("View graph")
-    page.svg(shared_points_svg(d.names, d.shared_points),
+    labels, shared, group = grouped_view_graph(d.names, d.shared_points)
+    grouped = (f" The {len(d.names)} views are grouped {group} at a time, in the input "
+               "order: a cell sums the points two groups share." if group > 1 else "")
+    page.svg(shared_points_svg(labels, shared),
              "Points each pair of views shares in the model (darker: more; hover for the "
-             "count). Pairs that share none are blank.")
+             "count). Pairs that share none are blank." + grouped)
 
 
 def colmap_layers(model: ColmapModel, dense: DenseRun | DenseCloud | None = None
