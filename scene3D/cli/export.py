@@ -11,9 +11,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..io.colmap import read_colmap_model
-from ..io.colmap_binary import BINARY_FILES
-from ..io.colmap_model import MODEL_FILES
+from ..io.colmap import find_model_folder, read_colmap_model
 from ..io.model_files import COLMAP_FOLDER
 from ..io.nerfstudio import (
     NERFSTUDIO_FILE,
@@ -28,18 +26,6 @@ from .outputs import prepare_output_dir
 
 #: What --to can write.
 EXPORT_FORMATS = ("nerfstudio",)
-
-
-def model_folder(path: Path) -> Path:
-    """The COLMAP model in ``path``: the folder itself when it holds a model (text or
-    binary), else its ``colmap/`` (a ``reconstruct-views`` output folder); ``path`` when
-    neither does (the reader then names the file missing)."""
-    def holds(folder: Path) -> bool:
-        return any((folder / names[0]).is_file() for names in (MODEL_FILES, BINARY_FILES))
-
-    if not holds(path) and holds(path / COLMAP_FOLDER):
-        return path / COLMAP_FOLDER
-    return path
 
 
 def build_parser(prog: str = "scene3d export") -> argparse.ArgumentParser:
@@ -85,7 +71,8 @@ def run(args: argparse.Namespace) -> int:
     out = args.out if args.out is not None else args.model
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out '{out}' exists and is not a folder")
-    model = read_colmap_model(model_folder(args.model))  # a bad model: exit code 2
+    # A bad model, or none (the reader names the file missing): exit code 2.
+    model = read_colmap_model(find_model_folder(args.model) or args.model)
     check_model_images(model, args.images)  # before "exists": a wrong --images first
     inputs = {(args.images / name).resolve() for name in model.names}
     for path in nerfstudio_export_files(out, model, args.undistort):

@@ -23,7 +23,7 @@ from ..engines import Engine, LocalEngine
 from ..errors import ReconstructionError
 from ..geometry.camera import scale_intrinsics_halved
 from ..geometry.conventions import FloatArray
-from ..io.colmap import read_colmap_model
+from ..io.colmap import find_model_folder, read_colmap_model
 from ..io.colmap_binary import BINARY_FILES
 from ..io.colmap_model import MODEL_FILES as TEXT_FILES
 from ..io.colmap_model import ColmapModel
@@ -155,9 +155,7 @@ def load_sparse_model(path: str | os.PathLike) -> ColmapModel:
     path = Path(path)
     if not path.is_dir():
         raise DenseInputError("no_model", f"model folder not found: '{path}'")
-    folder = next((folder for folder in (path, path / "colmap")
-                   if any(all((folder / name).is_file() for name in files)
-                          for files in (BINARY_FILES, TEXT_FILES))), None)
+    folder = find_model_folder(path)
     if folder is None:
         raise DenseInputError("no_model", f"'{path}' holds no COLMAP model "
                               f"({', '.join(TEXT_FILES)}, or {', '.join(BINARY_FILES)}), "

@@ -277,6 +277,30 @@ def read_colmap_model(folder: str | os.PathLike) -> ColmapModel:
     return read_colmap_text(folder)
 
 
+def find_model_folder(path: str | os.PathLike) -> Path | None:
+    """The folder of the COLMAP model in ``path``: ``path`` itself when it holds a whole
+    model (the three text files or the three binary ones), else its ``colmap/`` (a
+    ``reconstruct-views`` output folder) when that does; None when neither does.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A model folder, or a folder with a model in ``colmap/``.
+
+    Returns
+    -------
+    Path or None
+    """
+    from .colmap_binary import BINARY_FILES
+
+    path = Path(path)
+    for folder in (path, path / "colmap"):  # model_files.COLMAP_FOLDER, which imports us
+        if any(all((folder / name).is_file() for name in files)
+               for files in (BINARY_FILES, MODEL_FILES)):
+            return folder
+    return None
+
+
 # -- writing -----------------------------------------------------------------------------
 
 def colmap_text(model: ColmapModel) -> dict[str, str]:
