@@ -316,14 +316,15 @@ class SceneReconstruction3D:
         result = reconstruct_two_view(img1, matches, self.K, self.settings, img2)
         # The pose's uncertainty includes the focal length's (the calibration's geometry).
         marginal = calibration.geometry
+        uncertainty = replace(result.uncertainty, pose_covariance=marginal.pose_covariance,
+                              rotation_sigma_deg=marginal.rotation_sigma_deg,
+                              translation_sigma_deg=marginal.translation_sigma_deg,
+                              depth_sigmas=depth_sigmas(
+                                  result.points3d, result.K, result.R, result.t,
+                                  marginal.pose_covariance, result.noise_sigma_px))
         self._results[mode] = replace(result, trusted=result.trusted and calibration.focal_trusted,
                                       warnings=result.warnings + calibration.warnings,
-                                      pose_covariance=marginal.pose_covariance,
-                                      rotation_sigma_deg=marginal.rotation_sigma_deg,
-                                      translation_sigma_deg=marginal.translation_sigma_deg,
-                                      depth_sigmas=depth_sigmas(
-                                          result.points3d, result.K, result.R, result.t,
-                                          marginal.pose_covariance, result.noise_sigma_px))
+                                      uncertainty=uncertainty)
         log_result_warnings(logger, calibration.warnings)
         self.reconstruct(mode)
         return calibration

@@ -1,3 +1,5 @@
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -8,7 +10,10 @@ from scene3D.features import Matches, find_matches
 from scene3D.geometry import project
 from scene3D.geometry.epipolar import estimate_homography
 from scene3D.twoview import (
+    TwoViewChecks,
+    TwoViewFocal,
     TwoViewSettings,
+    TwoViewUncertainty,
     off_plane_evidence,
     plane_poses,
     reconstruct_from_matches,
@@ -511,3 +516,36 @@ def test_a_backdrop_under_a_slightly_short_focal_length_is_not_taken_for_wrong_m
     assert relative_pose_error(result.R, result.t, R, t).max_deg < 1.5
     assert result.behind_share < 0.05
     assert result.trusted, result.warnings
+
+
+def test_the_result_groups_focal_uncertainty_and_checks_and_keeps_the_flat_names(
+        camera, true_pose):
+    """The stage results come in three groups; each former flat attribute reads its
+    group's value, cannot be set, and a copy with another value replaces the group."""
+    R, t = true_pose
+    _, pts1, pts2 = correspondences(camera, R, t, n=300, noise_px=0.5, seed=5)
+    r = reconstruct_from_matches(pts1, pts2, camera)
+    assert isinstance(r.focal, TwoViewFocal) and isinstance(r.checks, TwoViewChecks)
+    assert isinstance(r.uncertainty, TwoViewUncertainty)
+    flat = {"focal_scale": ("focal", "scale"), "focal_ratio_sigma": ("focal", "ratio_sigma"),
+            "pose_covariance": ("uncertainty", "pose_covariance"),
+            "noise_cut_share": ("uncertainty", "noise_cut_share"),
+            "depth_sigmas": ("uncertainty", "depth_sigmas"),
+            "homography_inlier_ratio": ("checks", "homography_inlier_ratio"),
+            "robust_starts": ("checks", "robust_starts"), "flow_gain": ("checks", "flow_gain"),
+            "distortion_pose_shift_deg": ("checks", "distortion_pose_shift_deg")}
+    for name, (group, field) in flat.items():
+        assert getattr(r, name) is getattr(getattr(r, group), field), name
+    # The values are the stages' own: a noisy pair with the true K, 300 inliers.
+    assert r.focal_scale == pytest.approx(1.0, abs=0.05) and 0 < r.focal_scale_sigma < 0.05
+    assert r.pose_covariance.shape == (5, 5) and r.depth_sigmas.shape == (len(r.points3d),)
+    assert r.rotation_sigma_deg == pytest.approx(
+        np.degrees(np.sqrt(np.linalg.eigvalsh(r.pose_covariance[:3, :3]).max())))
+    assert r.robust_starts >= 1 and np.isfinite(r.distortion_k)  # trusted: checked
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        r.flow_gain = 0.0
+    with pytest.raises(TypeError):
+        dataclasses.replace(r, flow_gain=0.0)
+    copy = dataclasses.replace(r, checks=dataclasses.replace(r.checks, flow_gain=0.25))
+    assert copy.flow_gain == 0.25 and np.isnan(r.flow_gain)
+    assert copy.focal is r.focal and copy.pose_uncertainty.covariance is r.pose_covariance

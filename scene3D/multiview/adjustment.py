@@ -6,13 +6,13 @@ length.
 :class:`ModelAdjustment` holds no state of its own: it works on the attributes
 :class:`~scene3D.multiview.state.GrowingModel` sets (keypoint nodes ``xy``, ``node_view``,
 ``node_point``, ``track_point``, poses ``R``, ``t``, points ``X``, ``K``, ``sigma``,
-``registered``, ``reference``, ``focal``, settings ``s`` and ``timings``).
+``registered``, ``reference``, ``focal``, settings ``s`` and the
+:class:`~scene3D.engines.timing.StageTimer` ``timer``).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import time
 
 import numpy as np
 
@@ -109,47 +109,47 @@ class ModelAdjustment:
         given); then the other points follow the cameras (a 3x3 refinement each), and
         observations among ``nodes`` that reproject badly or lie behind a camera are
         dropped. With ``refine_focal`` the one focal length is adjusted too (``self.K``
-        changes; :mod:`scene3D.multiview.focal`)."""
-        t0 = time.perf_counter()
-        admitted = self.adjustment_nodes(nodes)
-        if anchors is not None:
-            taking = np.ones(len(self.registered), dtype=bool)
-            taking[fixed] = False
-            taking[anchors] = True
-            admitted &= taking[self.node_view[nodes]]
-        inside = nodes[admitted]
-        if anchors is not None:
-            inside = self._observed_twice(inside)  # else the point follows
-        point_ids, obs = self._adjustment_observations(inside)
-        if len(inside):
-            if refine_focal and self.focal is not None:
-                fa = bundle_adjust_focal(
-                    self.R, self.t, self.X[point_ids], obs, self.K, fixed,
-                    self.focal.prior_focal_px, self.focal.prior_sigma_log,
-                    max_iterations=max_iterations, tolerance=tolerance,
-                    principal_point_shift_px=self.focal.principal_point_sigma
-                    * longer_side_px(self.K))
-                R, t, X, self.K, self.focal_adjustment = fa.R, fa.t, fa.points3d, fa.K, fa
-            else:
-                R, t, X = bundle_adjust(self.R, self.t, self.X[point_ids], obs, self.K, fixed,
-                                        max_iterations=max_iterations, tolerance=tolerance)
-            free = np.setdiff1d(np.unique(obs.view), fixed)
-            self.R[free], self.t[free] = R[free], t[free]
-            self.X[point_ids] = X
-        adjusted = np.zeros(len(self.X), dtype=bool)
-        adjusted[point_ids] = True
-        outside = nodes[~adjusted[self.node_point[nodes]]]
-        if len(outside):
-            ids, point = np.unique(self.node_point[outside], return_inverse=True)
-            views = self.node_view[outside]
-            self.X[ids] = refine_points(point, self.xy[outside], self.R[views], self.t[views],
-                                        self.K, self.X[ids], sigma=None if self.sigma is None
-                                        else self.sigma[outside])
-        views, points = self.node_view[nodes], self.node_point[nodes]
-        err, depth = observation_errors(self.X[points], self.R[views], self.t[views],
-                                        self.xy[nodes], self.K)
-        self.remove_observations(nodes[~(err <= self.s.max_reprojection_px) | (depth <= 0)])
-        self.timings["bundle_adjustment"] += time.perf_counter() - t0
+        changes; :mod:`scene3D.multiview.focal`). Timed as the stage
+        ``"bundle_adjustment"``."""
+        with self.timer.stage("bundle_adjustment"):
+            admitted = self.adjustment_nodes(nodes)
+            if anchors is not None:
+                taking = np.ones(len(self.registered), dtype=bool)
+                taking[fixed] = False
+                taking[anchors] = True
+                admitted &= taking[self.node_view[nodes]]
+            inside = nodes[admitted]
+            if anchors is not None:
+                inside = self._observed_twice(inside)  # else the point follows
+            point_ids, obs = self._adjustment_observations(inside)
+            if len(inside):
+                if refine_focal and self.focal is not None:
+                    fa = bundle_adjust_focal(
+                        self.R, self.t, self.X[point_ids], obs, self.K, fixed,
+                        self.focal.prior_focal_px, self.focal.prior_sigma_log,
+                        max_iterations=max_iterations, tolerance=tolerance,
+                        principal_point_shift_px=self.focal.principal_point_sigma
+                        * longer_side_px(self.K))
+                    R, t, X, self.K, self.focal_adjustment = fa.R, fa.t, fa.points3d, fa.K, fa
+                else:
+                    R, t, X = bundle_adjust(self.R, self.t, self.X[point_ids], obs, self.K, fixed,
+                                            max_iterations=max_iterations, tolerance=tolerance)
+                free = np.setdiff1d(np.unique(obs.view), fixed)
+                self.R[free], self.t[free] = R[free], t[free]
+                self.X[point_ids] = X
+            adjusted = np.zeros(len(self.X), dtype=bool)
+            adjusted[point_ids] = True
+            outside = nodes[~adjusted[self.node_point[nodes]]]
+            if len(outside):
+                ids, point = np.unique(self.node_point[outside], return_inverse=True)
+                views = self.node_view[outside]
+                self.X[ids] = refine_points(point, self.xy[outside], self.R[views], self.t[views],
+                                            self.K, self.X[ids], sigma=None if self.sigma is None
+                                            else self.sigma[outside])
+            views, points = self.node_view[nodes], self.node_point[nodes]
+            err, depth = observation_errors(self.X[points], self.R[views], self.t[views],
+                                            self.xy[nodes], self.K)
+            self.remove_observations(nodes[~(err <= self.s.max_reprojection_px) | (depth <= 0)])
 
     def _observed_twice(self, nodes: np.ndarray) -> np.ndarray:
         """Those of the observations ``nodes`` whose point they observe twice or more: a

@@ -12,12 +12,12 @@ images, or after ``SfMSettings.max_lens_passes``.
 from __future__ import annotations
 
 import dataclasses
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..engines.timing import StageTimer
 from ..errors import ReconstructionError
 from ..geometry.conventions import FloatArray
 from ..geometry.lens import folds_within
@@ -79,7 +79,7 @@ def camera_passes(
     num_radial: int,
     settings: SfMSettings,
     say: Callable[[str], None],
-    timings: dict[str, float],
+    timer: StageTimer,
 ) -> tuple[Attempt, CameraPass, FloatArray, int]:
     """Reconstruct the views again with the cameras the largest model calls for, while it
     moves them (see the module docstring).
@@ -109,8 +109,8 @@ def camera_passes(
     settings : SfMSettings
     say : callable
         Called with one line of text per pass.
-    timings : dict of str to float
-        ``timings["lens"]`` grows by the time spent fitting the cameras.
+    timer : StageTimer
+        Its stage ``"lens"`` times the fits of the cameras.
 
     Returns
     -------
@@ -127,17 +127,16 @@ def camera_passes(
     models = attempt[0]
     num_cameras = len(views.prior_focal_px)
     while lens_passes < s.max_lens_passes:
-        t0 = time.perf_counter()
-        fit = refine_cameras(models[0], views.view_camera, used, K_work, views.prior_focal_px,
-                             views.prior_sigma_log)
-        implied = model_cameras(models[0], used, K_work)
-        k_implied = implied_coefficients(used, implied)
-        seen = np.zeros(num_cameras, dtype=bool)
-        seen[views.view_camera[models[0].registered]] = True
-        moved = max(corner_change_px(implied[c], k_implied[c], fit.K[c],
-                                     fit.k[c], views.image_sizes[c])
-                    for c in np.flatnonzero(seen))
-        timings["lens"] = timings.get("lens", 0.0) + time.perf_counter() - t0
+        with timer.stage("lens"):
+            fit = refine_cameras(models[0], views.view_camera, used, K_work, views.prior_focal_px,
+                                 views.prior_sigma_log)
+            implied = model_cameras(models[0], used, K_work)
+            k_implied = implied_coefficients(used, implied)
+            seen = np.zeros(num_cameras, dtype=bool)
+            seen[views.view_camera[models[0].registered]] = True
+            moved = max(corner_change_px(implied[c], k_implied[c], fit.K[c],
+                                         fit.k[c], views.image_sizes[c])
+                        for c in np.flatnonzero(seen))
         if moved <= s.lens_tolerance_px:
             break
         folding = [c for c in np.flatnonzero(seen)

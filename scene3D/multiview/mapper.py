@@ -26,11 +26,11 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import time
 from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from ..engines.timing import StageTimer
 from ..errors import ReconstructionError, plural
 from ..geometry.conventions import FloatArray, median
 from ..twoview import TwoViewGeometry, TwoViewSettings, reconstruct_from_matches
@@ -217,7 +217,7 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
                settings: SfMSettings, allowed: np.ndarray, start: tuple[PairMatches,
                                                                            TwoViewGeometry],
                more_pairs: MorePairs | None, say: Callable[[str], None],
-               timings: dict[str, float], names: Sequence[str],
+               timer: StageTimer, names: Sequence[str],
                focal: FocalSettings | None = None, focal_start: FocalEstimate | None = None,
                view_camera: np.ndarray | None = None, known_cameras: np.ndarray | None = None,
                ) -> tuple[SfMModel, dict[int, str]]:
@@ -248,8 +248,9 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
         Matches more pairs on demand; None to use ``pairs`` only.
     say : callable
         Receives one progress line at a time.
-    timings : dict[str, float]
-        Seconds per stage, added to in place.
+    timer : StageTimer
+        Times the stages (``"matching"``, ``"registration"``, ``"checks"``,
+        ``"bundle_adjustment"``, ``"tracks"``).
     names : sequence of str
         View names used in progress lines.
     focal : FocalSettings or None, default None
@@ -271,7 +272,7 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
         For each allowed view left out, why.
     """
     s = settings
-    model = GrowingModel(features, pairs, K, s, allowed, timings, focal, view_camera,
+    model = GrowingModel(features, pairs, K, s, allowed, timer, focal, view_camera,
                          known_cameras)
     pair, r = start
     if view_camera is not None:
@@ -296,10 +297,9 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
                                                s.min_confirmed_registration_inliers):
             if len(open_views) and more_pairs is not None and rounds < s.retry_rounds:
                 rounds += 1
-                t0 = time.perf_counter()
-                found = [p for v in open_views for p in more_pairs(int(v), np.flatnonzero(
-                    model.registered).tolist())]
-                timings["matching"] += time.perf_counter() - t0
+                with timer.stage("matching"):
+                    found = [p for v in open_views for p in more_pairs(int(v), np.flatnonzero(
+                        model.registered).tolist())]
                 say(f"{plural(len(open_views), 'view')} not registered yet: {len(found)} further "
                     f"pairs verified (round {rounds})")
                 if found:
@@ -311,28 +311,24 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
                                    if v not in failed else "PnP found no consistent pose")
             break
         view = candidates[int(np.argmax(counts))]
-        t0 = time.perf_counter()
-        if not model.register(view):
-            failed.add(view)
-            say(f"view {names[view]}: cannot be registered ({max(counts)} 2D-3D matches)")
-            timings["registration"] += time.perf_counter() - t0
-            continue
-        nodes = np.arange(model.tracks.offsets[view], model.tracks.offsets[view + 1])
-        tr = np.unique(model.tracks.node_track[nodes])
-        added = model.triangulate(tr[tr >= 0])
-        timings["registration"] += time.perf_counter() - t0
+        with timer.stage("registration"):
+            if not model.register(view):
+                failed.add(view)
+                say(f"view {names[view]}: cannot be registered ({max(counts)} 2D-3D matches)")
+                continue
+            nodes = np.arange(model.tracks.offsets[view], model.tracks.offsets[view + 1])
+            tr = np.unique(model.tracks.node_track[nodes])
+            added = model.triangulate(tr[tr >= 0])
         model.adjust_local(view)
         n_views = int(model.registered.sum())
         if n_views >= s.global_ba_growth * last_views:
             model.adjust_global(max_iterations=10)
-            t0 = time.perf_counter()
-            model.retriangulate()
-            timings["registration"] += time.perf_counter() - t0
-            t0 = time.perf_counter()
-            check = model.check()
-            model.drop_pairs({(i, j) for i, j, _ in check.inconsistent_pairs
-                              if i not in check.suspect_views and j not in check.suspect_views})
-            timings["checks"] += time.perf_counter() - t0
+            with timer.stage("registration"):
+                model.retriangulate()
+            with timer.stage("checks"):
+                check = model.check()
+                model.drop_pairs({(i, j) for i, j, _ in check.inconsistent_pairs
+                                  if i not in check.suspect_views and j not in check.suspect_views})
             for v in check.suspect_views:
                 model.deregister(v)
                 model.blocked[v] = True
@@ -350,13 +346,11 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
             f"+{added} points, {model.num_points} in all")
         failed.clear()  # new points may let a failed view register now
     model.adjust_global(max_iterations=30, tolerance=1e-6)
-    t0 = time.perf_counter()
-    model.retriangulate()
-    timings["registration"] += time.perf_counter() - t0
+    with timer.stage("registration"):
+        model.retriangulate()
     model.adjust_global(max_iterations=30, tolerance=1e-8)
-    t0 = time.perf_counter()
-    check = model.check()
-    timings["checks"] += time.perf_counter() - t0
+    with timer.stage("checks"):
+        check = model.check()
     false_pairs = {(i, j) for i, j, _ in check.inconsistent_pairs
                    if i not in check.suspect_views and j not in check.suspect_views}
     if false_pairs and check.ok:  # the model stands; its last false pairs go, then again
@@ -364,14 +358,12 @@ def grow_model(features: Sequence[ViewFeatures], pairs: list[PairMatches], K: Fl
         model.adjust_global(max_iterations=30, tolerance=1e-8)
         model.retriangulate()
         model.adjust_global(max_iterations=30, tolerance=1e-8)
-        t0 = time.perf_counter()
-        check = model.check()
-        timings["checks"] += time.perf_counter() - t0
+        with timer.stage("checks"):
+            check = model.check()
     estimate = focal_start
     if focal is not None and focal_start is not None and model.focal_adjustment is not None:
-        t0 = time.perf_counter()
-        spread = model.focal_jackknife_sigma_log()
-        timings["bundle_adjustment"] += time.perf_counter() - t0
+        with timer.stage("bundle_adjustment"):
+            spread = model.focal_jackknife_sigma_log()
         estimate = focal_estimate(model.focal_adjustment, focal, focal_start, spread)
         if not estimate.determined:  # keep the prior's focal length, adjusted under it
             say(estimate.warnings[0])
@@ -394,6 +386,7 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
                        start_from: FocalEstimate | None = None,
                        view_camera: np.ndarray | None = None,
                        known_cameras: np.ndarray | None = None,
+                       timer: StageTimer | None = None,
                        ) -> tuple[list[SfMModel], dict[int, str], dict[str, float]]:
     """Steps 1-6 on verified pairs: every model the views allow, largest first.
 
@@ -429,6 +422,10 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
         Several cameras: as in :func:`grow_model`. A model then starts from a pair of
         one camera when one of them gives a start, since a pair's self-calibration finds
         one focal length; else from any pair.
+    timer : StageTimer or None, default None
+        Times the stages (``"tracks"``, ``"initialisation"``, ``"registration"``,
+        ``"bundle_adjustment"``, ``"checks"``, ``"matching"``; listed in this order after
+        the stages it has seen); None for a new one.
 
 
     Returns
@@ -437,6 +434,7 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
     reasons : dict[int, str]
         For each view in no model, why.
     timings : dict[str, float]
+        Seconds per stage: ``timer.seconds`` after the call.
 
     Raises
     ------
@@ -447,43 +445,43 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
     """
     s = settings or SfMSettings()
     say = progress or (lambda message: logger.info("%s", message))
-    timings = dict.fromkeys(("tracks", "initialisation", "registration", "bundle_adjustment",
-                             "checks", "matching"), 0.0)
+    timer = StageTimer() if timer is None else timer
+    timer.declare("tracks", "initialisation", "registration", "bundle_adjustment", "checks",
+                  "matching")
     V = len(features)
     names = [str(v) for v in range(V)] if names is None else list(names)
     remaining = np.ones(V, dtype=bool)
     models: list[SfMModel] = []
     reasons: dict[int, str] = {}
     while remaining.sum() >= 2:
-        t0 = time.perf_counter()
-        inside = [p for p in pairs if remaining[p.i] and remaining[p.j]]
-        attempts = [inside]
-        if view_camera is not None:  # a start from a pair of one camera first, where one is
-            one = [p for p in inside if view_camera[p.i] == view_camera[p.j]]
-            attempts = [one, inside] if 0 < len(one) < len(inside) else [inside]
-        K_given = K
-        for inside in attempts:
-            K, focal_start = K_given, None
-            if focal is not None and not models and inside and start_from is not None:
-                focal_start = start_from
-                start = initial_pair(features, inside, K, K_source="other photos")
-            elif focal is not None and not models and inside:
-                start, K, focal_start = self_calibrated_start(features, inside, K, focal,
-                                                              initial_pair)
+        with timer.stage("initialisation"):
+            inside = [p for p in pairs if remaining[p.i] and remaining[p.j]]
+            attempts = [inside]
+            if view_camera is not None:  # a start from a pair of one camera first, where one is
+                one = [p for p in inside if view_camera[p.i] == view_camera[p.j]]
+                attempts = [one, inside] if 0 < len(one) < len(inside) else [inside]
+            K_given = K
+            for inside in attempts:
+                K, focal_start = K_given, None
+                if focal is not None and not models and inside and start_from is not None:
+                    focal_start = start_from
+                    start = initial_pair(features, inside, K, K_source="other photos")
+                elif focal is not None and not models and inside:
+                    start, K, focal_start = self_calibrated_start(features, inside, K, focal,
+                                                                  initial_pair)
+                    if not isinstance(start, str):
+                        say(f"focal length {K[0, 0]:.1f} px to start with: "
+                            f"{_START_SOURCE.get(focal_start.source, focal_start.source)}, "
+                            f"views {names[start[0].i]} and {names[start[0].j]}")
+                elif focal is not None and inside:
+                    K = models[-1].K if models[-1].K is not None else K
+                    focal_start = _inherited_focal(models[-1].focal, float(K[0, 0]))
+                    start = initial_pair(features, inside, K, K_source="other photos")
+                else:
+                    start = (initial_pair(features, inside, K, calibrated=focal is None) if inside
+                             else _no_pair_left(s))
                 if not isinstance(start, str):
-                    say(f"focal length {K[0, 0]:.1f} px to start with: "
-                        f"{_START_SOURCE.get(focal_start.source, focal_start.source)}, "
-                        f"views {names[start[0].i]} and {names[start[0].j]}")
-            elif focal is not None and inside:
-                K = models[-1].K if models[-1].K is not None else K
-                focal_start = _inherited_focal(models[-1].focal, float(K[0, 0]))
-                start = initial_pair(features, inside, K, K_source="other photos")
-            else:
-                start = (initial_pair(features, inside, K, calibrated=focal is None) if inside
-                         else _no_pair_left(s))
-            if not isinstance(start, str):
-                break
-        timings["initialisation"] += time.perf_counter() - t0
+                    break
         if isinstance(start, str):
             why = f"{start}; {_input_hint(focal is None)}" if inside else start
             if not models:
@@ -494,7 +492,7 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
                        for v in np.flatnonzero(remaining)}
             break
         model, left_out = grow_model(features, pairs, K, s, remaining.copy(), start,
-                                     more_pairs if not models else None, say, timings, names,
+                                     more_pairs if not models else None, say, timer, names,
                                      focal, focal_start, view_camera, known_cameras)
         if model.registered.sum() < s.min_model_views:
             if not models:
@@ -518,4 +516,4 @@ def reconstruct_models(features: Sequence[ViewFeatures], pairs: list[PairMatches
                                "others?")
         reasons.setdefault(int(v), "no verified pair with the views left")
     models.sort(key=lambda m: -int(m.registered.sum()))
-    return models, reasons, timings
+    return models, reasons, timer.seconds

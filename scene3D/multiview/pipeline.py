@@ -16,7 +16,6 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
-import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -24,6 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..engines import Engine, LocalEngine
+from ..engines.timing import StageTimer
 from ..errors import ReconstructionError, plural
 from ..geometry.camera import (
     different_sizes_message,
@@ -259,33 +259,32 @@ def reconstruct_views(
         view_camera = np.zeros(len(images), dtype=int)
     K_native = validate_intrinsics(K)
     dist = validate_distortion(dist)
-    timings: dict[str, float] = {}
+    timer = StageTimer()  # seconds per stage; the mapper's stages add to it
 
-    t0 = time.perf_counter()
-    found = list(engine.map(view_features,
-                            [(src, K_native if cameras is None else cameras[c].K, dist,
-                              max_width, name, feature)
-                             for src, name, c in zip(images, names, view_camera)],
-                            label="features"))
-    labels = [source_label(src, name) for src, name in zip(images, names)]
-    # Each camera's views share its size (one camera: all of them).
-    lead = [int(np.flatnonzero(view_camera == c)[0]) for c in range(view_camera.max() + 1)]
-    for (_, size, _, _), label, c in zip(found, labels, view_camera):
-        first = found[lead[c]][1]
-        if size != first:
-            raise ValueError(different_sizes_message(label, size, labels[lead[c]], first))
-    reference = lead[reference_camera(view_camera)]
-    first = found[reference][1]
-    check_K_for_size(K_native, first, focal_prior)
-    working_size, levels = found[reference][2], found[reference][3]
-    K_work = scale_intrinsics_halved(K_native, levels)
-    if cameras is not None:  # each camera at its working size (scene3D.multiview.cameras)
-        K_cameras = np.stack([scale_intrinsics_halved(prior.K, found[v][3])
-                              for prior, v in zip(cameras, lead)])
-        camera_sizes = [found[v][2] for v in lead]
-    focal = None if focal_prior is None else FocalSettings(
-        float(K_work[0, 0]), focal_prior.sigma_log, focal_prior.source)
-    timings["features"] = time.perf_counter() - t0
+    with timer.stage("features"):
+        found = list(engine.map(view_features,
+                                [(src, K_native if cameras is None else cameras[c].K, dist,
+                                  max_width, name, feature)
+                                 for src, name, c in zip(images, names, view_camera)],
+                                label="features"))
+        labels = [source_label(src, name) for src, name in zip(images, names)]
+        # Each camera's views share its size (one camera: all of them).
+        lead = [int(np.flatnonzero(view_camera == c)[0]) for c in range(view_camera.max() + 1)]
+        for (_, size, _, _), label, c in zip(found, labels, view_camera):
+            first = found[lead[c]][1]
+            if size != first:
+                raise ValueError(different_sizes_message(label, size, labels[lead[c]], first))
+        reference = lead[reference_camera(view_camera)]
+        first = found[reference][1]
+        check_K_for_size(K_native, first, focal_prior)
+        working_size, levels = found[reference][2], found[reference][3]
+        K_work = scale_intrinsics_halved(K_native, levels)
+        if cameras is not None:  # each camera at its working size (scene3D.multiview.cameras)
+            K_cameras = np.stack([scale_intrinsics_halved(prior.K, found[v][3])
+                                  for prior, v in zip(cameras, lead)])
+            camera_sizes = [found[v][2] for v in lead]
+        focal = None if focal_prior is None else FocalSettings(
+            float(K_work[0, 0]), focal_prior.sigma_log, focal_prior.source)
     say(f"features: {', '.join(str(len(f[0].keypoints)) for f in found)} keypoints")
 
     # Canonical order: by content, so that names and input order change nothing.
@@ -309,20 +308,18 @@ def reconstruct_views(
             f"({plural(int(np.sum(view_camera == c)), 'view')}, f {prior.focal_px:.0f} px from "
             f"{prior.source})" for c, prior in enumerate(cameras)))
 
-    t0 = time.perf_counter()
-    vocabulary = train_vocabulary(features, s.vocabulary_words)
-    described = list(engine.map(describe_view, [(f, vocabulary, s.probe_words)
-                                                for f in features], label="retrieval"))
-    features = [dataclasses.replace(f, words=w) for f, (w, _) in zip(features, described)]
-    ranking, _ = similarity_ranking(np.array([vlad for _, vlad in described]))
-    timings["retrieval"] = time.perf_counter() - t0
+    with timer.stage("retrieval"):
+        vocabulary = train_vocabulary(features, s.vocabulary_words)
+        described = list(engine.map(describe_view, [(f, vocabulary, s.probe_words)
+                                                    for f in features], label="retrieval"))
+        features = [dataclasses.replace(f, words=w) for f, (w, _) in zip(features, described)]
+        ranking, _ = similarity_ranking(np.array([vlad for _, vlad in described]))
 
-    t0 = time.perf_counter()
-    pair_list, selection = select_pairs(len(features), pairs, s.neighbours, ranking,
-                                        s.retrieval_neighbours, sequence=position)
-    handles = [engine.share(f) for f in features]
-    num_words = vocabulary.size if not vocabulary.binary else 0
-    timings["matching"] = time.perf_counter() - t0
+    with timer.stage("matching"):
+        pair_list, selection = select_pairs(len(features), pairs, s.neighbours, ranking,
+                                            s.retrieval_neighbours, sequence=position)
+        handles = [engine.share(f) for f in features]
+        num_words = vocabulary.size if not vocabulary.binary else 0
 
     latest_pairs: list[PairMatches] = []  # the last pass's verified pairs
     putative: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}  # of every pass
@@ -332,23 +329,22 @@ def reconstruct_views(
                          ) -> tuple[list[SfMModel], dict[int, str], int, int]:
         """The models under ``K_work``, the reasons for the views left out, and the
         pairs matched and verified: pair verification depends on ``K``."""
-        t0 = time.perf_counter()
-        matched = {(i, j) for i, j in pair_list}
+        with timer.stage("matching"):
+            matched = {(i, j) for i, j in pair_list}
 
-        def verify(batch: list[tuple[int, int]], label: str) -> list[PairMatches]:
-            results = engine.map(match_and_verify_pair, [
-                (handles[i], handles[j], K_work, s, i, j, num_words, putative.get((i, j)))
-                for i, j in batch], label=label)
-            found = []
-            for (i, j), (matches, pair) in zip(batch, results):
-                putative[i, j] = matches
-                if pair is not None:
-                    found.append(pair)
-            return found
+            def verify(batch: list[tuple[int, int]], label: str) -> list[PairMatches]:
+                results = engine.map(match_and_verify_pair, [
+                    (handles[i], handles[j], K_work, s, i, j, num_words, putative.get((i, j)))
+                    for i, j in batch], label=label)
+                found = []
+                for (i, j), (matches, pair) in zip(batch, results):
+                    putative[i, j] = matches
+                    if pair is not None:
+                        found.append(pair)
+                return found
 
-        verified = verify(pair_list, "pairs")
-        latest_pairs[:] = verified
-        timings["matching"] += time.perf_counter() - t0
+            verified = verify(pair_list, "pairs")
+            latest_pairs[:] = verified
         say(f"{len(verified)} of {len(pair_list)} pairs verified ({selection})")
 
         def more_pairs(view: int, model_views: Sequence[int]) -> list[PairMatches]:
@@ -367,17 +363,14 @@ def reconstruct_views(
             return new
 
         try:
-            models, reasons, sfm_timings = reconstruct_models(
+            models, reasons, _ = reconstruct_models(
                 features, verified, K_work, s, more_pairs, say, canonical_names, focal,
-                start_from, canonical_camera, known_cameras)
+                start_from, canonical_camera, known_cameras, timer=timer)
         except ReconstructionError as exc:
             few = too_few_keypoints(found, labels, s.min_pair_inliers, working_size)
             if exc.reason != "no_initial_pair" or few is None:
                 raise
             raise ReconstructionError(exc.reason, few, **exc.counts) from None
-        timings["matching"] += sfm_timings.pop("matching")
-        for stage, seconds in sfm_timings.items():
-            timings[stage] = timings.get(stage, 0.0) + seconds
         return models, reasons, len(matched), len(verified)
 
     lens, K_lens, lens_passes = np.zeros(num_radial), K_work.copy(), 0
@@ -437,14 +430,13 @@ def reconstruct_views(
     # Without a calibration: the lens the largest model calls for, its keypoints
     # undistorted with it and the views reconstructed again (scene3D.multiview.lens).
     while cameras is None and focal is not None and num_radial and lens_passes < s.max_lens_passes:
-        t0 = time.perf_counter()
-        K_model = models[0].K if models[0].K is not None else K_work
-        fit = refine_lens(models[0], K_model, lens, K_lens, focal)
-        current = rescaled_coefficients(lens, float(K_lens[0, 0]), float(K_model[0, 0]))
-        moved = float(np.max(np.linalg.norm(
-            corner_shifts_px(fit.K, fit.k, working_size)
-            - corner_shifts_px(K_model, current, working_size), axis=1)))
-        timings["lens"] = timings.get("lens", 0.0) + time.perf_counter() - t0
+        with timer.stage("lens"):
+            K_model = models[0].K if models[0].K is not None else K_work
+            fit = refine_lens(models[0], K_model, lens, K_lens, focal)
+            current = rescaled_coefficients(lens, float(K_lens[0, 0]), float(K_model[0, 0]))
+            moved = float(np.max(np.linalg.norm(
+                corner_shifts_px(fit.K, fit.k, working_size)
+                - corner_shifts_px(K_model, current, working_size), axis=1)))
         shift = max_shift_px(fit.K, fit.k, working_size)
         negligible = shift <= s.min_lens_shift * float(np.hypot(*working_size))
         if moved <= s.lens_tolerance_px or (negligible and not lens_passes):
@@ -491,8 +483,9 @@ def reconstruct_views(
                             [prior.sigma_log for prior in cameras], camera_sizes)
         (models, reasons, num_matched, num_verified), used, K_work, lens_passes = camera_passes(
             (models, reasons, num_matched, num_verified), reconstruct_from, features, views,
-            used, K_work, lens_passes, num_radial, s, say, timings)
-    timings["total"] = sum(timings.values())
+            used, K_work, lens_passes, num_radial, s, say, timer)
+    timings = timer.seconds
+    timings["total"] = timer.total_s
     if cameras is not None:
         return cameras_result(models, used, K_work, canonical_camera, order, reasons,
                                dict(names=names, pair_selection=selection,

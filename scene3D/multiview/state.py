@@ -10,12 +10,12 @@ exactly the nodes with a point, and ``track_point[k]`` is the point of track ``k
 from __future__ import annotations
 
 import dataclasses
-import time
 from collections.abc import Sequence
 
 import cv2
 import numpy as np
 
+from ..engines.timing import StageTimer
 from ..geometry.conventions import FloatArray, camera_centers
 from ..optim.bundle import Observations, reprojection_residuals
 from .adjustment import FOCAL_TEST_POINTS, ModelAdjustment  # noqa: F401 - public here too
@@ -36,10 +36,10 @@ class GrowingModel(ModelAdjustment):
 
     def __init__(self, features: Sequence[ViewFeatures], pairs: list[PairMatches],
                  K: FloatArray, settings: SfMSettings, allowed: np.ndarray,
-                 timings: dict[str, float], focal: FocalSettings | None = None,
+                 timer: StageTimer, focal: FocalSettings | None = None,
                  view_camera: np.ndarray | None = None,
                  known_cameras: np.ndarray | None = None) -> None:
-        self.features, self.K, self.s, self.timings = list(features), K, settings, timings
+        self.features, self.K, self.s, self.timer = list(features), K, settings, timer
         # Several cameras (scene3D.multiview.cameras): the camera of each view, which
         # cameras' focal lengths are known (else searched for at their first view),
         # and how each camera's keypoints were rescaled since.
@@ -72,13 +72,12 @@ class GrowingModel(ModelAdjustment):
     # -- bookkeeping --------------------------------------------------------------------
 
     def _build_tracks(self) -> None:
-        """The tracks of ``self.pairs``, their time added to ``timings["tracks"]``."""
-        t0 = time.perf_counter()
-        tracks = build_tracks([len(f.keypoints) for f in self.features], self.pairs)
-        self.tracks = tracks
-        self.node_view = tracks.node_view
-        self.track_nodes, self.track_starts = tracks.members()
-        self.timings["tracks"] = self.timings.get("tracks", 0.0) + time.perf_counter() - t0
+        """The tracks of ``self.pairs``, timed as the stage ``"tracks"``."""
+        with self.timer.stage("tracks"):
+            tracks = build_tracks([len(f.keypoints) for f in self.features], self.pairs)
+            self.tracks = tracks
+            self.node_view = tracks.node_view
+            self.track_nodes, self.track_starts = tracks.members()
 
     def add_pairs(self, new: list[PairMatches]) -> None:
         """Take further verified pairs: rebuild the tracks, keep every point.

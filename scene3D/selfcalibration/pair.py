@@ -368,12 +368,12 @@ def self_calibrate_pair(
     covariance = marginal_pose_covariance(
         geometry, intrinsics_covariance(sigma, pp_sigma, uncertainty.principal_point_shifts,
                                         weight), tv)
-    geometry = replace(
-        geometry, pose_covariance=covariance,
+    geometry = replace(geometry, uncertainty=replace(
+        geometry.uncertainty, pose_covariance=covariance,
         rotation_sigma_deg=largest_sigma_deg(covariance[:3, :3]),
         translation_sigma_deg=largest_sigma_deg(covariance[3:, 3:]),
         depth_sigmas=depth_sigmas(geometry.points3d, geometry.K, geometry.R, geometry.t,
-                                  covariance, geometry.noise_sigma_px))
+                                  covariance, geometry.noise_sigma_px)))
     uncertain = beyond_uncertainty_limit(geometry.rotation_sigma_deg,
                                          geometry.translation_sigma_deg, tv)
     if uncertain:

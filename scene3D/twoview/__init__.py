@@ -42,11 +42,13 @@ from .core import (
     sample_colors,
 )
 from .degeneracy import is_rotation_homography, off_plane_evidence, plane_poses
+from .measurements import TwoViewChecks, TwoViewFocal, TwoViewUncertainty
 from .results import TwoViewGeometry, TwoViewReconstruction, TwoViewSettings
 from .trust import check_distortion, check_focal_length, rival_chi2, trust_warnings
 
 __all__ = [  # the plane checks lived here before scene3D.twoview.degeneracy
-    "TwoViewGeometry", "TwoViewReconstruction", "TwoViewSettings", "check_against_flow",
+    "TwoViewChecks", "TwoViewFocal", "TwoViewGeometry", "TwoViewReconstruction",
+    "TwoViewSettings", "TwoViewUncertainty", "check_against_flow",
     "check_distortion", "check_focal_length",
     "is_rotation_homography", "off_plane_evidence", "plane_poses", "reconstruct_from_matches",
     "reconstruct_two_view", "require_enough_matches", "rival_chi2", "sample_colors",

@@ -53,6 +53,7 @@ from .degeneracy import (
 from .essential_fit import fit_essential, inlier_threshold_px, loss_scale_px, noise_sigma_px
 from .flow_check import check_pose_against_images
 from .focal_fit import fit_focal_ratio
+from .measurements import TwoViewChecks, TwoViewFocal, TwoViewUncertainty
 from .results import TwoViewGeometry, TwoViewReconstruction, TwoViewSettings
 from .trust import (
     check_distortion,
@@ -400,20 +401,16 @@ def reconstruct_from_matches(
         R=R, t=t, points3d=points, pts1=pts1_kept, pts2=pts2_kept, K=K, F=F, E=E,
         num_matches=n, num_inliers=num_inliers,
         reprojection_rmse_px=float(np.sqrt(np.mean(kept_errors**2))),
-        median_parallax_deg=median_kept_parallax,
-        homography_inlier_ratio=h_ratio, trusted=not warnings, warnings=tuple(warnings),
-        inlier_pts1=in1, inlier_pts2=in2, refinement_s=refine_s, robust_starts=fit.starts,
-        robust_spread_deg=fit.spread_deg, focal_scale=focal.scale,
-        focal_scale_sigma=focal.scale * focal.sigma_log, focal_ratio=focal_ratio.scale,
-        focal_ratio_sigma=focal_ratio.scale * focal_ratio.sigma_log,
-        pose_covariance=uncertainty.covariance,
-        rotation_sigma_deg=uncertainty.rotation_sigma_deg,
-        translation_sigma_deg=uncertainty.translation_sigma_deg,
-        noise_sigma_px=uncertainty.noise_sigma_px, noise_cut_share=cut.cut_share,
-        behind_share=behind_share, depth_sigmas=point_sigmas,
-        distortion_k=np.nan if distortion is None else distortion.k,
-        distortion_pose_shift_deg=(np.nan if distortion is None else
-                                   pose_angle_deg(distortion.R, distortion.t, R, t)),
+        median_parallax_deg=median_kept_parallax, trusted=not warnings,
+        warnings=tuple(warnings), inlier_pts1=in1, inlier_pts2=in2, refinement_s=refine_s,
+        focal=TwoViewFocal.from_fits(focal, focal_ratio),
+        uncertainty=TwoViewUncertainty.from_pose(uncertainty, point_sigmas),
+        checks=TwoViewChecks(
+            homography_inlier_ratio=h_ratio, robust_starts=fit.starts,
+            robust_spread_deg=fit.spread_deg, behind_share=behind_share,
+            distortion_k=np.nan if distortion is None else distortion.k,
+            distortion_pose_shift_deg=(np.nan if distortion is None else
+                                       pose_angle_deg(distortion.R, distortion.t, R, t))),
     )
 
 
@@ -478,7 +475,8 @@ def check_against_flow(geometry: TwoViewGeometry, img1: np.ndarray, img2: np.nda
         return geometry
     doubt = flow_warning(R, t, flow, s)
     warnings = geometry.warnings + ((doubt,) if doubt else ())
-    return replace(geometry, flow_gain=flow.gain, trusted=not warnings, warnings=warnings)
+    return replace(geometry, checks=replace(geometry.checks, flow_gain=flow.gain),
+                   trusted=not warnings, warnings=warnings)
 
 
 def require_enough_matches(matches: Matches, settings: TwoViewSettings | None = None) -> None:

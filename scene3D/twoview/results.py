@@ -16,6 +16,7 @@ from ..io.colmap import ColmapModel, colmap_model_from_views, model_for_photos
 from ..io.export import all_or_nothing
 from ..io.model_files import save_model
 from ..optim.uncertainty import PoseUncertainty, tangent_basis
+from .measurements import TwoViewChecks, TwoViewFocal, TwoViewUncertainty
 
 
 @dataclass(frozen=True)
@@ -241,9 +242,36 @@ _INT_MINIMA: dict[str, int] = {
 }
 
 
+def _forward(group: str, name: str) -> property:
+    """A read-only attribute that reads ``getattr(self.<group>, name)``."""
+    def get(self: TwoViewGeometry) -> object:
+        return getattr(getattr(self, group), name)
+    get.__doc__ = (f"``{group}.{name}`` "
+                   f"(:class:`scene3D.twoview.measurements.{_GROUP_TYPES[group]}`).")
+    return property(get)
+
+
+#: The type of each group of :class:`TwoViewGeometry`, for the forwarding attributes' docs.
+_GROUP_TYPES = {"focal": "TwoViewFocal", "uncertainty": "TwoViewUncertainty",
+                "checks": "TwoViewChecks"}
+
+
 @dataclass(frozen=True)
 class TwoViewGeometry:
     """Pose and structure of a pair, as found from its correspondences alone.
+
+    The pose, the points and the matches are attributes of their own; what the stages
+    measured about them comes in three groups: ``focal`` (the focal lengths the inliers
+    call for), ``uncertainty`` (the pose's covariance, the keypoint noise and the
+    points' depth sigmas) and ``checks`` (what the trust checks measured). Each of
+    their attributes is readable here too under its former flat name (read-only):
+    ``focal_scale``, ``focal_scale_sigma``, ``focal_ratio``, ``focal_ratio_sigma``
+    (``focal.scale`` ...); ``pose_covariance``, ``rotation_sigma_deg``,
+    ``translation_sigma_deg``, ``noise_sigma_px``, ``noise_cut_share``,
+    ``depth_sigmas``; ``homography_inlier_ratio``, ``robust_starts``,
+    ``robust_spread_deg``, ``behind_share``, ``flow_gain``, ``distortion_k``,
+    ``distortion_pose_shift_deg``. A copy with other values replaces the group:
+    ``dataclasses.replace(g, checks=dataclasses.replace(g.checks, flow_gain=0.0))``.
 
     Attributes
     ----------
@@ -265,8 +293,6 @@ class TwoViewGeometry:
         RMS reprojection error of ``points3d`` over both views.
     median_parallax_deg : float
         Median triangulation angle of the kept points.
-    homography_inlier_ratio : float
-        Homography inliers / essential inliers (near 1: planar scene or no baseline).
     trusted : bool
         False when a check raised a doubt; see ``warnings``.
     warnings : tuple[str, ...]
@@ -275,64 +301,16 @@ class TwoViewGeometry:
         All essential-matrix inliers (before triangulation filters).
     refinement_s : float
         Seconds spent refining the pose (and bundle adjusting, if asked).
-    robust_starts : int
-        Robust estimations of E run (:func:`scene3D.twoview.essential_fit.fit_essential`); when
-        the best pose was not found twice in ``TwoViewSettings.max_starts`` of them
-        and their optima lie more than ``TwoViewSettings.restart_agreement_deg``
-        apart (found twice: more than ``TwoViewSettings.uncertainty_limit_deg``), outside
-        the covariance's region, the result is untrusted.
-    robust_spread_deg : float
-        How far the other starts' optima lie from the chosen one
-        (:attr:`scene3D.twoview.essential_fit.EssentialFit.spread_deg`; 0 when they all agree).
-    focal_scale, focal_scale_sigma : float
-        The focal length the inliers call for, as a multiple of the calibration's,
-        and its standard deviation (:func:`scene3D.twoview.focal_fit.fit_focal_scale`;
-        near 1 when the calibration fits, the sigma infinite when the pair cannot
-        tell).
-    focal_ratio, focal_ratio_sigma : float
-        Image 2's focal length over image 1's that the inliers call for, with the
-        calibration's geometric mean kept (:func:`scene3D.twoview.focal_fit.fit_focal_ratio`;
-        near 1 when one calibration fits both photos), and its standard deviation.
-    pose_covariance : (5, 5) float64
-        First-order covariance of the pose (radians^2) in the parametrisation of
-        :mod:`scene3D.optim.uncertainty`: rows 0-2 the rotation vector ``w`` of
-        ``R <- exp([w]x) R`` (camera-2 frame), rows 3-4 the step of ``t`` along the
-        rows of ``tangent_basis(t)`` (:attr:`pose_uncertainty` has both). Infinite
-        when the matches do not determine the pose.
-    rotation_sigma_deg, translation_sigma_deg : float
-        1-sigma angles of the rotation and of the translation direction along their
-        worst axes (square roots of the largest eigenvalues of the covariance's
-        rotation and direction blocks), in degrees.
-    noise_sigma_px : float
-        Robust standard deviation of the keypoint noise, per coordinate, measured on
-        the inliers (:func:`scene3D.twoview.essential_fit.noise_sigma_px`).
-    noise_cut_share : float
-        Share of the matches that fit the pose which the inlier threshold cut off
-        (:func:`scene3D.optim.uncertainty.truncated_noise`; the covariance allows for it).
-    behind_share : float
-        Share of the inliers whose point lies behind a camera by more than the noise
-        explains, at the scene's parallax
-        (:func:`scene3D.geometry.triangulation.behind_at_scene_parallax`): wrong matches near
-        their epipolar lines (``TwoViewSettings.max_behind_share``).
-    flow_gain : float
-        How much more of the dense optical flow between the images the pose refined on
-        the flow explains than this pose (:attr:`scene3D.twoview.flow_check.FlowCheck.gain`; near
-        0 when the flow agrees). NaN when the check did not run: no second image
-        (:func:`scene3D.twoview.check_against_flow`), a pose already untrusted, or too
-        little texture.
-    depth_sigmas : (N,) float64
-        1-sigma depth of each point in camera 1, in units of the baseline, from the
-        pose covariance and the keypoint noise (:func:`scene3D.optim.uncertainty.depth_sigmas`);
-        divide by ``points3d[:, 2]`` for a relative uncertainty.
-    distortion_k : float
-        The radial lens distortion the matches call for, as the coefficient of the
-        division model (:mod:`scene3D.twoview.distortion_fit`; 0: none, negative: barrel).
-        NaN when the check did not run: a pose already untrusted, or
-        ``check_distortion`` off (as in the self-calibration).
-    distortion_pose_shift_deg : float
-        How far the pose refined with that distortion lies from this one, in degrees
-        (:func:`scene3D.geometry.pose_angle_deg`;
-        :func:`scene3D.twoview.trust.distortion_warning`). NaN when not checked.
+    focal : TwoViewFocal
+        The focal length (scale of the calibration's) and the ratio of image 2's to
+        image 1's that the inliers call for, with their standard deviations.
+    uncertainty : TwoViewUncertainty
+        The pose's ``(5, 5)`` covariance (rotation in the camera-2 frame, the direction
+        of ``t`` in its tangent basis) and its sigmas, the keypoint noise, the
+        ``(N,)`` depth sigmas of ``points3d`` in camera 1.
+    checks : TwoViewChecks
+        The homography ratio, the robust starts and their spread, the share of inliers
+        behind a camera, the dense flow's gain, the radial distortion and its pose shift.
     """
 
     R: FloatArray
@@ -347,28 +325,32 @@ class TwoViewGeometry:
     num_inliers: int
     reprojection_rmse_px: float
     median_parallax_deg: float
-    homography_inlier_ratio: float
     trusted: bool
     warnings: tuple[str, ...]
     inlier_pts1: FloatArray
     inlier_pts2: FloatArray
     refinement_s: float = 0.0
-    robust_starts: int = 1
-    robust_spread_deg: float = 0.0
-    focal_scale: float = 1.0
-    focal_scale_sigma: float = float("inf")
-    focal_ratio: float = 1.0
-    focal_ratio_sigma: float = float("inf")
-    pose_covariance: FloatArray = field(default_factory=lambda: np.full((5, 5), np.inf))
-    rotation_sigma_deg: float = float("inf")
-    translation_sigma_deg: float = float("inf")
-    noise_sigma_px: float = float("nan")
-    noise_cut_share: float = 0.0
-    behind_share: float = 0.0
-    flow_gain: float = float("nan")
-    depth_sigmas: FloatArray = field(default_factory=lambda: np.zeros(0))
-    distortion_k: float = float("nan")
-    distortion_pose_shift_deg: float = float("nan")
+    focal: TwoViewFocal = field(default_factory=TwoViewFocal)
+    uncertainty: TwoViewUncertainty = field(default_factory=TwoViewUncertainty)
+    checks: TwoViewChecks = field(default_factory=TwoViewChecks)
+
+    focal_scale = _forward("focal", "scale")
+    focal_scale_sigma = _forward("focal", "scale_sigma")
+    focal_ratio = _forward("focal", "ratio")
+    focal_ratio_sigma = _forward("focal", "ratio_sigma")
+    pose_covariance = _forward("uncertainty", "pose_covariance")
+    rotation_sigma_deg = _forward("uncertainty", "rotation_sigma_deg")
+    translation_sigma_deg = _forward("uncertainty", "translation_sigma_deg")
+    noise_sigma_px = _forward("uncertainty", "noise_sigma_px")
+    noise_cut_share = _forward("uncertainty", "noise_cut_share")
+    depth_sigmas = _forward("uncertainty", "depth_sigmas")
+    homography_inlier_ratio = _forward("checks", "homography_inlier_ratio")
+    robust_starts = _forward("checks", "robust_starts")
+    robust_spread_deg = _forward("checks", "robust_spread_deg")
+    behind_share = _forward("checks", "behind_share")
+    flow_gain = _forward("checks", "flow_gain")
+    distortion_k = _forward("checks", "distortion_k")
+    distortion_pose_shift_deg = _forward("checks", "distortion_pose_shift_deg")
 
     @property
     def pose_uncertainty(self) -> PoseUncertainty:
