@@ -23,9 +23,15 @@ from scene3D.multiview.cameras import (
     pnp_focal_search,
     to_reference_pixels,
 )
+from scene3D.multiview.settings import SfMSettings
 from scene3D.optim.bundle import Observations
 from scene3D.optim.bundle_radial import bundle_adjust_cameras
-from scene3D.report import multi_view_layers, multi_view_report, prepare_view
+from scene3D.report import (
+    multi_view_layers,
+    multi_view_report,
+    prepare_view,
+    reconstruction_report,
+)
 from scene3D.report.sections import jsonable
 
 CANON = ExifCamera(make="Canon", model="EOS 5D", focal_length_mm=35.0)
@@ -199,6 +205,29 @@ def test_views_of_two_cameras_register_with_their_own_focal_lengths(two_camera_o
     for name, camera_id in zip(model.names, model.camera_ids):
         assert model.cameras[int(camera_id)].image_size == cameras[int(name[:2]) % 2][1]
     assert np.median(model.point_errors_px()) < 0.5
+
+
+def test_the_result_keeps_the_pairs_it_verified_in_the_input_order(two_camera_model):
+    """``verified_edges``: ``verified_pairs`` of them, sorted, views ``a < b`` by input index,
+    each with at least the inliers a pair needs; neighbours on the orbit (15 deg apart) are
+    among them; the report's view graph shows them as inliers."""
+    from scene3D.report.diagnostics import verified_inlier_matrix
+
+    recon = two_camera_model[0]
+    edges = recon.verified_edges
+    assert len(edges) == recon.verified_pairs and list(edges) == sorted(edges)
+    assert all(0 <= a < b < len(recon.names) for a, b, _ in edges)
+    assert min(n for _, _, n in edges) >= SfMSettings().min_pair_inliers
+    assert {(v, v + 1) for v in range(len(recon.names) - 1)} <= {(a, b) for a, b, _ in edges}
+    matrix = verified_inlier_matrix(edges, len(recon.names))
+    np.testing.assert_array_equal(matrix, matrix.T)
+    assert matrix[edges[0][0], edges[0][1]] == edges[0][2]
+    assert (matrix > 0).sum() == 2 * len(edges)
+    page = reconstruction_report(recon, ["the largest model"] * len(recon.names),
+                                 jsonable(recon.to_dict()), [], [], {}).text()
+    a, b, n = edges[0]
+    assert f"{recon.names[a]} and {recon.names[b]}: {n} inliers" in page
+    assert "The pairs whose matches verified" in page
 
 
 def test_pycolmap_reads_the_two_camera_model_with_our_reprojection_error(two_camera_model):

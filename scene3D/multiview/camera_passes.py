@@ -35,8 +35,8 @@ from .sfm_model import FocalEstimate, SfMModel
 from .view_data import ViewFeatures
 
 #: What one reconstruction gives: the models, the reasons for the views left out, and the
-#: pairs matched and verified.
-Attempt = tuple[list[SfMModel], dict[int, str], int, int]
+#: pairs matched, and the pairs verified as (i, j, inliers) in the views' order.
+Attempt = tuple[list[SfMModel], dict[int, str], int, list[tuple[int, int, int]]]
 
 
 @dataclass(frozen=True)

@@ -165,6 +165,10 @@ class MultiViewReconstruction:
         ``v``'s). The models' observations are in each view's own working pixels.
     cameras : tuple[CameraIntrinsics, ...]
         The cameras (empty for one camera: :meth:`view_intrinsics` gives it).
+    verified_edges : tuple[tuple[int, int, int], ...]
+        The verified pairs of the final pass as ``(a, b, inliers)``: input-order view indices
+        ``a < b`` and the matches that fit the pair's essential matrix; sorted. Its length
+        is :attr:`verified_pairs` (empty for a result made without the pipeline).
     """
 
     names: tuple[str, ...]
@@ -187,6 +191,7 @@ class MultiViewReconstruction:
     min_model_points: int = 10
     view_camera: np.ndarray | None = None
     cameras: tuple[CameraIntrinsics, ...] = ()
+    verified_edges: tuple[tuple[int, int, int], ...] = ()
 
     @property
     def camera_list(self) -> tuple[CameraIntrinsics, ...]:

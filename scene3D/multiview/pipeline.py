@@ -371,12 +371,13 @@ def reconstruct_views(
             if exc.reason != "no_initial_pair" or few is None:
                 raise
             raise ReconstructionError(exc.reason, few, **exc.counts) from None
-        return models, reasons, len(matched), len(verified)
+        edges = [(p.i, p.j, p.num_inliers) for p in verified]
+        return models, reasons, len(matched), edges
 
     lens, K_lens, lens_passes = np.zeros(num_radial), K_work.copy(), 0
     raw_keypoints = [f.keypoints for f in features]
     try:
-        models, reasons, num_matched, num_verified = reconstruct_with(
+        models, reasons, num_matched, verified_edges = reconstruct_with(
             K_work, known_cameras=None if cameras is None else used.known)
     except ReconstructionError as exc:
         # A lens that bends the matches can leave no pair trustworthy in the pinhole
@@ -404,7 +405,7 @@ def reconstruct_views(
                                           canonical_camera, used.K, used.k, K_work)
         handles = [engine.share(f) for f in features]
         try:
-            models, reasons, num_matched, num_verified = reconstruct_with(
+            models, reasons, num_matched, verified_edges = reconstruct_with(
                 K_work, known_cameras=None if cameras is None else used.known)
         except ReconstructionError:
             raise exc from None
@@ -421,7 +422,7 @@ def reconstruct_views(
         say(f"the views fit a focal length {scale:.3f} times the one used: reconstructing "
             "them with it")
         try:
-            models, reasons, num_matched, num_verified = reconstruct_with(K_refit)
+            models, reasons, num_matched, verified_edges = reconstruct_with(K_refit)
         except ReconstructionError as exc:
             say(f"no model with it either ({exc})")
             break
@@ -461,7 +462,7 @@ def reconstruct_views(
         else:
             why = "it registers fewer views"
             if attempt[0][0].registered.sum() >= models[0].registered.sum():
-                models, reasons, num_matched, num_verified = attempt
+                models, reasons, num_matched, verified_edges = attempt
                 lens, K_lens, lens_passes = fit.k, fit.K, lens_passes + 1
                 continue
         say(f"no better model with the keypoints undistorted ({why}): keeping the last")
@@ -481,15 +482,18 @@ def reconstruct_views(
 
         views = CameraViews(canonical_camera, camera_keypoints, raw_sizes, K_cameras[:, 0, 0],
                             [prior.sigma_log for prior in cameras], camera_sizes)
-        (models, reasons, num_matched, num_verified), used, K_work, lens_passes = camera_passes(
-            (models, reasons, num_matched, num_verified), reconstruct_from, features, views,
+        (models, reasons, num_matched, verified_edges), used, K_work, lens_passes = camera_passes(
+            (models, reasons, num_matched, verified_edges), reconstruct_from, features, views,
             used, K_work, lens_passes, num_radial, s, say, timer)
     timings = timer.seconds
     timings["total"] = timer.total_s
+    edges = tuple(sorted((int(min(order[i], order[j])), int(max(order[i], order[j])), int(n))
+                         for i, j, n in verified_edges))  # in the input order
     if cameras is not None:
         return cameras_result(models, used, K_work, canonical_camera, order, reasons,
                                dict(names=names, pair_selection=selection,
-                                    matched_pairs=num_matched, verified_pairs=num_verified,
+                                    matched_pairs=num_matched, verified_pairs=len(edges),
+                                    verified_edges=edges,
                                     timings_s=timings, feature=feature,
                                     min_model_points=s.min_model_points,
                                     camera_model=camera_model, lens_passes=lens_passes),
@@ -504,7 +508,8 @@ def reconstruct_views(
         models=tuple(to_input_order(m, order) for m in models),
         unregistered_reasons={names[order[v]]: why for v, why in sorted(
             reasons.items(), key=lambda item: order[item[0]])},
-        pair_selection=selection, matched_pairs=num_matched, verified_pairs=num_verified,
+        pair_selection=selection, matched_pairs=num_matched, verified_pairs=len(edges),
+        verified_edges=edges,
         timings_s=timings,
         calibration_source="file" if focal is None else models[0].focal.source,
         prior_description="" if focal_prior is None else focal_prior.description,

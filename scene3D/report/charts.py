@@ -77,7 +77,8 @@ def histogram_svg(counts: ArrayLike, edges: ArrayLike, x_label: str, y_label: st
     return "".join(out)
 
 
-def shared_points_svg(names: Sequence[str], shared: ArrayLike, cell: int = 0) -> str:
+def shared_points_svg(names: Sequence[str], shared: ArrayLike, cell: int = 0,
+                      unit: str = "points") -> str:
     """The view graph as a matrix: cell (i, j) darker the more 3D points views i and j
     both see, empty where they share none.
 
@@ -89,6 +90,8 @@ def shared_points_svg(names: Sequence[str], shared: ArrayLike, cell: int = 0) ->
         Points seen by both views (the diagonal is not drawn).
     cell : int, default 0
         Cell size in CSS pixels; 0 picks one for a matrix of about 420 px.
+    unit : str, default "points"
+        What the counts are, in the tooltips (``"inliers"`` for verified pairs).
 
     Returns
     -------
@@ -112,7 +115,7 @@ def shared_points_svg(names: Sequence[str], shared: ArrayLike, cell: int = 0) ->
             out.append(f'<rect x="{label_w + j * cell}" y="{label_w + i * cell}" '
                        f'width="{cell - 1}" height="{cell - 1}" fill="{_BAR}" '
                        f'fill-opacity="{shade:.2f}"><title>{esc(names[i])} and '
-                       f"{esc(names[j])}: {int(shared[i, j])} points</title></rect>")
+                       f"{esc(names[j])}: {int(shared[i, j])} {esc(unit)}</title></rect>")
     out.append(f'<rect x="{label_w}" y="{label_w}" width="{n * cell}" height="{n * cell}" '
                'fill="none" stroke="#999"/>')
     if cell >= 10:

@@ -16,7 +16,7 @@ import numpy as np
 from ..io.colmap_model import ColmapModel
 
 __all__ = ["MAX_GRAPH_VIEWS", "ViewDiagnostics", "grouped_view_graph",
-           "view_diagnostics"]
+           "verified_inlier_matrix", "view_diagnostics"]
 
 #: Views beyond which the view graph shows groups of consecutive views: a matrix of more
 #: rows is too fine to read and grows with the square of the views.
@@ -44,6 +44,10 @@ class ViewDiagnostics:
         Distance of each observation of the largest model from its point's projection.
     shared_points : (V, V) int64
         Points of the same model that both views see (the diagonal: ``points_seen``).
+    verified_inliers : (V, V) int64 or None
+        The inliers of each verified pair (symmetric; 0 for a pair not verified), when the
+        reconstruction says which pairs it verified (:func:`verified_inlier_matrix`); None
+        for a model read from disk.
     """
 
     names: tuple[str, ...]
@@ -52,6 +56,7 @@ class ViewDiagnostics:
     track_lengths: np.ndarray
     errors_px: np.ndarray
     shared_points: np.ndarray
+    verified_inliers: np.ndarray | None = None
 
 
 def _covisibility(views: np.ndarray, points: np.ndarray, V: int, P: int) -> np.ndarray:
@@ -150,3 +155,25 @@ def grouped_view_graph(names: Sequence[str], shared: np.ndarray,
     ends = np.minimum(starts + group, V) - 1
     labels = [names[a] if a == e else f"{names[a]} - {names[e]}" for a, e in zip(starts, ends)]
     return labels, matrix, group
+
+
+def verified_inlier_matrix(edges: Sequence[tuple[int, int, int]], num_views: int) -> np.ndarray:
+    """The verified pairs as a symmetric matrix of their inliers.
+
+    Parameters
+    ----------
+    edges : sequence of (int, int, int)
+        ``(a, b, inliers)`` per verified pair
+        (:attr:`scene3D.multiview.MultiViewReconstruction.verified_edges`).
+    num_views : int
+        ``V``.
+
+    Returns
+    -------
+    (V, V) int64
+        ``inliers`` at ``(a, b)`` and ``(b, a)``; 0 elsewhere.
+    """
+    out = np.zeros((num_views, num_views), dtype=np.int64)
+    for a, b, inliers in edges:
+        out[a, b] = out[b, a] = inliers
+    return out

@@ -4,6 +4,7 @@ histograms, the view graph and the 3D view."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -15,7 +16,12 @@ from ..io.colmap_model import ColmapModel
 from ..viz.drawing import frustum_corners
 from .charts import histogram_svg, shared_points_svg
 from .dense import DenseRun, dense_clouds, dense_meshes, dense_section
-from .diagnostics import ViewDiagnostics, grouped_view_graph, view_diagnostics
+from .diagnostics import (
+    ViewDiagnostics,
+    grouped_view_graph,
+    verified_inlier_matrix,
+    view_diagnostics,
+)
 from .page import Html, Markup, Page, esc, image_data_url
 from .sections import (
     figures_section,
@@ -195,6 +201,9 @@ def reconstruction_report(
     # The working images' pixels (photos=False), as the summary's reprojection errors.
     diagnostics = view_diagnostics(recon.names, [recon.colmap_model(m, photos=False)
                                                  for m in recon.models])
+    if recon.verified_edges:
+        diagnostics = dataclasses.replace(diagnostics, verified_inliers=verified_inlier_matrix(
+            recon.verified_edges, len(recon.names)))
     return multi_view_report(recon.names, placed, summary, lines, warnings, figures, view,
                              diagnostics, thumbnails, dense)
 
@@ -313,9 +322,17 @@ def _diagnostic_charts(page: Page, d: ViewDiagnostics) -> None:
     labels, shared, group = grouped_view_graph(d.names, d.shared_points)
     grouped = (f" The {len(d.names)} views are grouped {group} at a time, in the input "
                "order: a cell sums the points two groups share." if group > 1 else "")
+    page.open_row()
     page.svg(shared_points_svg(labels, shared),
              "Points each pair of views shares in the model (darker: more; hover for the "
              "count). Pairs that share none are blank." + grouped)
+    if d.verified_inliers is not None:
+        inliers = grouped_view_graph(d.names, d.verified_inliers)[1]
+        page.svg(shared_points_svg(labels, inliers, unit="inliers"),
+                 "The pairs whose matches verified: enough of them fit one essential matrix "
+                 "(darker: more inliers; hover for the count). Pairs not verified are blank."
+                 + grouped)
+    page.close_row()
 
 
 def colmap_layers(model: ColmapModel, dense: DenseRun | DenseCloud | None = None
