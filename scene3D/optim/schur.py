@@ -472,10 +472,9 @@ def _solve_reduced_iterative(ne: NormalEquations, damping: float, V_inv: FloatAr
 
     result = preconditioned_conjugate_gradients(S.dot, parts.rhs, precondition,
                                                 PCG_RELATIVE_TOLERANCE)
-    if not result.converged:
-        logger.debug("conjugate gradients stopped at relative residual %.1e after %d "
-                     "iterations (%d cameras)", result.relative_residual, result.iterations,
-                     num_cameras)
+    logger.debug("conjugate gradients: %d iterations, relative residual %.1e%s (%d cameras)",
+                 result.iterations, result.relative_residual,
+                 "" if result.converged else " (not converged)", num_cameras)
     return result
 
 
