@@ -1,17 +1,19 @@
 """The reduced camera system of many cameras: dense, sparse and iterative solves side by side.
 
     python benchmarks/reduced_camera_system.py [--cameras 100 250 500 1000] [--adjust 500]
+        [--damping 1e-3 1e-6] [--adjust-iterations 20]
 
 A ring of cameras looking outward (an orbit or a video's banded covisibility: each point is
 in front of 3 to 6 consecutive cameras, about 300 points per camera, camera 0 fixed), with
 the reprojection Jacobians of :func:`scene3D.optim.bundle.reprojection_jacobians` and random
 residuals. For each camera count, each method of :func:`scene3D.optim.schur.solve_damped`
-(``dense``, ``sparse``, ``iterative``) takes one step at Levenberg-Marquardt's first damping
-(1e-3) in a forked process: its time, the growth of the peak resident memory during the
-solve (Linux ``VmHWM`` after resetting it), the conjugate gradients' iterations and the step's
-difference from the dense one. Then one :func:`scene3D.optim.bundle.bundle_adjust` of
-``--adjust`` cameras (0.5 px noise, poses and points perturbed) with each method: time, solves
-(one per damping tried), final cost. Single-threaded BLAS, as the other benchmarks.
+(``dense``, ``sparse``, ``iterative``) takes one step at each damping (Levenberg-Marquardt
+starts at 1e-3; later steps take less) in a forked process: its time, the growth of the peak
+resident memory during the solve (Linux ``VmHWM`` after resetting it), the conjugate
+gradients' iterations and the step's difference from the dense one. Then one
+:func:`scene3D.optim.bundle.bundle_adjust` of ``--adjust`` cameras (0.5 px noise, poses
+and points perturbed) with each method: time, solves (one per damping tried), final cost.
+Single-threaded BLAS, as the other benchmarks.
 """
 
 from __future__ import annotations
@@ -80,7 +82,7 @@ class _Iterations(logging.Handler):
             self.iterations.append(int(record.args[0]))
 
 
-def _solve_once(ne, method, queue) -> None:
+def _solve_once(ne, method, damping, queue) -> None:
     Path("/proc/self/clear_refs").write_text("5")  # the peak resident memory restarts here
     before = _status_kib("VmRSS")
     handler = _Iterations()
@@ -88,15 +90,15 @@ def _solve_once(ne, method, queue) -> None:
     log.addHandler(handler)
     log.setLevel(logging.DEBUG)
     start = time.perf_counter()
-    steps = schur.solve_damped(ne, 1e-3, method=method)
+    steps = schur.solve_damped(ne, damping, method=method)
     elapsed = time.perf_counter() - start
     queue.put((elapsed, (_status_kib("VmHWM") - before) / 1024, handler.iterations, steps))
 
 
-def solve_table(camera_counts: list[int]) -> None:
-    print("| cameras | observations | method | solve s | peak memory MiB | PCG iterations "
-          "| step vs dense |")
-    print("|---:|---:|---|---:|---:|---:|---:|")
+def solve_table(camera_counts: list[int], dampings: list[float]) -> None:
+    print("| cameras | observations | damping | method | solve s | peak memory MiB "
+          "| PCG iterations | step vs dense |")
+    print("|---:|---:|---:|---|---:|---:|---:|---:|")
     context = multiprocessing.get_context("fork")
     for C in camera_counts:
         R, t, X, view, point = ring(C)
@@ -105,22 +107,23 @@ def solve_table(camera_counts: list[int]) -> None:
         r = np.random.default_rng(1).normal(size=(len(view), 2))
         ne = schur.normal_equations(J_camera, view - 1, J_point, point, r, C - 1, len(X))
         del J_camera, J_point, r, obs
-        dense = None
-        for method in METHODS:
-            queue = context.Queue()
-            child = context.Process(target=_solve_once, args=(ne, method, queue))
-            child.start()
-            elapsed, peak_mib, iterations, steps = queue.get()
-            child.join()
-            x = np.concatenate([s.ravel() for s in steps])
-            dense = x if method == "dense" else dense
-            difference = np.linalg.norm(x - dense) / np.linalg.norm(dense)
-            print(f"| {C} | {len(view)} | {method} | {elapsed:.2f} | {peak_mib:.0f} | "
-                  f"{iterations[0] if iterations else '-'} | "
-                  f"{'-' if method == 'dense' else f'{difference:.1e}'} |", flush=True)
+        for damping in dampings:
+            dense = None
+            for method in METHODS:
+                queue = context.Queue()
+                child = context.Process(target=_solve_once, args=(ne, method, damping, queue))
+                child.start()
+                elapsed, peak_mib, iterations, steps = queue.get()
+                child.join()
+                x = np.concatenate([s.ravel() for s in steps])
+                dense = x if method == "dense" else dense
+                difference = np.linalg.norm(x - dense) / np.linalg.norm(dense)
+                print(f"| {C} | {len(view)} | {damping:g} | {method} | {elapsed:.2f} | "
+                      f"{peak_mib:.0f} | {iterations[0] if iterations else '-'} | "
+                      f"{'-' if method == 'dense' else f'{difference:.1e}'} |", flush=True)
 
 
-def adjust_table(C: int) -> None:
+def adjust_table(C: int, max_iterations: int) -> None:
     rng = np.random.default_rng(9)
     R, t, X, view, point = ring(C, seed=9)
     xy = np.empty((len(view), 2))
@@ -133,7 +136,7 @@ def adjust_table(C: int) -> None:
     R0[0], t0[0] = R[0], t[0]
     X0 = X + rng.normal(0, 0.02, X.shape)
     print(f"\nbundle_adjust, {C} cameras, {len(X)} points, {len(view)} observations "
-          "(linear loss, camera 0 fixed)\n")
+          f"(linear loss, camera 0 fixed, at most {max_iterations} iterations)\n")
     print("| method | time s | solves | final cost px^2 | start cost px^2 |")
     print("|---|---:|---:|---:|---:|")
     solve = bundle.solve_damped_global
@@ -146,7 +149,8 @@ def adjust_table(C: int) -> None:
 
         bundle.solve_damped_global = counted
         start = time.perf_counter()
-        R1, t1, X1 = bundle.bundle_adjust(R0, t0, X0, obs, K, fixed_view=0, loss="linear")
+        R1, t1, X1 = bundle.bundle_adjust(R0, t0, X0, obs, K, fixed_view=0, loss="linear",
+                                        max_iterations=max_iterations)
         elapsed = time.perf_counter() - start
         bundle.solve_damped_global = solve
         final = float((bundle.reprojection_residuals(R1, t1, X1, obs, K) ** 2).sum())
@@ -158,12 +162,17 @@ def adjust_table(C: int) -> None:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cameras", type=int, nargs="+", default=[100, 250, 500, 1000])
+    parser.add_argument("--damping", type=float, nargs="+", default=[1e-3, 1e-6],
+                        help="Levenberg-Marquardt dampings of the single solves")
     parser.add_argument("--adjust", type=int, default=500,
                         help="cameras of the bundle adjustment (0: none)")
+    parser.add_argument("--adjust-iterations", type=int, default=20,
+                        help="its Levenberg-Marquardt iterations at most (the library's "
+                             "default, 50, takes the run past 8 minutes)")
     args = parser.parse_args(argv)
-    solve_table(args.cameras)
+    solve_table(args.cameras, args.damping)
     if args.adjust:
-        adjust_table(args.adjust)
+        adjust_table(args.adjust, args.adjust_iterations)
     return 0
 
 
