@@ -381,7 +381,7 @@ def _reduced_system(ne: NormalEquations, damping: float, V_inv: FloatArray
 
 #: From this many free cameras on, :func:`solve_damped_global` (``method="auto"``) solves
 #: the reduced camera system by :data:`LARGE_SCHUR_METHOD` instead of densely.
-LARGE_SCHUR_CAMERAS = 200
+LARGE_SCHUR_CAMERAS = 250
 
 #: How ``method="auto"`` solves a reduced camera system of many cameras.
 LARGE_SCHUR_METHOD = "sparse"
