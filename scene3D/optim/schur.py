@@ -13,6 +13,10 @@ with ``U`` block-diagonal over cameras and ``V`` block-diagonal over points
 section 6.1) leaves one ``(C c) x (C c)`` system for the cameras, then each
 point's step is a 3x3 solve: the cost grows linearly with the points (times the
 square of the cameras), not with the cube of all unknowns as a dense solve would.
+From :data:`LARGE_SCHUR_CAMERAS` cameras on, the reduced system keeps only the blocks of
+cameras that share points (:func:`schur_matrix_sparse`) and is factored sparsely, or solved
+by conjugate gradients: its cost then grows with the observations, not with the cube of
+the cameras.
 
 Global unknowns (``g`` of them, such as one focal length shared by every view) may
 join: every observation depends on them, fixed cameras' included, through
