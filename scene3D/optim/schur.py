@@ -13,6 +13,10 @@ with ``U`` block-diagonal over cameras and ``V`` block-diagonal over points
 section 6.1) leaves one ``(C c) x (C c)`` system for the cameras, then each
 point's step is a 3x3 solve: the cost grows linearly with the points (times the
 square of the cameras), not with the cube of all unknowns as a dense solve would.
+From :data:`LARGE_SCHUR_CAMERAS` cameras on, the reduced system keeps only the blocks of
+cameras that share points (:func:`schur_matrix_sparse`) and is factored sparsely, or solved
+by conjugate gradients: its cost then grows with the observations, not with the cube of
+the cameras.
 
 Global unknowns (``g`` of them, such as one focal length shared by every view) may
 join: every observation depends on them, fixed cameras' included, through
@@ -30,11 +34,17 @@ so eliminating the points leaves a ``(C c + g)`` system whose extra blocks are
 from __future__ import annotations
 
 import dataclasses
+import logging
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import sparse
+from scipy.sparse.linalg import splu
 
 from ..geometry.conventions import FloatArray
+from .conjugate_gradients import ConjugateGradientsResult, preconditioned_conjugate_gradients
+
+logger = logging.getLogger(__name__)
 
 #: Added to the diagonals so that an unconstrained direction cannot make them singular.
 _TINY = 1e-12
@@ -321,39 +331,167 @@ def _damped_inverse_points(ne: NormalEquations, damping: float) -> FloatArray:
                          * np.eye(3))
 
 
+@dataclass(frozen=True)
+class _ReducedParts:
+    """What the dense and the iterative reduced systems share: the damped camera blocks,
+    ``Y = W V^-1`` per observation, the right-hand side and the global unknowns' blocks."""
+
+    U: FloatArray  # (C, c, c), damped
+    Y: FloatArray  # (O', c, 3)
+    rhs: FloatArray  # (C c + g,)
+    S_cg: FloatArray | None  # (C, c, g)
+    S_gg: FloatArray | None  # (g, g)
+
+
+def _reduced_parts(ne: NormalEquations, damping: float, V_inv: FloatArray) -> _ReducedParts:
+    num_cameras, c = ne.g_camera.shape
+    eye_c = np.eye(c)
+    U = ne.U + damping * (np.einsum("nii->ni", ne.U) + _TINY)[:, :, None] * eye_c
+    Y = ne.W @ V_inv[ne.point]  # (O', c, 3): W V^-1 per observation
+    rhs = _sum_by(ne.camera, (Y @ ne.g_point[ne.point][:, :, None])[:, :, 0],
+                  num_cameras).ravel() - ne.g_camera.ravel()
+    if ne.U_global is None:
+        return _ReducedParts(U, Y, rhs, None, None)
+    Yg = ne.W_global @ V_inv  # (P, g, 3): W_g V^-1 per point
+    S_cg = ne.U_camera_global - _sum_by(ne.camera, Y @ ne.W_global[ne.point].transpose(0, 2, 1),
+                                        num_cameras)
+    S_gg = (ne.U_global + damping * np.diag(np.diag(ne.U_global) + _TINY)
+            - (Yg @ ne.W_global.transpose(0, 2, 1)).sum(axis=0))
+    rhs_g = (Yg @ ne.g_point[:, :, None])[:, :, 0].sum(axis=0) - ne.g_global
+    return _ReducedParts(U, Y, np.r_[rhs, rhs_g], S_cg, S_gg)
+
+
 def _reduced_system(ne: NormalEquations, damping: float, V_inv: FloatArray
                     ) -> tuple[FloatArray, FloatArray]:
     """The damped system left once the points are eliminated: the matrix
     ``(C c + g, C c + g)`` (cameras first, then the global unknowns) and its right-hand
     side ``(C c + g,)`` (the step solves ``S x = rhs``)."""
     num_cameras, c = ne.g_camera.shape
-    eye_c = np.eye(c)
-    U = ne.U + damping * (np.einsum("nii->ni", ne.U) + _TINY)[:, :, None] * eye_c
-    Y = ne.W @ V_inv[ne.point]  # (O', c, 3): W V^-1 per observation
-    S = -schur_product(Y, ne.W, ne.camera, ne.point, num_cameras)  # U - W V^-1 W^T
+    parts = _reduced_parts(ne, damping, V_inv)
+    S = -schur_product(parts.Y, ne.W, ne.camera, ne.point, num_cameras)  # U - W V^-1 W^T
     for k in range(num_cameras):
-        S[k * c:(k + 1) * c, k * c:(k + 1) * c] += U[k]
-    rhs = _sum_by(ne.camera, (Y @ ne.g_point[ne.point][:, :, None])[:, :, 0],
-                  num_cameras).ravel() - ne.g_camera.ravel()
-    if ne.U_global is None:
-        return S, rhs
-    g = len(ne.U_global)
+        S[k * c:(k + 1) * c, k * c:(k + 1) * c] += parts.U[k]
+    if parts.S_cg is None:
+        return S, parts.rhs
+    g = len(parts.S_gg)
     size = num_cameras * c
-    Yg = ne.W_global @ V_inv  # (P, g, 3): W_g V^-1 per point
-    S_cg = ne.U_camera_global - _sum_by(ne.camera, Y @ ne.W_global[ne.point].transpose(0, 2, 1),
-                                        num_cameras)
-    S_gg = (ne.U_global + damping * np.diag(np.diag(ne.U_global) + _TINY)
-            - (Yg @ ne.W_global.transpose(0, 2, 1)).sum(axis=0))
     full = np.empty((size + g, size + g))
     full[:size, :size] = S
-    full[:size, size:] = S_cg.reshape(size, g)
+    full[:size, size:] = parts.S_cg.reshape(size, g)
     full[size:, :size] = full[:size, size:].T
-    full[size:, size:] = S_gg
-    rhs_g = (Yg @ ne.g_point[:, :, None])[:, :, 0].sum(axis=0) - ne.g_global
-    return full, np.r_[rhs, rhs_g]
+    full[size:, size:] = parts.S_gg
+    return full, parts.rhs
 
 
-def solve_damped_global(ne: NormalEquations, damping: float
+#: From this many free cameras on, :func:`solve_damped_global` (``method="auto"``) solves
+#: the reduced camera system by :data:`LARGE_SCHUR_METHOD` instead of densely.
+LARGE_SCHUR_CAMERAS = 250
+
+#: How ``method="auto"`` solves a reduced camera system of many cameras.
+LARGE_SCHUR_METHOD = "sparse"
+
+#: The conjugate gradients stop once ``|rhs - S x| <= PCG_RELATIVE_TOLERANCE |rhs|``.
+PCG_RELATIVE_TOLERANCE = 1e-10
+
+#: How :func:`solve_damped_global` may solve the reduced camera system.
+SCHUR_METHODS = ("auto", "dense", "sparse", "iterative")
+
+
+def schur_matrix_sparse(Y: FloatArray, W: FloatArray, camera: np.ndarray, point: np.ndarray,
+                        num_cameras: int, chunk_pairs: int = 1 << 17) -> sparse.csr_matrix:
+    """:func:`schur_product` as a sparse matrix: only the blocks of cameras that share
+    points are stored.
+
+    Each pair of observations of the same point (by cameras ``a``, ``b``) adds
+    ``Y[o_a] W[o_b]^T`` to the block ``(a, b)``; the pairs, sorted by their block, are
+    taken ``chunk_pairs`` at a time and summed per block. Memory grows with the pairs of
+    cameras that share points, not with the square of the cameras.
+
+    Parameters
+    ----------
+    Y, W : (O, c, 3) ndarray
+        Per-observation blocks (``Y[o] = W[o] V_p^-1`` in the Schur complement).
+    camera : (O,) int ndarray
+        Camera of each observation, in ``[0, num_cameras)``.
+    point : (O,) int ndarray
+        Point of each observation.
+    num_cameras : int
+        Number of cameras ``C``.
+    chunk_pairs : int, default 2**17
+        Most pairs of observations per chunk.
+
+    Returns
+    -------
+    (C c, C c) scipy.sparse.csr_matrix
+    """
+    c = Y.shape[1]
+    size = num_cameras * c
+    order = np.argsort(point, kind="stable")
+    starts = np.searchsorted(point[order], np.r_[np.unique(point), np.iinfo(np.int64).max])
+    first, second = pairs_within_groups(starts)
+    first, second = order[first], order[second]
+    key = camera[first].astype(np.int64) * num_cameras + camera[second]
+    by_key = np.argsort(key, kind="stable")
+    first, second, key = first[by_key], second[by_key], key[by_key]
+    keys, block_of = np.unique(key, return_inverse=True)
+    blocks = np.zeros((len(keys), c, c))
+    for lo in range(0, len(first), chunk_pairs):
+        hi = min(lo + chunk_pairs, len(first))
+        values = Y[first[lo:hi]] @ W[second[lo:hi]].transpose(0, 2, 1)  # (n, c, c)
+        cuts = np.flatnonzero(np.r_[True, block_of[lo + 1:hi] != block_of[lo:hi - 1]])
+        blocks[block_of[lo + cuts]] += np.add.reduceat(values, cuts, axis=0)
+    indptr = np.searchsorted(keys // num_cameras, np.arange(num_cameras + 1))
+    return sparse.bsr_matrix((blocks, keys % num_cameras, indptr),
+                             shape=(size, size)).tocsr()
+
+
+def _reduced_system_sparse(ne: NormalEquations, parts: _ReducedParts) -> sparse.csr_matrix:
+    """:func:`_reduced_system`'s matrix as a sparse matrix (the global unknowns' rows and
+    columns dense within it)."""
+    num_cameras, c = ne.g_camera.shape
+    size = num_cameras * c
+    S = sparse.block_diag(list(parts.U), format="csr") - schur_matrix_sparse(
+        parts.Y, ne.W, ne.camera, ne.point, num_cameras)
+    if parts.S_cg is None:
+        return S
+    S_cg = sparse.csr_matrix(parts.S_cg.reshape(size, -1))
+    return sparse.bmat([[S, S_cg], [S_cg.T, sparse.csr_matrix(parts.S_gg)]], format="csr")
+
+
+def _solve_reduced_iterative(ne: NormalEquations, damping: float, V_inv: FloatArray
+                             ) -> ConjugateGradientsResult:
+    """Conjugate gradients on the sparse reduced camera system, preconditioned by the
+    inverses of its diagonal blocks (per camera, then the global unknowns')."""
+    num_cameras, c = ne.g_camera.shape
+    size = num_cameras * c
+    parts = _reduced_parts(ne, damping, V_inv)
+    S = _reduced_system_sparse(ne, parts)
+    W_t = ne.W.transpose(0, 2, 1)
+    inverse = np.linalg.inv(parts.U - _sum_by(ne.camera, parts.Y @ W_t, num_cameras))
+    inverse_g = None if parts.S_gg is None else np.linalg.inv(parts.S_gg)
+
+    def precondition(r: FloatArray) -> FloatArray:
+        out = (inverse @ r[:size].reshape(num_cameras, c, 1)).ravel()
+        return out if inverse_g is None else np.r_[out, inverse_g @ r[size:]]
+
+    result = preconditioned_conjugate_gradients(S.dot, parts.rhs, precondition,
+                                                PCG_RELATIVE_TOLERANCE)
+    logger.debug("conjugate gradients: %d iterations, relative residual %.1e%s (%d cameras)",
+                 result.iterations, result.relative_residual,
+                 "" if result.converged else " (not converged)", num_cameras)
+    return result
+
+
+def _solve_reduced_sparse(ne: NormalEquations, damping: float, V_inv: FloatArray
+                          ) -> FloatArray:
+    """The sparse reduced camera system solved directly (SuperLU, the fill-reducing
+    ordering of ``S + S^T``: ``S`` is symmetric)."""
+    parts = _reduced_parts(ne, damping, V_inv)
+    S = _reduced_system_sparse(ne, parts)
+    return splu(S.tocsc(), permc_spec="MMD_AT_PLUS_A").solve(parts.rhs)
+
+
+def solve_damped_global(ne: NormalEquations, damping: float, method: str = "auto"
                         ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Steps ``(C, c)`` for the cameras, ``(g,)`` for the global unknowns (empty without
     them) and ``(P, 3)`` for the points.
@@ -361,23 +499,51 @@ def solve_damped_global(ne: NormalEquations, damping: float
     Levenberg-Marquardt's damping scales the diagonals: ``U + damping diag(U)``
     and likewise ``V`` and ``U_gg``.
 
+    The reduced camera system is formed and solved densely below
+    :data:`LARGE_SCHUR_CAMERAS` free cameras; from there on (``method="auto"``) by
+    :data:`LARGE_SCHUR_METHOD`. ``"sparse"`` stores only the blocks of cameras that
+    share points (:func:`schur_matrix_sparse`) and factors them (SuperLU);
+    ``"iterative"`` runs conjugate gradients on that matrix, preconditioned by its
+    diagonal blocks
+    (:func:`scene3D.optim.conjugate_gradients.preconditioned_conjugate_gradients`), to a
+    relative residual of :data:`PCG_RELATIVE_TOLERANCE`. Both keep memory growing with
+    the observations instead of the square of the cameras. With ``damping > 0`` the
+    system is positive definite, the gauge (a scale a single fixed camera leaves free)
+    included.
+
     Parameters
     ----------
     ne : NormalEquations
         The blocks of ``J^T J`` and ``J^T r``.
     damping : float
         Levenberg-Marquardt damping (0: Gauss-Newton).
+    method : {"auto", "dense", "sparse", "iterative"}, default "auto"
+        How to solve the reduced camera system ("auto": by the number of cameras).
 
     Returns
     -------
     step_camera : (C, c) float64 ndarray
     step_global : (g,) float64 ndarray
     step_point : (P, 3) float64 ndarray
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``method``.
     """
+    if method not in SCHUR_METHODS:
+        raise ValueError(f"`method` must be one of {SCHUR_METHODS}, got {method!r}")
     num_cameras, c = ne.g_camera.shape
     V_inv = _damped_inverse_points(ne, damping)
-    S, rhs = _reduced_system(ne, damping, V_inv)
-    x = np.linalg.solve(S, rhs)
+    if method == "auto":
+        method = LARGE_SCHUR_METHOD if num_cameras >= LARGE_SCHUR_CAMERAS else "dense"
+    if method == "sparse":
+        x = _solve_reduced_sparse(ne, damping, V_inv)
+    elif method == "iterative":
+        x = _solve_reduced_iterative(ne, damping, V_inv).x
+    else:
+        S, rhs = _reduced_system(ne, damping, V_inv)
+        x = np.linalg.solve(S, rhs)
     size = num_cameras * c
     step_camera, step_global = x[:size].reshape(num_cameras, c), x[size:]
     back = ne.g_point + _sum_by(
@@ -388,7 +554,8 @@ def solve_damped_global(ne: NormalEquations, damping: float
     return step_camera, step_global, step_point
 
 
-def solve_damped(ne: NormalEquations, damping: float) -> tuple[FloatArray, FloatArray]:
+def solve_damped(ne: NormalEquations, damping: float, method: str = "auto"
+                 ) -> tuple[FloatArray, FloatArray]:
     """Steps ``(C, c)`` for the cameras and ``(P, 3)`` for the points
     (:func:`solve_damped_global` without global unknowns).
 
@@ -398,13 +565,15 @@ def solve_damped(ne: NormalEquations, damping: float) -> tuple[FloatArray, Float
         The blocks of ``J^T J`` and ``J^T r``, without global unknowns.
     damping : float
         Levenberg-Marquardt damping (0: Gauss-Newton).
+    method : {"auto", "dense", "sparse", "iterative"}, default "auto"
+        How to solve the reduced camera system (see :func:`solve_damped_global`).
 
     Returns
     -------
     step_camera : (C, c) float64 ndarray
     step_point : (P, 3) float64 ndarray
     """
-    step_camera, _, step_point = solve_damped_global(ne, damping)
+    step_camera, _, step_point = solve_damped_global(ne, damping, method)
     return step_camera, step_point
 
 
