@@ -10,7 +10,8 @@
   Levenberg-Marquardt loop every solver here shares;
 - :mod:`scene3D.optim.refinement`: the robust Sampson refinement of a two-view pose (alone or
   with one more unknown) and its covariance;
-- :mod:`scene3D.optim.schur`: the sparse normal equations both bundle adjustments solve;
+- :mod:`scene3D.optim.schur`: the sparse normal equations both bundle adjustments solve
+  (the Schur products in :mod:`scene3D.optim.schur_products`);
 - :mod:`scene3D.optim.bundle_two_view`: the bundle adjustment of two views;
 - :mod:`scene3D.optim.bundle`: the bundle adjustment of many, optionally with one shared
   focal length.
@@ -54,15 +55,13 @@ from .refinement import (
     sampson_residuals,
 )
 from .schur import (
-    SPARSE_SCHUR_UNKNOWNS,
     NormalEquations,
     global_information,
     normal_equations,
-    pairs_within_groups,
-    schur_product,
     solve_damped,
     solve_damped_global,
 )
+from .schur_products import SPARSE_SCHUR_UNKNOWNS, pairs_within_groups, schur_product
 from .uncertainty import (
     CHI2_90,
     CHI2_99_POSE,
