@@ -92,7 +92,7 @@ def visit(path: Path, wait_for_view: bool, screenshot_path: Path | None = None) 
 def _shot(locator) -> np.ndarray:
     import cv2
 
-    png = locator.screenshot(timeout=60_000)
+    png = locator.screenshot(timeout=120_000)  # SwiftShader on a loaded machine
     return cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
 
 

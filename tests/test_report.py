@@ -610,7 +610,7 @@ def test_reconstruct_views_dense_report_in_browser(tmp_path, fountain):
     out = tmp_path / "out"
     _run(["-m", "scene3D", "reconstruct-views", photos, "--calib",
           REPO / "data" / "fountain_P11_intrinsics.yaml", "--max-width", "640", "--no-plots",
-          "--dense", "--out", out], tmp_path)
+          "--dense", "--out", out], tmp_path, timeout=1200)  # the dense stage at 1536 px
     summary = json.loads((out / "reconstruction.json").read_text())
     dense = json.loads((out / "dense" / "dense.json").read_text())
     dense["image_size"] = [1536, 1024]  # the dense stage's own size (DenseSettings)
