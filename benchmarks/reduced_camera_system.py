@@ -31,6 +31,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from scene3D.evaluation.synthetic import outward_ring  # noqa: E402
 from scene3D.geometry import project, rotations_from_vectors  # noqa: E402
 from scene3D.optim import bundle, schur  # noqa: E402
 from scene3D.optim.bundle import Observations, reprojection_jacobians  # noqa: E402
@@ -39,30 +40,9 @@ K = np.array([[700.0, 0, 333.0], [0, 690.0, 231.0], [0, 0, 1]])
 METHODS = ("dense", "sparse", "iterative")
 
 
-def ring(num_cameras: int, points_per_camera: int = 270, seed: int = 0, spacing: float = 0.5):
-    """Cameras on a ring looking outward, each point in front of 3-6 consecutive cameras
-    (``points_per_camera * 4.5 / 4`` observations per camera: ~300 at the default)."""
-    rng = np.random.default_rng(seed)
-    radius = num_cameras * spacing / (2 * np.pi)
-    step = 2 * np.pi / num_cameras
-    angles = step * np.arange(num_cameras)
-    R, t = np.empty((num_cameras, 3, 3)), np.empty((num_cameras, 3))
-    tilt = rotations_from_vectors(rng.normal(0, 0.02, (num_cameras, 3)))
-    for k, a in enumerate(angles):
-        z = np.array([np.cos(a), 0.0, np.sin(a)])
-        y = np.array([0.0, 1.0, 0.0])
-        R[k] = np.stack([np.cross(y, z), y, z]) @ tilt[k]
-        t[k] = -R[k] @ (radius * z + rng.normal(0, 0.05, 3))
-    num_points = num_cameras * points_per_camera // 4
-    first = rng.integers(0, num_cameras, num_points)
-    length = rng.integers(3, 7, num_points)
-    a = angles[first] + ((length - 1) / 2 + rng.uniform(-0.5, 0.5, num_points)) * step
-    r = radius + rng.uniform(4, 10, num_points)
-    X = np.stack([r * np.cos(a), rng.uniform(-2, 2, num_points), r * np.sin(a)], axis=1)
-    view = np.concatenate([(first + k) % num_cameras for k in range(6)])
-    point = np.concatenate([np.arange(num_points)] * 6)
-    keep = np.concatenate([k < length for k in range(6)])
-    return R, t, X, view[keep], point[keep]
+def ring(num_cameras, points_per_camera=270, seed=0, spacing=0.5):
+    """:func:`scene3D.evaluation.synthetic.outward_ring`, 270 points per camera by default."""
+    return outward_ring(num_cameras, points_per_camera, seed, spacing)
 
 
 def _status_kib(field: str) -> int:

@@ -5,6 +5,7 @@ count that picks the method, and a bundle adjustment of 200 cameras with each.""
 import numpy as np
 import pytest
 
+from scene3D.evaluation.synthetic import outward_ring
 from scene3D.geometry import project, rotations_from_vectors
 from scene3D.optim import schur
 from scene3D.optim.bundle import Observations, bundle_adjust, reprojection_jacobians
@@ -22,29 +23,8 @@ K = np.array([[700.0, 0, 333.0], [0, 690.0, 231.0], [0, 0, 1]])
 
 
 def _ring(num_cameras, points_per_camera=130, seed=0, spacing=0.5):
-    """Cameras on a ring looking outward (slightly tilted at random), each point in front
-    of 3 to 6 consecutive cameras: the banded covisibility of an orbit or a video."""
-    rng = np.random.default_rng(seed)
-    radius = num_cameras * spacing / (2 * np.pi)
-    step = 2 * np.pi / num_cameras
-    angles = step * np.arange(num_cameras)
-    R, t = np.empty((num_cameras, 3, 3)), np.empty((num_cameras, 3))
-    tilt = rotations_from_vectors(rng.normal(0, 0.02, (num_cameras, 3)))
-    for k, a in enumerate(angles):
-        z = np.array([np.cos(a), 0.0, np.sin(a)])
-        y = np.array([0.0, 1.0, 0.0])
-        R[k] = np.stack([np.cross(y, z), y, z]) @ tilt[k]
-        t[k] = -R[k] @ (radius * z + rng.normal(0, 0.05, 3))
-    num_points = num_cameras * points_per_camera // 4
-    first = rng.integers(0, num_cameras, num_points)
-    length = rng.integers(3, 7, num_points)
-    a = angles[first] + ((length - 1) / 2 + rng.uniform(-0.5, 0.5, num_points)) * step
-    r = radius + rng.uniform(4, 10, num_points)
-    X = np.stack([r * np.cos(a), rng.uniform(-2, 2, num_points), r * np.sin(a)], axis=1)
-    view = np.concatenate([(first + k) % num_cameras for k in range(6)])
-    point = np.concatenate([np.arange(num_points)] * 6)
-    keep = np.concatenate([k < length for k in range(6)])
-    return R, t, X, view[keep], point[keep]
+    """:func:`scene3D.evaluation.synthetic.outward_ring`, 130 points per camera by default."""
+    return outward_ring(num_cameras, points_per_camera, seed, spacing)
 
 
 def _random_system(num_cameras, num_points, seed=0, global_unknowns=0):

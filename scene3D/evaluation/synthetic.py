@@ -21,7 +21,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-from ..geometry.conventions import FloatArray, rotation_about_axis
+from ..geometry.conventions import FloatArray, rotation_about_axis, rotations_from_vectors
 
 
 def asymmetric_camera(width: int = 640, height: int = 480) -> FloatArray:
@@ -210,6 +210,58 @@ def orbit_poses(n: int, radius: float = 9.0) -> tuple[FloatArray, FloatArray]:
         Rs[k] = np.stack([x, y, z])
         ts[k] = -Rs[k] @ center
     return Rs, ts
+
+
+def outward_ring(num_cameras: int, points_per_camera: int = 270, seed: int = 0,
+                 spacing: float = 0.5) -> tuple[FloatArray, FloatArray, FloatArray, np.ndarray,
+                                                np.ndarray]:
+    """Cameras on a ring looking outward (slightly tilted at random), each point in front of
+    3 to 6 consecutive cameras: the banded covisibility of an orbit or a video, at any size.
+
+    Parameters
+    ----------
+    num_cameras : int
+        ``C`` cameras, ``spacing`` apart along the ring.
+    points_per_camera : int, default 270
+        Points per camera; each is seen 4.5 times on average, so a camera has about
+        ``points_per_camera * 4.5 / 4`` observations.
+    seed : int, default 0
+        Random seed.
+    spacing : float, default 0.5
+        Distance between neighbouring cameras (world units).
+
+    Returns
+    -------
+    R : (C, 3, 3) float64
+        World-to-camera rotations.
+    t : (C, 3) float64
+        World-to-camera translations (``x_cam = R @ X + t``).
+    X : (P, 3) float64
+        The points, 4 to 10 units beyond the ring.
+    view, point : (O,) int64
+        The camera and the point of each observation.
+    """
+    rng = np.random.default_rng(seed)
+    radius = num_cameras * spacing / (2 * np.pi)
+    step = 2 * np.pi / num_cameras
+    angles = step * np.arange(num_cameras)
+    R, t = np.empty((num_cameras, 3, 3)), np.empty((num_cameras, 3))
+    tilt = rotations_from_vectors(rng.normal(0, 0.02, (num_cameras, 3)))
+    for k, a in enumerate(angles):
+        z = np.array([np.cos(a), 0.0, np.sin(a)])
+        y = np.array([0.0, 1.0, 0.0])
+        R[k] = np.stack([np.cross(y, z), y, z]) @ tilt[k]
+        t[k] = -R[k] @ (radius * z + rng.normal(0, 0.05, 3))
+    num_points = num_cameras * points_per_camera // 4
+    first = rng.integers(0, num_cameras, num_points)
+    length = rng.integers(3, 7, num_points)
+    a = angles[first] + ((length - 1) / 2 + rng.uniform(-0.5, 0.5, num_points)) * step
+    r = radius + rng.uniform(4, 10, num_points)
+    X = np.stack([r * np.cos(a), rng.uniform(-2, 2, num_points), r * np.sin(a)], axis=1)
+    view = np.concatenate([(first + k) % num_cameras for k in range(6)])
+    point = np.concatenate([np.arange(num_points)] * 6)
+    keep = np.concatenate([k < length for k in range(6)])
+    return R, t, X, view[keep], point[keep]
 
 
 def _pixel_rays(K: FloatArray, size: tuple[int, int], supersample: int) -> FloatArray:
