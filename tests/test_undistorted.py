@@ -44,6 +44,20 @@ def centroid(image: np.ndarray, near: np.ndarray, radius: int = 6) -> np.ndarray
     return np.array([x0 + (patch * x).sum() / patch.sum(), y0 + (patch * y).sum() / patch.sum()])
 
 
+def points_at_pinhole(image: np.ndarray, model, v: int, frame: dict
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Check that view ``v``'s blobs in its undistorted 1280x960 copy ``image`` lie where
+    transforms.json's pinhole ``frame`` projects its points (0.05 px; at least 8 of them
+    10 px or more inside); the blobs found and the pinhole pixels of all its points."""
+    mine = model.obs_view == v
+    pinhole = project_nerfstudio(model.points3d[model.obs_point[mine]], frame) - 0.5
+    inside = np.all((pinhole > 10) & (pinhole < [1270, 950]), axis=1)
+    assert inside.sum() >= 8
+    found = np.array([centroid(image, p) for p in pinhole[inside]])
+    np.testing.assert_allclose(found, pinhole[inside], atol=0.05)
+    return found, pinhole
+
+
 def distorted_model(dist=DIST):
     """Three orbit views with a few points each, their camera at 1280x960 with ``dist``."""
     K, size, R, t, X, colors, obs_view, obs_point, obs_xy = orbit_views(n_views=3,
@@ -82,11 +96,7 @@ def test_a_point_of_the_distorted_camera_lands_on_the_pinhole_projection(tmp_pat
         image = cv2.imread(str(frame["image"]))
         assert image.shape == (960, 1280, 3)
         mine = model.obs_view == v
-        pinhole = project_nerfstudio(model.points3d[model.obs_point[mine]], frame) - 0.5
-        inside = np.all((pinhole > 10) & (pinhole < [1270, 950]), axis=1)
-        assert inside.sum() >= 8
-        found = np.array([centroid(image, p) for p in pinhole[inside]])
-        np.testing.assert_allclose(found, pinhole[inside], atol=0.05)
+        found, pinhole = points_at_pinhole(image, model, v, frame)
         # The colours are the photo's, and the pinhole model has the copies' pixels.
         x, y = np.round(found[0]).astype(int)
         assert image[y, x, 0] > image[y, x, 1] > image[y, x, 2] > 0
