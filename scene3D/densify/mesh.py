@@ -90,6 +90,11 @@ def poisson_mesh(cloud: DenseCloud, depth: int = 10, trim_quantile: float = 0.05
         pcd, depth=depth)
     densities = np.asarray(densities)
     mesh.remove_vertices_by_mask(densities < np.quantile(densities, trim_quantile))
+    return _from_open3d(mesh)
+
+
+def _from_open3d(mesh) -> Mesh:
+    """An Open3D ``TriangleMesh`` with vertex colours as a :class:`Mesh` (RGB ``uint8``)."""
     colors = np.clip(np.rint(np.asarray(mesh.vertex_colors) * 255), 0, 255).astype(np.uint8)
     return Mesh(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.triangles, np.int64),
                 colors)
@@ -136,9 +141,8 @@ def simplify_mesh(mesh: Mesh, max_faces: int) -> Mesh:
     while True:
         small = full.simplify_vertex_clustering(
             voxel_size=cell, contraction=o3d.geometry.SimplificationContraction.Average)
-        faces = np.asarray(small.triangles, np.int64)
-        if len(faces) <= max_faces:
+        faces = len(small.triangles)
+        if faces <= max_faces:
             break
-        cell *= 1.1 * np.sqrt(len(faces) / max_faces)
-    colors = np.clip(np.rint(np.asarray(small.vertex_colors) * 255), 0, 255).astype(np.uint8)
-    return Mesh(np.asarray(small.vertices, np.float64), faces, colors)
+        cell *= 1.1 * np.sqrt(faces / max_faces)
+    return _from_open3d(small)
