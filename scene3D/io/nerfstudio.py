@@ -223,10 +223,16 @@ def nerfstudio_export_files(folder: str | os.PathLike, model: ColmapModel,
     if points_file is not None:
         files.append(folder / points_file)
     if undistort:
-        copies = Path(undistorted_folder) if undistorted_folder is not None \
-            else folder / UNDISTORTED_FOLDER
+        copies = _copies_folder(folder, undistorted_folder)
         files += [copies / undistorted_image_name(name) for name in model.names]
     return files
+
+
+def _copies_folder(folder: Path, undistorted_folder: str | os.PathLike | None) -> Path:
+    """Where the undistorted copies go: ``undistorted_folder``, by default
+    ``folder / UNDISTORTED_FOLDER``."""
+    return Path(undistorted_folder) if undistorted_folder is not None \
+        else folder / UNDISTORTED_FOLDER
 
 
 def export_nerfstudio(folder: str | os.PathLike, model: ColmapModel,
@@ -287,9 +293,8 @@ def export_nerfstudio(folder: str | os.PathLike, model: ColmapModel,
         if ply_file is not None:
             written.append(write_ply(ply_file, model.points3d, model.colors))
         if undistort:
-            copies = Path(undistorted_folder) if undistorted_folder is not None \
-                else folder / UNDISTORTED_FOLDER
-            model, paths = write_undistorted_images(copies, model, images)
+            model, paths = write_undistorted_images(
+                _copies_folder(folder, undistorted_folder), model, images)
             transforms = nerfstudio_transforms(model, paths, folder, ply_file)
         written.insert(0, write_json(json_file, transforms))
         if undistort:

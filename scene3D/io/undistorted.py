@@ -67,6 +67,26 @@ def model_image(images: str | os.PathLike | Mapping[str, ImageOrPath], name: str
     return Path(images) / name
 
 
+def require_camera_size(name: str, size: tuple[int, int] | None,
+                        camera: ColmapCamera) -> None:
+    """Raise ``ValueError`` when image ``name``, of ``size`` (None: not an image), is not
+    of the size ``camera`` is for.
+
+    Parameters
+    ----------
+    name : str
+        The image's name in the model.
+    size : (int, int) or None
+        ``(width, height)`` of the image.
+    camera : ColmapCamera
+        Its camera.
+    """
+    if size != camera.image_size:
+        shown = "not an image" if size is None else f"{size[0]}x{size[1]}"
+        raise ValueError(f"image '{name}' is {shown}, its camera is for "
+                         f"{camera.width}x{camera.height} images")
+
+
 def check_model_images(model: ColmapModel,
                        images: str | os.PathLike | Mapping[str, ImageOrPath]) -> None:
     """Check that ``images`` gives every image of ``model`` at the size its camera says
@@ -97,11 +117,7 @@ def check_model_images(model: ColmapModel,
                 raise FileNotFoundError(2, f"no file for the model's image '{name}'",
                                         str(source))
             size = read_image_size(source)
-        camera = model.camera(v)
-        if size != camera.image_size:
-            shown = "not an image" if size is None else f"{size[0]}x{size[1]}"
-            raise ValueError(f"image '{name}' is {shown}, its camera is for "
-                             f"{camera.width}x{camera.height} images")
+        require_camera_size(name, size, model.camera(v))
 
 
 def undistorted_image_name(name: str) -> str:
@@ -199,10 +215,7 @@ def write_undistorted_images(folder: str | os.PathLike, model: ColmapModel,
         camera = model.camera(v)
         source = model_image(images, name)
         image = load_bgr(source, name=name)
-        size = (image.shape[1], image.shape[0])
-        if size != camera.image_size:
-            raise ValueError(f"image '{name}' is {size[0]}x{size[1]}, its camera is for "
-                             f"{camera.width}x{camera.height} images")
+        require_camera_size(name, (image.shape[1], image.shape[0]), camera)
         path = folder / names[v]
         path.parent.mkdir(parents=True, exist_ok=True)
         written[names[v]] = write_png(path, undistort_image(image, camera.K, camera.dist))
