@@ -86,7 +86,7 @@ def camera_passes(
 
     Parameters
     ----------
-    attempt : (models, reasons, matched, verified)
+    attempt : (models, reasons, matched, verified edges)
         The last reconstruction, made with the cameras ``used``.
     reconstruct : callable
         ``reconstruct(K_work, features, start_from, known_cameras) -> Attempt``: the views
@@ -114,7 +114,7 @@ def camera_passes(
 
     Returns
     -------
-    attempt : (models, reasons, matched, verified)
+    attempt : (models, reasons, matched, verified edges)
         The last reconstruction kept.
     used : CameraPass
         The cameras it was made with.

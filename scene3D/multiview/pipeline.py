@@ -71,7 +71,7 @@ from .pairs import select_pairs
 from .results import cameras_result, to_input_order
 from .retrieval import describe_view, similarity_ranking, train_vocabulary
 from .settings import SfMSettings
-from .sfm_model import FocalEstimate, SfMModel
+from .sfm_model import FocalEstimate
 from .view_data import PairMatches, ViewFeatures
 
 logger = logging.getLogger(__name__)
@@ -326,9 +326,10 @@ def reconstruct_views(
 
     def reconstruct_with(K_work: np.ndarray, start_from: FocalEstimate | None = None,
                          known_cameras: np.ndarray | None = None
-                         ) -> tuple[list[SfMModel], dict[int, str], int, int]:
-        """The models under ``K_work``, the reasons for the views left out, and the
-        pairs matched and verified: pair verification depends on ``K``."""
+                         ) -> Attempt:
+        """The models under ``K_work``, the reasons for the views left out, the number of
+        pairs matched and the pairs verified, ``(i, j, inliers)`` in the views' order: pair
+        verification depends on ``K``."""
         with timer.stage("matching"):
             matched = {(i, j) for i, j in pair_list}
 
